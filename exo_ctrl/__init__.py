@@ -1,0 +1,63 @@
+"""exo_ctrl: model-based control and estimation of a treadmill gait exoskeleton.
+
+The pieces meet as: gait plan → inverse kinematics → controller → motors →
+plant (exoskeleton + patient + cuffs) → sensors → estimator, with a recorder
+watching.  Units are SI throughout; see the README for frames and signs.
+"""
+
+from .exceptions import (
+    ExoCtrlError,
+    InvalidModel,
+    InvalidParameter,
+    RecordingError,
+    SimulationDiverged,
+    UnreachableFootTarget,
+)
+from .gait import FootTrajectory, GaitParams, GaitPlan
+from .kinematics import (
+    JointTrajectory,
+    forward_kinematics,
+    inverse_kinematics,
+    joint_accelerations,
+    joint_rates,
+    plan_joints,
+)
+from .model import (
+    CUFF_NAMES,
+    JOINT_NAMES,
+    BodyModel,
+    LegGeometry,
+    default_urdf_path,
+    load_body,
+    load_human_patient,
+    load_patient,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CUFF_NAMES",
+    "JOINT_NAMES",
+    "BodyModel",
+    "ExoCtrlError",
+    "FootTrajectory",
+    "GaitParams",
+    "GaitPlan",
+    "InvalidModel",
+    "InvalidParameter",
+    "JointTrajectory",
+    "LegGeometry",
+    "RecordingError",
+    "SimulationDiverged",
+    "UnreachableFootTarget",
+    "__version__",
+    "default_urdf_path",
+    "forward_kinematics",
+    "inverse_kinematics",
+    "joint_accelerations",
+    "joint_rates",
+    "load_body",
+    "load_human_patient",
+    "load_patient",
+    "plan_joints",
+]

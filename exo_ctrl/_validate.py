@@ -1,0 +1,54 @@
+"""Small checks shared by the parameter classes.
+
+Each raises :class:`~exo_ctrl.exceptions.InvalidParameter` naming the
+parameter, its value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .exceptions import InvalidParameter
+
+
+def finite(name: str, value: float, unit: str = "") -> float:
+    """Return ``value`` as float if it is a finite real number."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InvalidParameter(name, value, f"a finite number{_in(unit)}") from None
+    if not math.isfinite(x):
+        raise InvalidParameter(name, value, f"a finite number{_in(unit)}")
+    return x
+
+
+def positive(name: str, value: float, unit: str = "") -> float:
+    """Return ``value`` if it is finite and > 0."""
+    x = finite(name, value, unit)
+    if x <= 0.0:
+        raise InvalidParameter(name, value, f"> 0{_u(unit)}")
+    return x
+
+
+def non_negative(name: str, value: float, unit: str = "") -> float:
+    """Return ``value`` if it is finite and >= 0."""
+    x = finite(name, value, unit)
+    if x < 0.0:
+        raise InvalidParameter(name, value, f">= 0{_u(unit)}")
+    return x
+
+
+def in_open_interval(name: str, value: float, lo: float, hi: float, unit: str = "") -> float:
+    """Return ``value`` if it is finite and lo < value < hi."""
+    x = finite(name, value, unit)
+    if not lo < x < hi:
+        raise InvalidParameter(name, value, f"in ({lo:g}, {hi:g}){_u(unit)}")
+    return x
+
+
+def _u(unit: str) -> str:
+    return f" {unit}" if unit else ""
+
+
+def _in(unit: str) -> str:
+    return f" [{unit}]" if unit else ""

@@ -1,0 +1,187 @@
+"""The ``exo-ctrl`` command.
+
+Every subcommand validates its input through the library; an
+:class:`~exo_ctrl.exceptions.ExoCtrlError` becomes a one-line message on
+stderr and exit code 2, never a traceback.  Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+
+from . import _validate as v
+from ._io import atomic_write
+from .exceptions import ExoCtrlError
+from .gait import GaitParams, GaitPlan
+from .kinematics import plan_joints
+from .model import JOINT_NAMES, default_urdf_path, load_body
+
+__all__ = ["GAIT_CSV_HEADER", "main"]
+
+GAIT_CSV_HEADER = (
+    "t",
+    "left_foot_x",
+    "left_foot_z",
+    "right_foot_x",
+    "right_foot_z",
+    "left_foot_vx",
+    "left_foot_vz",
+    "right_foot_vx",
+    "right_foot_vz",
+    "left_phi1",
+    "left_phi2",
+    "right_phi1",
+    "right_phi2",
+    *JOINT_NAMES,
+)
+
+
+# --------------------------------------------------------------------------- options
+
+
+def add_gait_options(parser: argparse.ArgumentParser) -> None:
+    """The gait parameter options shared by the subcommands (defaults: GaitParams)."""
+    d = GaitParams()
+    g = parser.add_argument_group("gait (paper §III)")
+    g.add_argument("--step-length", type=float, default=d.step_length, metavar="S",
+                   help=f"step length s [m] (default {d.step_length})")
+    g.add_argument("--lift-height", type=float, default=d.lift_height, metavar="H",
+                   help=f"foot lift h_s [m] (default {d.lift_height})")
+    g.add_argument("--hip-height", type=float, default=d.hip_height, metavar="HS",
+                   help=f"hip height above the belt H_s [m] (default {d.hip_height})")
+    g.add_argument("--shape-coeff", type=float, default=d.shape_coeff, metavar="KV",
+                   help=f"shape coefficient k_v = v_f / v_b (default {d.shape_coeff})")
+    g.add_argument("--period", type=float, default=d.period, metavar="T",
+                   help=f"gait period T_s [s] (default {d.period})")
+    g.add_argument("--duty-factor", type=float, default=d.duty_factor, metavar="B",
+                   help=f"stance fraction β of the period (default {d.duty_factor})")
+    g.add_argument("--exo", default=None, metavar="URDF",
+                   help="exoskeleton URDF (default: urdf/exoskeleton.urdf)")
+
+
+def gait_params_from(args: argparse.Namespace) -> GaitParams:
+    """GaitParams from the parsed gait options."""
+    return GaitParams(
+        step_length=args.step_length,
+        lift_height=args.lift_height,
+        hip_height=args.hip_height,
+        shape_coeff=args.shape_coeff,
+        period=args.period,
+        duty_factor=args.duty_factor,
+    )
+
+
+def load_exo(path: str | None):
+    """The exoskeleton from ``--exo`` (default: the committed URDF)."""
+    return load_body(path or default_urdf_path("exo"), name="exoskeleton")
+
+
+# --------------------------------------------------------------------------- gait
+
+
+def _cmd_gait(args: argparse.Namespace) -> int:
+    params = gait_params_from(args)
+    exo = load_exo(args.exo)
+    duration = v.positive("duration", args.duration if args.duration is not None else params.period, "s")
+    rate = v.positive("rate", args.rate, "Hz")
+    n = int(np.floor(duration * rate + 1e-9)) + 1
+    t = np.arange(n) / rate
+    joints = plan_joints(GaitPlan(params), exo, t)
+    rows = np.column_stack(
+        (
+            t,
+            joints.foot_pos.reshape(n, 4),
+            joints.foot_vel.reshape(n, 4),
+            joints.phi,
+            joints.q,
+        )
+    )
+    with atomic_write(args.csv) as handle:
+        writer = csv.writer(handle)
+        writer.writerow(GAIT_CSV_HEADER)
+        writer.writerows([[f"{x:.10g}" for x in row] for row in rows])
+    print(
+        f"wrote {n} samples over {duration:g} s to {args.csv} "
+        f"(belt speed {params.belt_speed:.4g} m/s, top-of-swing speed "
+        f"{params.swing_top_speed:.4g} m/s)"
+    )
+    return 0
+
+
+# --------------------------------------------------------------------------- urdf
+
+
+def _cmd_urdf(args: argparse.Namespace) -> int:
+    from .urdfgen import BodyParams, write_urdf
+
+    base = BodyParams.exo_default() if args.kind == "exo" else BodyParams.patient_default()
+    changes = {
+        name: getattr(args, name)
+        for name in ("thigh_length", "shank_length", "thigh_mass", "shank_mass",
+                     "thigh_cuff", "shank_cuff")
+        if getattr(args, name) is not None
+    }
+    params = base.replace(**changes)
+    path = write_urdf(params, args.out)
+    body = load_body(path, name=args.kind)
+    print(f"wrote {path}: {args.kind}, legs {body.legs['left'].thigh_length:g} m + "
+          f"{body.legs['left'].shank_length:g} m, moving mass {body.mass:.4g} kg")
+    return 0
+
+
+# --------------------------------------------------------------------------- main
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with exit code 2 and a one-line message on bad usage."""
+
+    def error(self, message: str) -> None:  # noqa: D102
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``exo-ctrl``."""
+    parser = _Parser(prog="exo-ctrl", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("gait", help="write the planned foot and joint motion as CSV")
+    add_gait_options(p)
+    p.add_argument("--duration", type=float, default=None, metavar="SEC",
+                   help="time span [s] (default: one period)")
+    p.add_argument("--rate", type=float, default=100.0, metavar="HZ",
+                   help="sample rate [Hz] (default 100)")
+    p.add_argument("--csv", required=True, metavar="PATH", help="output CSV file")
+    p.set_defaults(func=_cmd_gait)
+
+    p = sub.add_parser("urdf", help="generate an exoskeleton or patient URDF")
+    p.add_argument("--kind", choices=("exo", "patient"), required=True)
+    for name, unit in (("thigh-length", "m"), ("shank-length", "m"), ("thigh-mass", "kg"),
+                       ("shank-mass", "kg"), ("thigh-cuff", "m"), ("shank-cuff", "m")):
+        p.add_argument(f"--{name}", type=float, default=None, metavar=unit.upper(),
+                       help=f"{name.replace('-', ' ')} [{unit}] (default: paper Table I)")
+    p.add_argument("--out", required=True, metavar="PATH", help="output URDF file")
+    p.set_defaults(func=_cmd_urdf)
+
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``exo-ctrl``; returns the exit code (0 success, 2 bad input, 130 interrupted)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except ExoCtrlError as exc:
+        print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"exo-ctrl {args.command}: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,70 @@
+"""What every controller sees and returns.
+
+A controller is built with the plan (joint targets sampled at the control
+rate) and, per tick, gets the tick index and the sensor readings; it returns
+the four drive voltages [V] in JOINT_NAMES order.  It never reads the plant.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from .. import _validate as v
+from ..exceptions import InvalidParameter
+
+__all__ = ["Controller", "PDGains", "SensorReadings"]
+
+
+@dataclass
+class SensorReadings:
+    """One tick's sensor readings, arrays of shape (4,) in JOINT_NAMES order.
+
+    Attributes:
+        q: joint angles from the encoders [rad].
+        dq: joint speeds [rad/s].
+        tau: joint torques at the drive outputs, from the torque sensors [N·m].
+    """
+
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+
+
+class Controller(Protocol):
+    """Plan and sensors in, drive voltages out."""
+
+    name: str
+
+    def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
+        """Drive voltages [V], (4,), for control tick ``k`` (a buffer the caller may not keep)."""
+        ...
+
+
+@dataclass(frozen=True)
+class PDGains:
+    """Gains of the paper's PD voltage law U = k_p (q* - q) + k_d (q̇* - q̇).
+
+    Chosen by simulation on the default scenario (the paper gives no values):
+    with the default drive the steady-state joint speed per volt is
+    k_E / i_G ≈ 0.52 rad/(V·s), so k_p = 100 V/rad closes a position loop of
+    about 50 rad/s; k_d = 2 V·s/rad damps it.
+
+    Attributes:
+        kp: proportional gain per joint [V/rad], (4,) or scalar.
+        kd: derivative gain per joint [V·s/rad], (4,) or scalar.
+    """
+
+    kp: tuple[float, ...] | float = 100.0
+    kd: tuple[float, ...] | float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("kp", "kd"):
+            arr = np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (4,))
+            for value in arr:
+                v.non_negative(name, value, "V/rad" if name == "kp" else "V·s/rad")
+            if name == "kp" and not np.all(arr > 0):
+                raise InvalidParameter("kp", getattr(self, name), "> 0 V/rad for every joint")
+            object.__setattr__(self, name, tuple(float(x) for x in arr))

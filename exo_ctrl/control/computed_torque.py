@@ -1,0 +1,110 @@
+"""Computed-torque feedforward on top of the paper's PD.
+
+The drive torque the planned motion needs is computed from the models:
+
+    τ_ff = RNEA_exo(q*, q̇*, q̈*) + i_G² J_rotor q̈* + b_exo q̇* + f_exo tanh(q̇*/ε)
+         + RNEA_patient(q*, q̇*, q̈*) + b_patient q̇* + f_patient tanh(q̇*/ε),
+
+the second line being the patient's load carried through the cuffs: with the
+cuffs fitted so that the patient's hip and knee axes coincide with the
+exoskeleton's (how the device is adjusted to a patient), a rigid cuff makes
+the patient follow the same joint angles, and by virtual work the torque
+that moves the patient is the patient's own inverse dynamics.  Patient joint
+torques are unknown to the controller and taken as zero.  τ_ff becomes a
+voltage through the steady-state motor model, U_ff = R τ_ff / (i_G k_m) +
+i_G q̇* / k_E (the back-EMF at the planned speed is the larger part), and is
+added to the PD voltage.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ..kinematics import JointTrajectory
+from ..model import BodyModel
+from ..motor import MotorBank, MotorParams
+from ..model import FRICTION_SMOOTHING_RAD_S
+from .base import PDGains, SensorReadings
+from .pd import PDController
+
+__all__ = ["ComputedTorqueController", "feedforward_torque"]
+
+
+class ComputedTorqueController(PDController):
+    """PD plus model-based feedforward voltage.
+
+    Args:
+        plan: joint targets at the control ticks.
+        exo: the exoskeleton model the controller believes in.
+        patient: the patient model (None: the exoskeleton alone).
+        motor: the drive model.
+        gains: the PD gains (the same as the plain PD for a fair comparison).
+    """
+
+    name = "ct"
+
+    def __init__(
+        self,
+        plan: JointTrajectory,
+        exo: BodyModel,
+        patient: BodyModel | None,
+        motor: MotorParams,
+        gains: PDGains | None = None,
+    ) -> None:
+        super().__init__(plan, gains)
+        self._ff = _Feedforward(exo, patient, motor)
+        self._motor = MotorBank(4, motor)
+        self._u_ff = np.zeros(4)
+        #: Feedforward torque of the last tick [N·m].
+        self.torque_ff = np.zeros(4)
+
+    def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
+        """PD + feedforward voltages [V] for tick k."""
+        plan = self.plan
+        self._ff.torque(plan.q[k], plan.dq[k], plan.ddq[k], out=self.torque_ff)
+        self._motor.voltage_for(self.torque_ff, plan.dq[k], out=self._u_ff)
+        u = self._pd(k, sensors)
+        np.add(u, self._u_ff, out=u)
+        return u
+
+
+class _Feedforward:
+    """τ_ff of the module docstring, allocated once."""
+
+    def __init__(self, exo: BodyModel, patient: BodyModel | None, motor: MotorParams) -> None:
+        self._me = pin.Model(exo.model)
+        self._me.armature = np.full(exo.model.nv, motor.reflected_inertia_kgm2)
+        self._de = self._me.createData()
+        self._b = exo.damping.copy()
+        self._fr = exo.friction.copy()
+        self._mp = None
+        if patient is not None:
+            self._mp = pin.Model(patient.model)
+            self._dp = self._mp.createData()
+            self._b += patient.damping
+            self._fr += patient.friction
+        self._tmp = np.zeros(4)
+
+    def torque(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, out: np.ndarray) -> np.ndarray:
+        out[:] = pin.rnea(self._me, self._de, q, dq, ddq)
+        if self._mp is not None:
+            np.add(out, pin.rnea(self._mp, self._dp, q, dq, ddq), out=out)
+        np.multiply(self._b, dq, out=self._tmp)
+        np.add(out, self._tmp, out=out)
+        np.divide(dq, FRICTION_SMOOTHING_RAD_S, out=self._tmp)
+        np.tanh(self._tmp, out=self._tmp)
+        np.multiply(self._tmp, self._fr, out=self._tmp)
+        np.add(out, self._tmp, out=out)
+        return out
+
+
+def feedforward_torque(
+    plan: JointTrajectory, exo: BodyModel, patient: BodyModel | None, motor: MotorParams
+) -> np.ndarray:
+    """τ_ff along a whole plan, (N, 4) [N·m] (for analysis and the QP)."""
+    ff = _Feedforward(exo, patient, motor)
+    out = np.zeros_like(plan.q)
+    for k in range(plan.q.shape[0]):
+        ff.torque(plan.q[k], plan.dq[k], plan.ddq[k], out=out[k])
+    return out

@@ -1,0 +1,111 @@
+"""Exceptions raised by exo_ctrl.
+
+Every error the library raises on purpose derives from :class:`ExoCtrlError`,
+and, where it fits, from the matching built-in (``ValueError`` for bad input,
+``RuntimeError`` for a failed run), so callers can catch either.  Each
+subclass carries the data that explains it as attributes.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ExoCtrlError",
+    "InvalidParameter",
+    "InvalidModel",
+    "UnreachableFootTarget",
+    "SimulationDiverged",
+    "RecordingError",
+]
+
+
+class ExoCtrlError(Exception):
+    """Base class of every error raised by exo_ctrl."""
+
+
+class InvalidParameter(ExoCtrlError, ValueError):
+    """A parameter is outside what is allowed.
+
+    Attributes:
+        name: parameter name as the user spells it (``step_length``).
+        value: the offending value.
+        allowed: what is allowed, in words with units (``"in (0, 2] m"``).
+    """
+
+    def __init__(self, name: str, value: object, allowed: str, detail: str = "") -> None:
+        self.name = name
+        self.value = value
+        self.allowed = allowed
+        message = f"{name} must be {allowed}; got {value!r}"
+        if detail:
+            message += f" ({detail})"
+        super().__init__(message)
+
+
+class InvalidModel(ExoCtrlError, ValueError):
+    """A robot model (URDF) cannot be used.
+
+    Attributes:
+        source: file path or model name.
+        element: the link, joint or frame at fault ("" for the whole file).
+        reason: what is wrong and what is required.
+    """
+
+    def __init__(self, source: str, element: str, reason: str) -> None:
+        self.source = source
+        self.element = element
+        self.reason = reason
+        where = f"{element!r} in {source}" if element else source
+        super().__init__(f"invalid model: {where}: {reason}")
+
+
+class UnreachableFootTarget(ExoCtrlError, ValueError):
+    """A planned foot point lies outside the leg's reachable annulus.
+
+    Attributes:
+        point: (x, z) of the foot relative to the hip [m].
+        reach: (min_reach, max_reach) distance hip to foot [m].
+        time: time of the point on the plan [s], or None.
+    """
+
+    def __init__(
+        self,
+        point: tuple[float, float],
+        reach: tuple[float, float],
+        time: float | None = None,
+        what: str = "foot target",
+    ) -> None:
+        self.point = point
+        self.reach = reach
+        self.time = time
+        distance = (point[0] ** 2 + point[1] ** 2) ** 0.5
+        at = f" at t = {time:.4g} s" if time is not None else ""
+        super().__init__(
+            f"{what} (x = {point[0]:.4g} m, z = {point[1]:.4g} m){at} is "
+            f"{distance:.4g} m from the hip; the leg reaches from "
+            f"{reach[0]:.4g} m to {reach[1]:.4g} m"
+        )
+
+
+class SimulationDiverged(ExoCtrlError, RuntimeError):
+    """A simulated quantity became non-finite or absurdly large.
+
+    Attributes:
+        time: simulated time of the failure [s].
+        quantity: name of the quantity that blew up.
+        value: its value.
+        limit: the bound it crossed.
+    """
+
+    def __init__(self, time: float, quantity: str, value: float, limit: float) -> None:
+        self.time = time
+        self.quantity = quantity
+        self.value = value
+        self.limit = limit
+        super().__init__(
+            f"simulation diverged at t = {time:.4f} s: {quantity} = {value:.4g} "
+            f"(allowed magnitude {limit:.4g})"
+        )
+
+
+class RecordingError(ExoCtrlError, RuntimeError):
+    """A recording could not be written or read back."""

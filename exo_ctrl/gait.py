@@ -1,0 +1,248 @@
+"""The paper's gait planner (§III): foot paths synchronised with the belt.
+
+Each foot point moves in the sagittal plane relative to its hip joint
+(x forward, z up, metres).  One gait cycle of period T_s, for the left leg, in
+phase time τ = mod(t, T_s):
+
+========================  =====================  ==============================
+phase                     τ                      foot path
+========================  =====================  ==============================
+swing, A → B              [0, T_sw/2)            cubic: x 0 → s/2, z -(H-h) → -H
+stance, B → C → D         [T_sw/2, T_sw/2+T_st)  x = s/2 - v_f (τ - T_sw/2), z = -H
+swing, D → A              [T_sw/2+T_st, T_s)     cubic: x -s/2 → 0, z -H → -(H-h)
+========================  =====================  ==============================
+
+with the stance time T_st = β T_s and swing time T_sw = (1 - β) T_s for a
+duty factor β (stance fraction; the paper's four equal phases are β = 0.5).
+The right leg runs the same path half a period later, so at t = 0 the left
+foot is at the top of its swing (A) and the right foot at mid-stance (C).
+
+Boundary conditions (paper §III): at A, x = 0, z = -(H_s - h_s), ẋ = v_b,
+ż = 0; at B, x = s/2, z = -H_s, ẋ = -v_f, ż = 0; at D, x = -s/2, z = -H_s,
+ẋ = -v_f, ż = 0.  The stance foot moves with the belt: ẋ = -v_f, so the belt
+speed is v_f = s / (β T_s) (= 2 s / T_s for β = 0.5), and the top-of-swing
+speed is v_b = v_f / k_v.  The paths are C¹ (positions and velocities
+continuous; accelerations jump at B and D).
+
+Each cubic segment q(τ) = Σ k_i τ^i meets (q0, q1, q̇0, q̇1) at its ends; the
+paper writes the coefficients as the inverse of its 4×4 matrix applied to
+those values.  Here each segment is evaluated in local time u = τ - τ0 ∈ [0, d],
+where that inverse has the closed form
+k0 = q0, k1 = q̇0, k2 = (3Δ - (2 q̇0 + q̇1) d) / d², k3 = (-2Δ + (q̇0 + q̇1) d) / d³,
+Δ = q1 - q0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _validate as v
+from .exceptions import InvalidParameter, UnreachableFootTarget
+
+__all__ = ["FootTrajectory", "GaitParams", "GaitPlan"]
+
+#: Smallest knee flexion the plan may ask for [rad]; a straighter knee is
+#: close to the kinematic singularity, where joint speeds blow up.
+MIN_KNEE_FLEXION_RAD = 0.1
+
+
+@dataclass(frozen=True)
+class GaitParams:
+    """Gait parameter vector s̄ = (s, h_s, H_s, k_v, T_s) of the paper, plus β.
+
+    Attributes:
+        step_length: s, distance the foot travels on the belt per stance [m].
+        lift_height: h_s, foot lift at the top of the swing [m].
+        hip_height: H_s, height of the hip joint above the belt [m].
+        shape_coeff: k_v = v_f / v_b, belt speed over top-of-swing speed [-].
+        period: T_s, duration of one gait cycle (one step of each leg) [s].
+        duty_factor: β, fraction of the period a foot is on the belt [-];
+            0.5 is the paper's schedule, above 0.5 gives double support.
+    """
+
+    step_length: float = 0.35
+    lift_height: float = 0.10
+    hip_height: float = 0.90
+    shape_coeff: float = 0.5
+    period: float = 1.2
+    duty_factor: float = 0.5
+
+    def __post_init__(self) -> None:
+        v.positive("step_length", self.step_length, "m")
+        v.positive("lift_height", self.lift_height, "m")
+        v.positive("hip_height", self.hip_height, "m")
+        v.positive("shape_coeff", self.shape_coeff)
+        v.positive("period", self.period, "s")
+        d = v.finite("duty_factor", self.duty_factor)
+        if not 0.5 <= d < 1.0:
+            raise InvalidParameter("duty_factor", self.duty_factor, "in [0.5, 1)")
+        if self.lift_height >= self.hip_height:
+            raise InvalidParameter(
+                "lift_height",
+                self.lift_height,
+                f"< hip_height = {self.hip_height:g} m",
+                "the foot would rise to the hip",
+            )
+
+    @property
+    def belt_speed(self) -> float:
+        """v_f: belt speed, equal to the stance foot's backward speed [m/s]."""
+        return self.step_length / (self.duty_factor * self.period)
+
+    @property
+    def swing_top_speed(self) -> float:
+        """v_b = v_f / k_v: forward foot speed at the top of the swing [m/s]."""
+        return self.belt_speed / self.shape_coeff
+
+    @property
+    def stance_time(self) -> float:
+        """T_st = β T_s [s]."""
+        return self.duty_factor * self.period
+
+    @property
+    def swing_time(self) -> float:
+        """T_sw = (1 - β) T_s [s]."""
+        return (1.0 - self.duty_factor) * self.period
+
+
+@dataclass(frozen=True)
+class FootTrajectory:
+    """Foot motion of both legs relative to their hips, sampled at times ``t``.
+
+    Arrays have shape (N, 2, 2): sample, leg (0 left, 1 right), axis (0 x, 1 z).
+
+    Attributes:
+        t: sample times [s], shape (N,).
+        pos: foot position [m].
+        vel: foot velocity [m/s].
+        acc: foot acceleration [m/s²].
+        stance: True where the foot is on the belt, shape (N, 2).
+    """
+
+    t: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    stance: np.ndarray
+
+
+class GaitPlan:
+    """Analytic foot paths of both legs for a :class:`GaitParams`.
+
+    Args:
+        params: the gait.
+    """
+
+    def __init__(self, params: GaitParams) -> None:
+        self.params = params
+        p = params
+        half_swing = p.swing_time / 2.0
+        self._half_swing = half_swing
+        self._stance_end = half_swing + p.stance_time
+        vf, vb, s, H, h = p.belt_speed, p.swing_top_speed, p.step_length, p.hip_height, p.lift_height
+        # (segment start τ0, duration d, x0, x1, ẋ0, ẋ1, z0, z1) for A→B and D→A.
+        self._ab = _Cubic2(half_swing, 0.0, s / 2, vb, -vf, -(H - h), -H)
+        self._da = _Cubic2(half_swing, -s / 2, 0.0, -vf, vb, -H, -(H - h))
+
+    # ------------------------------------------------------------------ evaluation
+
+    def feet(self, t: np.ndarray | float) -> FootTrajectory:
+        """Positions, velocities and accelerations of both feet at times ``t`` [s]."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if not np.all(np.isfinite(t)):
+            raise InvalidParameter("t", "non-finite time", "finite times in s")
+        n = t.shape[0]
+        pos = np.empty((n, 2, 2))
+        vel = np.empty((n, 2, 2))
+        acc = np.empty((n, 2, 2))
+        stance = np.empty((n, 2), dtype=bool)
+        for leg, offset in enumerate((0.0, 0.5 * self.params.period)):
+            tau = np.mod(t + offset, self.params.period)
+            pos[:, leg], vel[:, leg], acc[:, leg], stance[:, leg] = self._leg(tau)
+        return FootTrajectory(t=t, pos=pos, vel=vel, acc=acc, stance=stance)
+
+    def _leg(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        p = self.params
+        vf, s, H = p.belt_speed, p.step_length, p.hip_height
+        n = tau.shape[0]
+        pos = np.empty((n, 2))
+        vel = np.empty((n, 2))
+        acc = np.zeros((n, 2))
+        ab = tau < self._half_swing
+        st = (~ab) & (tau < self._stance_end)
+        da = ~(ab | st)
+        pos[ab], vel[ab], acc[ab] = self._ab(tau[ab])
+        pos[da], vel[da], acc[da] = self._da(tau[da] - self._stance_end)
+        u = tau[st] - self._half_swing
+        pos[st, 0] = s / 2 - vf * u
+        pos[st, 1] = -H
+        vel[st, 0] = -vf
+        vel[st, 1] = 0.0
+        return pos, vel, acc, st
+
+    # ------------------------------------------------------------------ validation
+
+    def check_reach(self, thigh_length: float, shank_length: float, side: str = "left") -> None:
+        """Raise :class:`UnreachableFootTarget` if any path point is out of reach.
+
+        The path is sampled densely (4096 points per period, phase boundaries
+        included).  A point is reachable if its distance r from the hip
+        satisfies |l1 - l2| ≤ r ≤ r_max, where
+        r_max = sqrt(l1² + l2² + 2 l1 l2 cos θ_min) is the hip-to-foot
+        distance with the knee flexed by θ_min = :data:`MIN_KNEE_FLEXION_RAD`
+        (a nearly straight knee is singular).  Both legs follow the same path,
+        so checking one leg's path against its lengths suffices.
+
+        Args:
+            thigh_length: l1 [m].
+            shank_length: l2 [m].
+            side: leg named in the message.
+        """
+        l1, l2 = thigh_length, shank_length
+        r_min = abs(l1 - l2)
+        r_max = float(np.sqrt(l1**2 + l2**2 + 2 * l1 * l2 * np.cos(MIN_KNEE_FLEXION_RAD)))
+        t = np.linspace(0.0, self.params.period, 4097)
+        t = np.union1d(t, [self._half_swing, self._stance_end])
+        feet = self.feet(t)
+        r = np.hypot(feet.pos[:, 0, 0], feet.pos[:, 0, 1])
+        bad = np.flatnonzero((r > r_max) | (r < r_min))
+        if bad.size:
+            i = bad[np.argmax(np.maximum(r[bad] - r_max, r_min - r[bad]))]
+            x, z = feet.pos[i, 0]
+            raise UnreachableFootTarget(
+                (float(x), float(z)), (r_min, r_max), time=float(t[i]), what=f"{side} foot path point"
+            )
+
+
+class _Cubic2:
+    """A cubic Hermite segment in x and z over local time u ∈ [0, d]."""
+
+    def __init__(
+        self, d: float, x0: float, x1: float, dx0: float, dx1: float, z0: float, z1: float
+    ) -> None:
+        self.d = d
+        self.kx = _hermite(d, x0, x1, dx0, dx1)
+        self.kz = _hermite(d, z0, z1, 0.0, 0.0)
+
+    def __call__(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        pos = np.empty((u.shape[0], 2))
+        vel = np.empty_like(pos)
+        acc = np.empty_like(pos)
+        for axis, k in enumerate((self.kx, self.kz)):
+            pos[:, axis] = k[0] + u * (k[1] + u * (k[2] + u * k[3]))
+            vel[:, axis] = k[1] + u * (2 * k[2] + 3 * k[3] * u)
+            acc[:, axis] = 2 * k[2] + 6 * k[3] * u
+        return pos, vel, acc
+
+
+def _hermite(d: float, q0: float, q1: float, dq0: float, dq1: float) -> tuple[float, ...]:
+    """Coefficients (k0..k3) of the cubic on [0, d] meeting (q0, q1, q̇0, q̇1)."""
+    delta = q1 - q0
+    return (
+        q0,
+        dq0,
+        (3 * delta - (2 * dq0 + dq1) * d) / d**2,
+        (-2 * delta + (dq0 + dq1) * d) / d**3,
+    )

@@ -1,0 +1,336 @@
+"""The closed loop: plan → controller → drives → plant → sensors, and its results.
+
+One control tick k at t_k = k Δt: the sensors read the plant, the controller
+turns the plan's row k and the readings into drive voltages, and the plant
+advances by Δt (in ``plant_substeps`` equal steps) with the voltages held.
+Row k of every logged signal holds the state at t_k and what acted over
+[t_k, t_k+1): command, applied voltage, mean current, drive torque, cuff
+force (at mid-step).
+
+The loop writes its signals into chunk buffers of ``chunk_ticks`` rows.  Each
+full chunk is handed to the observers (the recorder) and, unless
+``keep_history`` is off, copied into the result; so a long run that is only
+recorded holds one chunk in memory.  A run that diverges or is interrupted
+(Ctrl-C) ends with the ticks done so far, its status and its error: nothing
+is lost.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from . import _validate as v
+from ._progress import Progress
+from .control import ComputedTorqueController, PDController, PDGains, SensorReadings
+from .cuffs import CuffParams
+from .exceptions import InvalidParameter, SimulationDiverged
+from .gait import GaitParams, GaitPlan
+from .kinematics import JointTrajectory, plan_joints
+from .model import BodyModel, default_urdf_path, load_body, load_patient
+from .motor import MotorParams
+from .plant import Plant
+
+__all__ = ["SIGNALS", "SimConfig", "SimObserver", "SimResult", "simulate"]
+
+CONTROLLERS = ("pd", "ct")
+
+#: Logged signals: name → (shape of one row, unit, description).
+SIGNALS: dict[str, tuple[tuple[int, ...], str, str]] = {
+    "q_des": ((4,), "rad", "planned joint angles"),
+    "dq_des": ((4,), "rad/s", "planned joint speeds"),
+    "q": ((4,), "rad", "exoskeleton joint angles"),
+    "dq": ((4,), "rad/s", "exoskeleton joint speeds"),
+    "q_patient": ((4,), "rad", "patient joint angles"),
+    "dq_patient": ((4,), "rad/s", "patient joint speeds"),
+    "voltage_cmd": ((4,), "V", "controller's drive voltage command"),
+    "voltage": ((4,), "V", "drive voltage applied (after supply saturation)"),
+    "current": ((4,), "A", "mean drive current over the tick"),
+    "drive_torque": ((4,), "N·m", "drive torque at the joint"),
+    "patient_torque": ((4,), "N·m", "patient joint torque"),
+    "cuff_force": ((4, 2), "N", "cuff force on the exoskeleton (x, z)"),
+}
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything that defines a run.
+
+    Attributes:
+        gait: the gait (paper §III).
+        exo: exoskeleton URDF path (None: the committed default).
+        patient: patient URDF path, ``"human"`` (example-robot-data) or None
+            (the committed default).
+        controller: ``"pd"`` (paper) or ``"ct"`` (computed torque + PD).
+        gains: PD gains (shared by both controllers).
+        motor: drive parameters.
+        cuffs: cuff parameters.
+        duration_s: simulated time [s].
+        control_rate_hz: control rate [Hz] (default 1 kHz).
+        plant_substeps: plant steps per control tick (plant step = Δt / n).
+        chunk_ticks: rows per logging chunk.
+    """
+
+    gait: GaitParams = field(default_factory=GaitParams)
+    exo: str | None = None
+    patient: str | None = None
+    controller: str = "pd"
+    gains: PDGains = field(default_factory=PDGains)
+    motor: MotorParams = field(default_factory=MotorParams)
+    cuffs: CuffParams = field(default_factory=CuffParams)
+    duration_s: float = 2.4
+    control_rate_hz: float = 1000.0
+    plant_substeps: int = 1
+    chunk_ticks: int = 2000
+
+    def __post_init__(self) -> None:
+        if self.controller not in CONTROLLERS:
+            raise InvalidParameter("controller", self.controller, f"one of {', '.join(CONTROLLERS)}")
+        v.positive("duration", self.duration_s, "s")
+        rate = v.positive("control_rate", self.control_rate_hz, "Hz")
+        if not 10.0 <= rate <= 100_000.0:
+            raise InvalidParameter("control_rate", self.control_rate_hz, "in [10, 100000] Hz")
+        for name in ("plant_substeps", "chunk_ticks"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InvalidParameter(name, value, "an integer >= 1")
+        if self.duration_s * self.control_rate_hz > 50_000_000:
+            raise InvalidParameter(
+                "duration", self.duration_s, "at most 5e7 control ticks (duration × rate)"
+            )
+
+    @property
+    def dt(self) -> float:
+        """Control period Δt [s]."""
+        return 1.0 / self.control_rate_hz
+
+    @property
+    def n_ticks(self) -> int:
+        """Number of control ticks."""
+        return int(math.floor(self.duration_s * self.control_rate_hz + 1e-9))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form (JSON-able), for summaries and recordings."""
+        return asdict(self)
+
+
+class SimObserver(Protocol):
+    """Something that watches a run (the recorder)."""
+
+    def start(self, result: SimResult) -> None:
+        """Called once before the first tick."""
+
+    def chunk(self, result: SimResult, start: int, rows: dict[str, np.ndarray]) -> None:
+        """Called with rows ``start:start+len`` of every signal (views, copy to keep)."""
+
+    def finish(self, result: SimResult) -> None:
+        """Called once at the end, whatever the outcome (status and error set)."""
+
+
+@dataclass
+class SimResult:
+    """A run's time series and outcome.
+
+    Attributes:
+        config: the run's configuration.
+        t: tick times [s], (N,).
+        signals: name → array (N, *shape) for every entry of :data:`SIGNALS`.
+        status: ``"completed"``, ``"interrupted"`` or ``"diverged"``.
+        error: the error message when not completed.
+        wall_time_s: wall-clock time of the loop [s].
+        belt_speed_mps: belt speed v_f [m/s].
+        exo_source: the exoskeleton URDF used; patient_source likewise.
+    """
+
+    config: SimConfig
+    t: np.ndarray
+    signals: dict[str, np.ndarray]
+    status: str = "completed"
+    error: str = ""
+    wall_time_s: float = 0.0
+    belt_speed_mps: float = 0.0
+    exo_source: str = ""
+    patient_source: str = ""
+    events: list[dict[str, Any]] = field(default_factory=list)
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        signals = self.__dict__.get("signals", {})
+        if name in signals:
+            return signals[name]
+        raise AttributeError(name)
+
+    @property
+    def n_ticks(self) -> int:
+        """Number of ticks run."""
+        return int(self.t.shape[0])
+
+    @property
+    def duration_s(self) -> float:
+        """Simulated time covered [s]."""
+        return self.n_ticks * self.config.dt
+
+    def summary(self) -> dict[str, Any]:
+        """The run's figures (JSON-able); see the README for the keys."""
+        from .summary import summarize
+
+        return summarize(self)
+
+
+@dataclass
+class _Setup:
+    exo: BodyModel
+    patient: BodyModel
+    plan: JointTrajectory
+    plant: Plant
+    controller: PDController
+
+
+def build(config: SimConfig) -> _Setup:
+    """Load the models, plan the run and build the plant and controller."""
+    exo = load_body(config.exo or default_urdf_path("exo"), name="exoskeleton")
+    patient = load_patient(config.patient)
+    n = config.n_ticks
+    t = np.arange(n + 1) * config.dt
+    plan = plan_joints(GaitPlan(config.gait), exo, t)
+    plant = Plant(exo, patient, dt=config.dt / config.plant_substeps, motors=config.motor,
+                  cuffs=config.cuffs)
+    controller: PDController
+    if config.controller == "ct":
+        controller = ComputedTorqueController(plan, exo, patient, config.motor, config.gains)
+    else:
+        controller = PDController(plan, config.gains)
+    return _Setup(exo, patient, plan, plant, controller)
+
+
+def simulate(
+    config: SimConfig,
+    observers: Sequence[SimObserver] = (),
+    progress: bool = False,
+    keep_history: bool = True,
+) -> SimResult:
+    """Run the closed loop.
+
+    Args:
+        config: the run.
+        observers: watchers called per chunk (see :class:`SimObserver`).
+        progress: draw a progress bar on stderr (for runs over ~2 s of wall time).
+        keep_history: keep every signal in the result (off: only the last
+            chunk is held, for long recorded runs).
+
+    Returns:
+        The result; ``status`` says whether it completed.  A divergence or
+        Ctrl-C ends the run early with the ticks done so far.
+    """
+    setup = build(config)
+    n = config.n_ticks
+    plan, plant, ctrl = setup.plan, setup.plant, setup.controller
+    motor_params = config.motor
+    # Start on the plan with the planned speed; drive currents carry the
+    # feedforward torque of t = 0 so the legs do not sag at the start.
+    from .control import feedforward_torque
+
+    tau0 = feedforward_torque(_first(plan), setup.exo, setup.patient, motor_params)[0]
+    i0 = np.clip(tau0 / motor_params.torque_per_amp_Nm_per_A, -motor_params.current_limit_A,
+                 motor_params.current_limit_A)
+    plant.reset(plan.q[0], plan.dq[0], current_A=i0)
+
+    chunk = min(config.chunk_ticks, max(n, 1))
+    buf = {name: np.zeros((chunk, *shape)) for name, (shape, _, _) in SIGNALS.items()}
+    hist_n = n if keep_history else 0
+    history = {name: np.zeros((hist_n, *shape)) for name, (shape, _, _) in SIGNALS.items()}
+    result = SimResult(
+        config=config,
+        t=np.arange(hist_n) * config.dt,
+        signals=history,
+        belt_speed_mps=config.gait.belt_speed,
+        exo_source=setup.exo.source,
+        patient_source=setup.patient.source,
+    )
+    for obs in observers:
+        obs.start(result)
+
+    sensors = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
+    q, dq = plant.q, plant.v
+    substeps = config.plant_substeps
+    bar = Progress(n, "simulate", enabled=progress)
+    start_wall = time.perf_counter()
+    k = 0
+    row = 0
+    chunk_start = 0
+    b_qd, b_dqd, b_q, b_dq = buf["q_des"], buf["dq_des"], buf["q"], buf["dq"]
+    b_qp, b_dqp, b_uc, b_u = buf["q_patient"], buf["dq_patient"], buf["voltage_cmd"], buf["voltage"]
+    b_i, b_tau, b_tp, b_f = buf["current"], buf["drive_torque"], buf["patient_torque"], buf["cuff_force"]
+    motors = plant.motors
+    cuff_f = plant.cuff_force
+
+    def flush(rows: int) -> None:
+        view = {name: arr[:rows] for name, arr in buf.items()}
+        if keep_history:
+            for name, arr in view.items():
+                history[name][chunk_start : chunk_start + rows] = arr
+        for obs in observers:
+            obs.chunk(result, chunk_start, view)
+
+    try:
+        for k in range(n):
+            np.copyto(sensors.q, q[:4])
+            np.copyto(sensors.dq, dq[:4])
+            np.copyto(sensors.tau, plant.drive_torque)
+            b_q[row] = q[:4]
+            b_dq[row] = dq[:4]
+            b_qp[row] = q[4:]
+            b_dqp[row] = dq[4:]
+            u = ctrl.command(k, sensors)
+            b_uc[row] = u
+            for _ in range(substeps):
+                plant.step(u)
+            b_u[row] = motors.applied_voltage_V
+            b_i[row] = motors.mean_current_A
+            b_tau[row] = plant.drive_torque
+            b_tp[row] = plant.patient_torque
+            b_f[row, :, 0] = cuff_f.real
+            b_f[row, :, 1] = cuff_f.imag
+            row += 1
+            if row == chunk:
+                b_qd[:] = plan.q[chunk_start : chunk_start + row]
+                b_dqd[:] = plan.dq[chunk_start : chunk_start + row]
+                flush(row)
+                chunk_start += row
+                row = 0
+                bar.update(chunk_start)
+        k = n
+    except SimulationDiverged as exc:
+        result.status = "diverged"
+        result.error = str(exc)
+        result.events.append({"t": exc.time, "kind": "diverged", "message": str(exc)})
+    except KeyboardInterrupt:
+        result.status = "interrupted"
+        result.error = f"interrupted by the user at t = {k * config.dt:.4f} s"
+        result.events.append({"t": k * config.dt, "kind": "interrupted", "message": result.error})
+    finally:
+        result.wall_time_s = time.perf_counter() - start_wall
+        done = chunk_start + row
+        if row:
+            b_qd[:row] = plan.q[chunk_start:done]
+            b_dqd[:row] = plan.dq[chunk_start:done]
+            flush(row)
+        bar.close(done)
+        if keep_history and done < n:
+            result.t = result.t[:done]
+            result.signals = {name: arr[:done] for name, arr in history.items()}
+        for obs in observers:
+            obs.finish(result)
+    return result
+
+
+def _first(plan: JointTrajectory) -> JointTrajectory:
+    return JointTrajectory(
+        t=plan.t[:1], q=plan.q[:1], dq=plan.dq[:1], ddq=plan.ddq[:1], phi=plan.phi[:1],
+        foot_pos=plan.foot_pos[:1], foot_vel=plan.foot_vel[:1],
+    )
+

@@ -1,0 +1,65 @@
+"""Shared fixtures: the default exoskeleton, the human patient and a URDF with other lengths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from exo_ctrl.model import BodyModel, default_urdf_path, load_body, load_human_patient
+from exo_ctrl.urdfgen import BodyParams, write_urdf
+
+#: Thigh and shank of the "other lengths" exoskeleton [m].
+SHORT_THIGH = 0.45
+SHORT_SHANK = 0.40
+
+
+def short_exo_params() -> BodyParams:
+    """Exoskeleton with a 0.45 m thigh and a 0.40 m shank.
+
+    The default shank cuff sits 0.45 m below the knee, which does not fit on a
+    0.40 m shank (BodyParams refuses it), so the cuff is moved to 0.35 m.
+    """
+    return BodyParams.exo_default(
+        thigh_length=SHORT_THIGH, shank_length=SHORT_SHANK, shank_cuff=0.35
+    )
+
+
+@pytest.fixture(scope="session")
+def exo_path() -> Path:
+    """Path of the committed default exoskeleton URDF."""
+    return default_urdf_path("exo")
+
+
+@pytest.fixture(scope="session")
+def exo(exo_path: Path) -> BodyModel:
+    """The default exoskeleton (paper Table I: 0.52 m links)."""
+    return load_body(exo_path, name="exoskeleton")
+
+
+@pytest.fixture(scope="session")
+def short_exo_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A URDF of an exoskeleton with a 0.45 m thigh and a 0.40 m shank."""
+    return write_urdf(short_exo_params(), tmp_path_factory.mktemp("short_exo") / "x.urdf")
+
+
+@pytest.fixture(scope="session")
+def short_exo(short_exo_path: Path) -> BodyModel:
+    """The 0.45 m / 0.40 m exoskeleton, loaded."""
+    return load_body(short_exo_path, name="exoskeleton")
+
+
+@pytest.fixture(scope="session")
+def human() -> BodyModel:
+    """example-robot-data's human model as a patient."""
+    return load_human_patient()
+
+
+@pytest.fixture
+def write_short_urdf():
+    """Helper writing the 0.45 m / 0.40 m exoskeleton URDF to a given path."""
+
+    def write(path: Path) -> Path:
+        return write_urdf(short_exo_params(), path)
+
+    return write
