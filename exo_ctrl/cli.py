@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from collections.abc import Sequence
 
@@ -19,7 +20,9 @@ from ._io import atomic_write
 from .exceptions import ExoCtrlError
 from .gait import GaitParams, GaitPlan
 from .kinematics import plan_joints
+from .control import PDGains
 from .model import JOINT_NAMES, default_urdf_path, load_body
+from .simulate import CONTROLLERS, SimConfig, simulate
 
 __all__ = ["GAIT_CSV_HEADER", "main"]
 
@@ -134,6 +137,77 @@ def _cmd_urdf(args: argparse.Namespace) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- simulate
+
+
+def _sim_config(args: argparse.Namespace) -> SimConfig:
+    gait = gait_params_from(args)
+    if args.cycles is not None:
+        duration = v.positive("cycles", args.cycles) * gait.period
+    else:
+        duration = args.duration if args.duration is not None else 2 * gait.period
+    gains = PDGains(
+        kp=args.kp if args.kp is not None else PDGains().kp,
+        kd=args.kd if args.kd is not None else PDGains().kd,
+    )
+    return SimConfig(
+        gait=gait,
+        exo=args.exo,
+        patient=args.patient,
+        controller=args.controller,
+        gains=gains,
+        duration_s=duration,
+        control_rate_hz=args.rate,
+        plant_substeps=args.substeps,
+    )
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    config = _sim_config(args)
+    observers = []
+    if not args.no_record:
+        from .record import RerunRecorder
+
+        observers.append(RerunRecorder(args.out, spawn=args.spawn))
+    result = simulate(config, observers=observers, progress=True, keep_history=False)
+    summary = result.summary()
+    if args.summary:
+        with atomic_write(args.summary) as handle:
+            json.dump(summary, handle, indent=2)
+            handle.write("\n")
+    print(format_summary(summary))
+    if not args.no_record:
+        print(f"recording: {args.out} (view offline: rerun {args.out})")
+    if result.status == "interrupted":
+        return 130
+    if result.status != "completed":
+        print(f"exo-ctrl simulate: error: {result.error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def format_summary(summary: dict) -> str:
+    """The summary as a plain-text table."""
+    lines = [
+        f"controller {summary['controller']}, {summary['status']}: "
+        f"{summary['duration_s']:.3f} s simulated in {summary['wall_time_s']:.2f} s "
+        f"(real-time factor {summary['real_time_factor']:.1f}), "
+        f"belt speed {summary['belt_speed_mps']:.3f} m/s",
+        f"{'joint':<12}{'rms err [mrad]':>15}{'max err [mrad]':>15}{'peak τ [N·m]':>13}"
+        f"{'peak I [A]':>11}{'peak U [V]':>11}",
+    ]
+    for j in JOINT_NAMES:
+        lines.append(
+            f"{j:<12}{1e3 * summary['rms_tracking_error_rad'][j]:>15.3f}"
+            f"{1e3 * summary['max_tracking_error_rad'][j]:>15.3f}"
+            f"{summary['peak_drive_torque_Nm'][j]:>13.1f}"
+            f"{summary['peak_motor_current_A'][j]:>11.2f}{summary['peak_motor_voltage_V'][j]:>11.2f}"
+        )
+    cuffs = ", ".join(f"{c} {f:.1f}" for c, f in summary["peak_cuff_force_N"].items())
+    lines.append(f"peak cuff force [N]: {cuffs}")
+    return "\n".join(lines)
+
+
 # --------------------------------------------------------------------------- main
 
 
@@ -166,6 +240,33 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"{name.replace('-', ' ')} [{unit}] (default: paper Table I)")
     p.add_argument("--out", required=True, metavar="PATH", help="output URDF file")
     p.set_defaults(func=_cmd_urdf)
+
+    p = sub.add_parser("simulate", help="run the closed loop and write a rerun recording")
+    add_gait_options(p)
+    p.add_argument("--patient", default=None, metavar="URDF|human",
+                   help="patient URDF, or 'human' for example-robot-data's model "
+                        "(default: urdf/patient.urdf)")
+    p.add_argument("--controller", choices=CONTROLLERS, default="pd",
+                   help="pd (paper) or ct (computed torque + PD) (default pd)")
+    span = p.add_mutually_exclusive_group()
+    span.add_argument("--cycles", type=float, default=None, metavar="N",
+                      help="gait cycles to run; 0.5 = one step (default 2)")
+    span.add_argument("--duration", type=float, default=None, metavar="SEC",
+                      help="simulated time [s]")
+    p.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
+                   help="control rate [Hz] (default 1000)")
+    p.add_argument("--substeps", type=int, default=1, metavar="N",
+                   help="plant steps per control tick (default 1)")
+    p.add_argument("--kp", type=float, default=None, metavar="V/RAD",
+                   help=f"PD proportional gain, all joints (default {PDGains().kp[0]:g})")
+    p.add_argument("--kd", type=float, default=None, metavar="V.S/RAD",
+                   help=f"PD derivative gain, all joints (default {PDGains().kd[0]:g})")
+    p.add_argument("--summary", default=None, metavar="PATH.json", help="write the summary as JSON")
+    p.add_argument("--out", default="exo_run.rrd", metavar="PATH.rrd",
+                   help="rerun recording (default exo_run.rrd)")
+    p.add_argument("--no-record", action="store_true", help="do not write a recording")
+    p.add_argument("--spawn", action="store_true", help="also open a rerun viewer if one can start")
+    p.set_defaults(func=_cmd_simulate)
 
     return parser
 

@@ -35,6 +35,7 @@ from .kinematics import JointTrajectory, plan_joints
 from .model import BodyModel, default_urdf_path, load_body, load_patient
 from .motor import MotorParams
 from .plant import Plant
+from .summary import RunStats
 
 __all__ = ["SIGNALS", "SimConfig", "SimObserver", "SimResult", "simulate"]
 
@@ -157,6 +158,7 @@ class SimResult:
     exo_source: str = ""
     patient_source: str = ""
     events: list[dict[str, Any]] = field(default_factory=list)
+    stats: RunStats = field(default_factory=RunStats, repr=False)
 
     def __getattr__(self, name: str) -> np.ndarray:
         signals = self.__dict__.get("signals", {})
@@ -167,18 +169,16 @@ class SimResult:
     @property
     def n_ticks(self) -> int:
         """Number of ticks run."""
-        return int(self.t.shape[0])
+        return self.stats.ticks
 
     @property
     def duration_s(self) -> float:
         """Simulated time covered [s]."""
-        return self.n_ticks * self.config.dt
+        return self.stats.ticks * self.config.dt
 
     def summary(self) -> dict[str, Any]:
-        """The run's figures (JSON-able); see the README for the keys."""
-        from .summary import summarize
-
-        return summarize(self)
+        """The run's figures (JSON-able); keys in :meth:`RunStats.summary`."""
+        return self.stats.summary(self)
 
 
 @dataclass
@@ -270,6 +270,7 @@ def simulate(
 
     def flush(rows: int) -> None:
         view = {name: arr[:rows] for name, arr in buf.items()}
+        result.stats.update(view)
         if keep_history:
             for name, arr in view.items():
                 history[name][chunk_start : chunk_start + rows] = arr

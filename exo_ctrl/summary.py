@@ -1,4 +1,4 @@
-"""A run's figures: tracking error, peak torques, currents, voltages, cuff forces."""
+"""A run's figures, accumulated chunk by chunk (no need to keep the history)."""
 
 from __future__ import annotations
 
@@ -11,58 +11,84 @@ from .model import CUFF_NAMES, JOINT_NAMES
 if TYPE_CHECKING:
     from .simulate import SimResult
 
-__all__ = ["summarize"]
+__all__ = ["RunStats"]
 
 
 def _keyed(values: np.ndarray, names: tuple[str, ...]) -> dict[str, float]:
     return {name: float(x) for name, x in zip(names, values)}
 
 
-def summarize(result: SimResult) -> dict[str, Any]:
-    """The JSON summary of a run.
+class RunStats:
+    """Running sums and peaks of a run's signals.
 
-    Keys: ``controller``, ``status``, ``error``, ``duration_s``,
-    ``belt_speed_mps``, ``rms_tracking_error_rad`` and
-    ``max_tracking_error_rad`` (keyed by joint), ``peak_drive_torque_Nm``,
-    ``rms_drive_torque_Nm``, ``peak_motor_current_A``,
-    ``peak_motor_voltage_V``, ``peak_mechanical_power_W`` (keyed by joint),
-    ``peak_cuff_force_N`` (keyed by cuff: magnitude of the sagittal force),
-    ``wall_time_s``, ``real_time_factor`` (simulated time / wall time),
-    ``ticks``.  Peaks are of absolute values; an empty run gives zeros.
+    Peaks are of absolute values; RMS values are over all ticks seen.
     """
-    n = result.n_ticks
-    s = result.signals
-    zeros4 = np.zeros(4)
-    if n:
-        err = s["q_des"] - s["q"]
-        rms = np.sqrt(np.mean(err**2, axis=0))
-        mx = np.max(np.abs(err), axis=0)
-        torque = s["drive_torque"]
-        peak_tau = np.max(np.abs(torque), axis=0)
-        rms_tau = np.sqrt(np.mean(torque**2, axis=0))
-        peak_i = np.max(np.abs(s["current"]), axis=0)
-        peak_u = np.max(np.abs(s["voltage"]), axis=0)
-        peak_p = np.max(np.abs(torque * s["dq"]), axis=0)
-        peak_f = np.max(np.linalg.norm(s["cuff_force"], axis=2), axis=0)
-    else:
-        rms = mx = peak_tau = rms_tau = peak_i = peak_u = peak_p = peak_f = zeros4
-    duration = result.duration_s
-    wall = result.wall_time_s
-    return {
-        "controller": result.config.controller,
-        "status": result.status,
-        "error": result.error,
-        "duration_s": duration,
-        "ticks": n,
-        "belt_speed_mps": result.belt_speed_mps,
-        "rms_tracking_error_rad": _keyed(rms, JOINT_NAMES),
-        "max_tracking_error_rad": _keyed(mx, JOINT_NAMES),
-        "peak_drive_torque_Nm": _keyed(peak_tau, JOINT_NAMES),
-        "rms_drive_torque_Nm": _keyed(rms_tau, JOINT_NAMES),
-        "peak_motor_current_A": _keyed(peak_i, JOINT_NAMES),
-        "peak_motor_voltage_V": _keyed(peak_u, JOINT_NAMES),
-        "peak_mechanical_power_W": _keyed(peak_p, JOINT_NAMES),
-        "peak_cuff_force_N": _keyed(peak_f, CUFF_NAMES),
-        "wall_time_s": wall,
-        "real_time_factor": duration / wall if wall > 0 else 0.0,
-    }
+
+    def __init__(self) -> None:
+        self.ticks = 0
+        self._sq_err = np.zeros(4)
+        self._sq_tau = np.zeros(4)
+        self._peaks = {
+            "max_err": np.zeros(4),
+            "tau": np.zeros(4),
+            "current": np.zeros(4),
+            "voltage": np.zeros(4),
+            "power": np.zeros(4),
+            "cuff": np.zeros(4),
+        }
+
+    def update(self, rows: dict[str, np.ndarray]) -> None:
+        """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
+        n = rows["q"].shape[0]
+        if n == 0:
+            return
+        err = rows["q_des"] - rows["q"]
+        tau = rows["drive_torque"]
+        self.ticks += n
+        self._sq_err += np.sum(err**2, axis=0)
+        self._sq_tau += np.sum(tau**2, axis=0)
+        p = self._peaks
+        for key, values in (
+            ("max_err", np.abs(err)),
+            ("tau", np.abs(tau)),
+            ("current", np.abs(rows["current"])),
+            ("voltage", np.abs(rows["voltage"])),
+            ("power", np.abs(tau * rows["dq"])),
+            ("cuff", np.linalg.norm(rows["cuff_force"], axis=2)),
+        ):
+            np.maximum(p[key], values.max(axis=0), out=p[key])
+
+    def summary(self, result: SimResult) -> dict[str, Any]:
+        """The JSON summary of a run.
+
+        Keys: ``controller``, ``status``, ``error``, ``duration_s``, ``ticks``,
+        ``belt_speed_mps``, ``rms_tracking_error_rad`` and
+        ``max_tracking_error_rad`` (keyed by joint; error = planned - actual
+        exoskeleton angle), ``peak_drive_torque_Nm``, ``rms_drive_torque_Nm``,
+        ``peak_motor_current_A``, ``peak_motor_voltage_V``,
+        ``peak_mechanical_power_W`` (|τ q̇|; keyed by joint),
+        ``peak_cuff_force_N`` (magnitude of the sagittal force, keyed by cuff),
+        ``wall_time_s``, ``real_time_factor`` (simulated / wall time).
+        """
+        n = max(self.ticks, 1)
+        p = self._peaks
+        duration = self.ticks * result.config.dt
+        wall = result.wall_time_s
+        return {
+            "controller": result.config.controller,
+            "status": result.status,
+            "error": result.error,
+            "duration_s": duration,
+            "ticks": self.ticks,
+            "belt_speed_mps": result.belt_speed_mps,
+            "rms_tracking_error_rad": _keyed(np.sqrt(self._sq_err / n), JOINT_NAMES),
+            "max_tracking_error_rad": _keyed(p["max_err"], JOINT_NAMES),
+            "peak_drive_torque_Nm": _keyed(p["tau"], JOINT_NAMES),
+            "rms_drive_torque_Nm": _keyed(np.sqrt(self._sq_tau / n), JOINT_NAMES),
+            "peak_motor_current_A": _keyed(p["current"], JOINT_NAMES),
+            "peak_motor_voltage_V": _keyed(p["voltage"], JOINT_NAMES),
+            "peak_mechanical_power_W": _keyed(p["power"], JOINT_NAMES),
+            "peak_cuff_force_N": _keyed(p["cuff"], CUFF_NAMES),
+            "wall_time_s": wall,
+            "real_time_factor": duration / wall if wall > 0 else 0.0,
+        }

@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from exo_ctrl.exceptions import ExoCtrlError, UnreachableFootTarget
+from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter, UnreachableFootTarget
 from exo_ctrl.gait import GaitParams, GaitPlan
 from exo_ctrl.kinematics import (
     forward_kinematics,
@@ -334,3 +334,20 @@ def test_ik_refuses_the_hip_itself_and_nan() -> None:
     for point in ((0.0, 0.0), (math.nan, -0.5)):
         with pytest.raises(UnreachableFootTarget):
             inverse_kinematics(*point, 0.52, 0.52)
+
+
+def test_plan_outside_the_range_of_motion_is_refused(exo: BodyModel) -> None:
+    """A low hip brings the foot within 0.4 m of it at the top of the swing: the knee must
+    flex by π - arccos((l1² + l2² - r²) / (2 l1 l2)) = 2.35 rad > the URDF's 2.09 rad."""
+    p = GaitParams(hip_height=0.5, lift_height=0.1, step_length=0.2)
+    r = p.hip_height - p.lift_height
+    knee = math.pi - math.acos((2 * 0.52**2 - r**2) / (2 * 0.52**2))
+    with pytest.raises(InvalidParameter) as info:
+        plan_joints(GaitPlan(p), exo, np.linspace(0.0, p.period, 121))
+    exc = info.value
+    assert exc.name == "left_knee angle on the plan"
+    assert exc.value == pytest.approx(knee, abs=1e-4)
+    assert str(exc).startswith(
+        "left_knee angle on the plan must be within the range of motion [-0.05, 2.09] rad of "
+    )
+    assert str(exc).endswith("(at t = 0 s)")  # the left foot is at the top of its swing at t = 0
