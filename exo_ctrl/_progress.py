@@ -15,6 +15,7 @@ class Progress:
         total: number of units of work.
         label: what is being done.
         enabled: draw at all (off in library calls by default).
+
     """
 
     def __init__(self, total: int, label: str, enabled: bool = True) -> None:

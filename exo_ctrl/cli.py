@@ -17,10 +17,10 @@ import numpy as np
 
 from . import _validate as v
 from ._io import atomic_write
+from .control import PDGains
 from .exceptions import ExoCtrlError
 from .gait import GaitParams, GaitPlan
 from .kinematics import plan_joints
-from .control import PDGains
 from .model import JOINT_NAMES, default_urdf_path, load_body
 from .simulate import CONTROLLERS, SimConfig, simulate
 
@@ -51,20 +51,54 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
     """The gait parameter options shared by the subcommands (defaults: GaitParams)."""
     d = GaitParams()
     g = parser.add_argument_group("gait (paper §III)")
-    g.add_argument("--step-length", type=float, default=d.step_length, metavar="S",
-                   help=f"step length s [m] (default {d.step_length})")
-    g.add_argument("--lift-height", type=float, default=d.lift_height, metavar="H",
-                   help=f"foot lift h_s [m] (default {d.lift_height})")
-    g.add_argument("--hip-height", type=float, default=d.hip_height, metavar="HS",
-                   help=f"hip height above the belt H_s [m] (default {d.hip_height})")
-    g.add_argument("--shape-coeff", type=float, default=d.shape_coeff, metavar="KV",
-                   help=f"shape coefficient k_v = v_f / v_b (default {d.shape_coeff})")
-    g.add_argument("--period", type=float, default=d.period, metavar="T",
-                   help=f"gait period T_s [s] (default {d.period})")
-    g.add_argument("--duty-factor", type=float, default=d.duty_factor, metavar="B",
-                   help=f"stance fraction β of the period (default {d.duty_factor})")
-    g.add_argument("--exo", default=None, metavar="URDF",
-                   help="exoskeleton URDF (default: urdf/exoskeleton.urdf)")
+    g.add_argument(
+        "--step-length",
+        type=float,
+        default=d.step_length,
+        metavar="S",
+        help=f"step length s [m] (default {d.step_length})",
+    )
+    g.add_argument(
+        "--lift-height",
+        type=float,
+        default=d.lift_height,
+        metavar="H",
+        help=f"foot lift h_s [m] (default {d.lift_height})",
+    )
+    g.add_argument(
+        "--hip-height",
+        type=float,
+        default=d.hip_height,
+        metavar="HS",
+        help=f"hip height above the belt H_s [m] (default {d.hip_height})",
+    )
+    g.add_argument(
+        "--shape-coeff",
+        type=float,
+        default=d.shape_coeff,
+        metavar="KV",
+        help=f"shape coefficient k_v = v_f / v_b (default {d.shape_coeff})",
+    )
+    g.add_argument(
+        "--period",
+        type=float,
+        default=d.period,
+        metavar="T",
+        help=f"gait period T_s [s] (default {d.period})",
+    )
+    g.add_argument(
+        "--duty-factor",
+        type=float,
+        default=d.duty_factor,
+        metavar="B",
+        help=f"stance fraction β of the period (default {d.duty_factor})",
+    )
+    g.add_argument(
+        "--exo",
+        default=None,
+        metavar="URDF",
+        help="exoskeleton URDF (default: urdf/exoskeleton.urdf)",
+    )
 
 
 def gait_params_from(args: argparse.Namespace) -> GaitParams:
@@ -90,7 +124,9 @@ def load_exo(path: str | None):
 def _cmd_gait(args: argparse.Namespace) -> int:
     params = gait_params_from(args)
     exo = load_exo(args.exo)
-    duration = v.positive("duration", args.duration if args.duration is not None else params.period, "s")
+    duration = v.positive(
+        "duration", args.duration if args.duration is not None else params.period, "s"
+    )
     rate = v.positive("rate", args.rate, "Hz")
     n = int(np.floor(duration * rate + 1e-9)) + 1
     t = np.arange(n) / rate
@@ -125,15 +161,30 @@ def _cmd_urdf(args: argparse.Namespace) -> int:
     base = BodyParams.exo_default() if args.kind == "exo" else BodyParams.patient_default()
     changes = {
         name: getattr(args, name)
-        for name in ("thigh_length", "shank_length", "thigh_mass", "shank_mass",
-                     "thigh_cuff", "shank_cuff")
+        for name in (
+            "thigh_length",
+            "shank_length",
+            "thigh_mass",
+            "shank_mass",
+            "thigh_cuff",
+            "shank_cuff",
+        )
         if getattr(args, name) is not None
     }
+    # A cuff not given keeps its place as a fraction of its link.
+    for seg in ("thigh", "shank"):
+        length = changes.get(f"{seg}_length")
+        if length is not None and f"{seg}_cuff" not in changes:
+            changes[f"{seg}_cuff"] = (
+                getattr(base, f"{seg}_cuff") / getattr(base, f"{seg}_length") * length
+            )
     params = base.replace(**changes)
     path = write_urdf(params, args.out)
     body = load_body(path, name=args.kind)
-    print(f"wrote {path}: {args.kind}, legs {body.legs['left'].thigh_length:g} m + "
-          f"{body.legs['left'].shank_length:g} m, moving mass {body.mass:.4g} kg")
+    print(
+        f"wrote {path}: {args.kind}, legs {body.legs['left'].thigh_length:g} m + "
+        f"{body.legs['left'].shank_length:g} m, moving mass {body.mass:.4g} kg"
+    )
     return 0
 
 
@@ -214,7 +265,7 @@ def format_summary(summary: dict) -> str:
 class _Parser(argparse.ArgumentParser):
     """argparse with exit code 2 and a one-line message on bad usage."""
 
-    def error(self, message: str) -> None:  # noqa: D102
+    def error(self, message: str) -> None:
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
@@ -225,45 +276,96 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("gait", help="write the planned foot and joint motion as CSV")
     add_gait_options(p)
-    p.add_argument("--duration", type=float, default=None, metavar="SEC",
-                   help="time span [s] (default: one period)")
-    p.add_argument("--rate", type=float, default=100.0, metavar="HZ",
-                   help="sample rate [Hz] (default 100)")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="SEC",
+        help="time span [s] (default: one period)",
+    )
+    p.add_argument(
+        "--rate", type=float, default=100.0, metavar="HZ", help="sample rate [Hz] (default 100)"
+    )
     p.add_argument("--csv", required=True, metavar="PATH", help="output CSV file")
     p.set_defaults(func=_cmd_gait)
 
     p = sub.add_parser("urdf", help="generate an exoskeleton or patient URDF")
     p.add_argument("--kind", choices=("exo", "patient"), required=True)
-    for name, unit in (("thigh-length", "m"), ("shank-length", "m"), ("thigh-mass", "kg"),
-                       ("shank-mass", "kg"), ("thigh-cuff", "m"), ("shank-cuff", "m")):
-        p.add_argument(f"--{name}", type=float, default=None, metavar=unit.upper(),
-                       help=f"{name.replace('-', ' ')} [{unit}] (default: paper Table I)")
+    for name, unit in (
+        ("thigh-length", "m"),
+        ("shank-length", "m"),
+        ("thigh-mass", "kg"),
+        ("shank-mass", "kg"),
+        ("thigh-cuff", "m"),
+        ("shank-cuff", "m"),
+    ):
+        p.add_argument(
+            f"--{name}",
+            type=float,
+            default=None,
+            metavar=unit.upper(),
+            help=f"{name.replace('-', ' ')} [{unit}] (default: paper Table I; a cuff "
+            "not given keeps its fraction of a changed link length)",
+        )
     p.add_argument("--out", required=True, metavar="PATH", help="output URDF file")
     p.set_defaults(func=_cmd_urdf)
 
     p = sub.add_parser("simulate", help="run the closed loop and write a rerun recording")
     add_gait_options(p)
-    p.add_argument("--patient", default=None, metavar="URDF|human",
-                   help="patient URDF, or 'human' for example-robot-data's model "
-                        "(default: urdf/patient.urdf)")
-    p.add_argument("--controller", choices=CONTROLLERS, default="pd",
-                   help="pd (paper) or ct (computed torque + PD) (default pd)")
+    p.add_argument(
+        "--patient",
+        default=None,
+        metavar="URDF|human",
+        help="patient URDF, or 'human' for example-robot-data's model (default: urdf/patient.urdf)",
+    )
+    p.add_argument(
+        "--controller",
+        choices=CONTROLLERS,
+        default="pd",
+        help="pd (paper) or ct (computed torque + PD) (default pd)",
+    )
     span = p.add_mutually_exclusive_group()
-    span.add_argument("--cycles", type=float, default=None, metavar="N",
-                      help="gait cycles to run; 0.5 = one step (default 2)")
-    span.add_argument("--duration", type=float, default=None, metavar="SEC",
-                      help="simulated time [s]")
-    p.add_argument("--rate", type=float, default=1000.0, metavar="HZ",
-                   help="control rate [Hz] (default 1000)")
-    p.add_argument("--substeps", type=int, default=1, metavar="N",
-                   help="plant steps per control tick (default 1)")
-    p.add_argument("--kp", type=float, default=None, metavar="V/RAD",
-                   help=f"PD proportional gain, all joints (default {PDGains().kp[0]:g})")
-    p.add_argument("--kd", type=float, default=None, metavar="V.S/RAD",
-                   help=f"PD derivative gain, all joints (default {PDGains().kd[0]:g})")
+    span.add_argument(
+        "--cycles",
+        type=float,
+        default=None,
+        metavar="N",
+        help="gait cycles to run; 0.5 = one step (default 2)",
+    )
+    span.add_argument(
+        "--duration", type=float, default=None, metavar="SEC", help="simulated time [s]"
+    )
+    p.add_argument(
+        "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
+    )
+    p.add_argument(
+        "--substeps",
+        type=int,
+        default=1,
+        metavar="N",
+        help="plant steps per control tick (default 1)",
+    )
+    p.add_argument(
+        "--kp",
+        type=float,
+        default=None,
+        metavar="V/RAD",
+        help=f"PD proportional gain, all joints (default {PDGains().kp[0]:g})",
+    )
+    p.add_argument(
+        "--kd",
+        type=float,
+        default=None,
+        metavar="V.S/RAD",
+        help=f"PD derivative gain, all joints (default {PDGains().kd[0]:g})",
+    )
     p.add_argument("--summary", default=None, metavar="PATH.json", help="write the summary as JSON")
-    p.add_argument("--out", default="exo_run.rrd", metavar="PATH.rrd",
-                   help="rerun recording (default exo_run.rrd)")
+    p.add_argument(
+        "--out",
+        default="exo_run.rrd",
+        metavar="PATH.rrd",
+        help="rerun recording (default exo_run.rrd)",
+    )
     p.add_argument("--no-record", action="store_true", help="do not write a recording")
     p.add_argument("--spawn", action="store_true", help="also open a rerun viewer if one can start")
     p.set_defaults(func=_cmd_simulate)

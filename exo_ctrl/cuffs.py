@@ -11,17 +11,19 @@ slack, captured when the device is fitted (zero when the frames coincide).
 Each body feels the force through its frame Jacobian: τ_exo = J_exoᵀ f,
 τ_patient = -J_patientᵀ f.
 
-All eight cuff points (four per body) are computed in one batch.  A point
-in the x–z plane is the complex number p = x + i z; a link turned by θ about
-the lateral axis turns its points by e^{iθ} about the joint.  A point on a
-thigh is p = h + e^{iα} a, on a shank p = h + e^{iα} a + e^{iβ} b, where h is
-the hip, a and b the link vectors at q = 0 and α = s_h q_hip,
-β = α + s_k q_knee the link rotations (signs and vectors read from the
-Pinocchio model at q = 0; see :mod:`exo_ctrl.model`).  Then
-ṗ = α̇ i e^{iα} a + β̇ i e^{iβ} b, and the generalised force of a force f
-(also complex) is Re(conj(i e^{iα} a) f) on α and the same with b on β,
-mapped back to the joints by the sign matrices.  Tests check positions and
-Jacobians against Pinocchio's frame kinematics.
+All eight cuff points (four per body) are computed in one batch of small
+matrix products.  A link turned by θ about the lateral axis turns its points
+by R(θ) about the joint.  A point on a thigh is p = h + R(α) a, on a shank
+p = h + R(α) a + R(β) b, where h is the hip, a and b link vectors at q = 0 and
+α = s_h q_hip, β = α + s_k q_knee the link rotations (signs and vectors read
+from the Pinocchio model at q = 0; see :mod:`exo_ctrl.model`).  With the
+eight link rotations θ = S q_all and u = (cos θ, sin θ), every point's
+(x, z) is linear in u: p = P u + p₀, with P built once.  Then
+ṗ = P w with w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇), the cuff stretch is
+Δp = D P u + D p₀ - r₀ (D takes exo minus patient), and the generalised force
+of the point forces F = Dᵀ f is Sᵀ ((Pᵀ F) ⊙ (-sin θ, cos θ)) summed over the
+two halves.  Tests check positions and Jacobians against Pinocchio's frame
+kinematics.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from . import _validate as v
-from .model import CUFF_NAMES, BodyModel
+from .model import CUFF_NAMES, SIDES, BodyModel
 
 __all__ = ["CuffParams", "CuffSet"]
 
@@ -46,6 +48,7 @@ class CuffParams:
         damping_N_s_per_m: C, not in the paper; 100 N·s/m gives a damping
             ratio of about 0.3 for the shank cuff mode of the default
             patient (chosen) [N·s/m].
+
     """
 
     stiffness_N_per_m: float = 8000.0
@@ -60,7 +63,9 @@ class CuffSet:
     """The four cuffs between an exoskeleton and a patient, computed in one batch.
 
     Joint vectors are stacked as ``q_all = [q_exo (4), q_patient (4)]`` in
-    :data:`~exo_ctrl.model.JOINT_NAMES` order.
+    :data:`~exo_ctrl.model.JOINT_NAMES` order.  Forces are on the
+    exoskeleton, laid out as ``(fx of the 4 cuffs, fz of the 4 cuffs)``;
+    :attr:`force` is the same as a (4, 2) view.
 
     Args:
         exo: the exoskeleton.
@@ -68,6 +73,7 @@ class CuffSet:
         params: spring and damper.
         patient_offset_xz: where the patient's world origin sits in the
             exoskeleton's world (x, z) [m] (aligns the hips).
+
     """
 
     def __init__(
@@ -78,119 +84,130 @@ class CuffSet:
         patient_offset_xz: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         self.params = params
-        n = 8  # 4 cuffs x 2 bodies; rows 0-3 exo, 4-7 patient
-        base = np.zeros(n, dtype=complex)
-        vec_a = np.zeros(n, dtype=complex)
-        vec_b = np.zeros(n, dtype=complex)
-        sel_a = np.zeros((n, 8))  # α_i = sel_a[i] @ q_all
-        sel_b = np.zeros((n, 8))
-        offset = complex(*patient_offset_xz)
+        # 8 points (rows 0-3 exo cuffs, 4-7 patient cuffs), 8 link rotations
+        # (per body: left thigh, left shank, right thigh, right shank).
+        base = np.zeros((8, 2))
+        vec = np.zeros((8, 8, 2))  # point i, rotation j -> link vector at q = 0
+        sel = np.zeros((8, 8))  # rotation j = sel[j] @ q_all
         for b, body in enumerate((exo, patient)):
             data = body.model.createData()
             pin.framesForwardKinematics(body.model, data, pin.neutral(body.model))
-            shift = offset if b == 1 else 0.0
-            for c, cuff in enumerate(CUFF_NAMES):
-                i = 4 * b + c
-                side = cuff.split("_")[0]
+            shift = np.asarray(patient_offset_xz) if b == 1 else np.zeros(2)
+            for s_idx, side in enumerate(SIDES):
                 leg = body.legs[side]
-                hip_col = 4 * b + (0 if side == "left" else 2)
-                hip_id, knee_id = body.joint_ids[hip_col - 4 * b], body.joint_ids[hip_col - 4 * b + 1]
+                col = 4 * b + 2 * s_idx  # q_all column of this hip; +1 knee
+                rot_thigh, rot_shank = col, col + 1
+                sel[rot_thigh, col] = leg.sign_hip
+                sel[rot_shank, col] = leg.sign_hip
+                sel[rot_shank, col + 1] = leg.sign_knee
+                hip_id, knee_id = body.joint_ids[2 * s_idx], body.joint_ids[2 * s_idx + 1]
                 hip = _xz(data.oMi[hip_id].translation) + shift
                 knee = _xz(data.oMi[knee_id].translation) + shift
-                point = _xz(data.oMf[body.cuff_frame_ids[c]].translation) + shift
-                base[i] = hip
-                sel_a[i, hip_col] = leg.sign_hip
-                if cuff.endswith("thigh"):
-                    vec_a[i] = point - hip
-                else:
-                    vec_a[i] = knee - hip
-                    vec_b[i] = point - knee
-                    sel_b[i, hip_col] = leg.sign_hip
-                    sel_b[i, hip_col + 1] = leg.sign_knee
-        self._base = base
-        self._ab = np.concatenate((vec_a, vec_b))  # (16,)
-        self._sel = np.vstack((sel_a, sel_b))  # (16, 8)
-        self._sel_t = np.ascontiguousarray(self._sel.T)
-        # Work arrays, allocated once.
-        self._ang = np.zeros(16)
-        self._angc = np.zeros(16, dtype=complex)
-        self._rot = np.zeros(16, dtype=complex)  # e^{iθ} a (rotated link vectors)
-        self._irot = np.zeros(16, dtype=complex)  # i e^{iθ} a
-        self._pos = np.zeros(n, dtype=complex)
-        self._vel = np.zeros(n, dtype=complex)
-        self._tmp16 = np.zeros(16, dtype=complex)
-        self._dp = np.zeros(4, dtype=complex)
-        self._dv = np.zeros(4, dtype=complex)
-        self._f = np.zeros(4, dtype=complex)
-        self._f16 = np.zeros(16, dtype=complex)
-        self._gen = np.zeros(16)
-        self.rest_offset = np.zeros(4, dtype=complex)
+                for link in ("thigh", "shank"):
+                    c = CUFF_NAMES.index(f"{side}_{link}")
+                    i = 4 * b + c
+                    point = _xz(data.oMf[body.cuff_frame_ids[c]].translation) + shift
+                    base[i] = hip
+                    if link == "thigh":
+                        vec[i, rot_thigh] = point - hip
+                    else:
+                        vec[i, rot_thigh] = knee - hip
+                        vec[i, rot_shank] = point - knee
+        ax, az = vec[..., 0], vec[..., 1]
+        # (x; z) of the 8 points = P (cos θ; sin θ) + p0, rows: 8 x then 8 z.
+        self._P = np.block([[ax, -az], [az, ax]])
+        self._p0 = np.concatenate((base[:, 0], base[:, 1]))
+        diff = np.zeros((8, 16))  # exo minus patient, rows: 4 x then 4 z
+        for c in range(4):
+            for k in range(2):
+                diff[4 * k + c, 8 * k + c] = 1.0
+                diff[4 * k + c, 8 * k + 4 + c] = -1.0
+        self._DP = diff @ self._P
+        self._DPT = np.ascontiguousarray(self._DP.T)
+        self._Dp0 = diff @ self._p0
+        self._sel2 = np.vstack((sel, sel))
+        self._sel2_t = np.ascontiguousarray(self._sel2.T)
+        self._diff = diff
+        self._k = float(params.stiffness_N_per_m)
+        self._c = float(params.damping_N_s_per_m)
+        # State and work arrays, allocated once.
+        #: Strap offsets (exo minus patient, x then z) at which a cuff is slack [m], (8,).
+        self.rest_offset = np.zeros(8)
+        self._offset = self._Dp0.copy()  # D p0 - r0
+        self._k_offset = self._k * self._offset
+        self._theta = np.zeros(16)
+        self._cs = np.zeros(16)  # (cos θ, sin θ)
+        self._csr = np.zeros(16)  # (-sin θ, cos θ)
+        self._w = np.zeros(16)
+        self._y = np.zeros(16)
+        self._g = np.zeros(16)
+        self._f = np.zeros(8)
+        #: Cuff forces on the exoskeleton of the last :meth:`compute`, (4, 2) view [N].
+        self.force = self._f.reshape(2, 4).T
         #: Generalised cuff forces on [exo, patient] joints [N·m], (8,).
         self.joint_torque = np.zeros(8)
-        self._k = -float(params.stiffness_N_per_m)
-        self._c = -float(params.damping_N_s_per_m)
 
     # ------------------------------------------------------------------ kinematics
 
-    def _kinematics(self, q_all: np.ndarray) -> None:
-        np.dot(self._sel, q_all, out=self._ang)
-        np.multiply(self._ang, 1j, out=self._angc)
-        np.exp(self._angc, out=self._rot)
-        np.multiply(self._rot, self._ab, out=self._rot)
-        np.multiply(self._rot, 1j, out=self._irot)
-        np.add(self._rot[:8], self._rot[8:], out=self._pos)
-        np.add(self._pos, self._base, out=self._pos)
+    def _trig(self, q_all: np.ndarray) -> None:
+        th = self._theta
+        np.dot(self._sel2, q_all, out=th)
+        np.cos(th[:8], out=self._cs[:8])
+        np.sin(th[8:], out=self._cs[8:])
+        np.negative(self._cs[8:], out=self._csr[:8])
+        self._csr[8:] = self._cs[:8]
 
     def positions(self, q_all: np.ndarray) -> np.ndarray:
         """World (x, z) of the cuff points, shape (2 bodies, 4 cuffs, 2) [m]."""
-        self._kinematics(np.asarray(q_all, dtype=float))
-        pos = self._pos.reshape(2, 4)
-        return np.stack((pos.real, pos.imag), axis=-1)
+        self._trig(np.asarray(q_all, dtype=float))
+        pos = self._P @ self._cs + self._p0
+        return np.stack((pos[:8], pos[8:]), axis=-1).reshape(2, 4, 2)
 
     def jacobians(self, q_all: np.ndarray) -> np.ndarray:
         """∂(x, z)/∂q_all of every cuff point, shape (2 bodies, 4 cuffs, 2, 8)."""
-        self._kinematics(np.asarray(q_all, dtype=float))
-        jac = self._irot[:, None] * self._sel  # (16, 8) complex
-        jac = jac[:8] + jac[8:]
-        out = np.stack((jac.real, jac.imag), axis=1)  # (8, 2, 8)
-        return out.reshape(2, 4, 2, 8)
+        self._trig(np.asarray(q_all, dtype=float))
+        # ∂p/∂θ_j = P[:, j] (-sin θ_j) + P[:, 8 + j] cos θ_j
+        d_theta = self._P[:, :8] * self._csr[:8] + self._P[:, 8:] * self._csr[8:]
+        jac = d_theta @ self._sel2[:8]  # (16, 8): rows 8 x then 8 z
+        return np.stack((jac[:8], jac[8:]), axis=1).reshape(2, 4, 2, 8)
 
     def fit(self, q_all: np.ndarray) -> None:
         """Fit the straps: make the present offsets the slack (zero-force) ones."""
-        self._kinematics(np.asarray(q_all, dtype=float))
-        self.rest_offset[:] = self._pos[:4] - self._pos[4:]
+        self._trig(np.asarray(q_all, dtype=float))
+        self.rest_offset[:] = self._DP @ self._cs + self._Dp0
+        np.subtract(self._Dp0, self.rest_offset, out=self._offset)
+        np.multiply(self._offset, self._k, out=self._k_offset)
+
+    def stretch(self, q_all: np.ndarray) -> np.ndarray:
+        """Cuff stretch Δp - r₀ (exo minus patient), x of the 4 cuffs then z [m], (8,)."""
+        self._trig(np.asarray(q_all, dtype=float))
+        return self._DP @ self._cs + self._offset
 
     # ------------------------------------------------------------------ forces
 
     def compute(self, q_all: np.ndarray, v_all: np.ndarray) -> np.ndarray:
-        """Cuff forces on the exoskeleton at (q_all, v_all), as complex fx + i fz [N].
+        """Cuff forces on the exoskeleton at (q_all, v_all), (4, 2) [N].
 
         Also fills :attr:`joint_torque` (J_exoᵀ f on the exo joints,
-        -J_patientᵀ f on the patient's).  Returns a buffer overwritten by the
-        next call.
+        -J_patientᵀ f on the patient's).  Returns :attr:`force`, overwritten
+        by the next call.
         """
-        self._kinematics(q_all)
-        # Velocities: ṗ = Σ (sel @ v) i e^{iθ} a.
-        np.dot(self._sel, v_all, out=self._ang)
-        np.multiply(self._irot, self._ang, out=self._tmp16)
-        np.add(self._tmp16[:8], self._tmp16[8:], out=self._vel)
-        dp, dv, f = self._dp, self._dv, self._f
-        np.subtract(self._pos[:4], self._pos[4:], out=dp)
-        np.subtract(dp, self.rest_offset, out=dp)
-        np.subtract(self._vel[:4], self._vel[4:], out=dv)
-        np.multiply(dp, self._k, out=f)
-        np.multiply(dv, self._c, out=dv)
-        np.add(f, dv, out=f)
-        # Generalised forces: Re(conj(i e^{iθ} a) f_point), f_point = +f (exo), -f (patient).
-        f16 = self._f16
-        f16[0:4] = f
-        np.negative(f, out=f16[4:8])
-        f16[8:] = f16[:8]
-        np.conjugate(self._irot, out=self._tmp16)
-        np.multiply(self._tmp16, f16, out=self._tmp16)
-        np.dot(self._sel_t, self._tmp16.real, out=self.joint_torque)
-        return f
+        self._trig(q_all)
+        w, y, g, f = self._w, self._y, self._g, self._f
+        np.dot(self._sel2, v_all, out=w)  # (θ̇, θ̇)
+        np.multiply(w, self._csr, out=w)  # ṗ = P w
+        # f = -K Δp - C Δṗ = D P (-K u - C w) - K (D p0 - r0)
+        np.multiply(self._cs, -self._k, out=y)
+        np.multiply(w, self._c, out=w)
+        np.subtract(y, w, out=y)
+        np.dot(self._DP, y, out=f)
+        np.subtract(f, self._k_offset, out=f)
+        # τ = Sᵀ ((Pᵀ Dᵀ f) ⊙ (-sin θ, cos θ))
+        np.dot(self._DPT, f, out=g)
+        np.multiply(g, self._csr, out=g)
+        np.dot(self._sel2_t, g, out=self.joint_torque)
+        return self.force
 
 
-def _xz(p: np.ndarray) -> complex:
-    return complex(float(p[0]), float(p[2]))
+def _xz(p: np.ndarray) -> np.ndarray:
+    return np.array([float(p[0]), float(p[2])])

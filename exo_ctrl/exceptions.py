@@ -10,11 +10,11 @@ from __future__ import annotations
 
 __all__ = [
     "ExoCtrlError",
-    "InvalidParameter",
     "InvalidModel",
-    "UnreachableFootTarget",
-    "SimulationDiverged",
+    "InvalidParameter",
     "RecordingError",
+    "SimulationDiverged",
+    "UnreachableFootTarget",
 ]
 
 
@@ -29,6 +29,7 @@ class InvalidParameter(ExoCtrlError, ValueError):
         name: parameter name as the user spells it (``step_length``).
         value: the offending value.
         allowed: what is allowed, in words with units (``"in (0, 2] m"``).
+
     """
 
     def __init__(self, name: str, value: object, allowed: str, detail: str = "") -> None:
@@ -48,6 +49,7 @@ class InvalidModel(ExoCtrlError, ValueError):
         source: file path or model name.
         element: the link, joint or frame at fault ("" for the whole file).
         reason: what is wrong and what is required.
+
     """
 
     def __init__(self, source: str, element: str, reason: str) -> None:
@@ -65,6 +67,7 @@ class UnreachableFootTarget(ExoCtrlError, ValueError):
         point: (x, z) of the foot relative to the hip [m].
         reach: (min_reach, max_reach) distance hip to foot [m].
         time: time of the point on the plan [s], or None.
+
     """
 
     def __init__(
@@ -94,6 +97,7 @@ class SimulationDiverged(ExoCtrlError, RuntimeError):
         quantity: name of the quantity that blew up.
         value: its value.
         limit: the bound it crossed.
+
     """
 
     def __init__(self, time: float, quantity: str, value: float, limit: float) -> None:

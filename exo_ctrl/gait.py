@@ -60,6 +60,7 @@ class GaitParams:
         period: T_s, duration of one gait cycle (one step of each leg) [s].
         duty_factor: β, fraction of the period a foot is on the belt [-];
             0.5 is the paper's schedule, above 0.5 gives double support.
+
     """
 
     step_length: float = 0.35
@@ -70,14 +71,18 @@ class GaitParams:
     duty_factor: float = 0.5
 
     def __post_init__(self) -> None:
-        v.positive("step_length", self.step_length, "m")
-        v.positive("lift_height", self.lift_height, "m")
-        v.positive("hip_height", self.hip_height, "m")
-        v.positive("shape_coeff", self.shape_coeff)
-        v.positive("period", self.period, "s")
+        for name, unit in (
+            ("step_length", "m"),
+            ("lift_height", "m"),
+            ("hip_height", "m"),
+            ("shape_coeff", ""),
+            ("period", "s"),
+        ):
+            object.__setattr__(self, name, v.positive(name, getattr(self, name), unit))
         d = v.finite("duty_factor", self.duty_factor)
         if not 0.5 <= d < 1.0:
             raise InvalidParameter("duty_factor", self.duty_factor, "in [0.5, 1)")
+        object.__setattr__(self, "duty_factor", d)
         if self.lift_height >= self.hip_height:
             raise InvalidParameter(
                 "lift_height",
@@ -119,6 +124,7 @@ class FootTrajectory:
         vel: foot velocity [m/s].
         acc: foot acceleration [m/s²].
         stance: True where the foot is on the belt, shape (N, 2).
+
     """
 
     t: np.ndarray
@@ -133,6 +139,7 @@ class GaitPlan:
 
     Args:
         params: the gait.
+
     """
 
     def __init__(self, params: GaitParams) -> None:
@@ -141,7 +148,13 @@ class GaitPlan:
         half_swing = p.swing_time / 2.0
         self._half_swing = half_swing
         self._stance_end = half_swing + p.stance_time
-        vf, vb, s, H, h = p.belt_speed, p.swing_top_speed, p.step_length, p.hip_height, p.lift_height
+        vf, vb, s, H, h = (
+            p.belt_speed,
+            p.swing_top_speed,
+            p.step_length,
+            p.hip_height,
+            p.lift_height,
+        )
         # (segment start τ0, duration d, x0, x1, ẋ0, ẋ1, z0, z1) for A→B and D→A.
         self._ab = _Cubic2(half_swing, 0.0, s / 2, vb, -vf, -(H - h), -H)
         self._da = _Cubic2(half_swing, -s / 2, 0.0, -vf, vb, -H, -(H - h))
@@ -152,7 +165,8 @@ class GaitPlan:
         """Positions, velocities and accelerations of both feet at times ``t`` [s]."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if not np.all(np.isfinite(t)):
-            raise InvalidParameter("t", "non-finite time", "finite times in s")
+            bad = t[~np.isfinite(t)][0]
+            raise InvalidParameter("t", float(bad), "finite (times in s)")
         n = t.shape[0]
         pos = np.empty((n, 2, 2))
         vel = np.empty((n, 2, 2))
@@ -199,6 +213,7 @@ class GaitPlan:
             thigh_length: l1 [m].
             shank_length: l2 [m].
             side: leg named in the message.
+
         """
         l1, l2 = thigh_length, shank_length
         r_min = abs(l1 - l2)
@@ -212,7 +227,10 @@ class GaitPlan:
             i = bad[np.argmax(np.maximum(r[bad] - r_max, r_min - r[bad]))]
             x, z = feet.pos[i, 0]
             raise UnreachableFootTarget(
-                (float(x), float(z)), (r_min, r_max), time=float(t[i]), what=f"{side} foot path point"
+                (float(x), float(z)),
+                (r_min, r_max),
+                time=float(t[i]),
+                what=f"{side} foot path point",
             )
 
 

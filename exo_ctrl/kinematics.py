@@ -55,6 +55,7 @@ def inverse_kinematics(
     Raises:
         UnreachableFootTarget: a point is closer than |l1 - l2| or farther
             than l1 + l2 from the hip.
+
     """
     x = np.asarray(x, dtype=float)
     z = np.asarray(z, dtype=float)
@@ -121,6 +122,7 @@ class JointTrajectory:
         phi: the paper's absolute link angles [rad].
         foot_pos: foot positions relative to the hips, (N, 2 legs, x/z) [m].
         foot_vel: foot velocities, (N, 2, 2) [m/s].
+
     """
 
     t: np.ndarray
@@ -141,6 +143,7 @@ def plan_joints(plan: GaitPlan, body: BodyModel, t: np.ndarray) -> JointTrajecto
     Raises:
         UnreachableFootTarget: the path leaves a leg's workspace.
         InvalidParameter: a planned joint angle leaves its range of motion.
+
     """
     t = np.asarray(t, dtype=float)
     feet = plan.feet(t)
@@ -170,10 +173,7 @@ def plan_joints(plan: GaitPlan, body: BodyModel, t: np.ndarray) -> JointTrajecto
             raise InvalidParameter(
                 f"{name} angle on the plan",
                 round(float(q[i, j]), 4),
-                f"within the range of motion [{lower[j]:.4g}, {upper[j]:.4g}] rad of "
-                f"{body.source}",
+                f"within the range of motion [{lower[j]:.4g}, {upper[j]:.4g}] rad of {body.source}",
                 f"at t = {t[i]:.4g} s",
             )
-    return JointTrajectory(
-        t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet.pos, foot_vel=feet.vel
-    )
+    return JointTrajectory(t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet.pos, foot_vel=feet.vel)

@@ -57,6 +57,7 @@ class Plant:
             rotor inertia, no back-EMF) — for passive tests.
         cuffs: cuff parameters.
         joint_losses: apply the URDF's joint damping and friction.
+
     """
 
     def __init__(
@@ -71,7 +72,9 @@ class Plant:
         for body in (exo, patient):
             if not np.array_equal(body.q_index, np.arange(4)) or body.model.nq != 4:
                 raise InvalidModel(
-                    body.source, "", f"the plant needs exactly the joints {JOINT_NAMES} in that order"
+                    body.source,
+                    "",
+                    f"the plant needs exactly the joints {JOINT_NAMES} in that order",
                 )
         if not (math.isfinite(dt) and dt > 0):
             from .exceptions import InvalidParameter
@@ -128,11 +131,14 @@ class Plant:
         """Set the state; the patient defaults to the exoskeleton's joint state.
 
         Args:
-            q_exo, v_exo: exoskeleton joint angles [rad] and speeds [rad/s].
-            q_patient, v_patient: the patient's (default: equal to the exo's).
+            q_exo: exoskeleton joint angles [rad].
+            v_exo: exoskeleton joint speeds [rad/s].
+            q_patient: patient joint angles [rad] (default: the exo's).
+            v_patient: patient joint speeds [rad/s] (default: the exo's).
             current_A: drive currents [A].
             fit_cuffs: make the present cuff offsets the slack ones (the
                 straps are fitted in this posture).
+
         """
         self.q[:4] = q_exo
         self.v[:4] = v_exo
@@ -149,8 +155,8 @@ class Plant:
 
     @property
     def cuff_force(self) -> np.ndarray:
-        """Cuff forces on the exoskeleton over the last step, complex fx + i fz [N], (4,)."""
-        return self.cuffs._f
+        """Cuff forces on the exoskeleton over the last step (mid-step), (4, 2) [N]."""
+        return self.cuffs.force
 
     # ------------------------------------------------------------------ stepping
 
@@ -164,6 +170,7 @@ class Plant:
         Raises:
             SimulationDiverged: a joint speed became non-finite or exceeded
                 :data:`MAX_JOINT_SPEED_RAD_S`.
+
         """
         h = self.dt
         q, v, tau, acc = self.q, self.v, self._tau, self._acc
@@ -215,7 +222,9 @@ class Plant:
         ]
         bad = np.where(np.isfinite(self.v), np.abs(self.v), np.inf)
         i = int(np.argmax(bad))
-        raise SimulationDiverged(self.t, names[i] + " [rad/s]", float(self.v[i]), MAX_JOINT_SPEED_RAD_S)
+        raise SimulationDiverged(
+            self.t, names[i] + " [rad/s]", float(self.v[i]), MAX_JOINT_SPEED_RAD_S
+        )
 
     # ------------------------------------------------------------------ diagnostics
 
@@ -235,7 +244,6 @@ class Plant:
             mass = np.triu(mass) + np.triu(mass, 1).T
             energy += 0.5 * float(v @ (mass + np.diag(arm)) @ v)
             energy += float(pin.computePotentialEnergy(model, data, q))
-        self.cuffs._kinematics(self.q)
-        dp = self.cuffs._pos[:4] - self.cuffs._pos[4:] - self.cuffs.rest_offset
-        energy += 0.5 * self.cuff_params.stiffness_N_per_m * float(np.sum(np.abs(dp) ** 2))
+        stretch = self.cuffs.stretch(self.q)
+        energy += 0.5 * self.cuff_params.stiffness_N_per_m * float(stretch @ stretch)
         return energy

@@ -17,6 +17,7 @@ is lost.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Sequence
@@ -75,6 +76,7 @@ class SimConfig:
         control_rate_hz: control rate [Hz] (default 1 kHz).
         plant_substeps: plant steps per control tick (plant step = Δt / n).
         chunk_ticks: rows per logging chunk.
+
     """
 
     gait: GaitParams = field(default_factory=GaitParams)
@@ -91,7 +93,9 @@ class SimConfig:
 
     def __post_init__(self) -> None:
         if self.controller not in CONTROLLERS:
-            raise InvalidParameter("controller", self.controller, f"one of {', '.join(CONTROLLERS)}")
+            raise InvalidParameter(
+                "controller", self.controller, f"one of {', '.join(CONTROLLERS)}"
+            )
         v.positive("duration", self.duration_s, "s")
         rate = v.positive("control_rate", self.control_rate_hz, "Hz")
         if not 10.0 <= rate <= 100_000.0:
@@ -113,7 +117,7 @@ class SimConfig:
     @property
     def n_ticks(self) -> int:
         """Number of control ticks."""
-        return int(math.floor(self.duration_s * self.control_rate_hz + 1e-9))
+        return math.floor(self.duration_s * self.control_rate_hz + 1e-9)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (JSON-able), for summaries and recordings."""
@@ -146,6 +150,7 @@ class SimResult:
         wall_time_s: wall-clock time of the loop [s].
         belt_speed_mps: belt speed v_f [m/s].
         exo_source: the exoskeleton URDF used; patient_source likewise.
+
     """
 
     config: SimConfig
@@ -197,14 +202,29 @@ def build(config: SimConfig) -> _Setup:
     n = config.n_ticks
     t = np.arange(n + 1) * config.dt
     plan = plan_joints(GaitPlan(config.gait), exo, t)
-    plant = Plant(exo, patient, dt=config.dt / config.plant_substeps, motors=config.motor,
-                  cuffs=config.cuffs)
+    motor = drive_for(config.motor, exo)
+    plant = Plant(
+        exo, patient, dt=config.dt / config.plant_substeps, motors=motor, cuffs=config.cuffs
+    )
     controller: PDController
     if config.controller == "ct":
-        controller = ComputedTorqueController(plan, exo, patient, config.motor, config.gains)
+        controller = ComputedTorqueController(plan, exo, patient, motor, config.gains)
     else:
         controller = PDController(plan, config.gains)
     return _Setup(exo, patient, plan, plant, controller)
+
+
+def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
+    """The drive as configured for this exoskeleton.
+
+    The driver's current limit is capped at the smallest URDF effort limit
+    divided by i_G k_m, so that no drive torque ever exceeds its joint's
+    rated effort (150 N·m → 8.57 A with the defaults).
+    """
+    cap = float(np.min(exo.effort_limit)) / motor.torque_per_amp_Nm_per_A
+    if motor.current_limit_A <= cap:
+        return motor
+    return dataclasses.replace(motor, current_limit_A=cap)
 
 
 def simulate(
@@ -225,18 +245,22 @@ def simulate(
     Returns:
         The result; ``status`` says whether it completed.  A divergence or
         Ctrl-C ends the run early with the ticks done so far.
+
     """
     setup = build(config)
     n = config.n_ticks
     plan, plant, ctrl = setup.plan, setup.plant, setup.controller
-    motor_params = config.motor
+    motor_params = plant.motor_params
     # Start on the plan with the planned speed; drive currents carry the
     # feedforward torque of t = 0 so the legs do not sag at the start.
     from .control import feedforward_torque
 
     tau0 = feedforward_torque(_first(plan), setup.exo, setup.patient, motor_params)[0]
-    i0 = np.clip(tau0 / motor_params.torque_per_amp_Nm_per_A, -motor_params.current_limit_A,
-                 motor_params.current_limit_A)
+    i0 = np.clip(
+        tau0 / motor_params.torque_per_amp_Nm_per_A,
+        -motor_params.current_limit_A,
+        motor_params.current_limit_A,
+    )
     plant.reset(plan.q[0], plan.dq[0], current_A=i0)
 
     chunk = min(config.chunk_ticks, max(n, 1))
@@ -264,7 +288,12 @@ def simulate(
     chunk_start = 0
     b_qd, b_dqd, b_q, b_dq = buf["q_des"], buf["dq_des"], buf["q"], buf["dq"]
     b_qp, b_dqp, b_uc, b_u = buf["q_patient"], buf["dq_patient"], buf["voltage_cmd"], buf["voltage"]
-    b_i, b_tau, b_tp, b_f = buf["current"], buf["drive_torque"], buf["patient_torque"], buf["cuff_force"]
+    b_i, b_tau, b_tp, b_f = (
+        buf["current"],
+        buf["drive_torque"],
+        buf["patient_torque"],
+        buf["cuff_force"],
+    )
     motors = plant.motors
     cuff_f = plant.cuff_force
 
@@ -294,8 +323,7 @@ def simulate(
             b_i[row] = motors.mean_current_A
             b_tau[row] = plant.drive_torque
             b_tp[row] = plant.patient_torque
-            b_f[row, :, 0] = cuff_f.real
-            b_f[row, :, 1] = cuff_f.imag
+            b_f[row] = cuff_f
             row += 1
             if row == chunk:
                 b_qd[:] = plan.q[chunk_start : chunk_start + row]
@@ -331,7 +359,11 @@ def simulate(
 
 def _first(plan: JointTrajectory) -> JointTrajectory:
     return JointTrajectory(
-        t=plan.t[:1], q=plan.q[:1], dq=plan.dq[:1], ddq=plan.ddq[:1], phi=plan.phi[:1],
-        foot_pos=plan.foot_pos[:1], foot_vel=plan.foot_vel[:1],
+        t=plan.t[:1],
+        q=plan.q[:1],
+        dq=plan.dq[:1],
+        ddq=plan.ddq[:1],
+        phi=plan.phi[:1],
+        foot_pos=plan.foot_pos[:1],
+        foot_vel=plan.foot_vel[:1],
     )
-

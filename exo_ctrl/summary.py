@@ -15,7 +15,7 @@ __all__ = ["RunStats"]
 
 
 def _keyed(values: np.ndarray, names: tuple[str, ...]) -> dict[str, float]:
-    return {name: float(x) for name, x in zip(names, values)}
+    return {name: float(x) for name, x in zip(names, values, strict=True)}
 
 
 class RunStats:

@@ -136,8 +136,18 @@ def test_exo_option_changes_the_joint_angles(tmp_path: Path, write_short_urdf) -
 def test_gait_via_subprocess(tmp_path: Path) -> None:
     out = tmp_path / "sub.csv"
     proc = subprocess.run(
-        [sys.executable, "-m", "exo_ctrl", "gait", "--period", "1.0", "--rate", "20",
-         "--csv", str(out)],
+        [
+            sys.executable,
+            "-m",
+            "exo_ctrl",
+            "gait",
+            "--period",
+            "1.0",
+            "--rate",
+            "20",
+            "--csv",
+            str(out),
+        ],
         capture_output=True,
         text=True,
         timeout=60,
@@ -236,8 +246,19 @@ def test_bad_gait_input_via_subprocess(tmp_path: Path, args: list[str], expected
 
 def test_urdf_command_writes_other_lengths(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "x.urdf"
-    args = ["urdf", "--kind", "exo", "--thigh-length", "0.45", "--shank-length", "0.40",
-            "--shank-cuff", "0.35", "--out", str(out)]
+    args = [
+        "urdf",
+        "--kind",
+        "exo",
+        "--thigh-length",
+        "0.45",
+        "--shank-length",
+        "0.40",
+        "--shank-cuff",
+        "0.35",
+        "--out",
+        str(out),
+    ]
     assert cli.main(args) == 0
     capsys.readouterr()
     body = load_body(out)
@@ -247,21 +268,29 @@ def test_urdf_command_writes_other_lengths(tmp_path: Path, capsys: pytest.Captur
     assert body.mass == pytest.approx(16.0)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: `urdf --kind exo --shank-length 0.40` keeps the default shank_cuff 0.45 m, which "
-    "BodyParams refuses (> shank length), so the command exits 2 unless --shank-cuff is given",
-)
 def test_urdf_command_with_only_the_lengths(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "x.urdf"
-    args = ["urdf", "--kind", "exo", "--thigh-length", "0.45", "--shank-length", "0.40",
-            "--out", str(out)]
+    args = [
+        "urdf",
+        "--kind",
+        "exo",
+        "--thigh-length",
+        "0.45",
+        "--shank-length",
+        "0.40",
+        "--out",
+        str(out),
+    ]
     code = cli.main(args)
     capsys.readouterr()
     assert code == 0
     body = load_body(out)
     assert body.legs["left"].thigh_length == pytest.approx(0.45, abs=1e-12)
     assert body.legs["left"].shank_length == pytest.approx(0.40, abs=1e-12)
+    # The cuffs keep their fraction of the link: 0.39/0.52 and 0.45/0.52.
+    cuff_z = body.frame_position(np.zeros(4), "left_shank_cuff")[2]
+    knee_z = -0.45
+    assert cuff_z - knee_z == pytest.approx(-0.45 / 0.52 * 0.40, abs=1e-12)
 
 
 def test_urdf_command_refuses_a_cuff_beyond_the_thigh(

@@ -259,8 +259,9 @@ def test_analytic_derivatives_match_central_differences(name: str, beta: float) 
     t_b, t_d = phase_times(p)
     dt = 1e-5
     t = np.linspace(0.0, 2 * T, 1601)
-    bounds = np.array([k * T + b for k in range(-1, 4) for b in (0.0, t_b, t_d, T / 2, t_b + T / 2,
-                                                                   t_d + T / 2)])
+    bounds = np.array(
+        [k * T + b for k in range(-1, 4) for b in (0.0, t_b, t_d, T / 2, t_b + T / 2, t_d + T / 2)]
+    )
     away = np.min(np.abs(t[:, None] - bounds[None, :]), axis=1) > 5 * dt
     t = t[away]
     f = plan.feet(t)
@@ -293,8 +294,17 @@ def test_analytic_derivatives_match_central_differences(name: str, beta: float) 
         ({"duty_factor": math.nan}, "duty_factor must be a finite number; got nan"),
         ({"shape_coeff": 0.0}, "shape_coeff must be > 0; got 0.0"),
     ],
-    ids=["nan-step", "neg-period", "zero-period", "lift-eq-hip", "lift-gt-hip", "duty-low",
-         "duty-one", "duty-nan", "kv-zero"],
+    ids=[
+        "nan-step",
+        "neg-period",
+        "zero-period",
+        "lift-eq-hip",
+        "lift-gt-hip",
+        "duty-low",
+        "duty-one",
+        "duty-nan",
+        "kv-zero",
+    ],
 )
 def test_bad_parameters_raise_with_exact_messages(kwargs: dict, message: str) -> None:
     with pytest.raises(InvalidParameter) as info:
@@ -353,11 +363,6 @@ def test_non_finite_time_is_refused() -> None:
         GaitPlan(GaitParams()).feet(np.array([0.0, math.nan]))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: GaitParams.__post_init__ validates float(value) but keeps the original object, "
-    "so step_length='0.35' passes validation and belt_speed then raises TypeError",
-)
 def test_validated_parameters_are_stored_as_floats() -> None:
     try:
         p = GaitParams(step_length="0.35")  # type: ignore[arg-type]

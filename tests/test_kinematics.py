@@ -111,9 +111,8 @@ def test_ik_agrees_with_the_papers_formula_for_x_positive() -> None:
     paper1 = np.arctan(z / x) + np.arccos((l1**2 - l2**2 + r2) / (2 * l1 * np.sqrt(r2)))
     paper2 = paper1 + (math.pi + np.arccos((l1**2 + l2**2 - r2) / (2 * l1 * l2)))
     phi1, phi2 = inverse_kinematics(x, z, l1, l2)
-    wrap = lambda a: np.angle(np.exp(1j * a))  # noqa: E731
-    np.testing.assert_allclose(wrap(phi1 - paper1), 0.0, atol=1e-9)
-    np.testing.assert_allclose(wrap(phi2 - paper2), 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (phi1 - paper1))), 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (phi2 - paper2))), 0.0, atol=1e-9)
 
 
 def test_knee_is_forward_and_flexed(exo: BodyModel) -> None:
@@ -129,7 +128,7 @@ def test_knee_is_forward_and_flexed(exo: BodyModel) -> None:
     # where the line is vertical-ish the knee x is ahead of the line's x at the knee height
     line_x_at_knee = pts[:, 0] * knee[:, 1] / pts[:, 1]
     assert np.all(knee[:, 0] > line_x_at_knee)
-    q_hip, q_knee = exo.legs["left"].absolute_to_joint(phi1, phi2)
+    _, q_knee = exo.legs["left"].absolute_to_joint(phi1, phi2)
     assert np.all(q_knee > 0)
     # the same knee angle, straight from the law of cosines
     r = np.hypot(pts[:, 0], pts[:, 1])
@@ -207,9 +206,7 @@ def smooth_path(t: np.ndarray):
 
 
 @pytest.mark.parametrize(("l1", "l2"), [(0.52, 0.52), (0.45, 0.40)])
-def test_joint_rates_and_accelerations_match_finite_differences_of_ik(
-    l1: float, l2: float
-) -> None:
+def test_joint_rates_and_accelerations_match_finite_differences_of_ik(l1: float, l2: float) -> None:
     t = np.linspace(0.0, 3.0, 301)
     h = 1e-4
     (x, z), (dx, dz), (ddx, ddz) = smooth_path(t)
@@ -246,11 +243,11 @@ def test_leg_jacobian_and_its_derivative_match_pinocchio(exo: BodyModel) -> None
             a_foot = pin.getFrameClassicalAcceleration(model, data, fid, LWA).linear
             p1, p2 = leg.joint_to_absolute(q[2 * s], q[2 * s + 1])
             d1, d2 = joint_rates(p1, p2, l1, l2, v_foot[0], v_foot[2])
-            np.testing.assert_allclose(leg.rates_to_joint(d1, d2), dq[2 * s : 2 * s + 2],
-                                       atol=1e-9)
+            np.testing.assert_allclose(leg.rates_to_joint(d1, d2), dq[2 * s : 2 * s + 2], atol=1e-9)
             a1, a2 = joint_accelerations(p1, p2, d1, d2, l1, l2, a_foot[0], a_foot[2])
-            np.testing.assert_allclose(leg.rates_to_joint(a1, a2), ddq[2 * s : 2 * s + 2],
-                                       atol=1e-8)
+            np.testing.assert_allclose(
+                leg.rates_to_joint(a1, a2), ddq[2 * s : 2 * s + 2], atol=1e-8
+            )
 
 
 def test_plan_joints_derivatives_match_finite_differences(exo: BodyModel) -> None:

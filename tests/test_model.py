@@ -34,7 +34,9 @@ def world_points(body: BodyModel, q: np.ndarray) -> tuple[pin.Data, dict[str, np
     """World positions of the driven joints and of the cuff and foot frames."""
     data = body.model.createData()
     pin.framesForwardKinematics(body.model, data, body.to_model_q(q))
-    pts = {n: data.oMi[j].translation.copy() for n, j in zip(JOINT_NAMES, body.joint_ids)}
+    pts = {
+        n: data.oMi[j].translation.copy() for n, j in zip(JOINT_NAMES, body.joint_ids, strict=True)
+    }
     for name in [c + "_cuff" for c in CUFF_NAMES] + ["left_foot", "right_foot"]:
         pts[name] = data.oMf[body.model.getFrameId(name)].translation.copy()
     return data, pts
@@ -122,7 +124,9 @@ def test_cuff_frames_of_the_default_exo(exo: BodyModel) -> None:
         assert np.linalg.norm(pts[f"{side}_thigh_cuff"] - hip) == pytest.approx(0.39)
         assert np.linalg.norm(pts[f"{side}_shank_cuff"] - knee) == pytest.approx(0.45)
     assert len(exo.cuff_frame_ids) == 4
-    assert [exo.model.frames[f].name for f in exo.cuff_frame_ids] == [c + "_cuff" for c in CUFF_NAMES]
+    assert [exo.model.frames[f].name for f in exo.cuff_frame_ids] == [
+        c + "_cuff" for c in CUFF_NAMES
+    ]
 
 
 # --------------------------------------------------------------------------- human patient
@@ -210,7 +214,7 @@ def test_missing_file(tmp_path: Path) -> None:
 
 
 def test_joint_map_naming_a_missing_joint(exo_path: Path) -> None:
-    joint_map = dict(zip(JOINT_NAMES, JOINT_NAMES)) | {"right_knee": "right_elbow"}
+    joint_map = {j: j for j in JOINT_NAMES} | {"right_knee": "right_elbow"}
     exc = check_invalid(
         exo_path,
         f"invalid model: 'right_elbow' in {exo_path}: joint not found (needed as right_knee)",
@@ -223,7 +227,9 @@ def test_urdf_with_a_renamed_joint(tmp_path: Path, exo_text: str) -> None:
     text = exo_text.replace('<joint name="left_knee"', '<joint name="left_knee_pitch"')
     assert text != exo_text
     path = broken(tmp_path, text)
-    check_invalid(path, f"invalid model: 'left_knee' in {path}: joint not found (needed as left_knee)")
+    check_invalid(
+        path, f"invalid model: 'left_knee' in {path}: joint not found (needed as left_knee)"
+    )
 
 
 def test_negative_mass(tmp_path: Path, exo_text: str) -> None:
@@ -231,7 +237,8 @@ def test_negative_mass(tmp_path: Path, exo_text: str) -> None:
     assert text != exo_text
     path = broken(tmp_path, text)
     check_invalid(
-        path, f"invalid model: 'left_shank' in {path}: mass must be a finite number > 0 kg; got -4.5"
+        path,
+        f"invalid model: 'left_shank' in {path}: mass must be a finite number > 0 kg; got -4.5",
     )
 
 

@@ -26,6 +26,7 @@ class SensorReadings:
         q: joint angles from the encoders [rad].
         dq: joint speeds [rad/s].
         tau: joint torques at the drive outputs, from the torque sensors [N·m].
+
     """
 
     q: np.ndarray
@@ -55,6 +56,7 @@ class PDGains:
     Attributes:
         kp: proportional gain per joint [V/rad], (4,) or scalar.
         kd: derivative gain per joint [V·s/rad], (4,) or scalar.
+
     """
 
     kp: tuple[float, ...] | float = 100.0

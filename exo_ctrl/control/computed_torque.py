@@ -22,9 +22,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..kinematics import JointTrajectory
-from ..model import BodyModel
+from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..motor import MotorBank, MotorParams
-from ..model import FRICTION_SMOOTHING_RAD_S
 from .base import PDGains, SensorReadings
 from .pd import PDController
 
@@ -40,6 +39,7 @@ class ComputedTorqueController(PDController):
         patient: the patient model (None: the exoskeleton alone).
         motor: the drive model.
         gains: the PD gains (the same as the plain PD for a fair comparison).
+
     """
 
     name = "ct"

@@ -16,6 +16,7 @@ class PDController:
     Args:
         plan: joint targets at the control ticks (row k for tick k).
         gains: the PD gains.
+
     """
 
     name = "pd"
