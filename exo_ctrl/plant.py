@@ -26,6 +26,12 @@ present speed, (M + h D) a = τ(v) - b(q, v) - ..., and M + h D is M with h D
 added to its diagonal, which is exactly what Pinocchio's ``armature`` does: the
 ABA call runs with armature = i_G² J_rotor + h D.  The drive current itself
 is integrated exactly over the step (:class:`~exo_ctrl.motor.MotorBank`).
+
+Outputs of a step: ``drive_torque`` is the torque the drive applied at the
+joint, τ_m(v) - h D_m a (the mean-current torque with its implicit back-EMF
+correction); ``sensor_torque`` is what a joint torque sensor between the
+gearbox and the link reads, drive_torque - i_G² J_rotor a (the rotor's
+inertia is on the motor side of the sensor).
 """
 
 from __future__ import annotations
@@ -115,6 +121,9 @@ class Plant:
         self._arm_p = self.dt * self._b[4:]
         self._mp.armature = self._arm_p
         self._damping_e = np.zeros(4)
+        self._damping_m = np.zeros(4)  # h D_m of the drives [kg·m²]
+        #: Joint torque sensor reading at each drive output (gearbox to link) [N·m].
+        self.sensor_torque = np.zeros(4)
         self._zero4 = np.zeros(4)
 
     # ------------------------------------------------------------------ state
@@ -152,6 +161,7 @@ class Plant:
             self.cuffs.fit(self.q)
         self.cuffs.compute(self.q, self.v)
         self.drive_torque[:] = self.motors.torque_Nm if self.motors is not None else 0.0
+        self.sensor_torque[:] = self.drive_torque
 
     @property
     def cuff_force(self) -> np.ndarray:
@@ -196,8 +206,8 @@ class Plant:
             torque = self.motors.step(voltage_V, v[:4], h)
             np.copyto(self.drive_torque, torque)
             np.add(tau[:4], torque, out=tau[:4])
-            np.multiply(self.motors.damping_Nm_s_per_rad(h), h, out=self._damping_e)
-            np.add(self._damping_e, self._arm_base, out=self._arm_e)
+            np.multiply(self.motors.damping_Nm_s_per_rad(h), h, out=self._damping_m)
+            np.add(self._damping_m, self._arm_base, out=self._arm_e)
         else:
             np.copyto(self._arm_e, self._arm_base)
         np.multiply(self._b[:4], h, out=self._damping_e)
@@ -206,6 +216,14 @@ class Plant:
         # Kick: accelerations at mid-step, damping implicit through the armature.
         acc[:4] = pin.aba(self._me, self._de, qm[:4], vm[:4], tau[:4])
         acc[4:] = pin.aba(self._mp, self._dp, qm[4:], vm[4:], tau[4:])
+        if self.motors is not None:
+            # Torque the drive actually applied (implicit back-EMF term) and
+            # what the joint torque sensor between gearbox and link reads:
+            # the rotor's reflected inertia takes its share before the sensor.
+            np.multiply(self._damping_m, acc[:4], out=self._tmp[:4])
+            np.subtract(self.drive_torque, self._tmp[:4], out=self.drive_torque)
+            np.multiply(self._arm_base, acc[:4], out=self._tmp[:4])
+            np.subtract(self.drive_torque, self._tmp[:4], out=self.sensor_torque)
         np.multiply(acc, h, out=self._tmp)
         np.add(v, self._tmp, out=v)
         # Drift: q(t + h) = q(t + h/2) + h/2 v(t + h).
@@ -215,6 +233,11 @@ class Plant:
         speed2 = float(v @ v)
         if not speed2 < MAX_JOINT_SPEED_RAD_S**2:
             self._diverged()
+
+    @property
+    def acceleration(self) -> np.ndarray:
+        """Joint accelerations [exo, patient] over the last step [rad/s²], (8,)."""
+        return self._acc
 
     def _diverged(self) -> None:
         names = [f"exoskeleton {j} speed" for j in JOINT_NAMES] + [

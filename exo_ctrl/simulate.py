@@ -310,7 +310,7 @@ def simulate(
         for k in range(n):
             np.copyto(sensors.q, q[:4])
             np.copyto(sensors.dq, dq[:4])
-            np.copyto(sensors.tau, plant.drive_torque)
+            np.copyto(sensors.tau, plant.sensor_torque)
             b_q[row] = q[:4]
             b_dq[row] = dq[:4]
             b_qp[row] = q[4:]

@@ -26,12 +26,14 @@ class SensorReadings:
         q: joint angles from the encoders [rad].
         dq: joint speeds [rad/s].
         tau: joint torques at the drive outputs, from the torque sensors [N·m].
-
+        cuff_force_est: estimated cuff forces on the exoskeleton, (4, 2) [N],
+            when an estimator runs (None otherwise).
     """
 
     q: np.ndarray
     dq: np.ndarray
     tau: np.ndarray
+    cuff_force_est: np.ndarray | None = None
 
 
 class Controller(Protocol):
