@@ -28,7 +28,13 @@ import numpy as np
 
 from . import _validate as v
 from ._progress import Progress
-from .control import ComputedTorqueController, PDController, PDGains, SensorReadings
+from .control import (
+    ComputedTorqueController,
+    PDController,
+    PDGains,
+    SensorReadings,
+    feedforward_torque,
+)
 from .cuffs import CuffParams
 from .exceptions import InvalidParameter, SimulationDiverged
 from .gait import GaitParams, GaitPlan
@@ -38,7 +44,17 @@ from .motor import MotorParams
 from .plant import Plant
 from .summary import RunStats
 
-__all__ = ["SIGNALS", "SimConfig", "SimObserver", "SimResult", "simulate"]
+__all__ = [
+    "SIGNALS",
+    "Runner",
+    "Setup",
+    "SimConfig",
+    "SimObserver",
+    "SimResult",
+    "build",
+    "drive_for",
+    "simulate",
+]
 
 CONTROLLERS = ("pd", "ct")
 
@@ -187,7 +203,10 @@ class SimResult:
 
 
 @dataclass
-class _Setup:
+class Setup:
+    """The pieces of a run, built from a :class:`SimConfig` by :func:`build`."""
+
+    config: SimConfig
     exo: BodyModel
     patient: BodyModel
     plan: JointTrajectory
@@ -195,7 +214,7 @@ class _Setup:
     controller: PDController
 
 
-def build(config: SimConfig) -> _Setup:
+def build(config: SimConfig) -> Setup:
     """Load the models, plan the run and build the plant and controller."""
     exo = load_body(config.exo or default_urdf_path("exo"), name="exoskeleton")
     patient = load_patient(config.patient)
@@ -211,7 +230,7 @@ def build(config: SimConfig) -> _Setup:
         controller = ComputedTorqueController(plan, exo, patient, motor, config.gains)
     else:
         controller = PDController(plan, config.gains)
-    return _Setup(exo, patient, plan, plant, controller)
+    return Setup(config, exo, patient, plan, plant, controller)
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
@@ -227,6 +246,60 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     return dataclasses.replace(motor, current_limit_A=cap)
 
 
+class Runner:
+    """Runs the ticks of a :class:`Setup`, writing each into a chunk buffer.
+
+    :meth:`tick` is the whole per-tick work of a run (sensors, controller,
+    plant steps, logging); ``tools/bench.py`` times exactly it.
+    """
+
+    def __init__(self, setup: Setup) -> None:
+        self.setup = setup
+        config = setup.config
+        plant, plan = setup.plant, setup.plan
+        self.chunk = min(config.chunk_ticks, max(config.n_ticks, 1))
+        self.buf = {name: np.zeros((self.chunk, *shape)) for name, (shape, _, _) in SIGNALS.items()}
+        self.sensors = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
+        self._substeps = config.plant_substeps
+        self._patient_torque: np.ndarray | None = None
+        # Start on the plan with the planned speed; the drive currents carry
+        # the feedforward torque of t = 0, so the legs do not sag at the start.
+        motor = plant.motor_params
+        tau0 = feedforward_torque(_first(plan), setup.exo, setup.patient, motor)[0]
+        limit = motor.current_limit_A
+        i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -limit, limit)
+        plant.reset(plan.q[0], plan.dq[0], current_A=i0)
+
+    def tick(self, k: int, row: int) -> None:
+        """Run control tick ``k``, logging into buffer row ``row``."""
+        setup, buf, sensors = self.setup, self.buf, self.sensors
+        plant = setup.plant
+        q, dq = plant.q, plant.v
+        np.copyto(sensors.q, q[:4])
+        np.copyto(sensors.dq, dq[:4])
+        np.copyto(sensors.tau, plant.sensor_torque)
+        buf["q"][row] = q[:4]
+        buf["dq"][row] = dq[:4]
+        buf["q_patient"][row] = q[4:]
+        buf["dq_patient"][row] = dq[4:]
+        u = setup.controller.command(k, sensors)
+        buf["voltage_cmd"][row] = u
+        for _ in range(self._substeps):
+            plant.step(u, self._patient_torque)
+        motors = plant.motors
+        buf["voltage"][row] = motors.applied_voltage_V
+        buf["current"][row] = motors.mean_current_A
+        buf["drive_torque"][row] = plant.drive_torque
+        buf["patient_torque"][row] = plant.patient_torque
+        buf["cuff_force"][row] = plant.cuff_force
+
+    def fill_plan(self, start: int, rows: int) -> None:
+        """Copy the planned rows ``start:start+rows`` into the buffer."""
+        plan = self.setup.plan
+        self.buf["q_des"][:rows] = plan.q[start : start + rows]
+        self.buf["dq_des"][:rows] = plan.dq[start : start + rows]
+
+
 def simulate(
     config: SimConfig,
     observers: Sequence[SimObserver] = (),
@@ -239,8 +312,9 @@ def simulate(
         config: the run.
         observers: watchers called per chunk (see :class:`SimObserver`).
         progress: draw a progress bar on stderr (for runs over ~2 s of wall time).
-        keep_history: keep every signal in the result (off: only the last
-            chunk is held, for long recorded runs).
+        keep_history: keep every signal in the result (off: only the
+            statistics and the chunk being written are held, for long
+            recorded runs; ``result.t`` is then empty).
 
     Returns:
         The result; ``status`` says whether it completed.  A divergence or
@@ -248,23 +322,8 @@ def simulate(
 
     """
     setup = build(config)
+    runner = Runner(setup)
     n = config.n_ticks
-    plan, plant, ctrl = setup.plan, setup.plant, setup.controller
-    motor_params = plant.motor_params
-    # Start on the plan with the planned speed; drive currents carry the
-    # feedforward torque of t = 0 so the legs do not sag at the start.
-    from .control import feedforward_torque
-
-    tau0 = feedforward_torque(_first(plan), setup.exo, setup.patient, motor_params)[0]
-    i0 = np.clip(
-        tau0 / motor_params.torque_per_amp_Nm_per_A,
-        -motor_params.current_limit_A,
-        motor_params.current_limit_A,
-    )
-    plant.reset(plan.q[0], plan.dq[0], current_A=i0)
-
-    chunk = min(config.chunk_ticks, max(n, 1))
-    buf = {name: np.zeros((chunk, *shape)) for name, (shape, _, _) in SIGNALS.items()}
     hist_n = n if keep_history else 0
     history = {name: np.zeros((hist_n, *shape)) for name, (shape, _, _) in SIGNALS.items()}
     result = SimResult(
@@ -277,28 +336,15 @@ def simulate(
     )
     for obs in observers:
         obs.start(result)
-
-    sensors = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
-    q, dq = plant.q, plant.v
-    substeps = config.plant_substeps
     bar = Progress(n, "simulate", enabled=progress)
-    start_wall = time.perf_counter()
-    k = 0
-    row = 0
+    chunk = runner.chunk
     chunk_start = 0
-    b_qd, b_dqd, b_q, b_dq = buf["q_des"], buf["dq_des"], buf["q"], buf["dq"]
-    b_qp, b_dqp, b_uc, b_u = buf["q_patient"], buf["dq_patient"], buf["voltage_cmd"], buf["voltage"]
-    b_i, b_tau, b_tp, b_f = (
-        buf["current"],
-        buf["drive_torque"],
-        buf["patient_torque"],
-        buf["cuff_force"],
-    )
-    motors = plant.motors
-    cuff_f = plant.cuff_force
+    row = 0
+    k = 0
 
     def flush(rows: int) -> None:
-        view = {name: arr[:rows] for name, arr in buf.items()}
+        runner.fill_plan(chunk_start, rows)
+        view = {name: arr[:rows] for name, arr in runner.buf.items()}
         result.stats.update(view)
         if keep_history:
             for name, arr in view.items():
@@ -306,28 +352,12 @@ def simulate(
         for obs in observers:
             obs.chunk(result, chunk_start, view)
 
+    start_wall = time.perf_counter()
     try:
         for k in range(n):
-            np.copyto(sensors.q, q[:4])
-            np.copyto(sensors.dq, dq[:4])
-            np.copyto(sensors.tau, plant.sensor_torque)
-            b_q[row] = q[:4]
-            b_dq[row] = dq[:4]
-            b_qp[row] = q[4:]
-            b_dqp[row] = dq[4:]
-            u = ctrl.command(k, sensors)
-            b_uc[row] = u
-            for _ in range(substeps):
-                plant.step(u)
-            b_u[row] = motors.applied_voltage_V
-            b_i[row] = motors.mean_current_A
-            b_tau[row] = plant.drive_torque
-            b_tp[row] = plant.patient_torque
-            b_f[row] = cuff_f
+            runner.tick(k, row)
             row += 1
             if row == chunk:
-                b_qd[:] = plan.q[chunk_start : chunk_start + row]
-                b_dqd[:] = plan.dq[chunk_start : chunk_start + row]
                 flush(row)
                 chunk_start += row
                 row = 0
@@ -345,8 +375,6 @@ def simulate(
         result.wall_time_s = time.perf_counter() - start_wall
         done = chunk_start + row
         if row:
-            b_qd[:row] = plan.q[chunk_start:done]
-            b_dqd[:row] = plan.dq[chunk_start:done]
             flush(row)
         bar.close(done)
         if keep_history and done < n:

@@ -1,0 +1,120 @@
+"""Benchmark of the control tick, its Pinocchio floor and the real-time factor.
+
+    python tools/bench.py [--ticks N] [--json PATH] [--controllers pd,ct,...]
+
+For each controller: the cost of one control tick (sensors, controller,
+plant step, logging: exactly ``Runner.tick``), median and p99 over the
+default scenario; the floor, the library calls the tick makes timed alone
+in the same run (Pinocchio's ABA for both bodies, plus the RNEA calls of
+the computed-torque feedforward, plus the proxsuite solve for ``qp``); their
+ratio; and the real-time factor of the default run (simulated time / wall
+time), without and with a rerun recording.  Absolute times drift on shared
+machines; the ratio is the figure to compare.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from exo_ctrl.simulate import Runner, SimConfig, build, simulate  # noqa: E402
+
+
+def _time_calls(calls, repeats: int = 2000) -> float:
+    """Median time of running ``calls`` once each [µs]."""
+    samples = np.empty(repeats)
+    for i in range(repeats):
+        t0 = time.perf_counter_ns()
+        for call in calls:
+            call()
+        samples[i] = time.perf_counter_ns() - t0
+    return float(np.median(samples)) / 1e3
+
+
+def floor_calls(setup):
+    """The library calls one tick makes, as zero-argument callables."""
+    plant = setup.plant
+    q, v, tau = plant.q.copy(), plant.v.copy(), np.zeros(8)
+    me, de, mp, dp = plant._me, plant._de, plant._mp, plant._dp
+    calls = [
+        lambda: pin.aba(me, de, q[:4], v[:4], tau[:4]),
+        lambda: pin.aba(mp, dp, q[4:], v[4:], tau[4:]),
+    ]
+    ctrl = setup.controller
+    ff = getattr(ctrl, "_ff", None)
+    if ff is not None:
+        calls.append(lambda: pin.rnea(ff._me, ff._de, q[:4], v[:4], tau[:4]))
+        if ff._mp is not None:
+            calls.append(lambda: pin.rnea(ff._mp, ff._dp, q[4:], v[4:], tau[4:]))
+    calls.extend(getattr(ctrl, "floor_calls", lambda: [])())
+    return calls
+
+
+def bench_controller(name: str, ticks: int) -> dict[str, float]:
+    config = SimConfig(controller=name)
+    setup = build(config)
+    runner = Runner(setup)
+    n = min(ticks, config.n_ticks)
+    samples = np.empty(n)
+    chunk = runner.chunk
+    for k in range(n):
+        t0 = time.perf_counter_ns()
+        runner.tick(k, k % chunk)
+        samples[k] = time.perf_counter_ns() - t0
+    tick = samples[n // 10 :] / 1e3  # skip warm-up
+    floor = _time_calls(floor_calls(setup))
+    rtf = simulate(config).summary()["real_time_factor"]
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            from exo_ctrl.record import RerunRecorder
+
+            rec = simulate(config, observers=[RerunRecorder(Path(tmp) / "b.rrd")])
+            rtf_rec = rec.summary()["real_time_factor"]
+        except ImportError:
+            rtf_rec = float("nan")
+    median = float(np.median(tick))
+    return {
+        "tick_median_us": median,
+        "tick_p99_us": float(np.percentile(tick, 99)),
+        "floor_us": floor,
+        "ratio": median / floor,
+        "real_time_factor": rtf,
+        "real_time_factor_recording": rtf_rec,
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ticks", type=int, default=2400, help="ticks to time (default 2400)")
+    parser.add_argument("--controllers", default="pd,ct", help="comma-separated (default pd,ct)")
+    parser.add_argument("--json", default=None, metavar="PATH", help="write the figures as JSON")
+    args = parser.parse_args()
+    results = {}
+    print(
+        f"{'controller':<11}{'tick median':>12}{'tick p99':>10}{'floor':>8}{'ratio':>7}"
+        f"{'RTF':>7}{'RTF rec':>9}"
+    )
+    for name in args.controllers.split(","):
+        r = bench_controller(name.strip(), args.ticks)
+        results[name] = r
+        print(
+            f"{name:<11}{r['tick_median_us']:>10.1f}µs{r['tick_p99_us']:>8.1f}µs"
+            f"{r['floor_us']:>6.1f}µs{r['ratio']:>7.1f}{r['real_time_factor']:>7.1f}"
+            f"{r['real_time_factor_recording']:>9.1f}"
+        )
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,167 @@
+"""Reproduce the paper's figures and its §VI numbers.
+
+    python tools/reproduce_paper.py [--out DIR] [--controller pd|ct]
+
+Writes PNG plots in the manner of the paper's Figs. 3, 5, 6 and 8 into DIR
+(default ``paper_figures/``) and prints the peak drive torques and cuff forces
+of the §VI run (Table I, patient torques zero, step 0.35 m, lift 0.1 m) beside
+the paper's ~100 N·m and ~200 N.
+
+Parameters the paper does not report, as chosen in exo_ctrl (see the module
+docstrings): gear ratio 50, 24 V supply, driver current limit capped at the
+URDF effort (150 N·m → 8.57 A), rotor inertia 6e-5 kg·m², cuff damping
+100 N·s/m, PD gains k_p = 100 V/rad, k_d = 2 V·s/rad, link inertias (exo:
+uniform cylinders; patient: Winter's tables), joint damping and friction,
+hip height 0.90 m, shape coefficient 0.5, period 1.2 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from exo_ctrl.gait import GaitParams, GaitPlan  # noqa: E402
+from exo_ctrl.kinematics import inverse_kinematics  # noqa: E402
+from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES  # noqa: E402
+from exo_ctrl.simulate import SimConfig, simulate  # noqa: E402
+
+PAPER_PEAK_TORQUE_NM = 100.0
+PAPER_PEAK_CUFF_FORCE_N = 200.0
+
+
+def _plt():
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise SystemExit(
+            'matplotlib is needed for the plots: pip install "exo-ctrl[plots]"'
+        ) from None
+    return plt
+
+
+def fig3(out: Path) -> Path:
+    """Foot paths for the paper's two Fig. 3 parameter vectors."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for ax, vec, label in zip(
+        axes, ((0.2, 0.3, 0.7, 0.5, 4.0), (0.6, 0.1, 0.8, 0.25, 4.0)), "ab", strict=True
+    ):
+        s, h, H, kv, T = vec
+        feet = GaitPlan(GaitParams(s, h, H, kv, T)).feet(np.linspace(0, T, 801))
+        ax.plot(feet.pos[:, 0, 0], feet.pos[:, 0, 1], label="left foot")
+        ax.plot(feet.pos[:, 1, 0], feet.pos[:, 1, 1], "--", label="right foot")
+        ax.set_title(f"({label}) s̄ = {vec}")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("z [m]")
+        ax.axis("equal")
+        ax.grid(True)
+        ax.legend()
+    path = out / "fig3_foot_paths.png"
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def fig5_6(out: Path) -> list[Path]:
+    """Coordinates and absolute angles over time, §IV: links 0.5 m, s̄ = (0.5, 0.2, 0.8, 0.5, 1)."""
+    plt = _plt()
+    params = GaitParams(0.5, 0.2, 0.8, 0.5, 1.0)
+    t = np.linspace(0, 2.0, 2001)
+    feet = GaitPlan(params).feet(t)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for leg, name in enumerate(("L", "R")):
+        ax.plot(t, feet.pos[:, leg, 0], label=f"x_O{name}3")
+        ax.plot(t, feet.pos[:, leg, 1], "--", label=f"y_O{name}3 (z)")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("[m]")
+    ax.grid(True)
+    ax.legend()
+    paths = [out / "fig5_foot_coordinates.png"]
+    fig.tight_layout()
+    fig.savefig(paths[0], dpi=120)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for leg, name in enumerate(("L", "R")):
+        phi1, phi2 = inverse_kinematics(feet.pos[:, leg, 0], feet.pos[:, leg, 1], 0.5, 0.5)
+        ax.plot(t, np.degrees(phi1), label=f"φ_{name}1")
+        ax.plot(t, np.degrees(phi2), "--", label=f"φ_{name}2")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("absolute angle [deg]")
+    ax.grid(True)
+    ax.legend()
+    paths.append(out / "fig6_absolute_angles.png")
+    fig.tight_layout()
+    fig.savefig(paths[1], dpi=120)
+    plt.close(fig)
+    return paths
+
+
+def fig8(out: Path, controller: str) -> tuple[Path, dict]:
+    """The §VI run: one gait cycle, Table I, patient torques zero."""
+    plt = _plt()
+    config = SimConfig(
+        gait=GaitParams(step_length=0.35, lift_height=0.10),
+        controller=controller,
+        duration_s=GaitParams().period,
+    )
+    result = simulate(config)
+    s = result.signals
+    t = result.t
+    fig, axes = plt.subplots(3, 1, figsize=(9, 10), sharex=True)
+    for j, name in enumerate(JOINT_NAMES[:2]):
+        axes[0].plot(t, np.degrees(s["q"][:, j]), label=f"exo {name}")
+        axes[0].plot(t, np.degrees(s["q_patient"][:, j]), "--", label=f"patient {name}")
+    axes[0].set_ylabel("joint angle [deg]")
+    for j, name in enumerate(JOINT_NAMES[:2]):
+        axes[1].plot(t, s["drive_torque"][:, j], label=name)
+    axes[1].set_ylabel("drive torque [N·m]")
+    for c, name in enumerate(CUFF_NAMES[:2]):
+        axes[2].plot(t, s["cuff_force"][:, c, 0], label=f"{name} x")
+        axes[2].plot(t, s["cuff_force"][:, c, 1], "--", label=f"{name} z")
+    axes[2].set_ylabel("cuff force on exo [N]")
+    axes[2].set_xlabel("t [s]")
+    for ax in axes:
+        ax.grid(True)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"left leg, controller {controller}, patient torques zero")
+    path = out / f"fig8_dynamics_{controller}.png"
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path, result.summary()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="paper_figures", help="output folder")
+    parser.add_argument("--controller", default="pd", choices=("pd", "ct"))
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = [fig3(out), *fig5_6(out)]
+    path, summary = fig8(out, args.controller)
+    written.append(path)
+    torque = max(summary["peak_drive_torque_Nm"].values())
+    force = max(summary["peak_cuff_force_N"].values())
+    print(f"§VI run, controller {args.controller}, one gait cycle ({summary['duration_s']:.2f} s):")
+    print(f"  peak drive torque {torque:6.1f} N·m   (paper: about {PAPER_PEAK_TORQUE_NM:.0f} N·m)")
+    for name, value in summary["peak_drive_torque_Nm"].items():
+        print(f"    {name:<11}{value:6.1f} N·m")
+    print(f"  peak cuff force   {force:6.1f} N     (paper: about {PAPER_PEAK_CUFF_FORCE_N:.0f} N)")
+    for name, value in summary["peak_cuff_force_N"].items():
+        print(f"    {name:<11}{value:6.1f} N")
+    print("figures:", ", ".join(str(p) for p in written))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
