@@ -144,6 +144,8 @@ class CuffSet:
         self._f = np.zeros(8)
         #: Cuff forces on the exoskeleton of the last :meth:`compute`, (4, 2) view [N].
         self.force = self._f.reshape(2, 4).T
+        #: The same forces as (fx of the 4 cuffs, fz of the 4 cuffs), (8,) [N].
+        self.force_flat = self._f
         #: Generalised cuff forces on [exo, patient] joints [N·m], (8,).
         self.joint_torque = np.zeros(8)
 

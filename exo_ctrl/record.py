@@ -364,13 +364,17 @@ class RerunRecorder:
     # ------------------------------------------------------------------ checks
 
     def _fail(self, exc: BaseException) -> None:
+        """Mark the recording failed and raise RecordingError with the path and reason."""
         self._failed = True
         reason = str(exc)
         with contextlib.suppress(OSError):
             free = shutil.disk_usage(self.path.parent).free
             if free < 1 << 20:
-                reason += f" (the disk is full: {free} B free)"
-        raise RecordingError(f"writing recording {self.path} failed: {reason}") from None
+                reason += f"; the disk is full ({free} B free)"
+        raise RecordingError(
+            f"writing recording {self.path} failed after tick {self._next_tick}: {reason} "
+            "(the ticks flushed before remain readable)"
+        ) from None
 
     def _check_writable(self, n_ticks: int) -> None:
         path = self.path

@@ -246,6 +246,9 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     return dataclasses.replace(motor, current_limit_A=cap)
 
 
+_WIDTH = 52
+
+
 class Runner:
     """Runs the ticks of a :class:`Setup`, writing each into a chunk buffer.
 
@@ -257,8 +260,27 @@ class Runner:
         self.setup = setup
         config = setup.config
         plant, plan = setup.plant, setup.plan
-        self.chunk = min(config.chunk_ticks, max(config.n_ticks, 1))
-        self.buf = {name: np.zeros((self.chunk, *shape)) for name, (shape, _, _) in SIGNALS.items()}
+        self.chunk = chunk = min(config.chunk_ticks, max(config.n_ticks, 1))
+        # One wide row per tick; every signal is a view of it.  Columns: the
+        # state [q_exo, q_patient, v_exo, v_patient] as the plant holds it,
+        # then what acted over the tick, then the plan.
+        self.wide = np.zeros((chunk, _WIDTH))
+        w = self.wide
+        self.buf = {
+            "q": w[:, 0:4],
+            "q_patient": w[:, 4:8],
+            "dq": w[:, 8:12],
+            "dq_patient": w[:, 12:16],
+            "voltage_cmd": w[:, 16:20],
+            "voltage": w[:, 20:24],
+            "current": w[:, 24:28],
+            "drive_torque": w[:, 28:32],
+            "patient_torque": w[:, 32:36],
+            # the cuffs hold (fx of 4 cuffs, fz of 4 cuffs): view as (4, 2)
+            "cuff_force": w[:, 36:44].reshape(chunk, 2, 4).transpose(0, 2, 1),
+            "q_des": w[:, 44:48],
+            "dq_des": w[:, 48:52],
+        }
         self.sensors = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
         self._substeps = config.plant_substeps
         self._patient_torque: np.ndarray | None = None
@@ -272,26 +294,28 @@ class Runner:
 
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into buffer row ``row``."""
-        setup, buf, sensors = self.setup, self.buf, self.sensors
-        plant = setup.plant
-        q, dq = plant.q, plant.v
-        np.copyto(sensors.q, q[:4])
-        np.copyto(sensors.dq, dq[:4])
+        plant = self.setup.plant
+        sensors = self.sensors
+        wide = self.wide[row]
+        np.concatenate((plant.q, plant.v), out=wide[:16])
+        np.copyto(sensors.q, plant.q[:4])
+        np.copyto(sensors.dq, plant.v[:4])
         np.copyto(sensors.tau, plant.sensor_torque)
-        buf["q"][row] = q[:4]
-        buf["dq"][row] = dq[:4]
-        buf["q_patient"][row] = q[4:]
-        buf["dq_patient"][row] = dq[4:]
-        u = setup.controller.command(k, sensors)
-        buf["voltage_cmd"][row] = u
+        u = self.setup.controller.command(k, sensors)
+        np.copyto(wide[16:20], u)
         for _ in range(self._substeps):
             plant.step(u, self._patient_torque)
         motors = plant.motors
-        buf["voltage"][row] = motors.applied_voltage_V
-        buf["current"][row] = motors.mean_current_A
-        buf["drive_torque"][row] = plant.drive_torque
-        buf["patient_torque"][row] = plant.patient_torque
-        buf["cuff_force"][row] = plant.cuff_force
+        np.concatenate(
+            (
+                motors.applied_voltage_V,
+                motors.mean_current_A,
+                plant.drive_torque,
+                plant.patient_torque,
+                plant.cuffs.force_flat,
+            ),
+            out=wide[20:44],
+        )
 
     def fill_plan(self, start: int, rows: int) -> None:
         """Copy the planned rows ``start:start+rows`` into the buffer."""

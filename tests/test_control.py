@@ -96,15 +96,6 @@ def test_bad_pd_gains_exact_messages(kwargs: dict, message: str) -> None:
     assert str(info.value) == message
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "bug: exo_ctrl/control/base.py PDGains.__post_init__ passes the broadcast numpy "
-        "elements to the validators, so the message shows their numpy repr: "
-        "'kd must be >= 0 V·s/rad; got np.float64(-1.0)', "
-        "'kp must be a finite number [V/rad]; got np.float64(nan)'"
-    ),
-)
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

@@ -26,7 +26,7 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from exo_ctrl.simulate import Runner, SimConfig, build, simulate  # noqa: E402
+from exo_ctrl.simulate import Runner, SimConfig, build, simulate
 
 
 def _time_calls(calls, repeats: int = 2000) -> float:

@@ -28,6 +28,7 @@ class SensorReadings:
         tau: joint torques at the drive outputs, from the torque sensors [N·m].
         cuff_force_est: estimated cuff forces on the exoskeleton, (4, 2) [N],
             when an estimator runs (None otherwise).
+
     """
 
     q: np.ndarray
@@ -67,7 +68,7 @@ class PDGains:
     def __post_init__(self) -> None:
         for name in ("kp", "kd"):
             arr = np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (4,))
-            for value in arr:
+            for value in arr.tolist():
                 v.non_negative(name, value, "V/rad" if name == "kp" else "V·s/rad")
             if name == "kp" and not np.all(arr > 0):
                 raise InvalidParameter("kp", getattr(self, name), "> 0 V/rad for every joint")

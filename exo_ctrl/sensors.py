@@ -1,0 +1,292 @@
+"""Joint encoders and joint torque sensors of the exoskeleton.
+
+Each drive carries two sensors on the link side of the gearbox:
+
+- an absolute encoder for the joint angle: the reading is the true angle
+  plus white noise, quantised to the encoder's resolution Δq,
+  ``q_m = Δq round((q + n_q) / Δq)``;
+- a strain-gauge joint torque sensor between gearbox and link: the reading
+  is the plant's :attr:`~exo_ctrl.plant.Plant.sensor_torque` (drive torque
+  minus the rotor's reflected inertia times acceleration) plus a constant
+  bias β and white noise, quantised to Δτ,
+  ``τ_m = Δτ round((τ + β + n_τ) / Δτ)``.
+
+The sensors are sampled at ``sample_rate_hz``; between samples the last
+sample is held (the readings of a control tick that falls between two
+samples are the previous sample's).
+
+**Velocity.**  A real drive has no velocity sensor: it differentiates the
+encoder.  Here the joint speed is the finite difference of the quantised,
+noisy encoder angle over one sample period T_s, passed through a first-order
+low-pass filter of cut-off f_v (``velocity_filter_hz``),
+
+    v_k = v_{k-1} + α (Δq_m / T_s − v_{k-1}),   α = 1 − exp(−2π f_v T_s).
+
+The filter starts at the true speed of the first sample (as if the device
+had been running), so there is no start-up transient.  ``velocity="true"``
+passes the plant's speed through unchanged instead (the ideal sensor).  The
+momentum observer (:mod:`exo_ctrl.estimation`) uses this speed once, in
+p = M(q) q̇; it never differentiates it again.
+
+**Defaults and where they come from** (override them for a real device):
+
+- ``encoder_resolution_rad = 2π / 2¹⁷`` (4.8e-5 rad): a 17-bit single-turn
+  absolute encoder on the joint (output) side, the class of the off-axis
+  magnetic and optical absolute encoders built into exoskeleton and
+  collaborative-robot joints (e.g. RLS AksIM-2, offered at 17–20 bits per
+  turn).  Chosen: the lowest resolution of that class.
+- ``encoder_noise_std_rad = 2e-5`` rad: position jitter below one count
+  (≈ 0.4 LSB), as such encoders specify "noise below 1 LSB".  Chosen.
+- ``velocity_filter_hz = 50`` Hz: chosen.  Quantisation and jitter make the
+  raw 1 kHz finite difference noisy (std ≈ √2·2.4e-5 rad / 1 ms ≈ 0.03
+  rad/s); 50 Hz cuts that to about 0.006 rad/s for a lag of 3 ms, which the
+  estimation tests (tests/test_estimation.py) found the best trade-off at
+  the default observer gain.
+- ``torque_noise_std_Nm = 0.2`` N·m: strain-gauge joint torque sensors in
+  exoskeleton and robot joints (spoke-type sensors with full bridges, or
+  commercial static torque sensors of 100–400 N·m range such as those in the
+  Project MARCH exoskeleton) reach a noise of 0.1–0.5 N·m at 1 kHz with a
+  16-bit acquisition; 0.2 N·m is chosen in that range.
+- ``torque_resolution_Nm = 0.01`` N·m: a 16-bit converter over about
+  ±300 N·m (chosen).
+- ``torque_bias_Nm = 0``: a zero offset (drift with temperature is typically
+  0.1–0.5 % of full scale, i.e. up to ~1 N·m); zero by default, set it to
+  study its effect (:func:`exo_ctrl.estimation.bias_effect_bound`).
+- ``sample_rate_hz = 1000`` Hz: the sensors are read every control tick of
+  a 1 kHz (EtherCAT-class) control loop.
+- ``seed = 0``: noise is drawn from ``numpy.random.default_rng(seed)`` so
+  that a run is reproducible.
+
+:meth:`SensorParams.ideal` gives noise-free, unquantised, unbiased sensors
+read every tick with the true speed, for tests.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _validate as v
+from .control.base import SensorReadings
+from .exceptions import InvalidParameter
+
+__all__ = ["SensorParams", "Sensors"]
+
+#: Noise samples drawn at a time (per sensor kind), to keep a read cheap.
+NOISE_BLOCK = 1000
+
+VELOCITY_SOURCES = ("encoder", "true")
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Encoder and torque-sensor parameters, the same for the four joints.
+
+    See the module docstring for the values and their sources.
+
+    Attributes:
+        encoder_resolution_rad: encoder quantisation step Δq [rad] (0: none).
+        encoder_noise_std_rad: white noise on the angle, std [rad].
+        velocity: ``"encoder"`` (filtered finite difference of the encoder)
+            or ``"true"`` (the plant's joint speed, ideal).
+        velocity_filter_hz: cut-off of the first-order low-pass on the
+            finite-difference speed [Hz] (``velocity="encoder"`` only).
+        torque_noise_std_Nm: white noise on the torque, std [N·m].
+        torque_bias_Nm: constant torque offset β per joint, (4,) or scalar
+            [N·m]; stored as a tuple of 4.
+        torque_resolution_Nm: torque quantisation step Δτ [N·m] (0: none).
+        sample_rate_hz: sampling rate [Hz]; None samples every control tick.
+        seed: seed of the noise generator.
+
+    Raises:
+        InvalidParameter: a field is out of its range.
+
+    """
+
+    encoder_resolution_rad: float = 2.0 * math.pi / 2**17
+    encoder_noise_std_rad: float = 2e-5
+    velocity: str = "encoder"
+    velocity_filter_hz: float = 50.0
+    torque_noise_std_Nm: float = 0.2
+    torque_bias_Nm: tuple[float, ...] | float = 0.0
+    torque_resolution_Nm: float = 0.01
+    sample_rate_hz: float | None = 1000.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        v.non_negative("encoder_resolution", self.encoder_resolution_rad, "rad")
+        if self.encoder_resolution_rad > 0.1:
+            raise InvalidParameter(
+                "encoder_resolution", self.encoder_resolution_rad, "in [0, 0.1] rad"
+            )
+        v.non_negative("encoder_noise_std", self.encoder_noise_std_rad, "rad")
+        if self.velocity not in VELOCITY_SOURCES:
+            raise InvalidParameter("velocity", self.velocity, "'encoder' or 'true'")
+        v.positive("velocity_filter", self.velocity_filter_hz, "Hz")
+        v.non_negative("torque_noise_std", self.torque_noise_std_Nm, "N·m")
+        v.non_negative("torque_resolution", self.torque_resolution_Nm, "N·m")
+        try:
+            bias = np.broadcast_to(np.asarray(self.torque_bias_Nm, dtype=float), (4,))
+        except (TypeError, ValueError):
+            raise InvalidParameter(
+                "torque_bias", self.torque_bias_Nm, "a finite number or 4 of them [N·m]"
+            ) from None
+        for b in bias:
+            v.finite("torque_bias", b, "N·m")
+        object.__setattr__(self, "torque_bias_Nm", tuple(float(b) for b in bias))
+        if self.sample_rate_hz is not None:
+            v.positive("sample_rate", self.sample_rate_hz, "Hz")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
+            raise InvalidParameter("seed", self.seed, "an integer >= 0")
+        if self.seed < 0:
+            raise InvalidParameter("seed", self.seed, "an integer >= 0")
+
+    @property
+    def bias(self) -> np.ndarray:
+        """Torque bias β per joint [N·m], (4,)."""
+        return np.array(self.torque_bias_Nm, dtype=float)
+
+    @classmethod
+    def ideal(cls) -> SensorParams:
+        """No noise, no quantisation, no bias, sampled every tick, true speed."""
+        return cls(
+            encoder_resolution_rad=0.0,
+            encoder_noise_std_rad=0.0,
+            velocity="true",
+            torque_noise_std_Nm=0.0,
+            torque_bias_Nm=0.0,
+            torque_resolution_Nm=0.0,
+            sample_rate_hz=None,
+        )
+
+
+class Sensors:
+    """The four joints' encoders and torque sensors, read once per control tick.
+
+    :meth:`read` writes into buffers allocated once and returns the same
+    :class:`~exo_ctrl.control.base.SensorReadings` object every time (copy its
+    arrays to keep them).  Noise is drawn in blocks of :data:`NOISE_BLOCK`
+    samples; the sequence depends only on ``seed`` and the number of samples
+    taken, so a run is reproducible.
+
+    Args:
+        params: sensor parameters.
+        dt: control period Δt [s] (the spacing of tick indices k).
+
+    """
+
+    def __init__(self, params: SensorParams | None = None, dt: float = 1e-3) -> None:
+        self.params = params if params is not None else SensorParams()
+        self.dt = v.positive("dt", dt, "s")
+        p = self.params
+        self._period = 0.0 if p.sample_rate_hz is None else 1.0 / p.sample_rate_hz
+        self._rng = np.random.default_rng(p.seed)
+        self._noise_q = np.zeros((NOISE_BLOCK, 4))
+        self._noise_tau = np.zeros((NOISE_BLOCK, 4))
+        self._n_block = NOISE_BLOCK  # index in the block; NOISE_BLOCK: draw a new block
+        self._noisy_q = p.encoder_noise_std_rad > 0
+        self._noisy_tau = p.torque_noise_std_Nm > 0
+        self._bias = p.bias
+        self._has_bias = bool(np.any(self._bias != 0))
+        self._true_speed = p.velocity == "true"
+        self._q_prev = np.zeros(4)
+        self._tmp = np.zeros(4)
+        self._next_sample_t = -math.inf
+        self._last_sample_t = 0.0
+        self._started = False
+        self.readings = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
+        #: Number of samples taken since construction or :meth:`reset`.
+        self.samples = 0
+
+    def reset(self) -> None:
+        """Restart: reseed the noise and forget the held sample and speed filter."""
+        self._rng = np.random.default_rng(self.params.seed)
+        self._n_block = NOISE_BLOCK
+        self._next_sample_t = -math.inf
+        self._started = False
+        self.samples = 0
+
+    def read(
+        self, k: int, q_true: np.ndarray, dq_true: np.ndarray, tau_true: np.ndarray
+    ) -> SensorReadings:
+        """The readings at control tick k (t_k = k Δt).
+
+        Args:
+            k: control tick index (t_k = k Δt); ticks must not go back in time.
+            q_true: true joint angles [rad], (4,).
+            dq_true: true joint speeds [rad/s], (4,).
+            tau_true: true torque at the sensor (plant ``sensor_torque``) [N·m], (4,).
+
+        Returns:
+            The readings (the same object every call, overwritten by the next).
+
+        """
+        t = k * self.dt
+        if self._started and t < self._next_sample_t - 1e-9 * self.dt:
+            return self.readings  # hold the last sample
+        self._sample(t, q_true, dq_true, tau_true)
+        return self.readings
+
+    # ------------------------------------------------------------------ internals
+
+    def _draw(self) -> int:
+        if self._n_block == NOISE_BLOCK:
+            p = self.params
+            if self._noisy_q:
+                self._rng.standard_normal(out=self._noise_q)
+                np.multiply(self._noise_q, p.encoder_noise_std_rad, out=self._noise_q)
+            if self._noisy_tau:
+                self._rng.standard_normal(out=self._noise_tau)
+                np.multiply(self._noise_tau, p.torque_noise_std_Nm, out=self._noise_tau)
+            self._n_block = 0
+        i = self._n_block
+        self._n_block += 1
+        return i
+
+    def _sample(self, t: float, q_true, dq_true, tau_true) -> None:
+        p = self.params
+        r = self.readings
+        i = self._draw()
+        # Encoder.
+        np.copyto(self._q_prev, r.q)
+        if self._noisy_q:
+            np.add(q_true, self._noise_q[i], out=r.q)
+        else:
+            np.copyto(r.q, q_true)
+        _quantise(r.q, p.encoder_resolution_rad)
+        # Speed.
+        if self._true_speed:
+            np.copyto(r.dq, dq_true)
+        elif not self._started:
+            np.copyto(r.dq, dq_true)
+        else:
+            period = t - self._last_sample_t
+            alpha = 1.0 - math.exp(-2.0 * math.pi * p.velocity_filter_hz * period)
+            np.subtract(r.q, self._q_prev, out=self._tmp)
+            np.divide(self._tmp, period, out=self._tmp)
+            np.subtract(self._tmp, r.dq, out=self._tmp)
+            np.multiply(self._tmp, alpha, out=self._tmp)
+            np.add(r.dq, self._tmp, out=r.dq)
+        # Torque sensor.
+        np.copyto(r.tau, tau_true)
+        if self._has_bias:
+            np.add(r.tau, self._bias, out=r.tau)
+        if self._noisy_tau:
+            np.add(r.tau, self._noise_tau[i], out=r.tau)
+        _quantise(r.tau, p.torque_resolution_Nm)
+        self._last_sample_t = t
+        # Samples on the grid t_0 + n T_s set by the first sample.
+        nxt = self._next_sample_t + self._period if self._started else t + self._period
+        self._next_sample_t = nxt if nxt > t else t + self._period
+        self._started = True
+        self.samples += 1
+
+
+def _quantise(x: np.ndarray, step: float) -> None:
+    """x ← step · round(x / step) in place (nothing when step is 0)."""
+    if step > 0:
+        np.divide(x, step, out=x)
+        np.round(x, out=x)
+        np.multiply(x, step, out=x)
