@@ -22,6 +22,7 @@ from .exceptions import ExoCtrlError
 from .gait import GaitParams, GaitPlan
 from .kinematics import plan_joints
 from .model import JOINT_NAMES, default_urdf_path, load_body
+from .patient import PATIENT_TORQUES
 from .simulate import CONTROLLERS, SimConfig, simulate
 
 __all__ = ["GAIT_CSV_HEADER", "main"]
@@ -210,6 +211,10 @@ def _sim_config(args: argparse.Namespace) -> SimConfig:
         duration_s=duration,
         control_rate_hz=args.rate,
         plant_substeps=args.substeps,
+        patient_torque=args.patient_torque,
+        safety=not args.no_safety,
+        safety_use_estimate=args.safety_estimate,
+        estop_at_s=args.estop_at,
     )
 
 
@@ -256,6 +261,10 @@ def format_summary(summary: dict) -> str:
         )
     cuffs = ", ".join(f"{c} {f:.1f}" for c, f in summary["peak_cuff_force_N"].items())
     lines.append(f"peak cuff force [N]: {cuffs}")
+    for event in summary["safety_events"][:5]:
+        lines.append(f"safety: {event['message']}")
+    if summary["safety_state"] != "normal":
+        lines.append(f"safety supervisor ended in state {summary['safety_state']!r}")
     return "\n".join(lines)
 
 
@@ -358,6 +367,29 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="V.S/RAD",
         help=f"PD derivative gain, all joints (default {PDGains().kd[0]:g})",
+    )
+    p.add_argument(
+        "--patient-torque",
+        choices=PATIENT_TORQUES,
+        default="none",
+        help="patient joint torques: none (paper §VI) or spastic (default none)",
+    )
+    p.add_argument(
+        "--no-safety",
+        action="store_true",
+        help="run without the safety supervisor (an --estop-at still acts)",
+    )
+    p.add_argument(
+        "--safety-estimate",
+        action="store_true",
+        help="the supervisor watches the estimated cuff forces, as on the device",
+    )
+    p.add_argument(
+        "--estop-at",
+        type=float,
+        default=None,
+        metavar="SEC",
+        help="emergency stop at this time [s]",
     )
     p.add_argument("--summary", default=None, metavar="PATH.json", help="write the summary as JSON")
     p.add_argument(

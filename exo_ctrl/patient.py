@@ -70,6 +70,7 @@ References:
     Joghtaei M et al. (2015). Assessment of passive knee stiffness and
     viscosity in individuals with spinal cord injury using pendulum test.
     J Spinal Cord Med 38(2):170–177.
+
 """
 
 from __future__ import annotations
@@ -279,6 +280,8 @@ def make_patient_torque(kind: str = "none", **params: object) -> PatientTorque |
         known = {f.name for f in fields(SpasticParams)}
         for name in params:
             if name not in known:
-                raise InvalidParameter("spastic parameter", name, f"one of {', '.join(sorted(known))}")
+                raise InvalidParameter(
+                    "spastic parameter", name, f"one of {', '.join(sorted(known))}"
+                )
         return SpasticPatient(SpasticParams(**params))  # type: ignore[arg-type]
     raise InvalidParameter("patient_torque", kind, f"one of {', '.join(PATIENT_TORQUES)}")

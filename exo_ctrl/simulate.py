@@ -41,7 +41,9 @@ from .gait import GaitParams, GaitPlan
 from .kinematics import JointTrajectory, plan_joints
 from .model import BodyModel, default_urdf_path, load_body, load_patient
 from .motor import MotorParams
+from .patient import PATIENT_TORQUES, make_patient_torque
 from .plant import Plant
+from .safety import SafetyLimits, SafetySupervisor
 from .summary import RunStats
 
 __all__ = [
@@ -72,6 +74,7 @@ SIGNALS: dict[str, tuple[tuple[int, ...], str, str]] = {
     "drive_torque": ((4,), "N·m", "drive torque at the joint"),
     "patient_torque": ((4,), "N·m", "patient joint torque"),
     "cuff_force": ((4, 2), "N", "cuff force on the exoskeleton (x, z)"),
+    "safety_state": ((), "", "safety supervisor: 0 normal, 1 stopping, 2 holding, 3 power cut"),
 }
 
 
@@ -92,6 +95,13 @@ class SimConfig:
         control_rate_hz: control rate [Hz] (default 1 kHz).
         plant_substeps: plant steps per control tick (plant step = Δt / n).
         chunk_ticks: rows per logging chunk.
+        patient_torque: patient joint torques, ``"none"`` (paper §VI) or
+            ``"spastic"`` (:mod:`exo_ctrl.patient`).
+        safety: run the safety supervisor (:mod:`exo_ctrl.safety`).
+        safety_limits: its limits.
+        safety_use_estimate: the supervisor watches the estimated cuff
+            forces (as a real device must) instead of the simulated ones.
+        estop_at_s: emergency stop at this time [s] (None: none).
 
     """
 
@@ -106,6 +116,11 @@ class SimConfig:
     control_rate_hz: float = 1000.0
     plant_substeps: int = 1
     chunk_ticks: int = 2000
+    patient_torque: str = "none"
+    safety: bool = True
+    safety_limits: SafetyLimits = field(default_factory=SafetyLimits)
+    safety_use_estimate: bool = False
+    estop_at_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.controller not in CONTROLLERS:
@@ -120,6 +135,12 @@ class SimConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise InvalidParameter(name, value, "an integer >= 1")
+        if self.patient_torque not in PATIENT_TORQUES:
+            raise InvalidParameter(
+                "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_TORQUES)}"
+            )
+        if self.estop_at_s is not None:
+            v.non_negative("estop_at", self.estop_at_s, "s")
         if self.duration_s * self.control_rate_hz > 50_000_000:
             raise InvalidParameter(
                 "duration", self.duration_s, "at most 5e7 control ticks (duration × rate)"
@@ -179,6 +200,7 @@ class SimResult:
     exo_source: str = ""
     patient_source: str = ""
     events: list[dict[str, Any]] = field(default_factory=list)
+    safety_state: str = "normal"
     stats: RunStats = field(default_factory=RunStats, repr=False)
 
     def __getattr__(self, name: str) -> np.ndarray:
@@ -246,7 +268,15 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     return dataclasses.replace(motor, current_limit_A=cap)
 
 
-_WIDTH = 52
+_WIDTH = 53
+#: Limits that never trip: the supervisor then only serves the e-stop.
+_NO_LIMITS = SafetyLimits(
+    cuff_force_N=(1e12,) * 4,
+    position_lower_rad=(-1e12,) * 4,
+    position_upper_rad=(1e12,) * 4,
+    speed_limit_rad_s=(1e12,) * 4,
+    current_limit_A=1e12,
+)
 
 
 class Runner:
@@ -280,10 +310,26 @@ class Runner:
             "cuff_force": w[:, 36:44].reshape(chunk, 2, 4).transpose(0, 2, 1),
             "q_des": w[:, 44:48],
             "dq_des": w[:, 48:52],
+            "safety_state": w[:, 52],
         }
         self.sensors = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
         self._substeps = config.plant_substeps
-        self._patient_torque: np.ndarray | None = None
+        self._dt = config.dt
+        self.patient_model = make_patient_torque(config.patient_torque)
+        self._tau_p = np.zeros(4)
+        self._q_p, self._v_p = plant.q[4:], plant.v[4:]
+        self.supervisor: SafetySupervisor | None = None
+        if config.safety or config.estop_at_s is not None:
+            limits = config.safety_limits if config.safety else _NO_LIMITS
+            self.supervisor = SafetySupervisor(
+                limits,
+                setup.exo,
+                setup.patient,
+                plant.motor_params,
+                config.dt,
+                estop_at_s=config.estop_at_s,
+                use_estimate=config.safety_use_estimate,
+            )
         # Start on the plan with the planned speed; the drive currents carry
         # the feedforward torque of t = 0, so the legs do not sag at the start.
         motor = plant.motor_params
@@ -303,8 +349,16 @@ class Runner:
         np.copyto(sensors.tau, plant.sensor_torque)
         u = self.setup.controller.command(k, sensors)
         np.copyto(wide[16:20], u)
+        sup = self.supervisor
+        if sup is not None:
+            force = sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
+            u = sup.step(k, k * self._dt, sensors, force, plant.motors.mean_current_A, u)
+            wide[52] = sup.state_code
+        tau_p = None
         for _ in range(self._substeps):
-            plant.step(u, self._patient_torque)
+            if self.patient_model is not None:
+                tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
+            plant.step(u, tau_p)
         motors = plant.motors
         np.concatenate(
             (
@@ -401,6 +455,9 @@ def simulate(
         if row:
             flush(row)
         bar.close(done)
+        if runner.supervisor is not None:
+            result.events.extend(runner.supervisor.events)
+            result.safety_state = runner.supervisor.state
         if keep_history and done < n:
             result.t = result.t[:done]
             result.signals = {name: arr[:done] for name, arr in history.items()}

@@ -68,6 +68,8 @@ class RunStats:
         ``peak_motor_current_A``, ``peak_motor_voltage_V``,
         ``peak_mechanical_power_W`` (|τ q̇|; keyed by joint),
         ``peak_cuff_force_N`` (magnitude of the sagittal force, keyed by cuff),
+        ``safety_state`` (the supervisor's final state) and ``safety_events``
+        (violations and e-stops: t, quantity, value, limit, message),
         ``wall_time_s``, ``real_time_factor`` (simulated / wall time).
         """
         n = max(self.ticks, 1)
@@ -89,6 +91,8 @@ class RunStats:
             "peak_motor_voltage_V": _keyed(p["voltage"], JOINT_NAMES),
             "peak_mechanical_power_W": _keyed(p["power"], JOINT_NAMES),
             "peak_cuff_force_N": _keyed(p["cuff"], CUFF_NAMES),
+            "safety_state": result.safety_state,
+            "safety_events": [e for e in result.events if e.get("kind") in ("violation", "estop")],
             "wall_time_s": wall,
             "real_time_factor": duration / wall if wall > 0 else 0.0,
         }
