@@ -41,9 +41,11 @@ from .gait import GaitParams, GaitPlan
 from .kinematics import JointTrajectory, plan_joints
 from .model import BodyModel, default_urdf_path, load_body, load_patient
 from .motor import MotorParams
+from .estimation import DEFAULT_GAIN_PER_S, CuffForceEstimator, EstimateErrorStats
 from .patient import PATIENT_TORQUES, make_patient_torque
 from .plant import Plant
 from .safety import SafetyLimits, SafetySupervisor
+from .sensors import SensorParams, Sensors
 from .summary import RunStats
 
 __all__ = [
@@ -75,6 +77,12 @@ SIGNALS: dict[str, tuple[tuple[int, ...], str, str]] = {
     "patient_torque": ((4,), "N·m", "patient joint torque"),
     "cuff_force": ((4, 2), "N", "cuff force on the exoskeleton (x, z)"),
     "safety_state": ((), "", "safety supervisor: 0 normal, 1 stopping, 2 holding, 3 power cut"),
+    "q_meas": ((4,), "rad", "encoder reading"),
+    "dq_meas": ((4,), "rad/s", "joint speed reading (filtered encoder difference)"),
+    "tau_sensor": ((4,), "N·m", "joint torque sensor reading"),
+    "tau_ext_est": ((4,), "N·m", "external joint torque estimate (momentum observer)"),
+    "cuff_normal_est": ((4,), "N", "estimated cuff force normal to the link"),
+    "cuff_force_est": ((4, 2), "N", "estimated cuff force on the exoskeleton (x, z)"),
 }
 
 
@@ -95,6 +103,12 @@ class SimConfig:
         control_rate_hz: control rate [Hz] (default 1 kHz).
         plant_substeps: plant steps per control tick (plant step = Δt / n).
         chunk_ticks: rows per logging chunk.
+        sensors: encoder and joint torque sensor models (defaults: real
+            hardware, :mod:`exo_ctrl.sensors`); ``SensorParams.ideal()`` for
+            perfect readings.
+        observer_gain_per_s: bandwidth K_O of the momentum observer [1/s].
+        cuff_stiffness_ratio: the estimator's assumption on how the cuffs
+            share load (:mod:`exo_ctrl.estimation`).
         patient_torque: patient joint torques, ``"none"`` (paper §VI) or
             ``"spastic"`` (:mod:`exo_ctrl.patient`).
         safety: run the safety supervisor (:mod:`exo_ctrl.safety`).
@@ -116,6 +130,9 @@ class SimConfig:
     control_rate_hz: float = 1000.0
     plant_substeps: int = 1
     chunk_ticks: int = 2000
+    sensors: SensorParams = field(default_factory=SensorParams)
+    observer_gain_per_s: float = DEFAULT_GAIN_PER_S
+    cuff_stiffness_ratio: float = 1.0
     patient_torque: str = "none"
     safety: bool = True
     safety_limits: SafetyLimits = field(default_factory=SafetyLimits)
@@ -268,7 +285,7 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     return dataclasses.replace(motor, current_limit_A=cap)
 
 
-_WIDTH = 53
+_WIDTH = 81
 #: Limits that never trip: the supervisor then only serves the e-stop.
 _NO_LIMITS = SafetyLimits(
     cuff_force_N=(1e12,) * 4,
@@ -311,8 +328,27 @@ class Runner:
             "q_des": w[:, 44:48],
             "dq_des": w[:, 48:52],
             "safety_state": w[:, 52],
+            "q_meas": w[:, 53:57],
+            "dq_meas": w[:, 57:61],
+            "tau_sensor": w[:, 61:65],
+            "tau_ext_est": w[:, 65:69],
+            "cuff_normal_est": w[:, 69:73],
+            "cuff_force_est": w[:, 73:81].reshape(chunk, 4, 2),
         }
-        self.sensors = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
+        self.sensor_model = Sensors(config.sensors, config.dt)
+        self.estimator = CuffForceEstimator(
+            setup.exo,
+            config.dt,
+            config.observer_gain_per_s,
+            stiffness_ratio=config.cuff_stiffness_ratio,
+        )
+        self.sensors = self.sensor_model.readings
+        self.sensors.cuff_force_est = self.estimator.force  # filled in place
+        self._estimate_parts = (
+            self.estimator.tau_ext,
+            self.estimator.normal,
+            self.estimator.force.reshape(8),
+        )
         self._substeps = config.plant_substeps
         self._dt = config.dt
         self.patient_model = make_patient_torque(config.patient_torque)
@@ -344,9 +380,9 @@ class Runner:
         sensors = self.sensors
         wide = self.wide[row]
         np.concatenate((plant.q, plant.v), out=wide[:16])
-        np.copyto(sensors.q, plant.q[:4])
-        np.copyto(sensors.dq, plant.v[:4])
-        np.copyto(sensors.tau, plant.sensor_torque)
+        sensors = self.sensor_model.read(k, plant.q[:4], plant.v[:4], plant.sensor_torque)
+        self.estimator.update(sensors)
+        np.concatenate((sensors.q, sensors.dq, sensors.tau, *self._estimate_parts), out=wide[53:81])
         u = self.setup.controller.command(k, sensors)
         np.copyto(wide[16:20], u)
         sup = self.supervisor
@@ -411,6 +447,7 @@ def simulate(
         belt_speed_mps=config.gait.belt_speed,
         exo_source=setup.exo.source,
         patient_source=setup.patient.source,
+        stats=RunStats(EstimateErrorStats(setup.exo, config.dt)),
     )
     for obs in observers:
         obs.start(result)

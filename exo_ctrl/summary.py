@@ -9,6 +9,7 @@ import numpy as np
 from .model import CUFF_NAMES, JOINT_NAMES
 
 if TYPE_CHECKING:
+    from .estimation import EstimateErrorStats
     from .simulate import SimResult
 
 __all__ = ["RunStats"]
@@ -24,7 +25,8 @@ class RunStats:
     Peaks are of absolute values; RMS values are over all ticks seen.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, estimate: EstimateErrorStats | None = None) -> None:
+        self.estimate = estimate
         self.ticks = 0
         self._sq_err = np.zeros(4)
         self._sq_tau = np.zeros(4)
@@ -42,6 +44,8 @@ class RunStats:
         n = rows["q"].shape[0]
         if n == 0:
             return
+        if self.estimate is not None:
+            self.estimate.update(rows["q"], rows["cuff_force"], rows["cuff_normal_est"])
         err = rows["q_des"] - rows["q"]
         tau = rows["drive_torque"]
         self.ticks += n
@@ -70,13 +74,16 @@ class RunStats:
         ``peak_cuff_force_N`` (magnitude of the sagittal force, keyed by cuff),
         ``safety_state`` (the supervisor's final state) and ``safety_events``
         (violations and e-stops: t, quantity, value, limit, message),
-        ``wall_time_s``, ``real_time_factor`` (simulated / wall time).
+        ``wall_time_s``, ``real_time_factor`` (simulated / wall time); with
+        live estimation ``cuff_force_estimate_rms_error_N`` and
+        ``cuff_force_estimate_rms_error_rel`` (keyed by cuff: RMS error of
+        the estimated normal component, and that over its peak true value).
         """
         n = max(self.ticks, 1)
         p = self._peaks
         duration = self.ticks * result.config.dt
         wall = result.wall_time_s
-        return {
+        out = {
             "controller": result.config.controller,
             "status": result.status,
             "error": result.error,
@@ -96,3 +103,6 @@ class RunStats:
             "wall_time_s": wall,
             "real_time_factor": duration / wall if wall > 0 else 0.0,
         }
+        if self.estimate is not None:
+            out.update(self.estimate.summary())
+        return out
