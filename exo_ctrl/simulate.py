@@ -32,16 +32,15 @@ from .control import (
     ComputedTorqueController,
     PDController,
     PDGains,
-    SensorReadings,
     feedforward_torque,
 )
 from .cuffs import CuffParams
+from .estimation import DEFAULT_GAIN_PER_S, CuffForceEstimator, EstimateErrorStats
 from .exceptions import InvalidParameter, SimulationDiverged
 from .gait import GaitParams, GaitPlan
 from .kinematics import JointTrajectory, plan_joints
 from .model import BodyModel, default_urdf_path, load_body, load_patient
 from .motor import MotorParams
-from .estimation import DEFAULT_GAIN_PER_S, CuffForceEstimator, EstimateErrorStats
 from .patient import PATIENT_TORQUES, make_patient_torque
 from .plant import Plant
 from .safety import SafetyLimits, SafetySupervisor
