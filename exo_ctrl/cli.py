@@ -215,6 +215,7 @@ def _sim_config(args: argparse.Namespace) -> SimConfig:
         safety=not args.no_safety,
         safety_use_estimate=args.safety_estimate,
         estop_at_s=args.estop_at,
+        cuff_force_limit_N=args.cuff_force_limit,
     )
 
 
@@ -331,7 +332,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--controller",
         choices=CONTROLLERS,
         default="pd",
-        help="pd (paper) or ct (computed torque + PD) (default pd)",
+        help="pd (paper), ct (computed torque + PD) or qp (CT + PD through a QP under drive "
+        "limits and cuff-force bounds) (default pd)",
     )
     span = p.add_mutually_exclusive_group()
     span.add_argument(
@@ -367,6 +369,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="V.S/RAD",
         help=f"PD derivative gain, all joints (default {PDGains().kd[0]:g})",
+    )
+    p.add_argument(
+        "--cuff-force-limit",
+        type=float,
+        default=SimConfig().cuff_force_limit_N,
+        metavar="N",
+        help="the qp controller's bound on each cuff's force [N] (default "
+        f"{SimConfig().cuff_force_limit_N:g}: ISO/TS 15066 lower leg 130 N less the cuffs' "
+        "overshoot)",
     )
     p.add_argument(
         "--patient-torque",

@@ -32,6 +32,7 @@ from .control import (
     ComputedTorqueController,
     PDController,
     PDGains,
+    QPController,
     feedforward_torque,
 )
 from .cuffs import CuffParams
@@ -59,7 +60,7 @@ __all__ = [
     "simulate",
 ]
 
-CONTROLLERS = ("pd", "ct")
+CONTROLLERS = ("pd", "ct", "qp")
 
 #: Logged signals: name → (shape of one row, unit, description).
 SIGNALS: dict[str, tuple[tuple[int, ...], str, str]] = {
@@ -82,6 +83,8 @@ SIGNALS: dict[str, tuple[tuple[int, ...], str, str]] = {
     "tau_ext_est": ((4,), "N·m", "external joint torque estimate (momentum observer)"),
     "cuff_normal_est": ((4,), "N", "estimated cuff force normal to the link"),
     "cuff_force_est": ((4, 2), "N", "estimated cuff force on the exoskeleton (x, z)"),
+    "qp_active": ((), "", "QP controller: active constraints"),
+    "qp_failures": ((), "", "QP controller: fallbacks so far"),
 }
 
 
@@ -94,7 +97,13 @@ class SimConfig:
         exo: exoskeleton URDF path (None: the committed default).
         patient: patient URDF path, ``"human"`` (example-robot-data) or None
             (the committed default).
-        controller: ``"pd"`` (paper) or ``"ct"`` (computed torque + PD).
+        controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD) or
+            ``"qp"`` (CT + PD distributed by a QP under drive limits and
+            cuff-force bounds, :mod:`exo_ctrl.control.qp`).
+        cuff_force_limit_N: the QP's bound on each cuff's force [N].  Default
+            120 N: ISO/TS 15066 Annex A's quasi-static limit for the lower leg,
+            130 N, less the ~10 % by which the elastic cuffs overshoot the QP's
+            quasi-static prediction (measured, tests/test_qp.py).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
         cuffs: cuff parameters.
@@ -132,6 +141,7 @@ class SimConfig:
     sensors: SensorParams = field(default_factory=SensorParams)
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
+    cuff_force_limit_N: float = 120.0
     patient_torque: str = "none"
     safety: bool = True
     safety_limits: SafetyLimits = field(default_factory=SafetyLimits)
@@ -155,6 +165,7 @@ class SimConfig:
             raise InvalidParameter(
                 "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_TORQUES)}"
             )
+        v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
         if self.estop_at_s is not None:
             v.non_negative("estop_at", self.estop_at_s, "s")
         if self.duration_s * self.control_rate_hz > 50_000_000:
@@ -217,6 +228,7 @@ class SimResult:
     patient_source: str = ""
     events: list[dict[str, Any]] = field(default_factory=list)
     safety_state: str = "normal"
+    qp_failures: int = 0
     stats: RunStats = field(default_factory=RunStats, repr=False)
 
     def __getattr__(self, name: str) -> np.ndarray:
@@ -266,6 +278,10 @@ def build(config: SimConfig) -> Setup:
     controller: PDController
     if config.controller == "ct":
         controller = ComputedTorqueController(plan, exo, patient, motor, config.gains)
+    elif config.controller == "qp":
+        controller = QPController(
+            plan, exo, patient, motor, config.gains, cuff_force_limit_N=config.cuff_force_limit_N
+        )
     else:
         controller = PDController(plan, config.gains)
     return Setup(config, exo, patient, plan, plant, controller)
@@ -284,7 +300,7 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     return dataclasses.replace(motor, current_limit_A=cap)
 
 
-_WIDTH = 81
+_WIDTH = 83
 #: Limits that never trip: the supervisor then only serves the e-stop.
 _NO_LIMITS = SafetyLimits(
     cuff_force_N=(1e12,) * 4,
@@ -333,6 +349,8 @@ class Runner:
             "tau_ext_est": w[:, 65:69],
             "cuff_normal_est": w[:, 69:73],
             "cuff_force_est": w[:, 73:81].reshape(chunk, 4, 2),
+            "qp_active": w[:, 81],
+            "qp_failures": w[:, 82],
         }
         self.sensor_model = Sensors(config.sensors, config.dt)
         self.estimator = CuffForceEstimator(
@@ -350,6 +368,7 @@ class Runner:
         )
         self._substeps = config.plant_substeps
         self._dt = config.dt
+        self._qp = isinstance(setup.controller, QPController)
         self.patient_model = make_patient_torque(config.patient_torque)
         self._tau_p = np.zeros(4)
         self._q_p, self._v_p = plant.q[4:], plant.v[4:]
@@ -382,8 +401,12 @@ class Runner:
         sensors = self.sensor_model.read(k, plant.q[:4], plant.v[:4], plant.sensor_torque)
         self.estimator.update(sensors)
         np.concatenate((sensors.q, sensors.dq, sensors.tau, *self._estimate_parts), out=wide[53:81])
-        u = self.setup.controller.command(k, sensors)
+        controller = self.setup.controller
+        u = controller.command(k, sensors)
         np.copyto(wide[16:20], u)
+        if self._qp:
+            wide[81] = controller.active_constraints
+            wide[82] = controller.failures
         sup = self.supervisor
         if sup is not None:
             force = sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
@@ -491,6 +514,8 @@ def simulate(
         if row:
             flush(row)
         bar.close(done)
+        if runner._qp:
+            result.qp_failures = runner.setup.controller.failures
         if runner.supervisor is not None:
             result.events.extend(runner.supervisor.events)
             result.safety_state = runner.supervisor.state

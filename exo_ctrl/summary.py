@@ -98,6 +98,7 @@ class RunStats:
             "peak_motor_voltage_V": _keyed(p["voltage"], JOINT_NAMES),
             "peak_mechanical_power_W": _keyed(p["power"], JOINT_NAMES),
             "peak_cuff_force_N": _keyed(p["cuff"], CUFF_NAMES),
+            "qp_failures": result.qp_failures,
             "safety_state": result.safety_state,
             "safety_events": [e for e in result.events if e.get("kind") in ("violation", "estop")],
             "wall_time_s": wall,

@@ -3,12 +3,16 @@
 from .base import Controller, PDGains, SensorReadings
 from .computed_torque import ComputedTorqueController, feedforward_torque
 from .pd import PDController
+from .qp import CuffForceModel, QPController, TorqueQP
 
 __all__ = [
     "ComputedTorqueController",
     "Controller",
+    "CuffForceModel",
     "PDController",
     "PDGains",
+    "QPController",
     "SensorReadings",
+    "TorqueQP",
     "feedforward_torque",
 ]

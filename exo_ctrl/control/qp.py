@@ -1,0 +1,738 @@
+r"""QP torque distribution: the CT+PD command, limited by the drives and the cuffs.
+
+Each tick the controller computes the computed-torque + PD voltage ``U_cmd``
+(:class:`~exo_ctrl.control.computed_torque.ComputedTorqueController`), turns it
+into the steady-state drive torque at the measured joint speed ω,
+
+.. math::
+
+    τ_{cmd} = i_G k_m \, \frac{U_{cmd} - i_G ω / k_E}{R},
+
+and solves, with proxsuite,
+
+.. math::
+
+    \min_τ \tfrac12 (τ - τ_{cmd})^T W (τ - τ_{cmd})
+    \quad \text{s.t.} \quad τ_{lo} \le τ \le τ_{hi}, \quad
+    |n_k^T f_c(τ)| \le F_{max} \cos(π/8) \;\; (k = 0..3,\ c = \text{4 cuffs}),
+
+then converts back, ``U = R τ / (i_G k_m) + i_G ω / k_E``.  With no bound
+active the answer is τ_cmd and the command is the CT+PD voltage itself.
+
+**Torque box** (per joint, at the present speed).  The URDF effort limit,
+``|τ| ≤ τ_eff``, and what the drive can deliver: a steady-state current
+``I = τ / (i_G k_m)`` within the driver's limit ``[-I_max, I_max]`` and
+within the supply, ``[(-U_max - i_G ω/k_E)/R, (U_max - i_G ω/k_E)/R]``.  The
+box is the intersection of the three; if it is empty for some joint (a speed
+above ``(U_max + R I_max) k_E / i_G`` ≈ 12.9 rad/s with the defaults) no
+command meets the limits and the tick falls back (below).
+
+**Cuff forces, affine in τ** (design.md §5).  Over one tick the cuffs are
+taken as rigid and the patient's joints follow the exoskeleton's (hip and
+knee axes aligned, as the device is fitted): q_p = q, q̇_p = q̇, q̈_p = q̈ = a.
+The two bodies' equations, with ``f`` the cuff forces ON THE EXOSKELETON
+(the patient receives ``-f``) and h the Coriolis, centrifugal, gravity,
+viscous-damping and smoothed dry-friction terms of each model at the
+measured (q, q̇):
+
+.. math::
+
+    (M_e + i_G^2 J_{rotor}) a + h_e = τ + J_e^T f, \qquad
+    M_p a + h_p = τ_p - J_p^T f.
+
+With the cuff points of the two bodies coincident (fitted straps,
+``J_e = J_p``) the cuff terms cancel in the sum, which gives the coupled
+rigid dynamics and the interaction torque the exoskeleton puts into the
+patient through the cuffs:
+
+.. math::
+
+    M a = τ + τ_p - h_e - h_p, \quad M = M_e + i_G^2 J_{rotor} + M_p, \qquad
+    τ_{int} = -J_p^T f = M_p a + h_p - τ_p = P τ + τ_{int,0},
+
+with ``P = M_p M^{-1}`` and ``τ_int,0 = h_p - P (h_e + h_p)``; the patient
+torque τ_p is unknown to the controller and taken as zero.
+
+Per leg, two joint torques meet two 2-D cuff forces (four unknowns): the
+rigid model is statically indeterminate.  The forces are resolved by the
+cuffs' compliance: each cuff is an isotropic spring of stiffness K (the
+same for all cuffs, :class:`~exo_ctrl.cuffs.CuffParams`), and in the
+quasi-static state the patient's joints lag the exoskeleton's by a small
+δq.  The cuff stretch (exo minus patient) is then ``Δp = -J_p δq`` and the
+force on the exoskeleton ``f = -K Δp = K J_p δq``; the patient's
+generalised cuff force must equal τ_int:
+
+.. math::
+
+    -J_p^T f = -K J_p^T J_p δq = τ_{int}
+    \;\Rightarrow\; δq = -(K J_p^T J_p)^{-1} τ_{int}, \qquad
+    f = -J_p (J_p^T J_p)^{-1} τ_{int} = -G τ_{int},
+
+K cancels: the minimum-norm solution of ``-J_pᵀ f = τ_int``.  Hence
+``f = A τ + b`` with ``A = -G P`` and ``b = -G τ_int,0`` (8×4 and 8, rows
+``(f_x, f_z)`` of cuff c at ``2c, 2c+1``), recomputed each tick from the
+controller's own copies of the models (Pinocchio ``crba``,
+``nonLinearEffects`` and the patient's frame Jacobians at the cuff frames),
+never from the plant.  Assumptions: rigid coupling over the tick,
+coincident and aligned joint axes and cuff points, equal isotropic cuff
+stiffness, quasi-static straps (the cuff damping and the strap's own
+oscillation are not modelled), τ_p = 0.
+
+**Cuff-force bound.**  ``|f_c| ≤ F_max`` is replaced by a regular octagon
+inscribed in the circle: ``|n_kᵀ f_c| ≤ F_max cos(π/8)`` for the four
+directions ``n_k = (cos kπ/4, sin kπ/4)``.  The two signs of each row give
+the octagon's eight edges, so each cuff costs four two-sided rows of
+proxsuite's ``l ≤ C τ ≤ u``: 16 rows with every bound finite (the same
+polytope as 32 one-sided rows with ``l = -∞``, at half the size).  The
+vertices lie on the circle, so the octagon holding implies
+``|f_c| ≤ F_max``; it is at most ``1 - cos(π/8)`` ≈ 7.6 % conservative
+(midway between two vertices).
+
+The bound is on the PREDICTED force.  The rigid model is quasi-static: the
+real cuffs are springs (8 N/mm), and with the patient's leg on them they
+form two modes per leg of 5–12 Hz (5 and 8 Hz with the exoskeleton held,
+7 and 12 Hz with both free), slow against a 1 ms tick.  While no bound is active
+the prediction matches the plant's elastic cuffs closely (peak 107.1 N
+predicted, 107.3 N measured on the default run).  When the bound clamps the
+torque abruptly, that mode is excited and the real force overshoots the
+prediction.  Measured on the default 2.4 s run (passive patient, CT peak
+107.3 N; tests/test_qp.py asserts 15 % at 80 N):
+
+=========  ===================  ======================  ==================
+F_max      predicted peak       measured peak (plant)   RMS tracking error
+=========  ===================  ======================  ==================
+1000 N     107.1 N              107.3 N (= CT)          0.22 mrad (= CT)
+100 N      94.8 N               105.5 N (+5.5 %)        0.35 mrad
+80 N       80.0 N               88.8 N (+11 %)          9.6 mrad
+60 N       60.0 N               88.6 N (+48 %)          66 mrad
+=========  ===================  ======================  ==================
+
+So the bound is a reliable limit on the real force only with a margin that
+grows as the bound tightens; a hard limit on the real force needs the
+measured (estimated) cuff force in the loop, which this model does not use.
+
+**Solver.**  One proxsuite dense QP (n = 4, no equalities, 16 rows, box
+constraints) is built once, initialised on the first tick, then
+``update`` + ``solve`` warm-started from the previous result every tick.
+Following /work/shared/pitfalls.md: the inputs are checked finite with
+``l ≤ u`` and ``lo ≤ hi`` before solving; ``max_iter`` is bounded (100);
+``eps_abs = 1e-9`` and the duality gap is checked (1e-8); a result is
+accepted only if SOLVED *and* x is finite and feasible by an independent
+check (rows and box within 1e-6), and x is then rounded into the box
+exactly; otherwise the QP is re-initialised cold once and solved again (a
+solve that was already cold, the first, is not repeated: it would give the
+same answer).  proxsuite's default infeasibility tolerance (1e-4) declared
+about 0.1 % of random feasible instances of this scale PRIMAL_INFEASIBLE; it
+is set to 1e-10.  On the default run about two warm-started solves per run
+stop at max_iter; the cold re-init solves them.
+
+**Fallback** (the tick is counted in :attr:`QPController.failures`):
+
+1. solver failed twice, or the limits are infeasible together (the box
+   cannot meet the cuff octagon): τ_cmd clipped into the torque box.  The
+   drive limits are kept (they are physical); the cuff bound is given up for
+   that tick;
+2. the torque box is empty for a joint: that joint gets zero torque, the
+   others τ_cmd clipped into their box, and the voltage is clipped to the
+   supply (at such speeds the driver's current limit decides anyway);
+3. a non-finite reading or command, or an unexpected error: zero volts (the
+   windings short through the driver and the back-EMF brakes the joints).
+
+**Cost.**  Each tick: CT+PD, the box (5 array operations), the cuff model
+(two CRBA, two nonLinearEffects, the patient's joint Jacobians and four frame
+Jacobians, then 2×2 algebra per leg in scalars), the QP.  Measured on the
+default run on a shared 2-core machine (scratch script, not the tests):
+``command`` median ≈ 210 µs, p99 ≈ 320 µs, of which the QP with its checks
+≈ 90 µs median; the library floor (Pinocchio calls ≈ 32 µs, proxsuite
+update + solve ≈ 39 µs in the loop) is ≈ 72 µs, a ratio of ≈ 3.
+
+:meth:`QPController.command` never raises and never returns NaN.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pinocchio as pin
+import proxsuite
+
+from .. import _validate as v
+from ..exceptions import InvalidModel, InvalidParameter
+from ..kinematics import JointTrajectory
+from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ..motor import MotorParams
+from .base import PDGains, SensorReadings
+from .computed_torque import ComputedTorqueController
+
+__all__ = ["POLYGON_SIDES", "CuffForceModel", "QPController", "TorqueQP", "polygon_rows"]
+
+#: Sides of the regular polygon inscribed in each cuff's force circle (even).
+POLYGON_SIDES = 8
+#: Feasibility tolerance of the independent check of a QP answer [N·m or N].
+FEASIBILITY_TOL = 1e-6
+#: Weight ρ of a cuff's slack in the cost [(N·m)²/N²]: exceeding the bound by
+#: 1 N costs as much as deviating 100 N·m from the command, so the bound is
+#: met whenever the drive limits allow and exceeded as little as they force.
+SLACK_WEIGHT = 1e4
+#: Stand-in for an absent bound (the QP refuses non-finite data) [N or N·m].
+NO_BOUND = 1e9
+#: A row or box bound within this of its limit counts as active [N·m or N].
+ACTIVE_TOL = 1e-6
+
+_Output = proxsuite.proxqp.QPSolverOutput
+_SOLVED = _Output.PROXQP_SOLVED
+_STATUS = {
+    _Output.PROXQP_SOLVED: "solved",
+    _Output.PROXQP_MAX_ITER_REACHED: "max_iter_reached",
+    _Output.PROXQP_PRIMAL_INFEASIBLE: "primal_infeasible",
+    _Output.PROXQP_DUAL_INFEASIBLE: "dual_infeasible",
+    _Output.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE: "closest_primal_feasible",
+    _Output.PROXQP_NOT_RUN: "not_run",
+}
+_WARM = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+_COLD = proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+
+
+def polygon_rows(n_cuffs: int = 4) -> np.ndarray:
+    """Row directions of the inscribed polygons, (n_cuffs·S/2, 2·n_cuffs).
+
+    With S = :data:`POLYGON_SIDES`, row ``c·S/2 + k`` holds
+    ``n_k = (cos 2πk/S, sin 2πk/S)`` in cuff c's (f_x, f_z) columns
+    ``2c, 2c+1``.  Taken with both signs, ``|n_kᵀ f_c| ≤ r`` for
+    k = 0 … S/2 − 1 are the S edges of a regular S-gon of apothem r.
+    """
+    half = POLYGON_SIDES // 2
+    rows = np.zeros((n_cuffs * half, 2 * n_cuffs))
+    for c in range(n_cuffs):
+        for k in range(half):
+            angle = k * math.pi / half
+            rows[c * half + k, 2 * c] = math.cos(angle)
+            rows[c * half + k, 2 * c + 1] = math.sin(angle)
+    return rows
+
+
+class TorqueQP:
+    """Persistent proxsuite workspace for ``min ½ (x − x_t)ᵀ W (x − x_t)``.
+
+    Subject to ``lower ≤ C x ≤ upper`` and ``lo ≤ x ≤ hi``.  The problem data
+    live in one buffer, exposed as writable views (:attr:`target`, :attr:`C`,
+    :attr:`lower`, :attr:`upper`, :attr:`lo`, :attr:`hi`); fill them and call
+    :meth:`solve_in_place`, or pass arrays to :meth:`solve`.  Each solve
+    updates g, C, the bounds and the box and solves warm-started from the
+    previous result (the first solve, and the first after a failure,
+    initialise).  Before solving: every entry finite, ``lower ≤ upper`` and
+    ``lo ≤ hi``.  An answer is accepted only if proxsuite says SOLVED and x
+    (finite) meets every row and box bound within :data:`FEASIBILITY_TOL`,
+    checked here; otherwise the QP is re-initialised cold and solved once
+    more.  An accepted x is rounded into the box exactly.
+
+    Args:
+        weights: diagonal of W, (n,), each finite and > 0.
+        n_in: number of rows of C.
+        max_iter: proxsuite's outer iteration limit (bounds a failing solve).
+        eps_abs: proxsuite's absolute accuracy.
+
+    Attributes:
+        x: the accepted solution of the last solve (stale after a failure).
+        status: ``"solved"`` or why the last solve failed.
+        active: active rows plus active box bounds of the accepted solution.
+        solve_time_us: wall time of the last solve, checks included [µs].
+        reinits: re-initialisations after a failed warm-started solve.
+
+    Raises:
+        InvalidParameter: a weight not finite and > 0, or max_iter not an
+            integer in [1, 10000].
+
+    """
+
+    def __init__(
+        self, weights: np.ndarray, n_in: int, max_iter: int = 100, eps_abs: float = 1e-9
+    ) -> None:
+        w = np.asarray(weights, dtype=float)
+        if w.ndim != 1 or w.size < 1 or not np.all(np.isfinite(w)) or not np.all(w > 0):
+            raise InvalidParameter("torque_weights", weights, "finite and > 0, one per joint")
+        if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)):
+            raise InvalidParameter("max_iter", max_iter, "an integer in [1, 10000]")
+        if not 1 <= max_iter <= 10_000:
+            raise InvalidParameter("max_iter", max_iter, "an integer in [1, 10000]")
+        n, n_in = w.size, int(n_in)
+        m = n_in + n
+        self.n, self.n_in = n, n_in
+        self._neg_w = -w
+        self._H = np.diag(w)
+        # One buffer: [C; I] (m×n), lower bounds (m), upper bounds (m), target (n).
+        self._buf = np.zeros(m * n + 2 * m + n)
+        self._c_all = self._buf[: m * n].reshape(m, n)
+        self._c_all[n_in:] = np.eye(n)
+        self._lower_all = self._buf[m * n : m * n + m]
+        self._upper_all = self._buf[m * n + m : m * n + 2 * m]
+        #: Views to fill before :meth:`solve_in_place`.
+        self.C = self._c_all[:n_in]
+        self.lower = self._lower_all[:n_in]
+        self.upper = self._upper_all[:n_in]
+        self.lo = self._lower_all[n_in:]
+        self.hi = self._upper_all[n_in:]
+        self.target = self._buf[m * n + 2 * m :]
+        self._g = np.zeros(n)
+        self._cx = np.zeros(m)
+        self._slack = np.zeros(m)
+        self._slack_hi = np.zeros(m)
+        self._near = np.zeros(m, dtype=bool)
+        qp = proxsuite.proxqp.dense.QP(n, 0, n_in, True)
+        s = qp.settings
+        s.eps_abs = float(eps_abs)
+        s.eps_rel = 0.0
+        s.max_iter = int(max_iter)
+        s.max_iter_in = 200
+        s.check_duality_gap = True
+        s.eps_duality_gap_abs = 1e-8
+        s.eps_duality_gap_rel = 0.0
+        # The default 1e-4 reported feasible problems of this scale (bounds of
+        # ~100 N) as PRIMAL_INFEASIBLE (~0.1 % of random instances).
+        s.eps_primal_inf = 1e-10
+        s.verbose = False
+        s.initial_guess = _WARM
+        self._qp = qp
+        self._ready = False
+        self.x = np.zeros(n)
+        self.status = "not_run"
+        self.active = 0
+        self.solve_time_us = 0.0
+        self.reinits = 0
+
+    def solve(
+        self,
+        target: np.ndarray,
+        C: np.ndarray,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        lo: np.ndarray,
+        hi: np.ndarray,
+    ) -> bool:
+        """Copy the problem into the workspace and :meth:`solve_in_place`.
+
+        Args:
+            target: x_t, (n,).
+            C: constraint rows, (n_in, n).
+            lower: lower row bounds, (n_in,).
+            upper: upper row bounds, (n_in,).
+            lo: lower box bounds, (n,).
+            hi: upper box bounds, (n,).
+
+        Returns:
+            Whether :attr:`x` holds an accepted, feasible optimum.
+
+        """
+        self.target[:] = target
+        self.C[:] = C
+        self.lower[:] = lower
+        self.upper[:] = upper
+        self.lo[:] = lo
+        self.hi[:] = hi
+        return self.solve_in_place()
+
+    def solve_in_place(self) -> bool:
+        """Solve the problem held in the workspace views; True if accepted (see class)."""
+        start = time.perf_counter_ns()
+        ok = self._solve()
+        self.solve_time_us = (time.perf_counter_ns() - start) * 1e-3
+        return ok
+
+    def _solve(self) -> bool:
+        # A NaN or ±inf anywhere makes the sum non-finite.
+        if not math.isfinite(np.add.reduce(self._buf)):
+            self.status = "non-finite problem data"
+            return False
+        np.subtract(self._upper_all, self._lower_all, out=self._slack)
+        if not np.minimum.reduce(self._slack) >= 0.0:
+            self.status = "infeasible bounds (lower > upper or lo > hi)"
+            return False
+        g = self._g
+        np.multiply(self._neg_w, self.target, out=g)
+        qp = self._qp
+        first = ""
+        if self._ready:
+            qp.update(g=g, C=self.C, l=self.lower, u=self.upper, l_box=self.lo, u_box=self.hi)
+            qp.solve()
+            if self._accept():
+                return True
+            first = self.status
+            self.reinits += 1
+        qp.settings.initial_guess = _COLD
+        try:
+            qp.init(self._H, g, None, None, self.C, self.lower, self.upper, self.lo, self.hi)
+            qp.solve()
+        finally:
+            qp.settings.initial_guess = _WARM
+        self._ready = self._accept()
+        if not self._ready and first:
+            self.status = f"{first}; after re-init: {self.status}"
+        return self._ready
+
+    def _accept(self) -> bool:
+        res = self._qp.results
+        info_status = res.info.status
+        if info_status != _SOLVED:
+            self.status = _STATUS.get(info_status, "unknown solver status")
+            return False
+        x = res.x
+        cx, slack = self._cx, self._slack
+        np.dot(self._c_all, x, out=cx)  # rows, then x itself (the box)
+        np.subtract(cx, self._lower_all, out=slack)
+        np.subtract(self._upper_all, cx, out=self._slack_hi)
+        np.minimum(slack, self._slack_hi, out=slack)
+        if not np.minimum.reduce(slack) >= -FEASIBILITY_TOL:  # also false for NaN
+            self.status = "solution violates the constraints or is not finite"
+            return False
+        np.minimum(x, self.hi, out=self.x)
+        np.maximum(self.x, self.lo, out=self.x)
+        self.active = int(np.count_nonzero(np.less_equal(slack, ACTIVE_TOL, out=self._near)))
+        self.status = "solved"
+        return True
+
+
+class CuffForceModel:
+    """Cuff forces predicted as an affine function of the drive torques, f = A τ + b.
+
+    The model and its assumptions are in the module docstring.  Each leg is
+    an independent 2-DoF chain (hip on the fixed frame, knee on the hip, the
+    thigh cuff on the thigh, the shank cuff on the shank; checked here), so
+    M, P and JᵀJ are 2×2 per leg and are inverted in closed form, in scalar
+    arithmetic (cheaper than numpy's linear algebra on arrays this small).
+
+    Args:
+        exo: the exoskeleton model the controller believes in.
+        patient: the patient model the controller believes in.
+        motor: the drive (its reflected rotor inertia joins the exo's mass matrix).
+
+    Attributes:
+        A: ∂f/∂τ, (8, 4) [1/m]; row 2c + i is component i (x, z) of cuff c
+            in CUFF_NAMES order, columns in JOINT_NAMES order.
+        b: the forces at τ = 0, (8,) [N].
+
+    Raises:
+        InvalidModel: a body without exactly the four driven joints in order,
+            or whose legs are not two independent hip–knee chains with the
+            cuffs on the thigh and the shank.
+
+    """
+
+    def __init__(self, exo: BodyModel, patient: BodyModel, motor: MotorParams) -> None:
+        for body in (exo, patient):
+            _check_legs(body)
+        self._me = pin.Model(exo.model)
+        self._me.armature = np.full(4, motor.reflected_inertia_kgm2)
+        self._de = self._me.createData()
+        self._mp = pin.Model(patient.model)
+        self._dp = self._mp.createData()
+        self._cuffs = tuple(int(f) for f in patient.cuff_frame_ids)
+        self._b_e = exo.damping.tolist()
+        self._f_e = exo.friction.tolist()
+        self._b_p = patient.damping.tolist()
+        self._f_p = patient.friction.tolist()
+        # A (8×4, row-major) then b (8) in one buffer, written at once.
+        self._ab = np.zeros(40)
+        self.A = self._ab[:32].reshape(8, 4)
+        self.b = self._ab[32:]
+        self._flat = [0.0] * 40
+
+    def update(self, q: np.ndarray, dq: np.ndarray) -> None:
+        """Recompute :attr:`A` and :attr:`b` at the measured state.
+
+        Args:
+            q: exoskeleton joint angles [rad] (the patient's are taken equal).
+            dq: exoskeleton joint speeds [rad/s].
+
+        Raises:
+            numpy.linalg.LinAlgError: a mass matrix or JᵀJ that is not positive
+                definite (or not finite).
+
+        """
+        me, de, mp, dp = self._me, self._de, self._mp, self._dp
+        m_e = pin.crba(me, de, q).tolist()  # upper triangles are read
+        m_p = pin.crba(mp, dp, q).tolist()
+        n_e = pin.nonLinearEffects(me, de, q, dq).tolist()
+        n_p = pin.nonLinearEffects(mp, dp, q, dq).tolist()
+        pin.computeJointJacobians(mp, dp, q)
+        jac = [
+            pin.getFrameJacobian(mp, dp, f, pin.LOCAL_WORLD_ALIGNED).tolist() for f in self._cuffs
+        ]
+        w = dq.tolist()
+        eps = FRICTION_SMOOTHING_RAD_S
+        sgn = [math.tanh(wj / eps) for wj in w]
+        be, fe, bp, fp = self._b_e, self._f_e, self._b_p, self._f_p
+        # h_p and h = h_e + h_p: Coriolis, gravity, damping, friction [N·m].
+        hp = [n_p[j] + bp[j] * w[j] + fp[j] * sgn[j] for j in range(4)]
+        h = [n_e[j] + be[j] * w[j] + fe[j] * sgn[j] + hp[j] for j in range(4)]
+        flat = self._flat
+        for leg in (0, 1):
+            i, k = 2 * leg, 2 * leg + 1
+            # M = M_e + i_G² J_rotor + M_p and M_p, 2×2 (upper triangle).
+            p11, p12, p22 = m_p[i][i], m_p[i][k], m_p[k][k]
+            m11, m12, m22 = m_e[i][i] + p11, m_e[i][k] + p12, m_e[k][k] + p22
+            det = m11 * m22 - m12 * m12
+            if not (m11 > 0.0 and det > 0.0 and math.isfinite(det)):
+                raise np.linalg.LinAlgError("coupled mass matrix not positive definite")
+            # P = M_p M⁻¹.
+            a11 = (p11 * m22 - p12 * m12) / det
+            a12 = (p12 * m11 - p11 * m12) / det
+            a21 = (p12 * m22 - p22 * m12) / det
+            a22 = (p22 * m11 - p12 * m12) / det
+            # τ_int = P τ + t0, t0 = h_p − P h.
+            t1 = hp[i] - (a11 * h[i] + a12 * h[k])
+            t2 = hp[k] - (a21 * h[i] + a22 * h[k])
+            # J_p rows of this leg's cuffs: thigh x, z, shank x, z (world x–z).
+            leg_rows = (jac[i][0], jac[i][2], jac[k][0], jac[k][2])
+            g11 = g12 = g22 = 0.0
+            for r in leg_rows:
+                g11 += r[i] * r[i]
+                g12 += r[i] * r[k]
+                g22 += r[k] * r[k]
+            dg = g11 * g22 - g12 * g12
+            if not (g11 > 0.0 and dg > 1e-12 * g11 * g22 and math.isfinite(dg)):
+                raise np.linalg.LinAlgError("cuff Jacobian JᵀJ singular")
+            for n, r in enumerate(leg_rows):
+                # G = J (JᵀJ)⁻¹ row; f = −G τ_int → A = −G P, b = −G t0.
+                c1 = (r[i] * g22 - r[k] * g12) / dg
+                c2 = (r[k] * g11 - r[i] * g12) / dg
+                row = 4 * (4 * leg + n)  # A[4·leg + n, :] in the flat buffer
+                flat[row + i] = -(c1 * a11 + c2 * a21)
+                flat[row + k] = -(c1 * a12 + c2 * a22)
+                flat[32 + 4 * leg + n] = -(c1 * t1 + c2 * t2)
+        self._ab[:] = flat
+
+    def predict(self, tau: np.ndarray) -> np.ndarray:
+        """Predicted cuff forces on the exoskeleton A τ + b, (4, 2) [N] (allocates)."""
+        return (self.A @ np.asarray(tau, dtype=float) + self.b).reshape(4, 2)
+
+
+def _check_legs(body: BodyModel) -> None:
+    model = body.model
+    if model.nq != 4 or model.nv != 4 or not np.array_equal(body.q_index, np.arange(4)):
+        raise InvalidModel(
+            body.source, "", "the QP controller needs exactly the four driven joints, in order"
+        )
+    for leg in (0, 1):
+        hip, knee = body.joint_ids[2 * leg], body.joint_ids[2 * leg + 1]
+        thigh, shank = body.cuff_frame_ids[2 * leg], body.cuff_frame_ids[2 * leg + 1]
+        if (
+            model.parents[hip] != 0
+            or model.parents[knee] != hip
+            or model.frames[thigh].parentJoint != hip
+            or model.frames[shank].parentJoint != knee
+        ):
+            raise InvalidModel(
+                body.source,
+                model.names[hip],
+                "the QP cuff model needs each leg as hip (on the fixed frame) → knee, "
+                "with the thigh cuff on the thigh and the shank cuff on the shank",
+            )
+
+
+class QPController(ComputedTorqueController):
+    """CT+PD command made to respect the drive limits and a cuff-force bound (module docstring).
+
+    Args:
+        plan: joint targets at the control ticks.
+        exo: the exoskeleton model the controller believes in.
+        patient: the patient model the controller believes in (required).
+        motor: the drive model (as configured for the exo: see
+            :func:`exo_ctrl.simulate.drive_for`).
+        gains: the PD gains.
+        cuff_force_limit_N: F_max, bound on each cuff's force magnitude [N].
+        torque_weights: diagonal of W, one per joint, > 0 [-].
+        max_iter: proxsuite's iteration limit per solve.
+        force_feedback: correct the model's prediction with the estimated cuff
+            forces (``sensors.cuff_force_est``), see below.
+
+    Force feedback (offset-free prediction): the rigid-cuff model knows
+    neither the patient's own joint torques nor the cuffs' elastic lag, so
+    each tick the QP adds to the model's offset the disturbance
+    d = f̂ - f_pred, the estimated force of this tick less the model's
+    prediction for the torque applied last tick (the estimator and the model
+    share the equal-stiffness assumption, so both live in the same space).
+    With the spastic patient this is what keeps the real force near the
+    bound; without it the prediction misses the patient's resistance
+    entirely.  The estimate lags by about one observer time constant.
+
+    Attributes:
+        failures: ticks that used the fallback (module docstring).
+        last_status: ``"solved"`` or why the last tick fell back.
+        active_constraints: active box bounds plus active cuff rows, last tick.
+        solve_time_us: the QP's wall time in the last tick, checks included [µs].
+        torque_cmd: τ_cmd of the last tick [N·m].
+        torque: the torque commanded in the last tick [N·m].
+        torque_lo: lower torque bounds of the last tick [N·m].
+        torque_hi: upper torque bounds of the last tick [N·m].
+        cuff_model: the affine cuff-force prediction of the last tick.
+        qp: the proxsuite workspace.
+
+    Raises:
+        InvalidParameter: a bad limit, weight or iteration count, or no patient.
+        InvalidModel: a model the cuff model cannot use (:class:`CuffForceModel`),
+            or an effort limit that is not > 0.
+
+    """
+
+    name = "qp"
+
+    def __init__(
+        self,
+        plan: JointTrajectory,
+        exo: BodyModel,
+        patient: BodyModel,
+        motor: MotorParams,
+        gains: PDGains | None = None,
+        cuff_force_limit_N: float = 150.0,
+        torque_weights: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0),
+        max_iter: int = 100,
+        force_feedback: bool = True,
+    ) -> None:
+        if patient is None:
+            raise InvalidParameter("patient", None, "a patient model (the cuff model needs one)")
+        self.cuff_force_limit_N = v.positive("cuff_force_limit", cuff_force_limit_N, "N")
+        weights = np.asarray(torque_weights, dtype=float)
+        if weights.shape != (4,):
+            raise InvalidParameter("torque_weights", torque_weights, "four numbers > 0")
+        effort = exo.effort_limit
+        if np.isnan(effort).any() or (effort <= 0).any():
+            raise InvalidModel(exo.source, "", f"effort limits must be > 0 N·m; got {effort}")
+        super().__init__(plan, exo, patient, motor, gains)
+        self.cuff_model = CuffForceModel(exo, patient, motor)
+        self._polygon = polygon_rows(4)
+        n_poly = self._polygon.shape[0]
+        # Variables x = (τ, s): the four torques and one slack per cuff, the
+        # cuff bound softened to |n_kᵀ f_c| ≤ r + s_c with s_c ≥ 0 and the
+        # cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r.
+        self.qp = TorqueQP(
+            np.concatenate((weights, np.full(4, SLACK_WEIGHT))), 2 * n_poly, max_iter
+        )
+        radius = self.cuff_force_limit_N * math.cos(math.pi / POLYGON_SIDES)
+        self._radius = np.full(n_poly, radius)
+        self._nb = np.zeros(n_poly)
+        self._na = np.zeros((n_poly, 4))
+        half = POLYGON_SIDES // 2
+        slack_cols = np.zeros((n_poly, 4))
+        for c in range(4):
+            slack_cols[c * half : (c + 1) * half, c] = -1.0
+        self.qp.C[:n_poly, 4:] = slack_cols
+        self.qp.C[n_poly:, 4:] = slack_cols
+        self.qp.lower[:] = -NO_BOUND
+        self.qp.lo[4:] = 0.0
+        self.qp.hi[4:] = NO_BOUND
+        self._rows_pos = self.qp.C[:n_poly, :4]
+        self._rows_neg = self.qp.C[n_poly:, :4]
+        self._upper_pos = self.qp.upper[:n_poly]
+        self._upper_neg = self.qp.upper[n_poly:]
+        # Torque box at speed ω: hi = min(cap, c0 − c1 ω), lo = max(−cap, −c0 − c1 ω).
+        kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
+        self._u_max = motor.supply_voltage_V
+        self._cap = np.minimum(effort, kt * motor.current_limit_A)
+        self._neg_cap = -self._cap
+        self._c0 = kt * motor.supply_voltage_V / r
+        self._c1 = np.full(4, kt * kb / r)  # N·m per rad/s
+        self._c2 = np.full(4, kt / r)  # N·m per V
+        self._t = np.zeros(4)
+        self._out = np.zeros(4)
+        self.torque_cmd = self.qp.target[:4]  # τ_cmd is written straight into the QP
+        self.torque_lo = self.qp.lo[:4]
+        self.torque_hi = self.qp.hi[:4]
+        self.slack = self.qp.x[4:]
+        self.torque = np.zeros(4)
+        self.failures = 0
+        self.last_status = "not_run"
+        self.active_constraints = 0
+        self.solve_time_us = 0.0
+        self.force_feedback = bool(force_feedback)
+        self._pred = np.zeros(8)  # model prediction for the torque applied last tick
+        self._disturbance = np.zeros(8)  # d = f̂ - f_pred
+        self._have_pred = False
+
+    @property
+    def cuff_force_pred(self) -> np.ndarray:
+        """Predicted cuff forces on the exoskeleton for the last tick's torque, (4, 2) [N]."""
+        return self.cuff_model.predict(self.torque)
+
+    # ------------------------------------------------------------------ tick
+
+    def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
+        """Drive voltages [V], (4,), for tick k; never raises, never NaN (module docstring)."""
+        try:
+            return self._command(k, sensors)
+        except Exception as exc:  # the tick must return a safe command
+            return self._zero_volts(f"error: {type(exc).__name__}: {exc}")
+
+    def _command(self, k: int, sensors: SensorReadings) -> np.ndarray:
+        u_cmd = ComputedTorqueController.command(self, k, sensors)
+        omega = sensors.dq
+        qp, t = self.qp, self._t
+        # τ_cmd = (i_G k_m / R) U_cmd − (i_G k_m i_G / (k_E R)) ω.
+        np.multiply(self._c1, omega, out=t)
+        tgt, lo, hi = self.torque_cmd, self.torque_lo, self.torque_hi
+        np.multiply(self._c2, u_cmd, out=tgt)
+        np.subtract(tgt, t, out=tgt)
+        # Torque box (NaN in ω propagates and is caught by the QP's checks).
+        np.subtract(self._c0, t, out=hi)
+        np.minimum(hi, self._cap, out=hi)
+        np.add(self._c0, t, out=lo)
+        np.negative(lo, out=lo)
+        np.maximum(lo, self._neg_cap, out=lo)
+        # Octagon rows: |n_kᵀ (A τ + b)_c| ≤ r  →  −r − N b ≤ N A τ ≤ r − N b.
+        try:
+            self.cuff_model.update(sensors.q, omega)
+        except (np.linalg.LinAlgError, ValueError, RuntimeError) as exc:
+            return self._fallback(u_cmd, omega, f"cuff model failed: {exc}")
+        b = self.cuff_model.b
+        if self.force_feedback and sensors.cuff_force_est is not None and self._have_pred:
+            np.subtract(sensors.cuff_force_est.reshape(8), self._pred, out=self._disturbance)
+            if np.isfinite(self._disturbance).all():
+                b = b + self._disturbance
+        np.dot(self._polygon, self.cuff_model.A, out=self._na)
+        np.copyto(self._rows_pos, self._na)
+        np.negative(self._na, out=self._rows_neg)
+        np.dot(self._polygon, b, out=self._nb)
+        np.subtract(self._radius, self._nb, out=self._upper_pos)
+        np.add(self._radius, self._nb, out=self._upper_neg)
+        ok = qp.solve_in_place()
+        self.solve_time_us = qp.solve_time_us
+        if not ok:
+            return self._fallback(u_cmd, omega, qp.status)
+        np.copyto(self.torque, qp.x[:4])
+        self.last_status = "solved"
+        self.active_constraints = qp.active
+        np.dot(self.cuff_model.A, self.torque, out=self._pred)
+        np.add(self._pred, self.cuff_model.b, out=self._pred)
+        self._have_pred = True
+        return self._motor.voltage_for(self.torque, omega, out=self._out)
+
+    # ------------------------------------------------------------------ fallbacks
+
+    def _fallback(self, u_cmd: np.ndarray, omega: np.ndarray, why: str) -> np.ndarray:
+        """The safe command of the module docstring, counted in :attr:`failures`."""
+        if not (np.isfinite(u_cmd).all() and np.isfinite(omega).all()):
+            return self._zero_volts(f"non-finite reading or command ({why})")
+        lo, hi = self.torque_lo, self.torque_hi
+        empty = lo > hi
+        self.failures += 1
+        self.active_constraints = 0
+        if empty.any():
+            np.clip(self.torque_cmd, np.minimum(lo, hi), hi, out=self.torque)
+            self.torque[empty] = 0.0
+            joints = ", ".join(str(j) for j in np.flatnonzero(empty))
+            self.last_status = f"fallback: empty torque box at joint(s) {joints} ({why})"
+            out = self._motor.voltage_for(self.torque, omega, out=self._out)
+            return np.clip(out, -self._u_max, self._u_max, out=out)
+        np.clip(self.torque_cmd, lo, hi, out=self.torque)
+        self.last_status = f"fallback: τ_cmd clipped to the torque box ({why})"
+        return self._motor.voltage_for(self.torque, omega, out=self._out)
+
+    def _zero_volts(self, why: str) -> np.ndarray:
+        self.failures += 1
+        self.active_constraints = 0
+        self.solve_time_us = 0.0
+        self._out.fill(0.0)
+        self.torque.fill(0.0)
+        self.last_status = f"fallback: zero volts ({why})"
+        return self._out
