@@ -260,7 +260,24 @@ class SafetySupervisor:
         self._pos = np.zeros(_N_CHANNELS)
         self._zeros = np.zeros(_N_CHANNELS)
         self._ones = np.ones(_N_CHANNELS)
-        self._big = np.full(4, np.finfo(float).max)
+        big = np.full(4, np.finfo(float).max)
+        self._raw = np.zeros(_N_CHANNELS)
+        self._raw_views = tuple(self._raw[sl] for sl in _CHANNEL_SLICES[1:])
+        self._raw_cuff = self._raw[_CHANNEL_SLICES[0]]
+        self._raw_abs = self._raw[12:]  # speed, current and finiteness channels
+        self._sign = np.ones(_N_CHANNELS)
+        self._sign[_CHANNEL_SLICES[2]] = -1.0  # lower - q = (-q) - (-lower)
+        self._limit = np.concatenate(
+            (
+                self._cuff_limit_sq,
+                self.q_upper,
+                -self.q_lower,
+                self.speed_limit,
+                self.current_limit,
+                big,
+                big,
+            )
+        )
         self._f = np.zeros((4, 2))
         self._sq = np.zeros((4, 2))
         self._sq_x, self._sq_z = self._sq[:, 0], self._sq[:, 1]
@@ -379,26 +396,30 @@ class SafetySupervisor:
         current_A: np.ndarray,
         u_cmd: np.ndarray,
     ) -> None:
-        """Excess of every channel over its limit (> 0 or NaN: violated), in place."""
-        cuff, up, low, speed, cur, tau, cmd = self._views
-        # Copy first: the plant's (4, 2) force is a transposed view, and a ufunc
-        # on a non-contiguous operand allocates an iterator; copyto does not.
+        """Excess of every channel over its limit (> 0 or NaN: violated), in place.
+
+        Gather the readings, then sign × reading - limit for all 28
+        channels at once: the cuff channels hold |f|² - limit², the angle
+        channels q - upper and lower - q, the speed and current channels
+        |x| - limit, and the finiteness channels |x| - DBL_MAX (<= 0, or
+        +inf / NaN for an infinity / a NaN, with no floating-point warning).
+        """
+        raw = self._raw
+        # Copy first: the plant's (4, 2) force is a transposed view.
         np.copyto(self._f, cuff_force)
         np.multiply(self._f, self._f, out=self._sq)
-        np.add(self._sq_x, self._sq_z, out=cuff)
-        np.subtract(cuff, self._cuff_limit_sq, out=cuff)
-        np.subtract(sensors.q, self.q_upper, out=up)
-        np.subtract(self.q_lower, sensors.q, out=low)
-        np.abs(sensors.dq, out=speed)
-        np.subtract(speed, self.speed_limit, out=speed)
-        np.abs(current_A, out=cur)
-        np.subtract(cur, self.current_limit, out=cur)
-        # Finiteness only: |x| - DBL_MAX is <= 0, or +inf / NaN for an infinity / a NaN
-        # (no floating-point warning, no cast buffer).
-        np.abs(sensors.tau, out=tau)
-        np.subtract(tau, self._big, out=tau)
-        np.abs(u_cmd, out=cmd)
-        np.subtract(cmd, self._big, out=cmd)
+        np.add(self._sq_x, self._sq_z, out=self._raw_cuff)
+        # One copy per reading (np.concatenate would allocate per call).
+        up, low, speed, cur, tau, cmd = self._raw_views
+        np.copyto(up, sensors.q)
+        np.copyto(low, sensors.q)
+        np.copyto(speed, sensors.dq)
+        np.copyto(cur, current_A)
+        np.copyto(tau, sensors.tau)
+        np.copyto(cmd, u_cmd)
+        np.abs(self._raw_abs, out=self._raw_abs)
+        np.multiply(raw, self._sign, out=self._excess)
+        np.subtract(self._excess, self._limit, out=self._excess)
 
     # ------------------------------------------------------------------ stop
 
