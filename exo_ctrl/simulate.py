@@ -454,7 +454,9 @@ def simulate(
 
     Returns:
         The result; ``status`` says whether it completed.  A divergence or
-        Ctrl-C ends the run early with the ticks done so far.
+        Ctrl-C ends the run early with the ticks done so far.  Any other
+        error (an observer's, say) is recorded as status ``"error"``, every
+        observer still gets :meth:`SimObserver.finish`, and then it is raised.
 
     """
     setup = build(config)
@@ -479,51 +481,65 @@ def simulate(
     row = 0
     k = 0
 
-    def flush(rows: int) -> None:
-        runner.fill_plan(chunk_start, rows)
+    def flush(start: int, rows: int) -> None:
+        runner.fill_plan(start, rows)
         view = {name: arr[:rows] for name, arr in runner.buf.items()}
         result.stats.update(view)
         if keep_history:
             for name, arr in view.items():
-                history[name][chunk_start : chunk_start + rows] = arr
+                history[name][start : start + rows] = arr
         for obs in observers:
-            obs.chunk(result, chunk_start, view)
+            obs.chunk(result, start, view)
 
+    def fail(status: str, t: float, message: str) -> None:
+        if result.status == "completed":
+            result.status = status
+            result.error = message
+            result.events.append({"t": t, "kind": status, "message": message})
+
+    error: Exception | None = None
     start_wall = time.perf_counter()
     try:
         for k in range(n):
             runner.tick(k, row)
             row += 1
             if row == chunk:
-                flush(row)
-                chunk_start += row
-                row = 0
+                start, row = chunk_start, 0
+                chunk_start += chunk
+                flush(start, chunk)
                 bar.update(chunk_start)
         k = n
     except SimulationDiverged as exc:
-        result.status = "diverged"
-        result.error = str(exc)
-        result.events.append({"t": exc.time, "kind": "diverged", "message": str(exc)})
+        fail("diverged", exc.time, str(exc))
     except KeyboardInterrupt:
-        result.status = "interrupted"
-        result.error = f"interrupted by the user at t = {k * config.dt:.4f} s"
-        result.events.append({"t": k * config.dt, "kind": "interrupted", "message": result.error})
-    finally:
-        result.wall_time_s = time.perf_counter() - start_wall
-        done = chunk_start + row
-        if row:
-            flush(row)
-        bar.close(done)
-        if runner._qp:
-            result.qp_failures = runner.setup.controller.failures
-        if runner.supervisor is not None:
-            result.events.extend(runner.supervisor.events)
-            result.safety_state = runner.supervisor.state
-        if keep_history and done < n:
-            result.t = result.t[:done]
-            result.signals = {name: arr[:done] for name, arr in history.items()}
-        for obs in observers:
+        fail("interrupted", k * config.dt, f"interrupted by the user at t = {k * config.dt:.4f} s")
+    except Exception as exc:  # recorded, the observers finish, then it propagates
+        fail("error", k * config.dt, f"{type(exc).__name__}: {exc}")
+        error = exc
+    result.wall_time_s = time.perf_counter() - start_wall
+    done = chunk_start + row
+    if row:
+        try:
+            flush(chunk_start, row)
+        except Exception as exc:
+            fail("error", done * config.dt, f"{type(exc).__name__}: {exc}")
+            error = error or exc
+    bar.close(done)
+    if runner._qp:
+        result.qp_failures = runner.setup.controller.failures
+    if runner.supervisor is not None:
+        result.events.extend(runner.supervisor.events)
+        result.safety_state = runner.supervisor.state
+    if keep_history and done < n:
+        result.t = result.t[:done]
+        result.signals = {name: arr[:done] for name, arr in history.items()}
+    for obs in observers:
+        try:
             obs.finish(result)
+        except Exception as exc:
+            error = error or exc
+    if error is not None:
+        raise error
     return result
 
 

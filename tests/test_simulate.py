@@ -216,7 +216,7 @@ def test_absurd_gains_with_a_limited_drive_only_saturate(unlimited_motor: bool) 
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"controller": "xx"}, "controller must be one of pd, ct; got 'xx'"),
+        ({"controller": "xx"}, "controller must be one of pd, ct, qp; got 'xx'"),
         ({"duration_s": -1}, "duration must be > 0 s; got -1"),
         ({"duration_s": 0.0}, "duration must be > 0 s; got 0.0"),
         ({"control_rate_hz": float("nan")}, "control_rate must be a finite number [Hz]; got nan"),
