@@ -269,6 +269,40 @@ def format_summary(summary: dict) -> str:
     return "\n".join(lines)
 
 
+# --------------------------------------------------------------------------- estimate
+
+
+def _cmd_estimate(args: argparse.Namespace) -> int:
+    from .offline import estimate_file, write_estimate_recording
+
+    estimate = estimate_file(args.file, exo=args.exo, gain_per_s=args.gain)
+    summary = estimate.summary()
+    if args.out:
+        write_estimate_recording(estimate, args.out)
+    if args.summary:
+        with atomic_write(args.summary) as handle:
+            json.dump(summary, handle, indent=2)
+            handle.write("\n")
+    print(
+        f"estimated {summary['samples']} samples of {args.file} "
+        f"(observer gain {summary['observer_gain_per_s']:g} 1/s)"
+    )
+    errors = summary.get("cuff_force_estimate_rms_error_N", {})
+    rel = summary.get("cuff_force_estimate_rms_error_rel", {})
+    print(
+        f"{'cuff':<13}{'peak normal est [N]':>20}"
+        + (f"{'rms err [N]':>13}{'rel':>8}" if errors else "")
+    )
+    for cuff, peak in summary["peak_cuff_normal_est_N"].items():
+        line = f"{cuff:<13}{peak:>20.1f}"
+        if errors:
+            line += f"{errors[cuff]:>13.2f}{100 * rel[cuff]:>7.2f}%"
+        print(line)
+    if args.out:
+        print(f"estimate recording: {args.out}")
+    return 0
+
+
 # --------------------------------------------------------------------------- main
 
 
@@ -412,6 +446,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-record", action="store_true", help="do not write a recording")
     p.add_argument("--spawn", action="store_true", help="also open a rerun viewer if one can start")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser(
+        "estimate", help="estimate cuff forces from a recording's or a CSV log's sensor readings"
+    )
+    p.add_argument("file", metavar="RUN.rrd|LOG.csv", help="an exo_ctrl recording or a CSV log")
+    p.add_argument(
+        "--exo",
+        default=None,
+        metavar="URDF",
+        help="exoskeleton URDF (default: the recording's, or urdf/exoskeleton.urdf)",
+    )
+    p.add_argument(
+        "--gain",
+        type=float,
+        default=None,
+        metavar="1/S",
+        help="observer gain K_O [1/s] (default: the recording's, or 100)",
+    )
+    p.add_argument(
+        "--out", default=None, metavar="EST.rrd", help="write the estimate as a recording"
+    )
+    p.add_argument("--summary", default=None, metavar="PATH.json", help="write the figures as JSON")
+    p.set_defaults(func=_cmd_estimate)
 
     return parser
 
