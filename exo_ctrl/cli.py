@@ -409,9 +409,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=SimConfig().cuff_force_limit_N,
         metavar="N",
-        help="the qp controller's bound on each cuff's force [N] (default "
-        f"{SimConfig().cuff_force_limit_N:g}: ISO/TS 15066 lower leg 130 N less the cuffs' "
-        "overshoot)",
+        help="the qp controller's bound on each cuff's predicted force [N] (default "
+        f"{SimConfig().cuff_force_limit_N:g}: ISO/TS 15066 lower leg 130 N with a margin)",
     )
     p.add_argument(
         "--patient-torque",

@@ -100,10 +100,10 @@ class SimConfig:
         controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD) or
             ``"qp"`` (CT + PD distributed by a QP under drive limits and
             cuff-force bounds, :mod:`exo_ctrl.control.qp`).
-        cuff_force_limit_N: the QP's bound on each cuff's force [N].  Default
-            120 N: ISO/TS 15066 Annex A's quasi-static limit for the lower leg,
-            130 N, less the ~10 % by which the elastic cuffs overshoot the QP's
-            quasi-static prediction (measured, tests/test_qp.py).
+        cuff_force_limit_N: the QP's bound on each cuff's PREDICTED force [N].
+            Default 120 N: ISO/TS 15066 Annex A's quasi-static limit for the
+            lower leg, 130 N, with a margin.  The real elastic cuff force can
+            exceed it (measured in :mod:`exo_ctrl.control.qp`).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
         cuffs: cuff parameters.

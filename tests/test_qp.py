@@ -1,0 +1,975 @@
+"""The QP controller: solver answers, the soft cuff rows, force feedback, limits, closed loop.
+
+Every check is against something computed independently of the code under
+test: the QP's answers against a KKT certificate built with numpy from the
+answer's active set (and against scipy), the controller's soft problem
+against one assembled here from the cuff model's A and b (octagon, slack
+columns and weights written out from the design, not taken from the
+controller), the affine cuff-force prediction against the coupled rigid
+dynamics assembled from Pinocchio's RNEA (not CRBA / nonLinearEffects, which
+the controller uses) and solved with numpy's least squares, the limits
+against the motor equations written out here, and the closed loop against
+the plant's elastic cuffs (through :func:`exo_ctrl.simulate.simulate`).
+
+The soft problem, x = (τ, s):  min ½ (τ − τ_cmd)ᵀ W (τ − τ_cmd) + ½ ρ sᵀs  s.t.
+±N (A τ + b) − E s ≤ r, τ_lo ≤ τ ≤ τ_hi, s ≥ 0, with r = F_max cos(π/8).
+The penalty is quadratic, so a binding cuff row always leaves s_c = λ_c / ρ
+> 0 (λ_c the row's multiplier): "s = 0 when the torques can meet the bound"
+holds only up to that, and is asserted as such (s_c < 0.2 N, measured).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from scipy.optimize import LinearConstraint, linprog, minimize, nnls
+
+from exo_ctrl.control import ComputedTorqueController, SensorReadings
+from exo_ctrl.control.qp import (
+    NO_BOUND,
+    POLYGON_SIDES,
+    SLACK_WEIGHT,
+    QPController,
+    TorqueQP,
+    polygon_rows,
+)
+from exo_ctrl.exceptions import InvalidParameter
+from exo_ctrl.gait import GaitParams, GaitPlan
+from exo_ctrl.kinematics import plan_joints
+from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel, default_urdf_path, load_body
+from exo_ctrl.motor import MotorParams
+from exo_ctrl.simulate import SimConfig, SimResult, drive_for, simulate
+
+#: ρ, the brief's slack weight [(N·m)²/N²].
+RHO = 1e4
+#: The QP may track worse than CT by at most this, per joint (brief: 5 %).
+RMS_TOLERANCE = 0.05
+#: A bound below CT's peak on the default run (≈ 106 N with the default sensors) [N].
+F_TIGHT = 80.0
+#: Stated margin of the real (elastic) cuff force over F_TIGHT on the passive run:
+#: measured 108.9 N (+36.1 %, right shank), asserted at 40 %.  CT's own peak
+#: (106.0 N) is inside this margin, see the xfail test below.
+TIGHT_MARGIN = 0.40
+#: The spastic scenario's bound [N] and the margin the issue's requirement is
+#: written with: 10 %, the elastic overshoot the 120 N default was sized for
+#: (SimConfig.cuff_force_limit_N).
+F_SPASTIC = 150.0
+SPASTIC_MARGIN = 0.10
+#: URDF effort of every joint [N·m].
+EFFORT = 150.0
+
+
+@pytest.fixture(scope="module")
+def patient() -> BodyModel:
+    return load_body(default_urdf_path("patient"), name="patient")
+
+
+@pytest.fixture(scope="module")
+def motor(exo) -> MotorParams:
+    return drive_for(MotorParams(), exo)
+
+
+@pytest.fixture(scope="module")
+def plan(exo):
+    t = np.arange(1201) * 1e-3
+    return plan_joints(GaitPlan(GaitParams()), exo, t)
+
+
+def near_plan(
+    plan, rng: np.random.Generator, k: int, q_noise: float = 0.01, dq_noise: float = 0.2
+) -> SensorReadings:
+    """Readings near the plan (the PD turns 0.01 rad into ~1 V, ~170 N·m at stall)."""
+    return SensorReadings(
+        q=plan.q[k] + rng.normal(0.0, q_noise, 4),
+        dq=plan.dq[k] + rng.normal(0.0, dq_noise, 4),
+        tau=np.zeros(4),
+    )
+
+
+def on_plan(plan, k: int, force=None) -> SensorReadings:
+    return SensorReadings(
+        q=plan.q[k].copy(), dq=plan.dq[k].copy(), tau=np.zeros(4), cuff_force_est=force
+    )
+
+
+# --------------------------------------------------------------------------- independent QP check
+
+
+def kkt_optimum(w, t, C, lower, upper, lo, hi, x, tol=1e-7):
+    """The optimum certified by the KKT conditions on x's active set, with numpy only.
+
+    Solves the equality-constrained QP on the rows (and box bounds) that x
+    makes active, then checks what makes that point the optimum of the
+    convex QP: multipliers ≥ 0 (by NNLS on the stationarity condition),
+    every constraint met.  Infinite bounds are allowed.  Returns
+    (x*, stationarity residual).
+    """
+    n = len(t)
+    rows = np.vstack((C, np.eye(n)))
+    lb = np.concatenate((lower, lo))
+    ub = np.concatenate((upper, hi))
+    r = rows @ x
+    at_ub = r >= ub - tol
+    at_lb = (r <= lb + tol) & ~at_ub
+    g = np.vstack((rows[at_ub], -rows[at_lb]))  # active as gᵀx ≤ h
+    h = np.concatenate((ub[at_ub], -lb[at_lb]))
+    W = np.diag(w)
+    m = g.shape[0]
+    kkt = np.block([[W, g.T], [g, np.zeros((m, m))]])
+    sol = np.linalg.lstsq(kkt, np.concatenate((W @ t, h)), rcond=None)[0]
+    x_star = sol[:n]
+    # Multipliers λ ≥ 0 with W (x* − t) + gᵀ λ = 0.
+    if m:
+        lam, residual = nnls(g.T, W @ (t - x_star))
+    else:
+        lam, residual = np.zeros(0), float(np.linalg.norm(W @ (t - x_star)))
+    rx = rows @ x_star
+    feas = 1e-8 * max(1.0, np.abs(t).max())  # lstsq's accuracy scales with the data
+    assert np.all(rx >= lb - feas) and np.all(rx <= ub + feas), "x* not feasible"
+    assert np.all(lam >= 0.0)
+    return x_star, residual
+
+
+def random_instance(rng: np.random.Generator, n: int = 4, n_in: int = 16):
+    """A feasible QP: bounds around a random interior point, the target far outside."""
+    w = rng.uniform(0.3, 3.0, n)
+    C = rng.normal(size=(n_in, n))
+    x0 = rng.uniform(-50.0, 50.0, n)
+    cx = C @ x0
+    lower, upper = cx - rng.uniform(0.5, 40.0, n_in), cx + rng.uniform(0.5, 40.0, n_in)
+    lo, hi = x0 - rng.uniform(0.5, 60.0, n), x0 + rng.uniform(0.5, 60.0, n)
+    t = x0 + rng.normal(0.0, 80.0, n)
+    return w, t, C, lower, upper, lo, hi
+
+
+def assert_feasible(x, C, lower, upper, lo, hi, tol=1e-7):
+    assert np.all(np.isfinite(x))
+    assert np.all(x >= lo) and np.all(x <= hi)  # the box is exact (rounded)
+    cx = C @ x
+    assert np.all(cx >= lower - tol) and np.all(cx <= upper + tol)
+
+
+@pytest.mark.parametrize("n", [4, 8])
+def test_qp_answers_are_kkt_optima_on_random_instances(n) -> None:
+    rng = np.random.default_rng(7 + n)
+    active_seen = 0
+    for _ in range(300):
+        w, t, C, lower, upper, lo, hi = random_instance(rng, n)
+        qp = TorqueQP(w, C.shape[0])
+        assert qp.solve(t, C, lower, upper, lo, hi), qp.status
+        assert_feasible(qp.x, C, lower, upper, lo, hi)
+        x_star, residual = kkt_optimum(w, t, C, lower, upper, lo, hi, qp.x)
+        assert residual < 1e-6
+        np.testing.assert_allclose(qp.x, x_star, atol=1e-6, rtol=0)
+        active_seen += qp.active > 0
+    assert active_seen > 200  # the instances do exercise the constraints
+
+
+def test_warm_started_sequence_matches_the_kkt_optimum_each_time() -> None:
+    """One workspace, a drifting problem (as in the loop): every answer still optimal."""
+    rng = np.random.default_rng(11)
+    w, t, C, lower, upper, lo, hi = random_instance(rng)
+    x_mid = (lo + hi) / 2  # stays interior
+    below, above = rng.uniform(0.5, 30.0, (2, C.shape[0]))
+    qp = TorqueQP(w, C.shape[0])
+    for _ in range(300):
+        t = t + rng.normal(0.0, 5.0, 4)
+        C = C + rng.normal(0.0, 0.02, C.shape)
+        below = np.abs(below + rng.normal(0.0, 0.5, below.shape)) + 0.1
+        above = np.abs(above + rng.normal(0.0, 0.5, above.shape)) + 0.1
+        lower, upper = C @ x_mid - below, C @ x_mid + above
+        assert qp.solve(t, C, lower, upper, lo, hi), qp.status
+        assert_feasible(qp.x, C, lower, upper, lo, hi)
+        x_star, residual = kkt_optimum(w, t, C, lower, upper, lo, hi, qp.x)
+        assert residual < 1e-6
+        np.testing.assert_allclose(qp.x, x_star, atol=1e-6, rtol=0)
+
+
+def test_qp_agrees_with_scipy_slsqp() -> None:
+    """A second, iterative opinion: SLSQP's own accuracy here is ~1e-5, so the 1e-6
+    agreement is the KKT test's; here proxsuite must be at least as good as SLSQP."""
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        w, t, C, lower, upper, lo, hi = random_instance(rng)
+        qp = TorqueQP(w, C.shape[0])
+        assert qp.solve(t, C, lower, upper, lo, hi)
+        rows = np.vstack((C, -C))
+        rhs = np.concatenate((lower, -upper))
+
+        def cost(x, w=w, t=t):
+            return 1e-3 * 0.5 * (x - t) @ (w * (x - t))
+
+        res = minimize(
+            cost,
+            (lo + hi) / 2,
+            jac=lambda x, w=w, t=t: 1e-3 * w * (x - t),
+            bounds=list(zip(lo, hi, strict=True)),
+            constraints=[
+                {
+                    "type": "ineq",
+                    "fun": lambda x, r=rows, b=rhs: r @ x - b,
+                    "jac": lambda x, r=rows: r,
+                }
+            ],
+            method="SLSQP",
+            options={"ftol": 1e-12, "maxiter": 1000},
+        )
+        assert res.success, res.message
+        np.testing.assert_allclose(qp.x, res.x, atol=1e-4, rtol=0)
+        assert cost(qp.x) <= cost(res.x) + 1e-9 * abs(cost(res.x))
+
+
+# --------------------------------------------------------------------------- the soft cuff rows
+
+
+def octagon() -> np.ndarray:
+    """Edge normals n_k = (cos kπ/4, sin kπ/4), k = 0..3, written out (4, 2)."""
+    angles = np.arange(4) * math.pi / 4
+    return np.column_stack((np.cos(angles), np.sin(angles)))
+
+
+@dataclasses.dataclass
+class SoftProblem:
+    """The controller's QP in x = (τ, s), assembled here from A, b and the design."""
+
+    w: np.ndarray
+    t: np.ndarray
+    C: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    A: np.ndarray
+    b: np.ndarray
+    radius: float
+
+    def edge_excess(self, tau: np.ndarray) -> np.ndarray:
+        """max_k |n_kᵀ f_c| − r per cuff, f = A τ + b [N]."""
+        f = (self.A @ tau + self.b).reshape(4, 2)
+        return np.abs(f @ octagon().T).max(axis=1) - self.radius
+
+
+def soft_problem(ctrl: QPController, b: np.ndarray | None = None) -> SoftProblem:
+    """The soft QP of the last tick, from the cuff model's A and b (or a given b)."""
+    A = ctrl.cuff_model.A.copy()
+    b = ctrl.cuff_model.b.copy() if b is None else np.asarray(b, dtype=float)
+    n_rows = np.kron(np.eye(4), octagon())  # 16×8: row 4c + k holds n_k at cuff c's columns
+    e = np.kron(np.eye(4), np.ones((4, 1)))  # 16×4: row 4c + k → slack c
+    radius = ctrl.cuff_force_limit_N * math.cos(math.pi / 8)
+    na = n_rows @ A
+    return SoftProblem(
+        w=np.concatenate((np.ones(4), np.full(4, RHO))),
+        t=np.concatenate((ctrl.torque_cmd, np.zeros(4))),
+        C=np.vstack((np.hstack((na, -e)), np.hstack((-na, -e)))),
+        lower=np.full(32, -np.inf),
+        upper=np.concatenate((radius - n_rows @ b, radius + n_rows @ b)),
+        lo=np.concatenate((ctrl.torque_lo, np.zeros(4))),
+        hi=np.concatenate((ctrl.torque_hi, np.full(4, np.inf))),
+        A=A,
+        b=b,
+        radius=radius,
+    )
+
+
+def assert_is_the_soft_optimum(ctrl: QPController, problem: SoftProblem) -> None:
+    """The controller's x = (τ, s) is the KKT optimum of the independently built problem."""
+    x = np.concatenate((ctrl.torque, ctrl.slack))
+    x_star, residual = kkt_optimum(
+        problem.w, problem.t, problem.C, problem.lower, problem.upper, problem.lo, problem.hi, x
+    )
+    assert residual < 1e-6 * max(1.0, np.abs(problem.t).max())
+    np.testing.assert_allclose(x, x_star, atol=1e-6, rtol=0)
+    # Given τ, the optimal slack is the octagon's excess (or zero).
+    np.testing.assert_allclose(
+        ctrl.slack, np.maximum(problem.edge_excess(ctrl.torque), 0.0), atol=1e-6, rtol=0
+    )
+
+
+def test_slack_weight_and_polygon_are_as_designed() -> None:
+    assert SLACK_WEIGHT == RHO
+    assert POLYGON_SIDES == 8
+    np.testing.assert_allclose(polygon_rows(4), np.kron(np.eye(4), octagon()), atol=1e-15)
+
+
+def test_controller_builds_the_soft_cuff_rows(exo, patient, motor, plan) -> None:
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+    ctrl.command(300, on_plan(plan, 300))
+    problem = soft_problem(ctrl)
+    qp = ctrl.qp
+    assert qp.n == 8 and qp.n_in == 32
+    np.testing.assert_allclose(qp.C, problem.C, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(qp.upper, problem.upper, rtol=1e-12, atol=1e-9)
+    np.testing.assert_array_equal(qp.lower, -NO_BOUND)  # one-sided rows
+    np.testing.assert_array_equal(qp.lo[4:], 0.0)
+    np.testing.assert_array_equal(qp.hi[4:], NO_BOUND)
+    np.testing.assert_array_equal(qp.target[4:], 0.0)
+    np.testing.assert_array_equal(qp.target[:4], ctrl.torque_cmd)
+    np.testing.assert_array_equal(qp.lo[:4], ctrl.torque_lo)
+    np.testing.assert_array_equal(qp.hi[:4], ctrl.torque_hi)
+    np.testing.assert_array_equal(qp.x[4:], ctrl.slack)
+
+
+def test_a_generous_limit_leaves_zero_slack_and_the_commanded_torque(
+    exo, patient, motor, plan
+) -> None:
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=1e6)
+    rng = np.random.default_rng(21)
+    for k in range(0, 1200, 60):
+        ctrl.command(k, near_plan(plan, rng, k, q_noise=1e-4, dq_noise=1e-3))
+        assert ctrl.last_status == "solved", ctrl.last_status
+        assert np.all(ctrl.slack <= 1e-9)
+        np.testing.assert_allclose(ctrl.torque, ctrl.torque_cmd, atol=1e-6, rtol=0)
+    assert ctrl.failures == 0
+
+
+def test_a_tight_limit_the_torques_can_meet_puts_the_force_on_the_polygon(
+    exo, patient, motor, plan
+) -> None:
+    """F_max = 60 N on the plan (CT's predicted peak 93.8 N): every solved tick is the optimum.
+
+    A fresh (cold) controller per tick.  Some of these cold solves fail
+    (solver tolerance, see the xfail test below); they are counted, checked
+    to be solver fallbacks, and printed.
+    """
+    binding = fallbacks = 0
+    slack_max = 0.0
+    for k in range(0, 1200, 25):
+        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+        ctrl.command(k, on_plan(plan, k))
+        if ctrl.last_status != "solved":
+            assert ctrl.last_status.startswith("fallback: τ_cmd clipped to the torque box")
+            fallbacks += 1
+            continue
+        problem = soft_problem(ctrl)
+        assert_is_the_soft_optimum(ctrl, problem)
+        if problem.edge_excess(ctrl.torque_cmd).max() <= 0.0:
+            np.testing.assert_array_equal(ctrl.slack, 0.0)
+            continue
+        # The bound binds, and a torque in the box meets the octagon (an LP says so).
+        res = linprog(
+            np.zeros(4),
+            A_ub=problem.C[:, :4],
+            b_ub=problem.upper,
+            bounds=list(zip(ctrl.torque_lo, ctrl.torque_hi, strict=True)),
+        )
+        assert res.status == 0
+        binding += 1
+        assert np.abs(ctrl.torque - ctrl.torque_cmd).max() > 0.01
+        # Quadratic penalty: s_c = λ_c / ρ, small but not zero where the bound
+        # binds, and the predicted force sits on the octagon widened by s_c.
+        assert np.all(ctrl.slack < 0.2)
+        slack_max = max(slack_max, ctrl.slack.max())
+        on_edge = ctrl.slack > 1e-6
+        assert on_edge.any()
+        np.testing.assert_allclose(
+            problem.edge_excess(ctrl.torque)[on_edge], ctrl.slack[on_edge], atol=1e-6
+        )
+        f = np.linalg.norm(ctrl.cuff_force_pred, axis=1)
+        assert np.all(f <= (problem.radius + ctrl.slack) / math.cos(math.pi / 8) + 1e-6)
+    print(
+        f"\nF_max = 60 N on the plan: {binding} binding ticks of 48, largest slack "
+        f"{slack_max:.4f} N; {fallbacks} cold solves fell back"
+    )
+    assert binding >= 10
+
+
+def weak_exo(exo: BodyModel, effort: float) -> BodyModel:
+    weak = dataclasses.replace(exo, model=pin.Model(exo.model))
+    weak.model.effortLimit = np.full(4, effort)
+    return weak
+
+
+@pytest.mark.parametrize(
+    ("effort", "limit", "k"),
+    [
+        (1.0, 1.0, 0),  # every torque at the box
+        (1.0, 5.0, 300),  # one torque inside the box
+        (5.0, 0.5, 300),  # three torques inside the box
+    ],
+    ids=["1 N·m/1 N", "1 N·m/5 N", "5 N·m/0.5 N"],
+)
+def test_a_limit_the_torque_box_cannot_meet_is_softened_not_a_fallback(
+    exo, patient, motor, plan, effort, limit, k
+) -> None:
+    """Drives too weak (URDF effort cut to 1 or 5 N·m) to keep the cuffs within F_max."""
+    ctrl = QPController(plan, weak_exo(exo, effort), patient, motor, cuff_force_limit_N=limit)
+    u = ctrl.command(k, on_plan(plan, k))
+    problem = soft_problem(ctrl)
+    # Independent confirmation that no torque in the box meets the octagon.
+    res = linprog(
+        np.zeros(4),
+        A_ub=problem.C[:, :4],
+        b_ub=problem.upper,
+        bounds=list(zip(ctrl.torque_lo, ctrl.torque_hi, strict=True)),
+    )
+    assert res.status == 2  # infeasible
+    assert ctrl.failures == 0 and ctrl.last_status == "solved"
+    assert np.all(np.isfinite(u))
+    assert ctrl.slack.max() > 0.1
+    assert np.all(ctrl.torque >= -effort) and np.all(ctrl.torque <= effort)
+    inside = (ctrl.torque > ctrl.torque_lo + 1e-3) & (ctrl.torque < ctrl.torque_hi - 1e-3)
+    assert_is_the_soft_optimum(ctrl, problem)
+    # And scipy's trust-constr on the same problem, slack scaled to σ = √ρ s.
+    scale = math.sqrt(RHO)
+    c_scaled = problem.C / np.concatenate((np.ones(4), np.full(4, scale)))
+    tc = ctrl.torque_cmd.copy()
+    sol = minimize(
+        lambda z: 0.5 * ((z[:4] - tc) @ (z[:4] - tc) + z[4:] @ z[4:]),
+        np.zeros(8),
+        jac=lambda z: np.concatenate((z[:4] - tc, z[4:])),
+        hess=lambda z: np.eye(8),
+        bounds=list(zip(ctrl.torque_lo, ctrl.torque_hi, strict=True)) + [(0.0, np.inf)] * 4,
+        constraints=[LinearConstraint(c_scaled, -np.inf, problem.upper)],
+        method="trust-constr",
+        options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 20000},
+    )
+    print(
+        f"\neffort {effort:g} N·m, F_max {limit:g} N: τ {np.round(ctrl.torque, 3)} N·m, "
+        f"slack {np.round(ctrl.slack, 4)} N, {inside.sum()} inside the box; trust-constr Δτ "
+        f"{np.abs(sol.x[:4] - ctrl.torque).max():.1e}"
+    )
+    np.testing.assert_allclose(ctrl.torque, sol.x[:4], atol=1e-6, rtol=0)
+    np.testing.assert_allclose(ctrl.slack, sol.x[4:] / scale, atol=1e-5, rtol=0)
+
+
+def test_controller_qps_are_soft_optima_near_the_plan(exo, patient, motor, plan) -> None:
+    """The controller's own instances (real cuff rows, a 40 N bound) pass the KKT check."""
+    rng = np.random.default_rng(5)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0)
+    binding = 0
+    for k in rng.integers(0, plan.q.shape[0], 150):
+        ctrl.command(int(k), near_plan(plan, rng, int(k), dq_noise=0.5))
+        assert ctrl.last_status == "solved", ctrl.last_status
+        assert_is_the_soft_optimum(ctrl, soft_problem(ctrl))
+        binding += ctrl.slack.max() > 0.0
+    assert binding > 20
+
+
+# --------------------------------------------------------------------------- force feedback
+
+
+def test_force_feedback_adds_last_ticks_prediction_error_to_the_offset(
+    exo, patient, motor, plan
+) -> None:
+    """d = f̂ − (A τ_prev + b_prev) is added to b; the first tick has no prediction yet."""
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=80.0)
+    rng = np.random.default_rng(13)
+    prev = None  # (A, b, τ) of the previous tick, copied here
+    binding = 0
+    for k in (300, 301, 302, 303):
+        f_hat = rng.normal(0.0, 40.0, (4, 2))
+        ctrl.command(k, on_plan(plan, k, f_hat))
+        assert ctrl.last_status == "solved" and ctrl.failures == 0
+        b = ctrl.cuff_model.b.copy()
+        if prev is not None:
+            a_prev, b_prev, tau_prev = prev
+            b = b + f_hat.reshape(8) - (a_prev @ tau_prev + b_prev)
+        problem = soft_problem(ctrl, b)
+        np.testing.assert_allclose(ctrl.qp.upper, problem.upper, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(ctrl.qp.C, problem.C, rtol=1e-12, atol=1e-12)
+        assert_is_the_soft_optimum(ctrl, problem)
+        binding += ctrl.slack.max() > 1e-6
+        prev = (ctrl.cuff_model.A.copy(), ctrl.cuff_model.b.copy(), ctrl.torque.copy())
+    assert binding >= 1  # the disturbance did move the bound into play
+
+
+@pytest.mark.parametrize("case", ["disabled", "no estimate", "non-finite estimate"])
+def test_force_feedback_leaves_the_model_alone_when_off_absent_or_non_finite(
+    exo, patient, motor, plan, case
+) -> None:
+    ctrl = QPController(
+        plan, exo, patient, motor, cuff_force_limit_N=80.0, force_feedback=case != "disabled"
+    )
+    f_hat = {"disabled": np.full((4, 2), 30.0), "no estimate": None}.get(
+        case, np.array([[np.nan, 0.0]] + [[0.0, 0.0]] * 3)
+    )
+    for k in (300, 301, 302):
+        u = ctrl.command(k, on_plan(plan, k, f_hat))
+        assert ctrl.last_status == "solved" and ctrl.failures == 0
+        assert np.all(np.isfinite(u))
+        problem = soft_problem(ctrl)  # the model's own b
+        np.testing.assert_allclose(ctrl.qp.upper, problem.upper, rtol=1e-12, atol=1e-9)
+        assert_is_the_soft_optimum(ctrl, problem)
+
+
+def test_force_feedback_after_a_fallback_uses_the_torque_the_fallback_applied(
+    exo, patient, motor, plan
+) -> None:
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=80.0)
+    f_hat = np.full((4, 2), 10.0)
+    ctrl.command(300, on_plan(plan, 300, f_hat))
+    assert ctrl.last_status == "solved"
+    # Tick 301 at 20 rad/s on the left hip: an empty torque box, a counted fallback
+    # that still applies a known torque (joint 0 zero, the others τ_cmd clipped).
+    fast = on_plan(plan, 301, f_hat)
+    fast.dq[0] = 20.0
+    ctrl.command(301, fast)
+    assert ctrl.failures == 1 and "empty torque box" in ctrl.last_status
+    a_prev, b_prev, tau_prev = ctrl.cuff_model.A.copy(), ctrl.cuff_model.b.copy(), ctrl.torque
+    tau_prev = tau_prev.copy()
+    ctrl.command(302, on_plan(plan, 302, f_hat))
+    b = ctrl.cuff_model.b + f_hat.reshape(8) - (a_prev @ tau_prev + b_prev)
+    np.testing.assert_allclose(ctrl.qp.upper, soft_problem(ctrl, b).upper, rtol=1e-9, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- CT equivalence
+
+
+def test_with_no_bound_active_the_command_is_the_ct_command(exo, patient, motor, plan) -> None:
+    ct = ComputedTorqueController(plan, exo, patient, motor)
+    qp = QPController(plan, exo, patient, motor, cuff_force_limit_N=1e6)
+    rng = np.random.default_rng(1)
+    for k in range(0, plan.q.shape[0], 7):
+        s = near_plan(plan, rng, k, q_noise=1e-4, dq_noise=1e-3)
+        u_ct = ct.command(k, s).copy()
+        u_qp = qp.command(k, s)
+        assert qp.last_status == "solved"
+        assert np.all(qp.slack <= 1e-9)
+        assert np.all(qp.torque > qp.torque_lo) and np.all(qp.torque < qp.torque_hi)
+        np.testing.assert_allclose(u_qp, u_ct, atol=1e-6, rtol=0)
+    assert qp.failures == 0
+
+
+# --------------------------------------------------------------------------- cuff-force model
+
+
+def _rnea_mass_and_bias(model: pin.Model, q: np.ndarray, dq: np.ndarray):
+    """M (columns of RNEA at unit accelerations) and h = RNEA(q, q̇, 0)."""
+    data = model.createData()
+    zero = np.zeros(4)
+    bias = pin.rnea(model, data, q, dq, zero).copy()
+    gravity = pin.rnea(model, data, q, zero, zero).copy()
+    mass = np.column_stack(
+        [pin.rnea(model, data, q, zero, np.eye(4)[j]) - gravity for j in range(4)]
+    )
+    return mass, bias
+
+
+def _losses(body: BodyModel, dq: np.ndarray) -> np.ndarray:
+    return body.damping * dq + body.friction * np.tanh(dq / FRICTION_SMOOTHING_RAD_S)
+
+
+def test_cuff_force_prediction_is_the_min_norm_solution_of_the_rigid_coupling(
+    exo, patient, motor, plan
+) -> None:
+    ctrl = QPController(plan, exo, patient, motor)
+    model = ctrl.cuff_model
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        q = rng.uniform(-0.4, 1.5, 4)
+        dq = rng.uniform(-3.0, 3.0, 4)
+        tau = rng.uniform(-100.0, 100.0, 4)
+        model.update(q, dq)
+        # Independent: coupled rigid dynamics from RNEA, reflected rotor inertia added.
+        m_e, h_e = _rnea_mass_and_bias(exo.model, q, dq)
+        m_p, h_p = _rnea_mass_and_bias(patient.model, q, dq)
+        m_e += np.eye(4) * motor.gear_ratio**2 * motor.rotor_inertia_kgm2
+        h_e += _losses(exo, dq)
+        h_p += _losses(patient, dq)
+        acc = np.linalg.solve(m_e + m_p, tau - h_e - h_p)
+        tau_int = m_p @ acc + h_p
+        # Patient cuff Jacobians (x, z rows) and the min-norm f with −J_pᵀ f = τ_int.
+        data = patient.model.createData()
+        jac = np.zeros((8, 4))
+        for c, fid in enumerate(patient.cuff_frame_ids):
+            full = pin.computeFrameJacobian(
+                patient.model, data, q, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            )
+            jac[2 * c], jac[2 * c + 1] = full[0], full[2]
+        f_ref = np.linalg.lstsq(-jac.T, tau_int, rcond=None)[0]
+        f = model.A @ tau + model.b
+        np.testing.assert_allclose(f, f_ref, rtol=1e-9, atol=1e-9 * np.abs(f_ref).max())
+        np.testing.assert_allclose(jac.T @ (-f), tau_int, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(model.predict(tau), f.reshape(4, 2))
+
+
+def test_cuff_force_is_the_compliant_quasi_static_split(exo, patient, motor, plan) -> None:
+    """f = K J δq with δq = −(K JᵀJ)⁻¹ τ_int (per leg), for any equal stiffness K."""
+    ctrl = QPController(plan, exo, patient, motor)
+    model = ctrl.cuff_model
+    q, dq = plan.q[300], plan.dq[300]
+    model.update(q, dq)
+    tau = np.array([30.0, -10.0, 5.0, 20.0])
+    data = patient.model.createData()
+    pin.computeJointJacobians(patient.model, data, q)
+    jac = np.zeros((8, 4))
+    for c, fid in enumerate(patient.cuff_frame_ids):
+        full = pin.getFrameJacobian(patient.model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        jac[2 * c], jac[2 * c + 1] = full[0], full[2]
+    f = model.A @ tau + model.b
+    tau_int = -jac.T @ f
+    for stiffness in (1e3, 8e3, 5e4):
+        dq_lag = -np.linalg.solve(stiffness * jac.T @ jac, tau_int)
+        np.testing.assert_allclose(stiffness * jac @ dq_lag, f, rtol=1e-9, atol=1e-9)
+    # Each cuff's force depends only on its own leg's torques.
+    np.testing.assert_array_equal(model.A[:4, 2:], 0.0)
+    np.testing.assert_array_equal(model.A[4:, :2], 0.0)
+
+
+def test_polygon_is_inscribed_in_the_force_circle() -> None:
+    """max |f| over the polygon is F_max (at the vertices); min over directions F_max cos(π/S)."""
+    rows = polygon_rows(1)
+    r = 100.0 * math.cos(math.pi / POLYGON_SIDES)
+    a_ub = np.vstack((rows, -rows))
+    b_ub = np.full(a_ub.shape[0], r)
+    reach = []
+    for angle in np.linspace(0.0, 2.0 * math.pi, 97):
+        d = np.array([math.cos(angle), math.sin(angle)])
+        res = linprog(-d, A_ub=a_ub, b_ub=b_ub, bounds=[(None, None)] * 2)
+        reach.append(-res.fun)
+    assert max(reach) == pytest.approx(100.0, rel=1e-9)
+    assert min(reach) == pytest.approx(r, rel=1e-9)
+
+
+# --------------------------------------------------------------------------- limits and fallbacks
+
+
+def expected_box(exo: BodyModel, motor: MotorParams, omega: np.ndarray):
+    """Torque box written out from the motor equations: effort ∩ current ∩ supply [N·m]."""
+    kt = motor.gear_ratio * motor.torque_constant_Nm_per_A
+    back_emf = motor.gear_ratio / motor.speed_constant_rad_per_Vs * omega
+    r = motor.resistance_ohm
+    i_hi = np.minimum(motor.current_limit_A, (motor.supply_voltage_V - back_emf) / r)
+    i_lo = np.maximum(-motor.current_limit_A, (-motor.supply_voltage_V - back_emf) / r)
+    effort = exo.model.effortLimit[:4]
+    return np.maximum(-effort, kt * i_lo), np.minimum(effort, kt * i_hi)
+
+
+def torque_of(u: np.ndarray, omega: np.ndarray, motor: MotorParams) -> np.ndarray:
+    """Steady-state drive torque of voltage u at speed ω, i_G k_m (U − i_G ω/k_E)/R."""
+    kt = motor.gear_ratio * motor.torque_constant_Nm_per_A
+    return (
+        kt
+        * (u - motor.gear_ratio / motor.speed_constant_rad_per_Vs * omega)
+        / (motor.resistance_ohm)
+    )
+
+
+@pytest.mark.parametrize("capped", [True, False], ids=["drive_for", "175 N·m drive"])
+def test_no_torque_beyond_its_limits_on_random_inputs(exo, patient, plan, capped) -> None:
+    """Also with a drive stronger than the URDF effort (175 N·m), so the effort bound binds.
+
+    Whether the QP solved or fell back, the torque is in the box; where it
+    solved, each cuff's predicted force is within the octagon widened by its
+    slack.
+    """
+    motor = drive_for(MotorParams(), exo) if capped else MotorParams()
+    rng = np.random.default_rng(4)
+    at_limit = fallbacks = 0
+    for limit in (30.0, 80.0, 300.0):
+        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=limit)
+        radius = limit * math.cos(math.pi / 8)
+        for _ in range(150):
+            k = int(rng.integers(0, plan.q.shape[0]))
+            s = SensorReadings(
+                q=plan.q[k] + rng.normal(0.0, 0.4, 4),  # large errors: the PD saturates
+                dq=rng.uniform(-8.0, 8.0, 4),
+                tau=np.zeros(4),
+            )
+            u = ctrl.command(k, s)
+            lo, hi = expected_box(exo, motor, s.dq)
+            tau = torque_of(u, s.dq, motor)
+            assert np.all(tau >= lo - 1e-9) and np.all(tau <= hi + 1e-9)
+            assert np.all(np.abs(tau) <= EFFORT + 1e-9)  # the URDF effort
+            assert np.all(np.abs(u) <= motor.supply_voltage_V + 1e-9)
+            at_limit += np.any(np.isclose(tau, lo, atol=1e-6) | np.isclose(tau, hi, atol=1e-6))
+            if ctrl.last_status != "solved":
+                assert ctrl.last_status.startswith("fallback: τ_cmd clipped to the torque box")
+                continue
+            f = ctrl.cuff_force_pred @ octagon().T  # (cuff, edge direction)
+            assert np.all(np.abs(f).max(axis=1) <= radius + ctrl.slack + 1e-6)
+        fallbacks += ctrl.failures
+    print(f"\nrandom saturated inputs ({'drive_for' if capped else '175 N·m'}): ", end="")
+    print(f"{fallbacks} fallbacks of 450 ticks")
+    assert at_limit > 50  # the box was binding in many of them
+
+
+SOLVER_TOLERANCE_BUG = (
+    "library: proxsuite's absolute tolerances (eps_abs = 1e-9, eps_duality_gap_abs = 1e-8) "
+    "are out of reach for the 8-variable problem's scale (ρ = 1e4 multiplies any slack "
+    "error into the dual residual; the cost reaches ~1e7 when τ_cmd is thousands of N·m), "
+    "so solves that have found the optimum stop at max_iter and the tick falls back "
+    "(cuff bound dropped).  "
+)
+
+
+@pytest.mark.parametrize(
+    ("k", "q", "dq", "limit"),
+    [
+        pytest.param(
+            1014,
+            (0.5, 0.84, 0.58, 1.34),
+            (-2.3, 1.1, -2.9, 1.5),
+            1e6,
+            id="box only",
+        ),
+        pytest.param(
+            300,
+            None,
+            None,
+            60.0,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason=SOLVER_TOLERANCE_BUG
+                + "Cuff bound, on the plan at tick 300, F_max = 60 N: dual residual 3.1e-9 "
+                "> 1e-9 at max_iter, and ticks 301-303 (each re-initialised cold) fail the "
+                "same way; 11 of 192 cold ticks on the plan (every 25th, at 40, 50, 60 and "
+                "70 N) fail.  The 80 N closed loop's 19 fallbacks are the same (dual residual "
+                "1e-9 to 8e-8); eps_abs = 1e-7 removes them",
+            ),
+            id="cuff bound on the plan",
+        ),
+    ],
+)
+def test_a_solvable_tick_is_solved_not_a_fallback(exo, patient, motor, plan, k, q, dq, limit):
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=limit)
+    if q is None:
+        readings = [(j, on_plan(plan, j)) for j in range(k, k + 4)]
+    else:
+        readings = [(k, SensorReadings(q=np.array(q), dq=np.array(dq), tau=np.zeros(4)))]
+    for j, s in readings:
+        ctrl.command(j, s)
+        print(f"\ntick {j}: {ctrl.last_status}")
+    assert ctrl.failures == 0, ctrl.last_status
+
+
+def test_bounds_out_of_order_fall_back_without_solving() -> None:
+    qp = TorqueQP(np.ones(4), 2)
+    c = np.eye(2, 4)
+    lo, hi = -np.ones(4) * 10, np.ones(4) * 10
+    assert not qp.solve(np.ones(4), c, np.array([1.0, 0.0]), np.array([0.0, 1.0]), lo, hi)
+    assert "lower > upper" in qp.status
+    assert not qp.solve(np.ones(4), c, -np.ones(2), np.ones(2), hi, lo)
+    assert not qp.solve(np.full(4, np.nan), c, -np.ones(2), np.ones(2), lo, hi)
+    assert qp.status == "non-finite problem data"
+    # The workspace still works afterwards.
+    assert qp.solve(np.full(4, 5.0), c, -np.ones(2), np.ones(2), lo, hi)
+    np.testing.assert_allclose(qp.x, [1.0, 1.0, 5.0, 5.0], atol=1e-7)
+
+
+def test_infeasible_qp_is_refused_quickly_and_the_workspace_recovers() -> None:
+    qp = TorqueQP(np.ones(4), 1, max_iter=100)
+    c = np.array([[1.0, 0.0, 0.0, 0.0]])
+    lo, hi = -np.ones(4) * 5, np.ones(4) * 5
+    assert qp.solve(np.zeros(4), c, np.array([-1.0]), np.array([1.0]), lo, hi)
+    # x0 must be ≥ 10 by the row but ≤ 5 by the box: infeasible.
+    ok = qp.solve(np.zeros(4), c, np.array([10.0]), np.array([20.0]), lo, hi)
+    assert not ok
+    assert qp.reinits == 1
+    assert "after re-init" in qp.status
+    assert qp.solve_time_us < 1e6
+    assert qp.solve(np.full(4, 2.0), c, np.array([-1.0]), np.array([1.0]), lo, hi)
+    np.testing.assert_allclose(qp.x, [1.0, 2.0, 2.0, 2.0], atol=1e-7)
+
+
+def test_an_empty_torque_box_gives_a_finite_command_within_the_supply(
+    exo, patient, motor, plan
+) -> None:
+    ctrl = QPController(plan, exo, patient, motor)
+    # At 20 rad/s the back-EMF (38.6 V) exceeds the supply plus R I_max: no torque fits.
+    s = SensorReadings(q=plan.q[100].copy(), dq=np.array([20.0, 0.5, 0.5, 0.5]), tau=np.zeros(4))
+    lo, hi = expected_box(exo, motor, s.dq)
+    assert lo[0] > hi[0]
+    u = ctrl.command(100, s)
+    assert ctrl.failures == 1
+    assert "empty torque box at joint(s) 0" in ctrl.last_status
+    assert np.all(np.isfinite(u)) and np.all(np.abs(u) <= motor.supply_voltage_V)
+    assert ctrl.torque[0] == 0.0
+    tau = torque_of(u[1:], s.dq[1:], motor)
+    assert np.all(tau >= lo[1:] - 1e-9) and np.all(tau <= hi[1:] + 1e-9)
+
+
+def test_bad_readings_and_bad_ticks_give_zero_volts_not_exceptions(
+    exo, patient, motor, plan
+) -> None:
+    ctrl = QPController(plan, exo, patient, motor)
+    bad = SensorReadings(q=plan.q[5].copy(), dq=np.array([np.nan, 0, 0, 0]), tau=np.zeros(4))
+    np.testing.assert_array_equal(ctrl.command(5, bad), np.zeros(4))
+    assert ctrl.failures == 1 and "zero volts" in ctrl.last_status
+    bad = SensorReadings(q=np.array([np.inf, 0, 0, 0]), dq=np.zeros(4), tau=np.zeros(4))
+    np.testing.assert_array_equal(ctrl.command(5, bad), np.zeros(4))
+    assert ctrl.failures == 2
+    good = SensorReadings(q=plan.q[5].copy(), dq=plan.dq[5].copy(), tau=np.zeros(4))
+    np.testing.assert_array_equal(ctrl.command(10**9, good), np.zeros(4))  # beyond the plan
+    assert ctrl.failures == 3 and "IndexError" in ctrl.last_status
+    ctrl.command(5, good)  # and it recovers
+    assert ctrl.last_status == "solved" and ctrl.failures == 3
+
+
+def test_construction_checks_its_arguments(exo, patient, motor, plan) -> None:
+    with pytest.raises(InvalidParameter, match="cuff_force_limit"):
+        QPController(plan, exo, patient, motor, cuff_force_limit_N=0.0)
+    with pytest.raises(InvalidParameter, match="torque_weights"):
+        QPController(plan, exo, patient, motor, torque_weights=(1.0, 1.0, -1.0, 1.0))
+    with pytest.raises(InvalidParameter, match="torque_weights"):
+        QPController(plan, exo, patient, motor, torque_weights=(1.0, 1.0))
+    with pytest.raises(InvalidParameter, match="max_iter"):
+        QPController(plan, exo, patient, motor, max_iter=0)
+    with pytest.raises(InvalidParameter, match="patient"):
+        QPController(plan, exo, None, motor)
+
+
+def test_runs_with_the_human_patient(exo, human, motor, plan) -> None:
+    """example-robot-data's human (other link lengths, added cuff frames) is usable."""
+    ctrl = QPController(plan, exo, human, motor, cuff_force_limit_N=100.0)
+    rng = np.random.default_rng(8)
+    radius = 100.0 * math.cos(math.pi / 8)
+    for k in range(0, 1200, 97):
+        u = ctrl.command(k, near_plan(plan, rng, k))
+        assert ctrl.last_status == "solved", ctrl.last_status
+        assert np.all(np.isfinite(u))
+        f = ctrl.cuff_force_pred @ octagon().T
+        assert np.all(np.abs(f).max(axis=1) <= radius + ctrl.slack + 1e-6)
+        assert np.all(ctrl.slack < 0.2)
+
+
+# --------------------------------------------------------------------------- closed loop
+#
+# The default 2.4 s scenario through simulate(), default sensors (so the
+# estimated cuff forces feed the QP), safety supervisor off.  Each
+# configuration is simulated once per module.
+
+
+def _run(**kwargs) -> SimResult:
+    return simulate(SimConfig(safety=False, **kwargs))
+
+
+@pytest.fixture(scope="module")
+def ct_passive() -> SimResult:
+    return _run(controller="ct")
+
+
+@pytest.fixture(scope="module")
+def qp_passive() -> SimResult:
+    return _run(controller="qp")  # default cuff_force_limit_N = 120 N
+
+
+@pytest.fixture(scope="module")
+def qp_tight() -> SimResult:
+    return _run(controller="qp", cuff_force_limit_N=F_TIGHT)
+
+
+@pytest.fixture(scope="module")
+def ct_spastic() -> SimResult:
+    return _run(controller="ct", patient_torque="spastic")
+
+
+@pytest.fixture(scope="module")
+def qp_spastic() -> SimResult:
+    return _run(controller="qp", cuff_force_limit_N=F_SPASTIC, patient_torque="spastic")
+
+
+def rms(result: SimResult) -> np.ndarray:
+    return np.array(list(result.summary()["rms_tracking_error_rad"].values()))
+
+
+def peak_force(result: SimResult) -> np.ndarray:
+    return np.array(list(result.summary()["peak_cuff_force_N"].values()))
+
+
+def describe(name: str, result: SimResult) -> str:
+    s = result.summary()
+    torque = np.array(list(s["peak_drive_torque_Nm"].values()))
+    return (
+        f"{name}: {result.status}, RMS error {np.round(rms(result) * 1e3, 3)} mrad, "
+        f"peak cuff force {np.round(peak_force(result), 1)} N, "
+        f"peak drive torque {np.round(torque, 1)} N·m, {s['qp_failures']} fallbacks"
+    )
+
+
+def test_closed_loop_qp_tracks_as_well_as_ct(ct_passive, qp_passive) -> None:
+    print(f"\n{describe('ct', ct_passive)}\n{describe('qp 120 N', qp_passive)}")
+    assert ct_passive.status == qp_passive.status == "completed"
+    assert qp_passive.qp_failures == 0
+    assert np.all(rms(qp_passive) <= (1.0 + RMS_TOLERANCE) * rms(ct_passive))
+    # The bound is not binding on this run: the peak is CT's, within 2 %.
+    np.testing.assert_allclose(peak_force(qp_passive), peak_force(ct_passive), rtol=0.02)
+
+
+def test_closed_loop_tight_bound_stays_within_the_stated_margin(ct_passive, qp_tight) -> None:
+    peak = peak_force(qp_tight)
+    print(
+        f"\n{describe(f'qp {F_TIGHT:g} N', qp_tight)}\n"
+        f"peak {peak.max():.1f} N = bound + {100 * (peak.max() / F_TIGHT - 1):.1f} % "
+        f"(stated margin {100 * TIGHT_MARGIN:.0f} %); ct peak {peak_force(ct_passive).max():.1f} N"
+    )
+    assert qp_tight.status == "completed"
+    assert np.all(np.isfinite(rms(qp_tight)))
+    assert np.all(peak <= F_TIGHT * (1.0 + TIGHT_MARGIN))
+    # Fallbacks are counted, in the summary and in the logged signal alike.
+    assert qp_tight.summary()["qp_failures"] == qp_tight.qp_failures
+    assert qp_tight.signals["qp_failures"][-1] == qp_tight.qp_failures
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "library: with force feedback (default sensors) an 80 N bound does not lower the "
+        "real peak: measured 108.9 N (right shank) against CT's 106.0 N, RMS error "
+        "12 mrad against CT's ~1 mrad, 19 fallbacks.  Without feedback (force_feedback="
+        "False) the same run peaks at 74.1 N; with ideal sensors and feedback it goes "
+        "unstable (peaks ~250 N, 54–59 fallbacks)"
+    ),
+)
+def test_closed_loop_tight_bound_lowers_the_peak_below_cts(ct_passive, qp_tight) -> None:
+    assert peak_force(qp_tight).max() < peak_force(ct_passive).max() - 10.0
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "library: the 80 N passive run falls back 19 times, every one a solver failure "
+        "(max_iter_reached: dual residual 1e-9 to 8e-8 against the absolute eps_abs = 1e-9, "
+        "unreachable with ρ = 1e4 in the cost); with eps_abs = 1e-7 there are none"
+    ),
+)
+def test_closed_loop_tight_bound_needs_no_fallback(qp_tight) -> None:
+    assert qp_tight.qp_failures == 0
+
+
+@pytest.mark.parametrize(
+    "run", ["ct_passive", "qp_passive", "qp_tight", "ct_spastic", "qp_spastic"]
+)
+def test_closed_loop_no_drive_torque_beyond_the_urdf_effort(request, run) -> None:
+    result = request.getfixturevalue(run)
+    peak = np.abs(result.signals["drive_torque"]).max()
+    print(f"\n{run}: peak drive torque {peak:.3f} N·m")
+    assert peak <= EFFORT + 1e-9
+
+
+def test_closed_loop_spastic_patient_pushes_ct_beyond_the_bound(ct_spastic) -> None:
+    print(f"\n{describe('ct spastic', ct_spastic)}")
+    assert ct_spastic.status == "completed"
+    assert peak_force(ct_spastic).max() > F_SPASTIC
+
+
+def test_closed_loop_spastic_patient_qp_completes_and_counts_its_fallbacks(qp_spastic) -> None:
+    summary = qp_spastic.summary()
+    print(
+        f"\n{describe(f'qp {F_SPASTIC:g} N spastic', qp_spastic)}; peak = "
+        f"bound + {100 * (peak_force(qp_spastic).max() / F_SPASTIC - 1):.1f} %"
+    )
+    assert qp_spastic.status == "completed"
+    assert np.all(np.isfinite(rms(qp_spastic)))
+    assert isinstance(summary["qp_failures"], int) and summary["qp_failures"] >= 0
+    assert summary["qp_failures"] == qp_spastic.qp_failures
+    assert qp_spastic.signals["qp_failures"][-1] == qp_spastic.qp_failures
+    assert np.all(np.diff(qp_spastic.signals["qp_failures"]) >= 0)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "issue requirement not met: with the spastic patient and F_max = 150 N the measured "
+        "peak cuff force is 194.5 N (right shank; left 192.7 N), +29.6 % over the bound and "
+        "above CT's own 180.8 N, with 6 fallbacks and 25 mrad RMS knee error: the one-tick "
+        "rigid-cuff prediction, even with force feedback, cannot bound the elastic cuffs' "
+        "force against the patient's resistance"
+    ),
+)
+def test_closed_loop_spastic_patient_qp_keeps_the_bound_within_the_margin(qp_spastic) -> None:
+    assert peak_force(qp_spastic).max() <= F_SPASTIC * (1.0 + SPASTIC_MARGIN)
