@@ -19,19 +19,24 @@ Entity hierarchy (the one place it is defined)::
     world/{exo,patient}/{left,right}/cuffs   Points3D: thigh cuff, shank cuff
     world/cuff_force/{cuff}                  Arrows3D: cuff force on the exoskeleton, drawn at
                                              the exo cuff, FORCE_ARROW_M_PER_N metres per newton
-    signals/joint_angle/{joint}/{desired,actual,patient}   Scalars [rad]
-    signals/joint_speed/{joint}/{desired,actual,patient}   Scalars [rad/s]
+    signals/joint_angle/{joint}              Scalars (desired, actual, patient) [rad]
+    signals/joint_speed/{joint}              Scalars (desired, actual, patient) [rad/s]
     signals/drive_torque/{joint}             Scalars [N·m]
     signals/patient_torque/{joint}           Scalars [N·m]
     signals/current/{joint}                  Scalars [A] (mean over the tick)
-    signals/voltage/{joint}/{command,applied}              Scalars [V]
-    signals/cuff_force/{cuff}/{x,z,magnitude}              Scalars [N]
+    signals/voltage/{joint}                  Scalars (command, applied) [V]
+    signals/cuff_force/{cuff}                Scalars (x, z, magnitude) [N]
+    signals/safety_state                     Scalars: 0 normal, 1 stopping, 2 holding, 3 power cut
+    signals/{name}[/{cuff}]                  Scalars: every other entry of SIGNALS: (4, 2) as
+                                             .../{cuff} (x, z, magnitude), e.g. cuff_force_est;
+                                             others as one entity, components flattened
     raw/{signal}                             Scalars: one row per tick holding the signal's
                                              whole row (row-major), for every entry of SIGNALS
     raw/meta                                 TextDocument, static: JSON (format marker, config,
                                              model sources, Δt, signal layout)
     raw/outcome                              TextDocument, static: JSON written at the end
-                                             (status, error, events, ticks, wall time)
+                                             (status, error, events, ticks, and the other
+                                             plain fields of SimResult)
 
 ``{joint}`` is one of :data:`~exo_ctrl.model.JOINT_NAMES`, ``{cuff}`` one of
 :data:`~exo_ctrl.model.CUFF_NAMES`.  Time-varying data sits on two timelines:
@@ -52,17 +57,27 @@ The patient's world is shifted in x and z so that its left hip sits on the
 exoskeleton's (as the plant's ``patient_offset_xz`` does); y is the model's.
 
 Failure safety.  The file is written in place at its final path, not to a
-temporary file renamed at the end: rerun streams each flushed chunk to the
-file, so a crash (even SIGKILL or ``os._exit``) leaves, at the path the user
-asked for, a file readable with every chunk flushed before it.  A temp file
-would hide that data under another name, and a run that never reaches
-:meth:`~RerunRecorder.finish` would never rename it.  The cost is that a
-previous recording at the same path is replaced as soon as the run starts.
-The recorder flushes after every chunk, so at most the chunk being written
-is at risk; a normal end, a divergence, Ctrl-C or an exception in the loop
-all reach :meth:`~RerunRecorder.finish`, which writes the outcome and the
-file footer.  A file without ``raw/outcome`` reads back with status
-``"interrupted"``.
+temporary file renamed at the end: rerun streams each chunk to the file as it
+is sent, so a crash (even SIGKILL or ``os._exit``) leaves, at the path the
+user asked for, a file readable with every chunk flushed before it.  A temp
+file would hide that data under another name, and a run that never reaches
+:meth:`~RerunRecorder.finish` would never rename it.  The costs: a previous
+recording at the same path is replaced as soon as the run starts, and a file
+cut by a crash has no footer (``rerun rrd verify`` rejects it; the viewer and
+:func:`read_recording` read it).  The recorder flushes after every chunk, so
+at most the chunk being written is at risk.  Every way a run ends (normal
+end, divergence, Ctrl-C, an error in the loop or in an observer) reaches
+:meth:`~RerunRecorder.finish`, which logs the events and the outcome and
+writes the footer.  A file without ``raw/outcome`` (the process died) reads
+back with status ``"interrupted"``; a file whose last message was cut short
+(disk full) is read up to its last complete message.
+
+Memory.  The recorder keeps no rows between chunks (it copies the chunk it
+is given, sends it and drops it).  Rerun's file sink, however, keeps an index
+entry per written rerun chunk for the file footer (about 2 kB per entity and
+chunk, measured with rerun 0.41), so a process recording a long run grows
+by about 0.15 MB per recorded chunk (0.08 MB per simulated second with
+the default 2000-tick chunks); larger ``chunk_ticks`` shrink that.
 """
 
 from __future__ import annotations
@@ -73,15 +88,18 @@ import json
 import math
 import os
 import shutil
-import sys
+import struct
+import tempfile
+import threading
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import ExoCtrlError, RecordingError
+from .exceptions import ExoCtrlError, InvalidParameter, RecordingError
 from .gait import GaitPlan
 from .model import CUFF_NAMES, JOINT_NAMES, SIDES, BodyModel, load_body, load_patient
 
@@ -119,6 +137,14 @@ FORCE_ARROW_M_PER_N = 1e-3
 #: so the check only refuses when the disk surely cannot hold the run).
 BYTES_PER_TICK_ESTIMATE = 1500
 
+#: Longest wait for a flush to reach the disk [s].  A flush of a 2000-tick
+#: chunk (about 4 MB) normally takes milliseconds; after a write error (disk
+#: full) rerun 0.41's flush blocks until this timeout, or without one forever,
+#: and then raises, which becomes a RecordingError.
+FLUSH_TIMEOUT_S = 10.0
+#: Longest wait for closing a file whose writing failed [s] (see close()).
+CLOSE_AFTER_FAILURE_S = 2.0
+
 TIME = "sim_time"
 TICK = "tick"
 
@@ -130,12 +156,34 @@ _COLORS = {
     "plan": (60, 180, 75, 255),
     "belt": (60, 60, 64, 255),
     "stripe": (200, 200, 200, 255),
-    "desired": (60, 180, 75, 255),
-    "actual": (70, 130, 220, 255),
-    "patient_series": (235, 150, 80, 255),
+    "series_desired": (60, 180, 75, 255),
+    "series_actual": (70, 130, 220, 255),
+    "series_patient": (235, 150, 80, 255),
 }
-_LEVELS = {"completed": "INFO", "diverged": "ERROR", "interrupted": "WARN"}
+#: TextLog level of an event or final status by kind.
+_LEVELS = {
+    "completed": "INFO",
+    "diverged": "ERROR",
+    "interrupted": "WARN",
+    "error": "ERROR",
+    "violation": "WARN",
+    "estop": "WARN",
+    "state": "INFO",
+}
+#: Human-friendly series of the per-joint signals: one entity per quantity and
+#: joint, signals/{quantity}/{joint}, whose components are these signals.
+_JOINT_GROUPS = {
+    "joint_angle": (("q_des", "desired"), ("q", "actual"), ("q_patient", "patient")),
+    "joint_speed": (("dq_des", "desired"), ("dq", "actual"), ("dq_patient", "patient")),
+    "drive_torque": (("drive_torque", ""),),
+    "patient_torque": (("patient_torque", ""),),
+    "current": (("current", ""),),
+    "voltage": (("voltage_cmd", "command"), ("voltage", "applied")),
+}
+#: SimResult fields not stored in raw/outcome (they have their own entities).
+_NOT_IN_OUTCOME = ("config", "t", "signals", "stats")
 _STRIPE_SPACING_M = 0.1
+_EST = "signals/cuff_force_est"
 
 
 # --------------------------------------------------------------------------- blueprint
@@ -146,8 +194,10 @@ def make_blueprint() -> rrb.Blueprint:
 
     Left: the 3-D scene (``world``) above tabs with the event log (``events``)
     and the parameters (``params``).  Right: time series of joint angles,
-    drive torques, currents, voltages and cuff forces, with joint speeds and
-    patient torques in tabs.  The time panel shows ``sim_time``.
+    drive torques, currents, voltages and cuff forces (with their estimate,
+    ``signals/cuff_force_est``, when logged), and tabs with joint speeds,
+    patient torques, the safety state and every other signal.  The time
+    panel shows ``sim_time``.
     """
     series = [
         ("signals/joint_angle", "Joint angles [rad]"),
@@ -156,10 +206,23 @@ def make_blueprint() -> rrb.Blueprint:
         ("signals/voltage", "Drive voltages [V]"),
         ("signals/cuff_force", "Cuff forces on the exo [N]"),
     ]
-    views = [rrb.TimeSeriesView(origin=origin, name=name) for origin, name in series]
+    views = [rrb.TimeSeriesView(origin=origin, name=name) for origin, name in series[:-1]]
+    # Cuff forces beside their estimate from the joint torque sensors.
+    views.append(
+        rrb.TimeSeriesView(
+            origin=series[-1][0], name=series[-1][1], contents=["$origin/**", f"/{_EST}/**"]
+        )
+    )
+    tabs = [
+        ("signals/joint_speed", "Joint speeds [rad/s]"),
+        ("signals/patient_torque", "Patient torques [N·m]"),
+        ("signals/safety_state", "Safety state"),
+    ]
+    shown = [origin for origin, _ in series + tabs] + [_EST]
+    rest = ["+ /signals/**"] + [f"- /{o}" for o in shown] + [f"- /{o}/**" for o in shown]
     extra = rrb.Tabs(
-        rrb.TimeSeriesView(origin="signals/joint_speed", name="Joint speeds [rad/s]"),
-        rrb.TimeSeriesView(origin="signals/patient_torque", name="Patient torques [N·m]"),
+        *(rrb.TimeSeriesView(origin=origin, name=name) for origin, name in tabs),
+        rrb.TimeSeriesView(origin="signals", name="Other signals", contents=rest),
     )
     left = rrb.Vertical(
         rrb.Spatial3DView(origin="world", name="Exoskeleton, patient and belt"),
@@ -174,6 +237,67 @@ def make_blueprint() -> rrb.Blueprint:
         rrb.TimePanel(timeline=TIME),
         collapse_panels=False,
     )
+
+
+# --------------------------------------------------------------------------- series
+
+
+@dataclasses.dataclass(frozen=True)
+class _Series:
+    """One human-friendly time-series entity: its components and their legend."""
+
+    entity: str
+    names: list[str]
+    colors: list[tuple[int, int, int, int]] | None
+    picks: list[Callable[[dict[str, np.ndarray]], np.ndarray]]
+
+
+def _pick(signal: str, index: tuple[int, ...]) -> Callable[[dict[str, np.ndarray]], np.ndarray]:
+    return lambda data: data[signal][(slice(None), *index)]
+
+
+def _norm(signal: str, cuff: int) -> Callable[[dict[str, np.ndarray]], np.ndarray]:
+    return lambda data: np.hypot(data[signal][:, cuff, 0], data[signal][:, cuff, 1])
+
+
+def _series_layout(shapes: dict[str, tuple[int, ...]]) -> list[_Series]:
+    """The series logged under ``signals/`` for the signals present (name → row shape).
+
+    The per-joint quantities of ``_JOINT_GROUPS`` give one entity per joint;
+    any other signal: a scalar as is, (4, 2) as one entity per cuff with
+    (x, z, magnitude), anything else as one entity with its components
+    flattened ((4,): named by joint, or by cuff if the name has "cuff").
+    """
+    out = []
+    used = set()
+    for quantity, parts in _JOINT_GROUPS.items():
+        present = [(sig, label) for sig, label in parts if shapes.get(sig) == (4,)]
+        used.update(sig for sig, _ in present)
+        keys = [f"series_{label}" for _, label in present]
+        colors = [_COLORS[k] for k in keys] if all(k in _COLORS for k in keys) else None
+        for j, joint in enumerate(JOINT_NAMES if present else ()):
+            names = [f"{joint} {label}".rstrip() for _, label in present]
+            picks = [_pick(sig, (j,)) for sig, _ in present]
+            out.append(_Series(f"signals/{quantity}/{joint}", names, colors, picks))
+    for name, shape in shapes.items():
+        if name in used:
+            continue
+        if shape == (4, 2):
+            for c, cuff in enumerate(CUFF_NAMES):
+                tag = "" if name == "cuff_force" else f" ({name})"
+                names = [f"{cuff} {part}{tag}" for part in ("x", "z", "magnitude")]
+                picks = [_pick(name, (c, 0)), _pick(name, (c, 1)), _norm(name, c)]
+                out.append(_Series(f"signals/{name}/{cuff}", names, None, picks))
+        elif shape == (4,):
+            labels = CUFF_NAMES if "cuff" in name else JOINT_NAMES
+            names = [f"{name} {label}" for label in labels]
+            picks = [_pick(name, (i,)) for i in range(4)]
+            out.append(_Series(f"signals/{name}", names, None, picks))
+        else:
+            idx = list(np.ndindex(*shape))
+            names = [name + "".join(f"[{i}]" for i in ix) for ix in idx]
+            out.append(_Series(f"signals/{name}", names, None, [_pick(name, ix) for ix in idx]))
+    return out
 
 
 # --------------------------------------------------------------------------- kinematics
@@ -256,10 +380,9 @@ class RerunRecorder:
         app_id: str = "exo_ctrl",
         decimate_3d_s: float = 0.02,
     ) -> None:
-        if not (isinstance(decimate_3d_s, (int, float)) and decimate_3d_s > 0):
-            from .exceptions import InvalidParameter
-
-            raise InvalidParameter("decimate_3d_s", decimate_3d_s, "> 0 s")
+        ok = isinstance(decimate_3d_s, (int, float)) and not isinstance(decimate_3d_s, bool)
+        if not (ok and math.isfinite(decimate_3d_s) and decimate_3d_s > 0):
+            raise InvalidParameter("decimate_3d_s", decimate_3d_s, "a finite time > 0 s")
         self.path = Path(path)
         self.spawn = bool(spawn)
         self.app_id = str(app_id)
@@ -272,6 +395,7 @@ class RerunRecorder:
         self._exo: _Skeleton | None = None
         self._patient: _Skeleton | None = None
         self._belt: dict[str, float] = {}
+        self._series: list[_Series] = []
 
     # ------------------------------------------------------------------ protocol
 
@@ -285,6 +409,7 @@ class RerunRecorder:
         self._next_tick = 0
         self._dt = config.dt
         self._stride = max(1, round(self.decimate_3d_s / config.dt))
+        self._series = _series_layout({name: s[0] for name, s in _signals().items()})
         exo = load_body(result.exo_source, name="exoskeleton")
         patient = load_patient(config.patient)
         hip_e, hip_p = exo.legs["left"].hip_xz, patient.legs["left"].hip_xz
@@ -292,34 +417,36 @@ class RerunRecorder:
         self._exo = _Skeleton(exo)
         self._patient = _Skeleton(patient, offset)
         rec = rr.RecordingStream(self.app_id)
+        blueprint = make_blueprint()
         try:
-            if self.spawn:
-                rec.spawn(connect=False)
-                rec.set_sinks(
-                    rr.FileSink(str(self.path)), rr.GrpcSink(), default_blueprint=make_blueprint()
-                )
+            if self.spawn and self._spawn_viewer(rec):
+                sinks = (rr.FileSink(str(self.path)), rr.GrpcSink())
+                rec.set_sinks(*sinks, default_blueprint=blueprint)
             else:
-                rec.save(self.path, default_blueprint=make_blueprint())
+                rec.save(self.path, default_blueprint=blueprint)
         except (RuntimeError, OSError) as exc:
             raise RecordingError(f"cannot write recording {self.path}: {exc}") from None
         self._rec = rec
         try:
             rec.send_recording_name(self.path.stem)
             self._log_static(result, exo, patient, offset)
-            rec.flush()
+            rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
         except (RuntimeError, OSError) as exc:
+            # The loop never calls finish() when start() fails: close here.
+            self._failed = True
+            self.close()
             self._fail(exc)
 
     def chunk(self, result: SimResult, start: int, rows: dict[str, np.ndarray]) -> None:
         """Log rows ``start:start+n`` of every signal, then flush to disk.
 
-        Rows already logged (the loop may hand the same chunk twice after an
-        observer failed) are skipped.
+        Rows already logged are skipped, so a chunk handed over twice is
+        logged once.
         """
         rec = self._rec
         if rec is None or self._failed:
             return
-        n = int(rows["q"].shape[0])
+        n = int(next(iter(rows.values())).shape[0])
         skip = max(0, self._next_tick - start)
         if skip >= n:
             return
@@ -329,7 +456,7 @@ class RerunRecorder:
         try:
             self._log_signals(rec, ticks, data)
             self._log_3d(rec, ticks, data, result.belt_speed_mps)
-            rec.flush()
+            rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
         except (RuntimeError, OSError) as exc:
             self._fail(exc)
         self._next_tick = start + n
@@ -343,25 +470,53 @@ class RerunRecorder:
         try:
             if not self._failed:
                 self._log_outcome(rec, result)
-                rec.flush()
+                rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
         except (RuntimeError, OSError) as exc:
             error = exc
+            self._failed = True
         finally:
             self.close()
         if error is not None:
             self._fail(error)
 
     def close(self) -> None:
-        """Flush and close the file; safe to call more than once."""
+        """Flush and close the file (writes the footer); safe to call more than once.
+
+        After a write failure rerun's file writer is dead and closing can block
+        (seen with rerun 0.41), so then the close runs in a helper thread that
+        is waited for at most CLOSE_AFTER_FAILURE_S.
+        """
         rec, self._rec = self._rec, None
         if rec is None:
             return
-        with contextlib.suppress(RuntimeError, OSError):
-            rec.flush()
-        with contextlib.suppress(RuntimeError, OSError):
-            rec.disconnect()
+
+        def shut() -> None:
+            with contextlib.suppress(RuntimeError, OSError):
+                rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+            with contextlib.suppress(RuntimeError, OSError):
+                rec.disconnect()
+
+        if not self._failed:
+            shut()
+            return
+        closer = threading.Thread(target=shut, name="exo_ctrl-recorder-close", daemon=True)
+        closer.start()
+        closer.join(CLOSE_AFTER_FAILURE_S)
 
     # ------------------------------------------------------------------ checks
+
+    def _spawn_viewer(self, rec: rr.RecordingStream) -> bool:
+        """Start a viewer to stream to; on failure warn and record to the file only."""
+        try:
+            rec.spawn(connect=False)
+        except (RuntimeError, OSError) as exc:
+            warnings.warn(
+                f"could not start the rerun viewer ({exc}); recording to {self.path} only",
+                RuntimeWarning,
+                stacklevel=4,
+            )
+            return False
+        return True
 
     def _fail(self, exc: BaseException) -> None:
         """Mark the recording failed and raise RecordingError with the path and reason."""
@@ -388,6 +543,8 @@ class RerunRecorder:
         target = path if path.exists() else parent
         if not os.access(target, os.W_OK):
             raise RecordingError(f"cannot write recording {path}: permission denied on {target}")
+        if path.exists() and not path.is_file():
+            return  # a device (/dev/null): no free-space figure applies
         with contextlib.suppress(OSError):
             free = shutil.disk_usage(parent).free
             need = n_ticks * BYTES_PER_TICK_ESTIMATE
@@ -420,113 +577,25 @@ class RerunRecorder:
             "force_arrow_m_per_N": FORCE_ARROW_M_PER_N,
             "signals": {name: list(shape) for name, (shape, _, _) in _signals().items()},
         }
-        rec.log(
-            "raw/meta", rr.TextDocument(_dumps(meta), media_type=rr.MediaType.TEXT), static=True
-        )
-        rec.log(
-            "params",
-            rr.TextDocument(_params_markdown(result, meta), media_type=rr.MediaType.MARKDOWN),
-            static=True,
-        )
-        self._log_series_styles(rec)
-        self._log_scene(rec, result, exo)
-
-    def _log_series_styles(self, rec: rr.RecordingStream) -> None:
-        kinds = (("desired", "desired"), ("actual", "actual"), ("patient", "patient_series"))
-        for joint in JOINT_NAMES:
-            for quantity in ("joint_angle", "joint_speed"):
-                for kind, color in kinds:
-                    rec.log(
-                        f"signals/{quantity}/{joint}/{kind}",
-                        rr.SeriesLines(names=f"{joint} {kind}", colors=_COLORS[color]),
-                        static=True,
-                    )
-            for kind in ("command", "applied"):
-                rec.log(
-                    f"signals/voltage/{joint}/{kind}",
-                    rr.SeriesLines(names=f"{joint} {kind}"),
-                    static=True,
-                )
-        for cuff in CUFF_NAMES:
-            for axis in ("x", "z", "magnitude"):
-                rec.log(
-                    f"signals/cuff_force/{cuff}/{axis}",
-                    rr.SeriesLines(names=f"{cuff} {axis}"),
-                    static=True,
-                )
-
-    def _log_scene(self, rec: rr.RecordingStream, result: SimResult, exo: BodyModel) -> None:
-        gait = result.config.gait
-        data = exo.model.createData()
-        pin.framesForwardKinematics(exo.model, data, pin.neutral(exo.model))
-        hips = [data.oMi[exo.joint_ids[2 * s]].translation.copy() for s in range(2)]
-        t = np.linspace(0.0, gait.period, 241)
-        feet = GaitPlan(gait).feet(t).pos  # (N, 2 legs, (x, z)) relative to the hip
-        xs = []
-        for s, side in enumerate(SIDES):
-            path = np.empty((t.shape[0], 3))
-            path[:, 0] = hips[s][0] + feet[:, s, 0]
-            path[:, 1] = hips[s][1]
-            path[:, 2] = hips[s][2] + feet[:, s, 1]
-            xs.append(path[:, 0])
-            rec.log(
-                f"world/plan/foot_path/{side}",
-                rr.LineStrips3D([path], radii=0.004, colors=_COLORS["plan"]),
-                static=True,
-            )
-        top = float(hips[0][2] - gait.hip_height)
-        x_all = np.concatenate(xs)
-        half_length = max(0.8, 0.5 * float(x_all.max() - x_all.min()) + 0.5)
-        half_width = max(abs(h[1]) for h in hips) + 0.2
-        x_center = float(hips[0][0])
-        y_center = 0.5 * float(hips[0][1] + hips[1][1])
-        rec.log(
-            "world/belt",
-            rr.Boxes3D(
-                centers=[[x_center, y_center, top - 0.01]],
-                half_sizes=[[half_length, half_width, 0.01]],
-                colors=_COLORS["belt"],
-                fill_mode=rr.components.FillMode.Solid,
-            ),
-            static=True,
-        )
-        rec.log(
-            "world/belt/stripes",
-            rr.LineStrips3D.from_fields(radii=0.003, colors=_COLORS["stripe"]),
-            static=True,
-        )
-        self._belt = {
-            "x_min": x_center - half_length,
-            "length": 2.0 * half_length,
-            "y_min": y_center - half_width,
-            "y_max": y_center + half_width,
-            "z": top + 0.002,
-        }
+        _static(rec, "raw/meta", rr.TextDocument(_dumps(meta), media_type=rr.MediaType.TEXT))
+        markdown = _params_markdown(result, meta)
+        _static(rec, "params", rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN))
+        # Legend names and colours of the time series.
+        for series in self._series:
+            _static(rec, series.entity, rr.SeriesLines(names=series.names, colors=series.colors))
+        # Styles of the 3-D entities (their geometry is logged per chunk).
         for body, radius in (("exo", 0.012), ("patient", 0.03)):
-            color = _COLORS[body]
             for side in SIDES:
-                base = f"world/{body}/{side}"
-                rec.log(
-                    f"{base}/leg",
-                    rr.LineStrips3D.from_fields(radii=radius, colors=color),
-                    static=True,
-                )
-                rec.log(
-                    f"{base}/joints",
-                    rr.Points3D.from_fields(radii=radius * 1.6, colors=color),
-                    static=True,
-                )
-                rec.log(
-                    f"{base}/cuffs",
-                    rr.Points3D.from_fields(radii=radius * 1.3, colors=_COLORS["cuff"]),
-                    static=True,
-                )
+                base, color = f"world/{body}/{side}", _COLORS[body]
+                _static(rec, f"{base}/leg", rr.LineStrips3D.from_fields(radii=radius, colors=color))
+                joints = rr.Points3D.from_fields(radii=1.6 * radius, colors=color)
+                _static(rec, f"{base}/joints", joints)
+                cuffs = rr.Points3D.from_fields(radii=1.3 * radius, colors=_COLORS["cuff"])
+                _static(rec, f"{base}/cuffs", cuffs)
         for cuff in CUFF_NAMES:
-            rec.log(
-                f"world/cuff_force/{cuff}",
-                rr.Arrows3D.from_fields(radii=0.006, colors=_COLORS["force"]),
-                static=True,
-            )
+            arrows = rr.Arrows3D.from_fields(radii=0.006, colors=_COLORS["force"])
+            _static(rec, f"world/cuff_force/{cuff}", arrows)
+        self._belt = _log_scene(rec, config.gait, exo)
 
     # ------------------------------------------------------------------ per chunk
 
@@ -540,154 +609,142 @@ class RerunRecorder:
         ]
 
         def send(entity: str, values: np.ndarray) -> None:
-            rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
+            _send(rec, entity, index, rr.Scalars.columns(scalars=values))
 
         for name, arr in data.items():
             send(f"raw/{name}", arr.reshape(n, -1))
-        for j, joint in enumerate(JOINT_NAMES):
-            for quantity, (des, act, pat) in (
-                ("joint_angle", ("q_des", "q", "q_patient")),
-                ("joint_speed", ("dq_des", "dq", "dq_patient")),
-            ):
-                send(f"signals/{quantity}/{joint}/desired", data[des][:, j])
-                send(f"signals/{quantity}/{joint}/actual", data[act][:, j])
-                send(f"signals/{quantity}/{joint}/patient", data[pat][:, j])
-            send(f"signals/drive_torque/{joint}", data["drive_torque"][:, j])
-            send(f"signals/patient_torque/{joint}", data["patient_torque"][:, j])
-            send(f"signals/current/{joint}", data["current"][:, j])
-            send(f"signals/voltage/{joint}/command", data["voltage_cmd"][:, j])
-            send(f"signals/voltage/{joint}/applied", data["voltage"][:, j])
-        force = data["cuff_force"]
-        for c, cuff in enumerate(CUFF_NAMES):
-            send(f"signals/cuff_force/{cuff}/x", force[:, c, 0])
-            send(f"signals/cuff_force/{cuff}/z", force[:, c, 1])
-            send(f"signals/cuff_force/{cuff}/magnitude", np.hypot(force[:, c, 0], force[:, c, 1]))
+        for series in self._series:
+            values = np.column_stack([pick(data) for pick in series.picks])
+            send(series.entity, values[:, 0] if values.shape[1] == 1 else values)
 
     def _log_3d(
-        self,
-        rec: rr.RecordingStream,
-        ticks: np.ndarray,
-        data: dict[str, np.ndarray],
-        belt_speed: float,
+        self, rec: rr.RecordingStream, ticks: np.ndarray, data: dict[str, np.ndarray], v_belt: float
     ) -> None:
         if self._exo is None or self._patient is None:
             return
-        first = (-int(ticks[0])) % self._stride
-        idx = np.arange(first, ticks.shape[0], self._stride)
+        idx = np.arange((-int(ticks[0])) % self._stride, ticks.shape[0], self._stride)
         m = idx.shape[0]
         if m == 0:
             return
-        k = ticks[idx]
-        t = k * self._dt
-        index = [rr.TimeColumn(TIME, duration=t), rr.TimeColumn(TICK, sequence=k)]
+        t = ticks[idx] * self._dt
+        index = [rr.TimeColumn(TIME, duration=t), rr.TimeColumn(TICK, sequence=ticks[idx])]
         exo_cuffs = np.zeros((m, 4, 3))
-        for body, skeleton, q in (
-            ("exo", self._exo, data["q"][idx]),
-            ("patient", self._patient, data["q_patient"][idx]),
+        for body, skeleton, name in (
+            ("exo", self._exo, "q"),
+            ("patient", self._patient, "q_patient"),
         ):
-            legs, cuffs = skeleton.points(q)
+            legs, cuffs = skeleton.points(data[name][idx])
             if body == "exo":
                 exo_cuffs = cuffs
             for s, side in enumerate(SIDES):
                 base = f"world/{body}/{side}"
-                rec.send_columns(
-                    f"{base}/leg",
-                    indexes=index,
-                    columns=rr.LineStrips3D.columns(strips=list(legs[:, s])).partition(
-                        np.ones(m, dtype=np.int64)
-                    ),
-                )
-                rec.send_columns(
-                    f"{base}/joints",
-                    indexes=index,
-                    columns=rr.Points3D.columns(positions=legs[:, s].reshape(-1, 3)).partition(
-                        np.full(m, 3, dtype=np.int64)
-                    ),
-                )
-                rec.send_columns(
-                    f"{base}/cuffs",
-                    indexes=index,
-                    columns=rr.Points3D.columns(
-                        positions=cuffs[:, 2 * s : 2 * s + 2].reshape(-1, 3)
-                    ).partition(np.full(m, 2, dtype=np.int64)),
-                )
+                strips = rr.LineStrips3D.columns(strips=np.ascontiguousarray(legs[:, s]))
+                _send(rec, f"{base}/leg", index, _rows_of(strips, 1, m))
+                joints = rr.Points3D.columns(positions=legs[:, s].reshape(-1, 3))
+                _send(rec, f"{base}/joints", index, _rows_of(joints, 3, m))
+                points = rr.Points3D.columns(positions=cuffs[:, 2 * s : 2 * s + 2].reshape(-1, 3))
+                _send(rec, f"{base}/cuffs", index, _rows_of(points, 2, m))
         force = data["cuff_force"][idx]  # (m, 4, 2)
         for c, cuff in enumerate(CUFF_NAMES):
             vectors = np.zeros((m, 3))
-            vectors[:, 0] = FORCE_ARROW_M_PER_N * force[:, c, 0]
-            vectors[:, 2] = FORCE_ARROW_M_PER_N * force[:, c, 1]
-            rec.send_columns(
-                f"world/cuff_force/{cuff}",
-                indexes=index,
-                columns=rr.Arrows3D.columns(origins=exo_cuffs[:, c], vectors=vectors),
-            )
-        self._log_belt(rec, index, t, belt_speed)
-
-    def _log_belt(
-        self, rec: rr.RecordingStream, index: list, t: np.ndarray, belt_speed: float
-    ) -> None:
+            vectors[:, [0, 2]] = FORCE_ARROW_M_PER_N * force[:, c]
+            arrows = rr.Arrows3D.columns(origins=exo_cuffs[:, c], vectors=vectors)
+            _send(rec, f"world/cuff_force/{cuff}", index, arrows)
+        # Belt markings: the top of the belt moves backwards (-x) at the belt speed.
         b = self._belt
         length = b["length"]
         ns = max(1, int(length / _STRIPE_SPACING_M))
         x0 = (np.arange(ns) + 0.5) * (length / ns)
-        # The belt's top moves backwards (-x) at the belt speed.
-        x = b["x_min"] + np.mod(x0[None, :] - belt_speed * t[:, None], length)  # (m, ns)
-        m = t.shape[0]
-        strips = np.empty((m, ns, 2, 3))
-        strips[..., 0] = x[..., None]
-        strips[..., 0, 1] = b["y_min"]
-        strips[..., 1, 1] = b["y_max"]
-        strips[..., 2] = b["z"]
-        rec.send_columns(
-            "world/belt/stripes",
-            indexes=index,
-            columns=rr.LineStrips3D.columns(strips=list(strips.reshape(-1, 2, 3))).partition(
-                np.full(m, ns, dtype=np.int64)
-            ),
-        )
+        x = b["x_min"] + np.mod(x0[None, :] - v_belt * t[:, None], length)  # (m, ns)
+        stripes = np.empty((m, ns, 2, 3))
+        stripes[..., 0] = x[..., None]
+        stripes[..., 0, 1] = b["y_min"]
+        stripes[..., 1, 1] = b["y_max"]
+        stripes[..., 2] = b["z"]
+        lines = rr.LineStrips3D.columns(strips=stripes.reshape(-1, 2, 3))
+        _send(rec, "world/belt/stripes", index, _rows_of(lines, ns, m))
 
     # ------------------------------------------------------------------ end
 
     def _log_outcome(self, rec: rr.RecordingStream, result: SimResult) -> None:
-        ticks = self._next_tick
-        status, error = result.status, result.error
-        n_planned = result.config.n_ticks
-        if status == "completed" and ticks < n_planned:
-            # The loop did not catch what stopped it (an observer raised).
-            exc = sys.exc_info()[1]
-            why = f"{type(exc).__name__}: {exc}" if exc is not None else "unknown cause"
-            status = "interrupted"
-            error = f"run aborted at t = {ticks * self._dt:.4f} s ({why})"
+        ticks, dt = self._next_tick, self._dt
         events = [dict(ev) for ev in result.events]
         for ev in events:
             kind = str(ev.get("kind", "event"))
-            level = str(ev.get("level", _LEVELS.get(kind, "INFO")))
-            self._log_event(
-                rec, float(ev.get("t", ticks * self._dt)), f"{kind}: {ev.get('message', '')}", level
-            )
-        t_end = ticks * self._dt
-        text = f"run {status}: {ticks} of {n_planned} ticks, t = {t_end:.4f} s"
-        if error:
-            text += f"; {error}"
-        self._log_event(rec, t_end, text, _LEVELS.get(status, "WARN"))
+            t = ev.get("t")
+            if not (isinstance(t, (int, float)) and math.isfinite(t)):
+                t = ticks * dt
+            text = f"{kind}: {ev.get('message', '')}"
+            self._log_event(rec, t, text, str(ev.get("level", _LEVELS.get(kind, "INFO"))))
+        text = f"run {result.status}: {ticks} of {result.config.n_ticks} ticks recorded"
+        text += f", t = {ticks * dt:.4f} s" + (f"; {result.error}" if result.error else "")
+        self._log_event(rec, ticks * dt, text, _LEVELS.get(result.status, "ERROR"))
         outcome = {
-            "status": status,
-            "error": error,
-            "events": events,
-            "ticks": ticks,
-            "wall_time_s": result.wall_time_s,
+            f.name: getattr(result, f.name)
+            for f in dataclasses.fields(result)
+            if f.name not in _NOT_IN_OUTCOME
         }
-        rec.log(
-            "raw/outcome",
-            rr.TextDocument(_dumps(outcome), media_type=rr.MediaType.TEXT),
-            static=True,
-        )
+        outcome.update(events=events, ticks=ticks)
+        _static(rec, "raw/outcome", rr.TextDocument(_dumps(outcome), media_type=rr.MediaType.TEXT))
 
     def _log_event(self, rec: rr.RecordingStream, t: float, text: str, level: str) -> None:
-        tick = max(0, round(t / self._dt)) if self._dt > 0 else 0
         rec.set_time(TIME, duration=t)
-        rec.set_time(TICK, sequence=tick)
-        rec.log("events", rr.TextLog(text, level=level))
+        rec.set_time(TICK, sequence=max(0, round(t / self._dt)))
+        rec.log("events", rr.TextLog(text, level=level), strict=True)
+
+
+def _static(rec: rr.RecordingStream, entity: str, archetype: Any) -> None:
+    rec.log(entity, archetype, static=True, strict=True)
+
+
+def _send(rec: rr.RecordingStream, entity: str, index: list, columns: Any) -> None:
+    rec.send_columns(entity, indexes=index, columns=columns, strict=True)
+
+
+def _rows_of(columns: Any, per_row: int, rows: int) -> Any:
+    """Group a flat component column into ``rows`` rows of ``per_row`` instances."""
+    return columns.partition(np.full(rows, per_row, dtype=np.int64))
+
+
+def _log_scene(rec: rr.RecordingStream, gait: Any, exo: BodyModel) -> dict[str, float]:
+    """Static belt and planned foot paths; returns the belt's geometry for the markings.
+
+    The foot path of each leg is the plan's foot position relative to the hip
+    (:meth:`GaitPlan.feet` over one period) plus the exo's hip position.  The
+    belt's top is at the stance-foot height, exo hip z - hip_height.
+    """
+    data = exo.model.createData()
+    pin.framesForwardKinematics(exo.model, data, pin.neutral(exo.model))
+    hips = [data.oMi[exo.joint_ids[2 * s]].translation.copy() for s in range(2)]
+    t = np.linspace(0.0, gait.period, 241)
+    feet = GaitPlan(gait).feet(t).pos  # (N, leg, (x, z)) relative to the hip
+    paths = np.repeat(np.stack(hips)[None], t.shape[0], axis=0)  # (N, leg, xyz)
+    paths[..., [0, 2]] += feet
+    for s, side in enumerate(SIDES):
+        strips = rr.LineStrips3D([paths[:, s]], radii=0.004, colors=_COLORS["plan"])
+        _static(rec, f"world/plan/foot_path/{side}", strips)
+    top = float(hips[0][2] - gait.hip_height)
+    xs = paths[..., 0]
+    half_length = max(0.8, 0.5 * float(xs.max() - xs.min()) + 0.5)
+    half_width = max(abs(h[1]) for h in hips) + 0.2
+    x_center = float(hips[0][0])
+    y_center = 0.5 * float(hips[0][1] + hips[1][1])
+    belt = rr.Boxes3D(
+        centers=[[x_center, y_center, top - 0.01]],
+        half_sizes=[[half_length, half_width, 0.01]],
+        colors=_COLORS["belt"],
+        fill_mode=rr.components.FillMode.Solid,
+    )
+    _static(rec, "world/belt", belt)
+    stripes = rr.LineStrips3D.from_fields(radii=0.003, colors=_COLORS["stripe"])
+    _static(rec, "world/belt/stripes", stripes)
+    return {
+        "x_min": x_center - half_length,
+        "length": 2.0 * half_length,
+        "y_min": y_center - half_width,
+        "y_max": y_center + half_width,
+        "z": top + 0.002,
+    }
 
 
 # --------------------------------------------------------------------------- reading
@@ -697,11 +754,14 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
     """Rebuild a run's :class:`~exo_ctrl.simulate.SimResult` from its recording.
 
     Every signal comes from ``raw/<name>`` bit for bit (float64); ``t`` is
-    ``k Δt`` for the ticks k = 0 … N-1 in the file.  Status, error, events and
-    wall time come from ``raw/outcome``; a file without it (the process died
-    before the run finished) reads as ``"interrupted"`` with the ticks that
-    reached the disk.  If a crash cut a chunk between signals, only the ticks
-    present in every signal are kept.
+    ``k Δt`` for the ticks k = 0 … N-1 in the file.  Status, error, events,
+    wall time and the other plain fields of the result come from
+    ``raw/outcome``; a file without it (the process died before the run
+    finished) reads as ``"interrupted"`` with the ticks that reached the disk.
+    If a crash cut a chunk between signals, only the ticks present in every
+    signal are kept.  A signal of :data:`~exo_ctrl.simulate.SIGNALS` that the
+    file lacks (written before the signal existed) is NaN.  The running
+    statistics are rebuilt, so :meth:`SimResult.summary` matches the live run.
 
     Raises:
         RecordingError: the file is missing or unreadable, was not written by
@@ -713,14 +773,7 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
     p = Path(path)
     if not p.is_file():
         raise RecordingError(f"cannot read recording {p}: file not found")
-    try:
-        with warnings.catch_warnings():
-            # A file without footer (crashed writer) is readable by stream().
-            warnings.filterwarnings("ignore", message=".*no footer.*")
-            reader = RrdReader(p)
-            chunks = reader.stream().to_chunks()
-    except (ValueError, RuntimeError, OSError) as exc:
-        raise RecordingError(f"cannot read recording {p}: {exc}") from None
+    chunks, note = _read_chunks(p)
 
     texts: dict[str, str] = {}
     raw: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
@@ -761,28 +814,41 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
     else:
         message = (
             f"the recording ends at t = {n * config.dt:.4f} s without an end record "
-            "(the process stopped before the run finished)"
+            f"(the process stopped before the run finished{note})"
         )
         outcome = {
             "status": "interrupted",
             "error": message,
             "events": [{"t": n * config.dt, "kind": "interrupted", "message": message}],
         }
-    result = SimResult(
-        config=config,
-        t=np.arange(n) * config.dt,
-        signals=signals,
-        status=str(outcome.get("status", "interrupted")),
-        error=str(outcome.get("error", "")),
-        wall_time_s=float(outcome.get("wall_time_s", 0.0)),
-        belt_speed_mps=float(meta.get("belt_speed_mps", config.gait.belt_speed)),
-        exo_source=str(meta.get("exo_source", "")),
-        patient_source=str(meta.get("patient_source", "")),
-        events=list(outcome.get("events", [])),
-    )
-    if n:
-        result.stats.update(signals)
+    fields = {f.name for f in dataclasses.fields(SimResult)} - set(_NOT_IN_OUTCOME)
+    plain = {
+        "belt_speed_mps": float(meta.get("belt_speed_mps", config.gait.belt_speed)),
+        "exo_source": str(meta.get("exo_source", "")),
+        "patient_source": str(meta.get("patient_source", "")),
+    }
+    plain.update({key: value for key, value in outcome.items() if key in fields})
+    # Signals the file lacks (a recording from before they were added) are NaN.
+    for name, (shape, _, _) in _signals().items():
+        signals.setdefault(name, np.full((n, *shape), np.nan))
+    result = SimResult(config=config, t=np.arange(n) * config.dt, signals=signals, **plain)
+    result.stats = _run_stats(config, plain["exo_source"])
+    step = min(config.chunk_ticks, max(config.n_ticks, 1))  # the loop's chunks: same sums
+    for start in range(0, n, step):
+        result.stats.update({name: arr[start : start + step] for name, arr in signals.items()})
     return result
+
+
+def _run_stats(config: SimConfig, exo_source: str) -> Any:
+    """Running statistics as simulate() keeps them, so summary() matches the live run."""
+    from .summary import RunStats
+
+    try:
+        from .estimation import EstimateErrorStats
+
+        return RunStats(EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt))
+    except (ExoCtrlError, ImportError, TypeError):  # the model moved, or an older layout
+        return RunStats()
 
 
 def blueprint_views(path: str | os.PathLike[str]) -> list[dict[str, str]]:
@@ -831,6 +897,72 @@ def blueprint_views(path: str | os.PathLike[str]) -> list[dict[str, str]]:
 
 
 # --------------------------------------------------------------------------- helpers
+
+
+def _load_chunks(path: Path) -> list:
+    with warnings.catch_warnings():
+        # A file without footer (the writer died) is still readable by stream().
+        warnings.filterwarnings("ignore", message=".*no footer.*")
+        return RrdReader(path).stream().to_chunks()
+
+
+def _read_chunks(path: Path) -> tuple[list, str]:
+    """All chunks of the file's recording, and a note if the file had to be salvaged.
+
+    A writer stopped in the middle of a message (disk full) leaves a last
+    message cut short, and rerun then refuses the whole file.  In that case
+    the complete messages are copied to a temporary file and read from there.
+    """
+    try:
+        return _load_chunks(path), ""
+    except (ValueError, RuntimeError, OSError) as exc:
+        error = exc
+    end = _complete_prefix(path)
+    if end is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            copy = Path(tmp) / path.name
+            with path.open("rb") as src, copy.open("wb") as dst:
+                _copy_bytes(src, dst, end)
+            with contextlib.suppress(ValueError, RuntimeError, OSError):
+                chunks = _load_chunks(copy)
+                size = path.stat().st_size
+                return chunks, f"; the file was cut at byte {end} of {size}"
+    raise RecordingError(f"cannot read recording {path}: {error}") from None
+
+
+#: RRD stream framing (rerun 0.2x-0.41): a 12-byte file header starting with
+#: b"RRF2", then messages of a 16-byte header (kind, payload length; both
+#: little-endian u64) and the payload.  Kind 0 ends the stream.
+_RRD_MAGIC = b"RRF2"
+_RRD_FILE_HEADER = 12
+_RRD_MSG_HEADER = struct.Struct("<QQ")
+
+
+def _complete_prefix(path: Path) -> int | None:
+    """Length of the file's complete messages if the last one is cut short, else None."""
+    size = path.stat().st_size
+    with path.open("rb") as f:
+        if f.read(len(_RRD_MAGIC)) != _RRD_MAGIC:
+            return None
+        offset = _RRD_FILE_HEADER
+        while offset + _RRD_MSG_HEADER.size <= size:
+            f.seek(offset)
+            kind, length = _RRD_MSG_HEADER.unpack(f.read(_RRD_MSG_HEADER.size))
+            if kind == 0:
+                return None  # the stream ended properly: the problem is elsewhere
+            if offset + _RRD_MSG_HEADER.size + length > size:
+                return offset
+            offset += _RRD_MSG_HEADER.size + length
+    return offset if offset < size else None
+
+
+def _copy_bytes(src: Any, dst: Any, n: int, block: int = 1 << 20) -> None:
+    while n > 0:
+        data = src.read(min(block, n))
+        if not data:
+            break
+        dst.write(data)
+        n -= len(data)
 
 
 def _signals() -> dict[str, tuple[tuple[int, ...], str, str]]:

@@ -488,8 +488,14 @@ def simulate(
         if keep_history:
             for name, arr in view.items():
                 history[name][start : start + rows] = arr
-        for obs in observers:
-            obs.chunk(result, start, view)
+        first: Exception | None = None
+        for obs in observers:  # every observer gets the chunk, whoever fails
+            try:
+                obs.chunk(result, start, view)
+            except Exception as exc:
+                first = first or exc
+        if first is not None:
+            raise first
 
     def fail(status: str, t: float, message: str) -> None:
         if result.status == "completed":
