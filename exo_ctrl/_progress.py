@@ -48,11 +48,11 @@ class Progress:
         frac = min(done / self.total, 1.0)
         width = 30
         fill = int(frac * width)
-        eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
+        eta = f"{elapsed * (1 - frac) / frac:5.1f} s" if frac > 0 else "  -- s"
         extra = f" {note}" if note else ""
         sys.stderr.write(
             f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {100 * frac:5.1f}% "
-            f"{elapsed:5.1f} s elapsed, ETA {eta:5.1f} s{extra}  "
+            f"{elapsed:5.1f} s elapsed, ETA {eta}{extra}  "
         )
         sys.stderr.flush()
         self._drawn = True

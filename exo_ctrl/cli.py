@@ -469,6 +469,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--summary", default=None, metavar="PATH.json", help="write the figures as JSON")
     p.set_defaults(func=_cmd_estimate)
 
+    from .sweep import add_sweep_arguments, run_sweep_command
+
+    p = sub.add_parser(
+        "sweep",
+        help="sweep gait, patient and device parameters: Parquet/CSV table, load plots, report",
+    )
+    add_sweep_arguments(p)
+    p.set_defaults(func=run_sweep_command)
+
     return parser
 
 

@@ -216,14 +216,15 @@ def default_urdf_path(kind: str) -> Path:
     generated from the default parameters into a per-user cache; a test
     checks that the committed files equal the generator's output.
     """
-    from .urdfgen import DEFAULT_URDF_NAMES, BodyParams, write_urdf
-
-    if kind not in DEFAULT_URDF_NAMES:
+    names = {"exo": "exoskeleton.urdf", "patient": "patient.urdf"}
+    if kind not in names:
         raise InvalidModel(kind, "", f"unknown default body {kind!r}; expected 'exo' or 'patient'")
-    filename = DEFAULT_URDF_NAMES[kind]
+    filename = names[kind]
     path = Path(__file__).resolve().parent.parent / "urdf" / filename
     if path.is_file():
         return path
+    from .urdfgen import BodyParams, write_urdf  # yourdfpy is slow to import: only when needed
+
     cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "exo_ctrl"
     cache.mkdir(parents=True, exist_ok=True)
     params = BodyParams.exo_default() if kind == "exo" else BodyParams.patient_default()
