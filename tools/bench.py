@@ -2,14 +2,13 @@
 
     python tools/bench.py [--ticks N] [--json PATH] [--controllers pd,ct,...]
 
-For each controller: the cost of one control tick (sensors, controller,
-plant step, logging: exactly ``Runner.tick``), median and p99 over the
-default scenario; the floor, the library calls the tick makes timed alone
-in the same run (Pinocchio's ABA for both bodies, plus the RNEA calls of
-the computed-torque feedforward, plus the proxsuite solve for ``qp``); their
-ratio; and the real-time factor of the default run (simulated time / wall
-time), without and with a rerun recording.  Absolute times drift on shared
-machines; the ratio is the figure to compare.
+For each controller: the cost of one control tick (sensors, estimator,
+controller, safety supervisor, plant step, logging: exactly
+``Runner.tick``), median and p99 over the default scenario; the floor, the
+library calls the tick makes timed alone in the same run (see
+:func:`floor_calls`); their ratio; and the real-time factor of the default
+run (simulated time / wall time), without and with a rerun recording.
+Absolute times drift on shared machines; the ratio is the figure to compare.
 """
 
 from __future__ import annotations
@@ -40,22 +39,52 @@ def _time_calls(calls, repeats: int = 2000) -> float:
     return float(np.median(samples)) / 1e3
 
 
-def floor_calls(setup):
-    """The library calls one tick makes, as zero-argument callables."""
+def floor_calls(runner: Runner) -> list:
+    """The library calls one tick makes (Pinocchio, proxsuite), as zero-argument callables.
+
+    Plant: ABA of both bodies.  Estimator: CRBA, Coriolis matrix and gravity
+    of the exoskeleton.  CT: RNEA of both bodies.  QP: the cuff model's CRBA
+    and non-linear effects of both bodies, the patient's joint Jacobians and
+    four frame Jacobians, and the proxsuite solve (a warm re-solve of the
+    tick's problem).  Each is called with the present state.
+    """
+    setup = runner.setup
     plant = setup.plant
     q, v, tau = plant.q.copy(), plant.v.copy(), np.zeros(8)
+    qe, ve = q[:4].copy(), v[:4].copy()
     me, de, mp, dp = plant._me, plant._de, plant._mp, plant._dp
     calls = [
-        lambda: pin.aba(me, de, q[:4], v[:4], tau[:4]),
+        lambda: pin.aba(me, de, qe, ve, tau[:4]),
         lambda: pin.aba(mp, dp, q[4:], v[4:], tau[4:]),
+    ]
+    est = runner.estimator
+    em, ed = est._model, est._data
+    calls += [
+        lambda: pin.crba(em, ed, qe),
+        lambda: pin.computeCoriolisMatrix(em, ed, qe, ve),
+        lambda: pin.computeGeneralizedGravity(em, ed, qe),
     ]
     ctrl = setup.controller
     ff = getattr(ctrl, "_ff", None)
     if ff is not None:
-        calls.append(lambda: pin.rnea(ff._me, ff._de, q[:4], v[:4], tau[:4]))
+        calls.append(lambda: pin.rnea(ff._me, ff._de, qe, ve, tau[:4]))
         if ff._mp is not None:
-            calls.append(lambda: pin.rnea(ff._mp, ff._dp, q[4:], v[4:], tau[4:]))
-    calls.extend(getattr(ctrl, "floor_calls", lambda: [])())
+            calls.append(lambda: pin.rnea(ff._mp, ff._dp, qe, ve, tau[:4]))
+    model = getattr(ctrl, "cuff_model", None)
+    if model is not None:
+        cm = model
+        calls += [
+            lambda: pin.crba(cm._me, cm._de, qe),
+            lambda: pin.crba(cm._mp, cm._dp, qe),
+            lambda: pin.nonLinearEffects(cm._me, cm._de, qe, ve),
+            lambda: pin.nonLinearEffects(cm._mp, cm._dp, qe, ve),
+            lambda: pin.computeJointJacobians(cm._mp, cm._dp, qe),
+        ]
+        calls += [
+            (lambda f=f: pin.getFrameJacobian(cm._mp, cm._dp, f, pin.LOCAL_WORLD_ALIGNED))
+            for f in cm._cuffs
+        ]
+        calls.append(ctrl.qp._qp.solve)
     return calls
 
 
@@ -71,7 +100,7 @@ def bench_controller(name: str, ticks: int) -> dict[str, float]:
         runner.tick(k, k % chunk)
         samples[k] = time.perf_counter_ns() - t0
     tick = samples[n // 10 :] / 1e3  # skip warm-up
-    floor = _time_calls(floor_calls(setup))
+    floor = _time_calls(floor_calls(runner))
     rtf = simulate(config).summary()["real_time_factor"]
     with tempfile.TemporaryDirectory() as tmp:
         try:
@@ -95,7 +124,9 @@ def bench_controller(name: str, ticks: int) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=2400, help="ticks to time (default 2400)")
-    parser.add_argument("--controllers", default="pd,ct", help="comma-separated (default pd,ct)")
+    parser.add_argument(
+        "--controllers", default="pd,ct,qp", help="comma-separated (default pd,ct,qp)"
+    )
     parser.add_argument("--json", default=None, metavar="PATH", help="write the figures as JSON")
     args = parser.parse_args()
     results = {}
