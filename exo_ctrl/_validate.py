@@ -7,6 +7,9 @@ parameter, its value and what is allowed.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
 
 from .exceptions import InvalidParameter
 
@@ -52,3 +55,35 @@ def _u(unit: str) -> str:
 
 def _in(unit: str) -> str:
     return f" [{unit}]" if unit else ""
+
+
+def per_item(
+    name: str,
+    value: object,
+    unit: str,
+    labels: Sequence[str],
+    what: str = "joint",
+    check: Callable[[str, float, str], float] = finite,
+) -> tuple[float, ...]:
+    """One number for every item, or one each: return a float per label.
+
+    Each item is checked with ``check`` under the name ``name[label]``.
+
+    Raises:
+        InvalidParameter: neither a number nor ``len(labels)`` numbers, or an
+            item that ``check`` refuses.
+
+    """
+    n = len(labels)
+    arr = np.asarray(value, dtype=object)
+    if arr.ndim == 0:
+        items = [value] * n
+    elif arr.shape == (n,):
+        items = list(arr)
+    else:
+        raise InvalidParameter(
+            name, value, f"a number or {n} numbers (one per {what}: {', '.join(labels)})"
+        )
+    return tuple(
+        check(f"{name}[{label}]", item, unit) for label, item in zip(labels, items, strict=True)
+    )

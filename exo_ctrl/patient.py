@@ -115,25 +115,6 @@ class PatientTorque(Protocol):
         ...
 
 
-def _per_joint(name: str, value: object, unit: str, lo: float | None) -> tuple[float, ...]:
-    """Validate a scalar or a 4-sequence; return 4 floats."""
-    arr = np.asarray(value, dtype=object)
-    if arr.ndim == 0:
-        items = [value] * 4
-    elif arr.shape == (4,):
-        items = list(arr)
-    else:
-        raise InvalidParameter(
-            name, value, f"a number or 4 numbers (one per joint: {', '.join(JOINT_NAMES)})"
-        )
-    out = []
-    for joint, item in zip(JOINT_NAMES, items, strict=True):
-        label = f"{name}[{joint}]"
-        x = v.finite(label, item, unit) if lo is None else v.non_negative(label, item, unit)
-        out.append(x)
-    return tuple(out)
-
-
 @dataclass(frozen=True)
 class SpasticParams:
     """Parameters of :class:`SpasticPatient`, per joint (scalar: the same for all four).
@@ -201,7 +182,10 @@ class SpasticParams:
         }
         for f in fields(self):
             lo = None if f.name == "rest_posture_rad" else 0.0
-            value = _per_joint(f.name, getattr(self, f.name), units[f.name], lo)
+            check = v.finite if lo is None else v.non_negative
+            value = v.per_item(
+                f.name, getattr(self, f.name), units[f.name], JOINT_NAMES, check=check
+            )
             object.__setattr__(self, f.name, value)
 
 

@@ -84,17 +84,6 @@ ISO_TS_15066_CUFF_FORCE_N = (220.0, 130.0, 220.0, 130.0)
 CURRENT_LIMIT_FACTOR = 1.1
 
 
-def _four(name: str, value: object, unit: str) -> tuple[float, ...]:
-    arr = np.asarray(value, dtype=object)
-    if arr.ndim == 0:
-        items = [value] * 4
-    elif arr.shape == (4,):
-        items = list(arr)
-    else:
-        raise InvalidParameter(name, value, "a number or 4 numbers")
-    return tuple(v.finite(name, x, unit) for x in items)
-
-
 @dataclass(frozen=True)
 class SafetyLimits:
     """What the supervisor allows.  Every field has a default with its source.
@@ -150,7 +139,7 @@ class SafetyLimits:
     current_limit_A: float | None = None
 
     def __post_init__(self) -> None:
-        force = _four("cuff_force_N", self.cuff_force_N, "N")
+        force = v.per_item("cuff_force_N", self.cuff_force_N, "N", CUFF_NAMES, what="cuff")
         for cuff, f in zip(CUFF_NAMES, force, strict=True):
             v.positive(f"cuff_force_N[{cuff}]", f, "N")
         object.__setattr__(self, "cuff_force_N", force)
@@ -161,7 +150,7 @@ class SafetyLimits:
         for name in ("position_lower_rad", "position_upper_rad"):
             value = getattr(self, name)
             if value is not None:
-                object.__setattr__(self, name, _four(name, value, "rad"))
+                object.__setattr__(self, name, v.per_item(name, value, "rad", JOINT_NAMES))
         lo, hi = self.position_lower_rad, self.position_upper_rad
         if lo is not None and hi is not None:
             for joint, a, b in zip(JOINT_NAMES, lo, hi, strict=True):
@@ -170,7 +159,7 @@ class SafetyLimits:
                         f"position_upper_rad[{joint}]", b, f"> position_lower_rad ({a:g} rad)"
                     )
         if self.speed_limit_rad_s is not None:
-            speed = _four("speed_limit_rad_s", self.speed_limit_rad_s, "rad/s")
+            speed = v.per_item("speed_limit_rad_s", self.speed_limit_rad_s, "rad/s", JOINT_NAMES)
             for joint, s in zip(JOINT_NAMES, speed, strict=True):
                 v.positive(f"speed_limit_rad_s[{joint}]", s, "rad/s")
             object.__setattr__(self, "speed_limit_rad_s", speed)

@@ -447,7 +447,11 @@ def test_normal_step_returns_the_command_and_allocates_nothing() -> None:
     ("kwargs", "message"),
     [
         ({"cuff_force_N": -5}, "cuff_force_N[left_thigh] must be > 0 N; got -5.0"),
-        ({"cuff_force_N": (220, 130, 220)}, "cuff_force_N must be a number or 4 numbers; got"),
+        (
+            {"cuff_force_N": (220, 130, 220)},
+            "cuff_force_N must be a number or 4 numbers (one per cuff: left_thigh, left_shank, "
+            "right_thigh, right_shank); got",
+        ),
         ({"cuff_force_factor": 1.5}, "cuff_force_factor must be in (0, 1]; got 1.5"),
         ({"cuff_force_factor": 0}, "cuff_force_factor must be > 0; got 0"),
         ({"rom_margin_rad": -0.1}, "rom_margin_rad must be >= 0 rad; got -0.1"),
