@@ -7,10 +7,13 @@ watching.  Units are SI throughout; see the README for frames and signs.
 
 from .exceptions import (
     ExoCtrlError,
+    InvalidLog,
     InvalidModel,
     InvalidParameter,
+    MissingDependency,
     RecordingError,
     SimulationDiverged,
+    SweepError,
     UnreachableFootTarget,
 )
 from .gait import FootTrajectory, GaitParams, GaitPlan
@@ -43,12 +46,15 @@ __all__ = [
     "FootTrajectory",
     "GaitParams",
     "GaitPlan",
+    "InvalidLog",
     "InvalidModel",
     "InvalidParameter",
     "JointTrajectory",
     "LegGeometry",
+    "MissingDependency",
     "RecordingError",
     "SimulationDiverged",
+    "SweepError",
     "UnreachableFootTarget",
     "__version__",
     "default_urdf_path",

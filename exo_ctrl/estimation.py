@@ -143,7 +143,7 @@ import pinocchio as pin
 from . import _validate as v
 from ._io import atomic_write
 from .control.base import SensorReadings
-from .exceptions import ExoCtrlError, InvalidModel, InvalidParameter
+from .exceptions import InvalidLog, InvalidModel, InvalidParameter
 from .model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, SIDES, BodyModel
 
 __all__ = [
@@ -180,30 +180,6 @@ CSV_REQUIRED_COLUMNS = (
 )
 #: Optional joint-speed columns (all four or none).
 CSV_DQ_COLUMNS = tuple(f"{j}_dq" for j in JOINT_NAMES)
-
-
-class InvalidLog(ExoCtrlError, ValueError):
-    """A logged series (CSV file or arrays) cannot be used.
-
-    Attributes:
-        source: file path or ``"arrays"``.
-        reason: what is wrong and what is required.
-        line: 1-based line of the file at fault (None when not a line).
-        column: the column at fault ("" when none).
-
-    """
-
-    def __init__(self, source: str, reason: str, line: int | None = None, column: str = "") -> None:
-        self.source = source
-        self.reason = reason
-        self.line = line
-        self.column = column
-        where = source
-        if line is not None:
-            where += f", line {line}"
-        if column:
-            where += f", column {column!r}"
-        super().__init__(f"invalid log {where}: {reason}")
 
 
 # --------------------------------------------------------------------------- geometry

@@ -113,3 +113,35 @@ class SimulationDiverged(ExoCtrlError, RuntimeError):
 
 class RecordingError(ExoCtrlError, RuntimeError):
     """A recording could not be written or read back."""
+
+
+class InvalidLog(ExoCtrlError, ValueError):
+    """A logged series (CSV file or arrays) cannot be used.
+
+    Attributes:
+        source: file path or ``"arrays"``.
+        reason: what is wrong and what is required.
+        line: 1-based line of the file at fault (None when not a line).
+        column: the column at fault ("" when none).
+
+    """
+
+    def __init__(self, source: str, reason: str, line: int | None = None, column: str = "") -> None:
+        self.source = source
+        self.reason = reason
+        self.line = line
+        self.column = column
+        where = source
+        if line is not None:
+            where += f", line {line}"
+        if column:
+            where += f", column {column!r}"
+        super().__init__(f"invalid log {where}: {reason}")
+
+
+class SweepError(ExoCtrlError, RuntimeError):
+    """A sweep cannot run (e.g. the Dask scheduler cannot be reached)."""
+
+
+class MissingDependency(ExoCtrlError, ImportError):
+    """An optional dependency is not installed; the message says what to install."""

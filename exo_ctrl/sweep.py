@@ -71,7 +71,7 @@ import numpy as np
 from . import simulate as _simulate_module
 from ._io import atomic_write
 from ._progress import Progress
-from .exceptions import ExoCtrlError, InvalidParameter
+from .exceptions import ExoCtrlError, InvalidParameter, MissingDependency, SweepError
 from .model import CUFF_NAMES, JOINT_NAMES
 from .simulate import SimConfig, simulate
 
@@ -109,14 +109,6 @@ FINISHED_STATUSES = ("completed", "diverged", "failed")
 DEFAULT_CYCLES = 2.0
 
 _TABLE_EVERY_S = 30.0  # rewrite the table at least this often during a sweep [s]
-
-
-class SweepError(ExoCtrlError, RuntimeError):
-    """A sweep cannot run (e.g. the Dask scheduler cannot be reached)."""
-
-
-class MissingDependency(ExoCtrlError, ImportError):
-    """An optional dependency is not installed; the message says what to install."""
 
 
 class SweepInterrupted(KeyboardInterrupt):
