@@ -122,6 +122,9 @@ class JointTrajectory:
         phi: the paper's absolute link angles [rad].
         foot_pos: foot positions relative to the hips, (N, 2 legs, x/z) [m].
         foot_vel: foot velocities, (N, 2, 2) [m/s].
+        period_ticks: when set, the rows hold one period of a periodic plan
+            sampled at the control ticks, and tick k uses row k mod
+            period_ticks; None: row k is tick k.
 
     """
 
@@ -132,6 +135,7 @@ class JointTrajectory:
     phi: np.ndarray
     foot_pos: np.ndarray
     foot_vel: np.ndarray
+    period_ticks: int | None = None
 
 
 def plan_joints(plan: GaitPlan, body: BodyModel, t: np.ndarray) -> JointTrajectory:

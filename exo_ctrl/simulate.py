@@ -268,9 +268,10 @@ def build(config: SimConfig) -> Setup:
     """Load the models, plan the run and build the plant and controller."""
     exo = load_body(config.exo or default_urdf_path("exo"), name="exoskeleton")
     patient = load_patient(config.patient)
-    n = config.n_ticks
-    t = np.arange(n + 1) * config.dt
-    plan = plan_joints(GaitPlan(config.gait), exo, t)
+    rows = plan_rows(config)
+    plan = plan_joints(GaitPlan(config.gait), exo, np.arange(rows) * config.dt)
+    if rows <= config.n_ticks:
+        plan = dataclasses.replace(plan, period_ticks=rows)
     motor = drive_for(config.motor, exo)
     plant = Plant(
         exo, patient, dt=config.dt / config.plant_substeps, motors=motor, cuffs=config.cuffs
@@ -285,6 +286,20 @@ def build(config: SimConfig) -> Setup:
     else:
         controller = PDController(plan, config.gains)
     return Setup(config, exo, patient, plan, plant, controller)
+
+
+def plan_rows(config: SimConfig) -> int:
+    """Rows of the joint plan: one gait period if it is a whole number of ticks.
+
+    The gait is periodic, so tick k uses row k mod P; with P = T_s / Δt an
+    integer (1200 for the default 1.2 s at 1 kHz) the plan's memory does not
+    grow with the run's length.  Otherwise the plan covers every tick.
+    """
+    period = config.gait.period / config.dt
+    p = round(period)
+    if p >= 2 and abs(p - period) <= 1e-9 * period:
+        return min(p, config.n_ticks + 1)
+    return config.n_ticks + 1
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
@@ -432,8 +447,11 @@ class Runner:
     def fill_plan(self, start: int, rows: int) -> None:
         """Copy the planned rows ``start:start+rows`` into the buffer."""
         plan = self.setup.plan
-        self.buf["q_des"][:rows] = plan.q[start : start + rows]
-        self.buf["dq_des"][:rows] = plan.dq[start : start + rows]
+        index = np.arange(start, start + rows)
+        if plan.period_ticks:
+            index %= plan.period_ticks
+        self.buf["q_des"][:rows] = plan.q[index]
+        self.buf["dq_des"][:rows] = plan.dq[index]
 
 
 def simulate(

@@ -62,8 +62,9 @@ class ComputedTorqueController(PDController):
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """PD + feedforward voltages [V] for tick k."""
         plan = self.plan
-        self._ff.torque(plan.q[k], plan.dq[k], plan.ddq[k], out=self.torque_ff)
-        self._motor.voltage_for(self.torque_ff, plan.dq[k], out=self._u_ff)
+        i = k % self._period if self._period else k
+        self._ff.torque(plan.q[i], plan.dq[i], plan.ddq[i], out=self.torque_ff)
+        self._motor.voltage_for(self.torque_ff, plan.dq[i], out=self._u_ff)
         u = self._pd(k, sensors)
         np.add(u, self._u_ff, out=u)
         return u

@@ -14,7 +14,8 @@ class PDController:
     """U = k_p (q* - q) + k_d (q̇* - q̇) per drive [V].
 
     Args:
-        plan: joint targets at the control ticks (row k for tick k).
+        plan: joint targets at the control ticks: row k for tick k, or row
+            k mod ``plan.period_ticks`` for a plan holding one period.
         gains: the PD gains.
 
     """
@@ -23,6 +24,7 @@ class PDController:
 
     def __init__(self, plan: JointTrajectory, gains: PDGains | None = None) -> None:
         self.plan = plan
+        self._period = plan.period_ticks
         self.gains = gains or PDGains()
         self._kp = np.array(self.gains.kp)
         self._kd = np.array(self.gains.kd)
@@ -35,9 +37,10 @@ class PDController:
 
     def _pd(self, k: int, sensors: SensorReadings) -> np.ndarray:
         u, e = self._u, self._e
-        np.subtract(self.plan.q[k], sensors.q, out=e)
+        i = k % self._period if self._period else k
+        np.subtract(self.plan.q[i], sensors.q, out=e)
         np.multiply(self._kp, e, out=u)
-        np.subtract(self.plan.dq[k], sensors.dq, out=e)
+        np.subtract(self.plan.dq[i], sensors.dq, out=e)
         np.multiply(self._kd, e, out=e)
         np.add(u, e, out=u)
         return u
