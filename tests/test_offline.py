@@ -40,7 +40,7 @@ def test_offline_estimate_from_the_recording_equals_the_live_one(recorded) -> No
 
 
 def test_csv_log_gives_the_same_estimate(recorded, tmp_path: Path) -> None:
-    path, result = recorded
+    _, result = recorded
     s = result.signals
     log = tmp_path / "log.csv"
     write_csv_log(log, result.t, s["q_meas"], s["dq_meas"], s["tau_sensor"])
