@@ -329,8 +329,9 @@ _NO_LIMITS = SafetyLimits(
 class Runner:
     """Runs the ticks of a :class:`Setup`, writing each into a chunk buffer.
 
-    :meth:`tick` is the whole per-tick work of a run (sensors, controller,
-    plant steps, logging); ``tools/bench.py`` times exactly it.
+    :meth:`tick` is the whole per-tick work of a run (sensors, estimator,
+    controller, safety supervisor, patient torque, plant steps, logging);
+    ``tools/bench.py`` times exactly it.
     """
 
     def __init__(self, setup: Setup) -> None:
@@ -410,7 +411,6 @@ class Runner:
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into buffer row ``row``."""
         plant = self.setup.plant
-        sensors = self.sensors
         wide = self.wide[row]
         np.concatenate((plant.q, plant.v), out=wide[:16])
         sensors = self.sensor_model.read(k, plant.q[:4], plant.v[:4], plant.sensor_torque)
