@@ -32,6 +32,7 @@ from .model import (
     LegGeometry,
     default_urdf_path,
     load_body,
+    load_exo,
     load_human_patient,
     load_patient,
 )
@@ -63,6 +64,7 @@ __all__ = [
     "joint_accelerations",
     "joint_rates",
     "load_body",
+    "load_exo",
     "load_human_patient",
     "load_patient",
     "plan_joints",

@@ -21,7 +21,7 @@ from .control import PDGains
 from .exceptions import ExoCtrlError
 from .gait import GaitParams, GaitPlan
 from .kinematics import plan_joints
-from .model import JOINT_NAMES, default_urdf_path, load_body
+from .model import JOINT_NAMES, load_body, load_exo
 from .patient import PATIENT_TORQUES
 from .simulate import CONTROLLERS, SimConfig, simulate
 
@@ -112,11 +112,6 @@ def gait_params_from(args: argparse.Namespace) -> GaitParams:
         period=args.period,
         duty_factor=args.duty_factor,
     )
-
-
-def load_exo(path: str | None):
-    """The exoskeleton from ``--exo`` (default: the committed URDF)."""
-    return load_body(path or default_urdf_path("exo"), name="exoskeleton")
 
 
 # --------------------------------------------------------------------------- gait

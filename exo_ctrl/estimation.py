@@ -296,11 +296,11 @@ _GEOMETRY_CACHE: dict[int, tuple[BodyModel, CuffGeometry]] = {}
 
 def _geometry(exo: BodyModel | None) -> CuffGeometry:
     if exo is None:
-        from .model import default_urdf_path, load_body
+        from .model import load_exo
 
         key = 0
         if key not in _GEOMETRY_CACHE:
-            body = load_body(default_urdf_path("exo"), name="exoskeleton")
+            body = load_exo()
             _GEOMETRY_CACHE[key] = (body, CuffGeometry.from_body(body))
         return _GEOMETRY_CACHE[key][1]
     key = id(exo)

@@ -41,6 +41,7 @@ __all__ = [
     "default_urdf_path",
     "human_urdf_path",
     "load_body",
+    "load_exo",
     "load_human_patient",
     "load_patient",
 ]
@@ -341,6 +342,11 @@ def load_human_patient() -> BodyModel:
         world_rotation=Y_UP_TO_Z_UP,
         extra_frames=True,
     )
+
+
+def load_exo(source: str | os.PathLike[str] | None = None) -> BodyModel:
+    """The exoskeleton from a URDF path, or None for the committed default."""
+    return load_body(source or default_urdf_path("exo"), name="exoskeleton")
 
 
 def load_patient(source: str | os.PathLike[str] | None) -> BodyModel:

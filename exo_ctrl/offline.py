@@ -34,7 +34,7 @@ from .estimation import (
     read_csv_log,
 )
 from .exceptions import InvalidParameter, RecordingError
-from .model import CUFF_NAMES, JOINT_NAMES, default_urdf_path, load_body
+from .model import CUFF_NAMES, JOINT_NAMES, load_exo
 
 __all__ = ["OfflineEstimate", "estimate_file", "write_estimate_recording"]
 
@@ -98,7 +98,7 @@ def estimate_file(
     if suffix == ".rrd":
         return _from_recording(p, exo, gain_per_s)
     if suffix == ".csv":
-        body = load_body(exo or default_urdf_path("exo"), name="exoskeleton")
+        body = load_exo(exo)
         t, q, dq, tau = read_csv_log(p)
         gain = DEFAULT_GAIN_PER_S if gain_per_s is None else gain_per_s
         series = estimate_series(t, q, dq, tau, body, gain_per_s=gain)
@@ -117,8 +117,7 @@ def _from_recording(
         if name not in s:
             raise RecordingError(f"{path}: no {name!r} in the recording (not a sensor log)")
     config = result.config
-    source = exo or result.exo_source or config.exo or default_urdf_path("exo")
-    body = load_body(source, name="exoskeleton")
+    body = load_exo(exo or result.exo_source or config.exo)
     gain = config.observer_gain_per_s if gain_per_s is None else gain_per_s
     series = estimate_series(
         result.t,

@@ -40,7 +40,7 @@ from .estimation import DEFAULT_GAIN_PER_S, CuffForceEstimator, EstimateErrorSta
 from .exceptions import InvalidParameter, SimulationDiverged
 from .gait import GaitParams, GaitPlan
 from .kinematics import JointTrajectory, plan_joints
-from .model import BodyModel, default_urdf_path, load_body, load_patient
+from .model import BodyModel, load_exo, load_patient
 from .motor import MotorParams
 from .patient import PATIENT_TORQUES, make_patient_torque
 from .plant import Plant
@@ -266,7 +266,7 @@ class Setup:
 
 def build(config: SimConfig) -> Setup:
     """Load the models, plan the run and build the plant and controller."""
-    exo = load_body(config.exo or default_urdf_path("exo"), name="exoskeleton")
+    exo = load_exo(config.exo)
     patient = load_patient(config.patient)
     rows = plan_rows(config)
     plan = plan_joints(GaitPlan(config.gait), exo, np.arange(rows) * config.dt)
