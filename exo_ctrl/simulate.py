@@ -58,6 +58,7 @@ __all__ = [
     "build",
     "drive_for",
     "simulate",
+    "start_on_plan",
 ]
 
 CONTROLLERS = ("pd", "ct", "qp")
@@ -326,6 +327,21 @@ _NO_LIMITS = SafetyLimits(
 )
 
 
+def start_on_plan(setup: Setup) -> None:
+    """Put the plant on the plan at t = 0, with the planned speed.
+
+    The drive currents carry the feedforward torque of t = 0 (clipped to the
+    driver's limit), so the legs do not sag at the start; the patient starts
+    in the exoskeleton's posture and the cuffs are fitted there.
+    """
+    plant, plan = setup.plant, setup.plan
+    motor = plant.motor_params
+    tau0 = feedforward_torque(plan, setup.exo, setup.patient, motor, rows=1)[0]
+    limit = motor.current_limit_A
+    i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -limit, limit)
+    plant.reset(plan.q[0], plan.dq[0], current_A=i0)
+
+
 class Runner:
     """Runs the ticks of a :class:`Setup`, writing each into a chunk buffer.
 
@@ -337,7 +353,7 @@ class Runner:
     def __init__(self, setup: Setup) -> None:
         self.setup = setup
         config = setup.config
-        plant, plan = setup.plant, setup.plan
+        plant = setup.plant
         self.chunk = chunk = min(config.chunk_ticks, max(config.n_ticks, 1))
         # One wide row per tick; every signal is a view of it.  Columns: the
         # state [q_exo, q_patient, v_exo, v_patient] as the plant holds it,
@@ -400,13 +416,7 @@ class Runner:
                 estop_at_s=config.estop_at_s,
                 use_estimate=config.safety_use_estimate,
             )
-        # Start on the plan with the planned speed; the drive currents carry
-        # the feedforward torque of t = 0, so the legs do not sag at the start.
-        motor = plant.motor_params
-        tau0 = feedforward_torque(_first(plan), setup.exo, setup.patient, motor)[0]
-        limit = motor.current_limit_A
-        i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -limit, limit)
-        plant.reset(plan.q[0], plan.dq[0], current_A=i0)
+        start_on_plan(setup)
 
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into buffer row ``row``."""
@@ -565,15 +575,3 @@ def simulate(
     if error is not None:
         raise error
     return result
-
-
-def _first(plan: JointTrajectory) -> JointTrajectory:
-    return JointTrajectory(
-        t=plan.t[:1],
-        q=plan.q[:1],
-        dq=plan.dq[:1],
-        ddq=plan.ddq[:1],
-        phi=plan.phi[:1],
-        foot_pos=plan.foot_pos[:1],
-        foot_vel=plan.foot_vel[:1],
-    )

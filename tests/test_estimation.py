@@ -34,7 +34,6 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from exo_ctrl.control import feedforward_torque
 from exo_ctrl.cuffs import CuffParams
 from exo_ctrl.estimation import (
     CSV_REQUIRED_COLUMNS,
@@ -58,7 +57,7 @@ from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter
 from exo_ctrl.model import CUFF_NAMES, BodyModel
 from exo_ctrl.plant import Plant
 from exo_ctrl.sensors import SensorParams, Sensors
-from exo_ctrl.simulate import SimConfig, build
+from exo_ctrl.simulate import SimConfig, build, start_on_plan
 
 DT = 1e-3
 SKIP_S = 0.05
@@ -97,13 +96,7 @@ def closed_loop(
     config = SimConfig(controller="ct", patient=patient, cuffs=cuffs or CuffParams())
     setup = build(config)
     plant = setup.plant
-    motor = plant.motor_params
-    # Start as simulate() does: on the plan, currents carrying the t = 0 feedforward.
-    tau0 = feedforward_torque(setup.plan, setup.exo, setup.patient, motor)[0]
-    i0 = np.clip(
-        tau0 / motor.torque_per_amp_Nm_per_A, -motor.current_limit_A, motor.current_limit_A
-    )
-    plant.reset(setup.plan.q[0], setup.plan.dq[0], current_A=i0)
+    start_on_plan(setup)  # as simulate() starts
     sensors = Sensors(sensor_params, config.dt)
     estimator = CuffForceEstimator(setup.exo, config.dt, gain, torque_bias_Nm)
     torque_model = None

@@ -13,7 +13,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from exo_ctrl.control import SensorReadings, feedforward_torque
+from exo_ctrl.control import SensorReadings
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import JOINT_NAMES
 from exo_ctrl.patient import (
@@ -22,7 +22,7 @@ from exo_ctrl.patient import (
     SpasticPatient,
     make_patient_torque,
 )
-from exo_ctrl.simulate import SimConfig, build
+from exo_ctrl.simulate import SimConfig, build, start_on_plan
 
 Q = np.array([0.5, 1.2, 0.4, 1.0])  # a posture inside the gait's range [rad]
 H = 1e-6  # finite-difference step [rad, rad/s]
@@ -231,12 +231,8 @@ def peak_cuff_force(kind: str, duration_s: float = 2.4) -> float:
     """Peak cuff force magnitude [N] of a CT closed loop with the patient torque ``kind``."""
     config = SimConfig(controller="ct", duration_s=duration_s)
     setup = build(config)
-    plant, plan, ctrl = setup.plant, setup.plan, setup.controller
-    motor = plant.motor_params
-    tau0 = feedforward_torque(plan, setup.exo, setup.patient, motor)[0]
-    i_max = motor.current_limit_A
-    i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -i_max, i_max)
-    plant.reset(plan.q[0], plan.dq[0], current_A=i0)
+    plant, ctrl = setup.plant, setup.controller
+    start_on_plan(setup)
     model = make_patient_torque(kind)
     tau_p = np.zeros(4)
     sensors = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))

@@ -16,12 +16,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from exo_ctrl.control import SensorReadings, feedforward_torque
+from exo_ctrl.control import SensorReadings
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.patient import PatientTorque, make_patient_torque
 from exo_ctrl.safety import SafetyLimits, SafetySupervisor
-from exo_ctrl.simulate import SimConfig, build
+from exo_ctrl.simulate import SimConfig, build, start_on_plan
 
 DT = 1e-3
 #: Largest change of the applied voltage between two ticks during the stop
@@ -58,15 +58,9 @@ def run_loop(
     """Closed loop as in simulate.simulate, with the supervisor between controller and plant."""
     config = SimConfig(controller=controller, duration_s=duration_s)
     setup = build(config)
-    plant, plan, ctrl = setup.plant, setup.plan, setup.controller
+    plant, ctrl = setup.plant, setup.controller
     motor = plant.motor_params
-    tau0 = feedforward_torque(plan, setup.exo, setup.patient, motor)[0]
-    i_max = motor.current_limit_A
-    plant.reset(
-        plan.q[0],
-        plan.dq[0],
-        current_A=np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -i_max, i_max),
-    )
+    start_on_plan(setup)
     sup = SafetySupervisor(
         limits or SafetyLimits(), setup.exo, setup.patient, motor, config.dt, **supervisor_kwargs
     )

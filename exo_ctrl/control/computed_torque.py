@@ -101,11 +101,16 @@ class _Feedforward:
 
 
 def feedforward_torque(
-    plan: JointTrajectory, exo: BodyModel, patient: BodyModel | None, motor: MotorParams
+    plan: JointTrajectory,
+    exo: BodyModel,
+    patient: BodyModel | None,
+    motor: MotorParams,
+    rows: int | None = None,
 ) -> np.ndarray:
-    """τ_ff along a whole plan, (N, 4) [N·m] (for analysis and the QP)."""
+    """τ_ff along a plan, (N, 4) [N·m]: every row, or the first ``rows``."""
     ff = _Feedforward(exo, patient, motor)
-    out = np.zeros_like(plan.q)
-    for k in range(plan.q.shape[0]):
+    n = plan.q.shape[0] if rows is None else min(rows, plan.q.shape[0])
+    out = np.zeros((n, 4))
+    for k in range(n):
         ff.torque(plan.q[k], plan.dq[k], plan.ddq[k], out=out[k])
     return out
