@@ -118,13 +118,13 @@ class Plant:
         self._q_mid = np.zeros(8)
         self._v_mid = np.zeros(8)
         self._arm_e = np.zeros(4)
-        self._arm_p = self.dt * self._b[4:]
-        self._mp.armature = self._arm_p
-        self._damping_e = np.zeros(4)
+        # Exo armature = rotor inertia + h b (implicit joint damping, constant)
+        # + h D_m (implicit back-EMF damping, per step).
+        self._arm_const = self._arm_base + self.dt * self._b[:4]
+        self._mp.armature = self.dt * self._b[4:]
         self._damping_m = np.zeros(4)  # h D_m of the drives [kg·m²]
         #: Joint torque sensor reading at each drive output (gearbox to link) [N·m].
         self.sensor_torque = np.zeros(4)
-        self._zero4 = np.zeros(4)
 
     # ------------------------------------------------------------------ state
 
@@ -207,11 +207,9 @@ class Plant:
             np.copyto(self.drive_torque, torque)
             np.add(tau[:4], torque, out=tau[:4])
             np.multiply(self.motors.damping_Nm_s_per_rad(h), h, out=self._damping_m)
-            np.add(self._damping_m, self._arm_base, out=self._arm_e)
+            np.add(self._damping_m, self._arm_const, out=self._arm_e)
         else:
-            np.copyto(self._arm_e, self._arm_base)
-        np.multiply(self._b[:4], h, out=self._damping_e)
-        np.add(self._arm_e, self._damping_e, out=self._arm_e)
+            np.copyto(self._arm_e, self._arm_const)
         self._me.armature = self._arm_e
         # Kick: accelerations at mid-step, damping implicit through the armature.
         acc[:4] = pin.aba(self._me, self._de, qm[:4], vm[:4], tau[:4])
