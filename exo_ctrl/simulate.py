@@ -393,7 +393,11 @@ class Runner:
         )
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
-        self._estimate_parts = (
+        # Logged each tick: Sensors.read always fills the same readings object.
+        self._measured = (
+            self.sensors.q,
+            self.sensors.dq,
+            self.sensors.tau,
             self.estimator.tau_ext,
             self.estimator.normal,
             self.estimator.force.reshape(8),
@@ -425,7 +429,7 @@ class Runner:
         np.concatenate((plant.q, plant.v), out=wide[:16])
         sensors = self.sensor_model.read(k, plant.q[:4], plant.v[:4], plant.sensor_torque)
         self.estimator.update(sensors)
-        np.concatenate((sensors.q, sensors.dq, sensors.tau, *self._estimate_parts), out=wide[53:81])
+        np.concatenate(self._measured, out=wide[53:81])
         controller = self.setup.controller
         u = controller.command(k, sensors)
         np.copyto(wide[16:20], u)
