@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from . import _validate as v
+from ._jit import kernel
 from .model import CUFF_NAMES, SIDES, BodyModel
 
 __all__ = ["CuffParams", "CuffSet"]
@@ -126,28 +127,36 @@ class CuffSet:
         self._DPT = np.ascontiguousarray(self._DP.T)
         self._Dp0 = diff @ self._p0
         self._sel2 = np.vstack((sel, sel))
-        self._sel2_t = np.ascontiguousarray(self._sel2.T)
         self._diff = diff
         self._k = float(params.stiffness_N_per_m)
         self._c = float(params.damping_N_s_per_m)
+        #: (S | D P | (D P)ᵀ) for :func:`cuff_forces`, (16, 40): S in rows 0-7 of
+        #: columns 0-7, D P in rows 0-7 of columns 8-23, (D P)ᵀ in columns 24-31.
+        self.kernel_matrices = np.zeros((16, 40))
+        self.kernel_matrices[:8, :8] = sel
+        self.kernel_matrices[:8, 8:24] = self._DP
+        self.kernel_matrices[:, 24:32] = self._DPT
+        #: (K, C, K (D p₀ - r₀)) for :func:`cuff_forces`, (10,).
+        self.kernel_params = np.zeros(10)
+        self.kernel_params[:2] = self._k, self._c
         # State and work arrays, allocated once.
         #: Strap offsets (exo minus patient, x then z) at which a cuff is slack [m], (8,).
         self.rest_offset = np.zeros(8)
         self._offset = self._Dp0.copy()  # D p0 - r0
-        self._k_offset = self._k * self._offset
+        self._k_offset = self.kernel_params[2:]
+        np.multiply(self._offset, self._k, out=self._k_offset)
         self._theta = np.zeros(16)
         self._cs = np.zeros(16)  # (cos θ, sin θ)
         self._csr = np.zeros(16)  # (-sin θ, cos θ)
-        self._w = np.zeros(16)
-        self._y = np.zeros(16)
-        self._g = np.zeros(16)
-        self._f = np.zeros(8)
+        #: Rows f, τ and work of :func:`cuff_forces`, (5, 16).
+        self.kernel_out = np.zeros((5, 16))
+        self._f = self.kernel_out[0, :8]
         #: Cuff forces on the exoskeleton of the last :meth:`compute`, (4, 2) view [N].
         self.force = self._f.reshape(2, 4).T
         #: The same forces as (fx of the 4 cuffs, fz of the 4 cuffs), (8,) [N].
         self.force_flat = self._f
         #: Generalised cuff forces on [exo, patient] joints [N·m], (8,).
-        self.joint_torque = np.zeros(8)
+        self.joint_torque = self.kernel_out[1, :8]
 
     # ------------------------------------------------------------------ kinematics
 
@@ -194,21 +203,57 @@ class CuffSet:
         -J_patientᵀ f on the patient's).  Returns :attr:`force`, overwritten
         by the next call.
         """
-        self._trig(q_all)
-        w, y, g, f = self._w, self._y, self._g, self._f
-        np.dot(self._sel2, v_all, out=w)  # (θ̇, θ̇)
-        np.multiply(w, self._csr, out=w)  # ṗ = P w
-        # f = -K Δp - C Δṗ = D P (-K u - C w) - K (D p0 - r0)
-        np.multiply(self._cs, -self._k, out=y)
-        np.multiply(w, self._c, out=w)
-        np.subtract(y, w, out=y)
-        np.dot(self._DP, y, out=f)
-        np.subtract(f, self._k_offset, out=f)
-        # τ = Sᵀ ((Pᵀ Dᵀ f) ⊙ (-sin θ, cos θ))
-        np.dot(self._DPT, f, out=g)
-        np.multiply(g, self._csr, out=g)
-        np.dot(self._sel2_t, g, out=self.joint_torque)
+        cuff_forces(self.kernel_matrices, self.kernel_params, q_all, v_all, self.kernel_out)
         return self.force
+
+
+@kernel
+def cuff_forces(
+    matrices: np.ndarray, params: np.ndarray, q_all: np.ndarray, v_all: np.ndarray, out: np.ndarray
+) -> None:
+    """The module docstring's forces and generalised forces, in place.
+
+    ``matrices`` = (S, D P, (D P)ᵀ) stacked as :attr:`CuffSet.kernel_matrices`
+    (16, 40); ``params`` = (K, C, K (D p₀ - r₀)) as
+    :attr:`CuffSet.kernel_params`; ``out`` rows = (f (8), τ (8), cos θ, sin θ
+    (16), (-sin θ, cos θ) (16), workspace (16)); f and τ use the first 8 columns.
+    u = (cos θ, sin θ), w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇); f = D P (-K u - C w) - K (D p₀ - r₀);
+    τ = Sᵀ ((Pᵀ Dᵀ f) ⊙ (-sin θ, cos θ)) summed over the two halves.
+    """
+    k, c = params[0], params[1]
+    csr, y = out[3], out[4]
+    for j in range(8):
+        th = 0.0
+        dth = 0.0
+        for i in range(8):
+            s = matrices[j, i]
+            if s != 0.0:
+                th += s * q_all[i]
+                dth += s * v_all[i]
+        cj, sj = np.cos(th), np.sin(th)
+        out[2, j] = cj
+        out[2, 8 + j] = sj
+        csr[j] = -sj
+        csr[8 + j] = cj
+        y[j] = -k * cj - c * (-sj * dth)
+        y[8 + j] = -k * sj - c * (cj * dth)
+    for r in range(8):
+        acc = 0.0
+        for j in range(16):
+            acc += matrices[r, 8 + j] * y[j]
+        out[0, r] = acc - params[2 + r]
+    for i in range(8):
+        out[1, i] = 0.0
+    for j in range(16):
+        g = 0.0
+        for r in range(8):
+            g += matrices[j, 24 + r] * out[0, r]
+        g *= csr[j]
+        jj = j if j < 8 else j - 8
+        for i in range(8):
+            s = matrices[jj, i]
+            if s != 0.0:
+                out[1, i] += s * g
 
 
 def _xz(p: np.ndarray) -> np.ndarray:

@@ -142,6 +142,7 @@ import pinocchio as pin
 
 from . import _validate as v
 from ._io import atomic_write
+from ._jit import kernel
 from .control.base import SensorReadings
 from .exceptions import InvalidLog, InvalidModel, InvalidParameter
 from .model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, SIDES, BodyModel
@@ -399,6 +400,10 @@ def cuff_forces_from_torque(
 class CuffForceEstimator:
     """Live cuff-force estimate from the sensor readings, one update per tick.
 
+    An update is the three Pinocchio calls (CRBA, Coriolis matrix, gravity)
+    and one call of the compiled kernel :func:`_observer_kernel`, which does
+    the rest (momentum, model terms, the observer step, the cuff forces).
+
     Args:
         exo: the exoskeleton model (its link model is used; see the module
             docstring).
@@ -436,9 +441,13 @@ class CuffForceEstimator:
         bias = np.broadcast_to(np.asarray(torque_bias_Nm, dtype=float), (4,))
         for b in bias:
             v.finite("torque_bias", b, "N·m")
-        self.torque_bias_Nm = bias.copy()
+        # The kernel's parameters, state and outputs in one buffer (layout:
+        # the _P_* and _B_* indices); tau_ext, normal and force are views of it.
+        self._work = np.zeros(_W_SIZE)
+        self.torque_bias_Nm = self._work[_P_BIAS : _P_BIAS + 4]
+        self.torque_bias_Nm[:] = bias
         self._has_bias = bool(np.any(bias != 0))
-        self.stiffness_ratio = v.non_negative("stiffness_ratio", stiffness_ratio, "")
+        self.stiffness_ratio = stiffness_ratio
         self.exo = exo
         self.geometry = CuffGeometry.from_body(exo)
         self._model = pin.Model(exo.model)
@@ -448,33 +457,43 @@ class CuffForceEstimator:
         self._fr = exo.friction
         self._has_friction = bool(np.any(self._fr > 0))
         self._eps = FRICTION_SMOOTHING_RAD_S
+        par = self._work
+        par[_P_DAMPING : _P_DAMPING + 4] = self._b
+        par[_P_FRICTION : _P_FRICTION + 4] = self._fr
+        par[_P_EPS] = self._eps
+        par[_P_HAS_FRICTION] = self._has_friction
+        par[_P_HAS_BIAS] = self._has_bias
         g = self.geometry
-        self._legs = tuple(
-            (
-                float(g.sign_hip[s]),
-                float(g.sign_knee[s]),
-                float(g.thigh_arm[s]),
-                float(g.thigh_dir0[s]),
-                float(g.knee_arm[s]),
-                float(g.knee_dir0[s]),
-                float(g.shank_arm[s]),
-                float(g.shank_dir0[s]),
+        for s in range(2):
+            par[_P_LEGS + 8 * s : _P_LEGS + 8 * s + 8] = (
+                g.sign_hip[s],
+                g.sign_knee[s],
+                g.thigh_arm[s],
+                g.thigh_dir0[s],
+                g.knee_arm[s],
+                g.knee_dir0[s],
+                g.shank_arm[s],
+                g.shank_dir0[s],
             )
-            for s in range(2)
-        )
-        # State and work arrays (allocated once).
-        self._s = np.zeros(4)  # p_0 + ∫ (τ + m + r) dt
-        self._p = np.zeros(4)
-        self._m = np.zeros(4)
-        self._m_prev = np.zeros(4)
+        self._s = self._work[_B_S : _B_S + 4]  # p_0 + ∫ (τ + m + r) dt
+        self._p = self._work[_B_P : _B_P + 4]
         self._tmp = np.zeros(4)
-        self._tmp2 = np.zeros(4)
+        self._zeros = np.zeros(4)
         self._h_cached = math.nan
-        self._kd = 0.0
         self._started = False
-        self.tau_ext = np.zeros(4)
-        self.normal = np.zeros(4)
-        self.force = np.zeros((4, 2))
+        self.tau_ext = self._work[_B_R : _B_R + 4]
+        self.normal = self._work[_B_NORMAL : _B_NORMAL + 4]
+        self.force = self._work[_B_FORCE : _B_FORCE + 8].reshape(4, 2)
+
+    @property
+    def stiffness_ratio(self) -> float:
+        """κ of the assumption [-] (module docstring)."""
+        return self._stiffness_ratio
+
+    @stiffness_ratio.setter
+    def stiffness_ratio(self, value: float) -> None:
+        self._stiffness_ratio = v.non_negative("stiffness_ratio", value, "")
+        self._work[_P_KAPPA] = self._stiffness_ratio
 
     # ------------------------------------------------------------------ public
 
@@ -491,10 +510,11 @@ class CuffForceEstimator:
         self.tau_ext[:] = 0.0
         self.normal[:] = 0.0
         self.force[:] = 0.0
+        self._started = False
+        self._work[_B_STARTED] = 0.0
         if q is None or dq is None:
-            self._started = False
             return
-        self._start(np.asarray(q, dtype=float), np.asarray(dq, dtype=float))
+        self.step(np.asarray(q, dtype=float), np.asarray(dq, dtype=float), self._zeros, self.dt)
 
     def update(self, sensors: SensorReadings) -> np.ndarray:
         """Advance by one control period with this tick's readings.
@@ -511,84 +531,121 @@ class CuffForceEstimator:
         return self.step(sensors.q, sensors.dq, sensors.tau, self.dt)
 
     def step(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, h: float) -> np.ndarray:
-        """Advance by a step h [s] with readings (q, dq, tau); as :meth:`update`."""
+        """Advance by a step h [s] with readings (q, dq, tau); as :meth:`update`.
+
+        The first step after construction or :meth:`reset` starts the observer
+        at these readings (estimate zero; ``tau`` and ``h`` unused).
+        """
+        if not (type(q) is type(dq) is type(tau) is np.ndarray):  # the kernel takes arrays
+            q, dq, tau = (np.asarray(x, dtype=float) for x in (q, dq, tau))
         if not self._started:
-            self._start(q, dq)
-            return self.force
-        tmp = self._tmp
-        if h != self._h_cached:
-            if not h > 0:
-                raise InvalidParameter("step", h, "> 0 s")
-            self._h_cached = h
-            self._kd = -math.expm1(-self.gain_per_s * h) / h
-            # A new step length changes K_d: re-anchor s so that r_{k-1} = K_d (p_{k-1} - s_{k-1}).
-            np.divide(self.tau_ext, self._kd, out=tmp)
-            np.subtract(self._p, tmp, out=self._s)
-        self._momentum_terms(q, dq)
-        # s += h (τ - β + ½ (m_prev + m) + r)
-        np.add(self._m_prev, self._m, out=tmp)
-        np.multiply(tmp, 0.5, out=tmp)
-        np.add(tmp, tau, out=tmp)
-        if self._has_bias:
-            np.subtract(tmp, self.torque_bias_Nm, out=tmp)
-        np.add(tmp, self.tau_ext, out=tmp)
-        np.multiply(tmp, h, out=tmp)
-        np.add(self._s, tmp, out=self._s)
-        # r = K_d (p - s)
-        np.subtract(self._p, self._s, out=tmp)
-        np.multiply(tmp, self._kd, out=self.tau_ext)
-        np.copyto(self._m_prev, self._m)
-        self._to_cuffs(q)
+            self._started = True  # the kernel starts the observer at these readings
+        elif h != self._h_cached:
+            self._set_step(h)
+        model, data = self._model, self._data
+        mass = pin.crba(model, data, q)
+        coriolis = pin.computeCoriolisMatrix(model, data, q, dq)
+        gravity = pin.computeGeneralizedGravity(model, data, q)
+        _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, self._work)
         return self.force
 
     # ------------------------------------------------------------------ internals
 
-    def _start(self, q: np.ndarray, dq: np.ndarray) -> None:
-        self._momentum_terms(q, dq)
-        np.copyto(self._s, self._p)
-        np.copyto(self._m_prev, self._m)
-        self.tau_ext[:] = 0.0
-        self.normal[:] = 0.0
-        self.force[:] = 0.0
-        self._started = True
+    def _set_step(self, h: float) -> None:
+        """A new step h: K_d = (1 − e^{−K_O h}) / h, and s re-anchored to p − r / K_d."""
+        if not h > 0:
+            raise InvalidParameter("step", h, "> 0 s")
+        self._h_cached = h
+        kd = -math.expm1(-self.gain_per_s * h) / h
+        self._work[_B_KD] = kd
+        # A new step length changes K_d: re-anchor s so that r_{k-1} = K_d (p_{k-1} - s_{k-1}).
+        np.divide(self.tau_ext, kd, out=self._tmp)
+        np.subtract(self._p, self._tmp, out=self._s)
 
-    def _momentum_terms(self, q: np.ndarray, dq: np.ndarray) -> None:
-        """Momentum p = M(q) q̇ and the model terms m = Cᵀ q̇ − g − b q̇ − f_c tanh(q̇/ε)."""
-        model, data = self._model, self._data
-        mass = pin.crba(model, data, q)
-        np.dot(mass, dq, out=self._p)
-        coriolis = pin.computeCoriolisMatrix(model, data, q, dq)
-        np.dot(coriolis.T, dq, out=self._m)
-        np.subtract(self._m, pin.computeGeneralizedGravity(model, data, q), out=self._m)
-        np.multiply(self._b, dq, out=self._tmp2)
-        np.subtract(self._m, self._tmp2, out=self._m)
-        if self._has_friction:
-            np.divide(dq, self._eps, out=self._tmp2)
-            np.tanh(self._tmp2, out=self._tmp2)
-            np.multiply(self._tmp2, self._fr, out=self._tmp2)
-            np.subtract(self._m, self._tmp2, out=self._m)
 
-    def _to_cuffs(self, q: np.ndarray) -> None:
-        """Normal components and forces from r: solve A(q) (f_t⊥, f_s⊥) = (τ_hip, τ_knee)."""
-        r, normal, force = self.tau_ext, self.normal, self.force
-        for s in range(2):
-            sh, sk, a, dt0, l1, dk0, c, ds0 = self._legs[s]
-            qh, qk = float(q[2 * s]), float(q[2 * s + 1])
-            psi_t = dt0 + sh * qh
-            psi_s = ds0 + sh * qh + sk * qk
-            psi_k = dk0 + sh * qh
-            f_s = float(r[2 * s + 1]) / (sk * c)
-            w = l1 * math.cos(psi_s - psi_k) + c
-            sn = math.sin(psi_s - psi_k)
-            kappa_sn = self.stiffness_ratio * sn
-            f_t = (float(r[2 * s]) / sh - w * f_s) / (a + kappa_sn * sn * l1 * l1 / a)
-            normal[2 * s] = f_t
-            normal[2 * s + 1] = f_s
-            force[2 * s, 0] = -f_t * math.sin(psi_t)
-            force[2 * s, 1] = f_t * math.cos(psi_t)
-            f_sa = kappa_sn * l1 / a * f_t  # f_s∥, along knee → shank cuff
-            force[2 * s + 1, 0] = -f_s * math.sin(psi_s) + f_sa * math.cos(psi_s)
-            force[2 * s + 1, 1] = f_s * math.cos(psi_s) + f_sa * math.sin(psi_s)
+# Layout of the observer kernel's buffer.  Parameters: damping b, friction
+# f_c, bias β (4 each), ε, has-friction and has-bias flags, κ, then per leg
+# (s_h, s_k, a, ψ_t0, l₁, ψ_k0, c, ψ_s0).
+_P_DAMPING, _P_FRICTION, _P_BIAS, _P_EPS, _P_HAS_FRICTION, _P_HAS_BIAS = 0, 4, 8, 12, 13, 14
+_P_KAPPA, _P_LEGS = 15, 16
+_P_SIZE = 32
+# Then state and outputs: s, p, m, m_{k-1}, r, f⊥ (4 each), the forces
+# (4 × 2, row-major), K_d, started flag.
+_B_S, _B_P, _B_M, _B_M_PREV, _B_R, _B_NORMAL, _B_FORCE = 32, 36, 40, 44, 48, 52, 56
+_B_KD, _B_STARTED = 64, 65
+_W_SIZE = 66
+
+
+@kernel
+def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
+    """One observer step in place (module docstring, discrete form), then the cuff forces.
+
+    p = M q̇, m = Cᵀ q̇ − g − b q̇ − f_c tanh(q̇/ε);
+    s += h (τ − β + ½ (m_{k-1} + m) + r), r = K_d (p − s).
+    Not started (w's flag 0): s = p, m_{k-1} = m, r = f = 0, flag set.
+    """
+    has_friction = w[_P_HAS_FRICTION] != 0.0
+    eps = w[_P_EPS]
+    for i in range(4):
+        p = 0.0
+        m = 0.0
+        for j in range(4):
+            p += mass[i, j] * dq[j]
+            m += coriolis[j, i] * dq[j]
+        m = m - gravity[i]
+        m = m - w[_P_DAMPING + i] * dq[i]
+        if has_friction:
+            m = m - math.tanh(dq[i] / eps) * w[_P_FRICTION + i]
+        w[_B_P + i] = p
+        w[_B_M + i] = m
+    if w[_B_STARTED] == 0.0:
+        for i in range(4):
+            w[_B_S + i] = w[_B_P + i]
+            w[_B_M_PREV + i] = w[_B_M + i]
+            w[_B_R + i] = 0.0
+            w[_B_NORMAL + i] = 0.0
+            w[_B_FORCE + 2 * i] = 0.0
+            w[_B_FORCE + 2 * i + 1] = 0.0
+        w[_B_STARTED] = 1.0
+        return
+    has_bias = w[_P_HAS_BIAS] != 0.0
+    kd = w[_B_KD]
+    for i in range(4):
+        x = (w[_B_M_PREV + i] + w[_B_M + i]) * 0.5 + tau[i]
+        if has_bias:
+            x = x - w[_P_BIAS + i]
+        s = w[_B_S + i] + (x + w[_B_R + i]) * h
+        w[_B_S + i] = s
+        w[_B_R + i] = (w[_B_P + i] - s) * kd
+        w[_B_M_PREV + i] = w[_B_M + i]
+    _cuffs_kernel(q, w)
+
+
+@kernel
+def _cuffs_kernel(q, w):
+    """Normal components and forces from r: solve A(q) (f_t⊥, f_s⊥) = (τ_hip, τ_knee) per leg."""
+    kappa = w[_P_KAPPA]
+    for s in range(2):
+        o = _P_LEGS + 8 * s
+        sh, sk, a, dt0 = w[o], w[o + 1], w[o + 2], w[o + 3]
+        l1, dk0, c, ds0 = w[o + 4], w[o + 5], w[o + 6], w[o + 7]
+        qh, qk = q[2 * s], q[2 * s + 1]
+        psi_t = dt0 + sh * qh
+        psi_s = ds0 + sh * qh + sk * qk
+        psi_k = dk0 + sh * qh
+        f_s = w[_B_R + 2 * s + 1] / (sk * c)
+        w_arm = l1 * math.cos(psi_s - psi_k) + c  # w of the module docstring
+        sn = math.sin(psi_s - psi_k)
+        kappa_sn = kappa * sn
+        f_t = (w[_B_R + 2 * s] / sh - w_arm * f_s) / (a + kappa_sn * sn * l1 * l1 / a)
+        w[_B_NORMAL + 2 * s] = f_t
+        w[_B_NORMAL + 2 * s + 1] = f_s
+        f = _B_FORCE + 4 * s  # rows 2s and 2s + 1 of the (4, 2) forces
+        w[f] = -f_t * math.sin(psi_t)
+        w[f + 1] = f_t * math.cos(psi_t)
+        f_sa = kappa_sn * l1 / a * f_t  # f_s∥, along knee → shank cuff
+        w[f + 2] = -f_s * math.sin(psi_s) + f_sa * math.cos(psi_s)
+        w[f + 3] = f_s * math.cos(psi_s) + f_sa * math.sin(psi_s)
 
 
 # --------------------------------------------------------------------------- offline

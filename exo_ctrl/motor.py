@@ -51,10 +51,11 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._jit import kernel
 from ._validate import positive
 from .exceptions import InvalidParameter
 
-__all__ = ["MotorBank", "MotorParams"]
+__all__ = ["MotorBank", "MotorParams", "motor_step"]
 
 
 @dataclass(frozen=True)
@@ -173,37 +174,24 @@ class MotorBank:
         self._kt = p.torque_per_amp_Nm_per_A
         self._kb = p.back_emf_V_per_rad_s
         self._tau_e = p.electrical_time_constant_s
-        # Constants as arrays: array-array ufuncs are cheaper than array-scalar.
-        self._u_hi = np.full(n, p.supply_voltage_V)
-        self._u_lo = -self._u_hi
-        self._i_hi = np.full((2, n), p.current_limit_A)  # (2, n): clip without broadcasting
-        self._i_lo = -self._i_hi
-        self._i_max = self._i_hi[0]
-        self._kb_arr = np.full(n, self._kb)
-        self._inv_r = np.full(n, 1.0 / p.resistance_ohm)
-        self._kt_arr = np.full(n, self._kt)
         self._d_coef = self._kt * self._kb / p.resistance_ohm  # i_G k_m (i_G/k_E) / R
-        # Row 0: current at the end of the step (the state); row 1: mean current.
-        self._x = np.zeros((2, n))
-        self._current = self._x[0]
-        self._mean = self._x[1]
-        # For the cached step length h: e^{-h/τ_e}, φ and D (unsaturated), per drive.
+        #: Constants for the kernels (see :func:`motor_step`); the last three
+        #: depend on the step length h and are set by :meth:`_set_dt`.
+        self.kernel_params = np.array(
+            [p.supply_voltage_V, self._kb, 1.0 / p.resistance_ohm, p.current_limit_A, self._kt]
+            + [math.nan] * 3
+        )
+        # Rows: end-of-step current (the state), mean current, applied
+        # voltage, mean torque, saturated (1.0/0.0), back-EMF damping.
+        self.kernel_state = np.zeros((6, n))
+        self._current, self._mean, self._u, self._torque, self._sat, self._damping = (
+            self.kernel_state
+        )
         self._dt = math.nan
-        self._eps = np.zeros(n)
-        self._phi = np.zeros(n)
-        self._damping_unsat = np.zeros(n)
-        self._u = np.zeros(n)
-        self._i_inf = np.zeros(n)
-        self._tmp = np.zeros(n)
-        self._torque = np.zeros(n)
-        self._sat = np.zeros(n, dtype=bool)
-        self._unsat = np.ones(n, dtype=bool)
-        self._damping = np.zeros(n)
         self._ro_current = _read_only(self._current)
         self._ro_mean = _read_only(self._mean)
         self._ro_u = _read_only(self._u)
         self._ro_torque = _read_only(self._torque)
-        self._ro_sat = _read_only(self._sat)
         self._ro_damping = _read_only(self._damping)
 
     # -- state and outputs ---------------------------------------------------
@@ -235,17 +223,23 @@ class MotorBank:
     @property
     def saturated(self) -> NDArray[np.bool_]:
         """Drives whose mean current over the last step was held at ``±I_max``, shape (n,)."""
-        return self._ro_sat
+        return _read_only(self._sat > 0.0)
 
     # -- stepping --------------------------------------------------------------
+    def set_step(self, dt_s: float) -> None:
+        """Prepare the constants of a step length h [s] (cached; done by :meth:`step` too)."""
+        if dt_s != self._dt:
+            self._set_dt(dt_s)
+
     def _set_dt(self, dt_s: float) -> None:
         dt = positive("dt_s", dt_s, "s")
         x = dt / self._tau_e
         em1 = math.expm1(-x)  # e^{-x} - 1, accurate for small x
-        phi = -em1 / x
-        self._eps.fill(em1 + 1.0)
-        self._phi.fill(phi)
-        self._damping_unsat.fill(self._d_coef * (x + em1) / x)  # (x + em1)/x = 1 − φ
+        self.kernel_params[5:] = (
+            em1 + 1.0,  # e^{-x}
+            -em1 / x,  # φ
+            self._d_coef * (x + em1) / x,  # D unsaturated; (x + em1)/x = 1 − φ
+        )
         self._dt = dt
 
     def step(self, voltage_cmd_V: ArrayLike, omega_rad_s: ArrayLike, dt_s: float) -> NDArray:
@@ -276,25 +270,12 @@ class MotorBank:
         # repeated valid dt costs one float comparison.
         if dt_s != self._dt:
             self._set_dt(dt_s)
-        u = self._u
-        a = self._i_inf
-        x = self._x
-        np.minimum(voltage_cmd_V, self._u_hi, out=u)
-        np.maximum(u, self._u_lo, out=u)
-        np.multiply(omega_rad_s, self._kb_arr, out=a)
-        np.subtract(u, a, out=a)
-        np.multiply(a, self._inv_r, out=a)  # I∞ = (U − e)/R
-        # Row by row: a broadcast ufunc costs twice as much and allocates an iterator.
-        np.subtract(self._current, a, out=self._tmp)  # I0 − I∞
-        np.multiply(self._tmp, self._eps, out=self._current)
-        np.add(self._current, a, out=self._current)  # I(h)
-        np.multiply(self._tmp, self._phi, out=self._mean)
-        np.add(self._mean, a, out=self._mean)  # Ī
-        np.abs(self._mean, out=self._tmp)
-        np.greater(self._tmp, self._i_max, out=self._sat)
-        np.minimum(x, self._i_hi, out=x)
-        np.maximum(x, self._i_lo, out=x)
-        np.multiply(self._mean, self._kt_arr, out=self._torque)
+        n = self._n
+        if type(voltage_cmd_V) is not np.ndarray or voltage_cmd_V.shape != (n,):
+            voltage_cmd_V = np.broadcast_to(np.asarray(voltage_cmd_V, dtype=float), (n,))
+        if type(omega_rad_s) is not np.ndarray or omega_rad_s.shape != (n,):
+            omega_rad_s = np.broadcast_to(np.asarray(omega_rad_s, dtype=float), (n,))
+        motor_step(self.kernel_params, self.kernel_state, voltage_cmd_V, omega_rad_s)
         return self._ro_torque
 
     def damping_Nm_s_per_rad(self, dt_s: float) -> NDArray[np.float64]:
@@ -323,8 +304,7 @@ class MotorBank:
         """
         if dt_s != self._dt:
             self._set_dt(dt_s)
-        np.logical_not(self._sat, out=self._unsat)
-        np.multiply(self._unsat, self._damping_unsat, out=self._damping)
+        np.multiply(self._sat == 0.0, self.kernel_params[7], out=self._damping)
         return self._ro_damping
 
     def reset(self, current_A: ArrayLike = 0.0) -> None:
@@ -345,8 +325,9 @@ class MotorBank:
         self._current[:] = i
         self._mean[:] = i
         self._u.fill(0.0)
-        self._sat.fill(False)
-        np.multiply(self._mean, self._kt_arr, out=self._torque)
+        self._sat.fill(0.0)
+        self._damping.fill(0.0)  # set by the next step
+        np.multiply(self._mean, self._kt, out=self._torque)
 
     # -- steady state and feedforward -----------------------------------------
     def steady_state_current(self, voltage_V: ArrayLike, omega_rad_s: ArrayLike) -> NDArray:
@@ -400,3 +381,30 @@ class MotorBank:
         np.add(out, omega_rad_s, out=out)
         np.multiply(out, self._kb, out=out)
         return out
+
+
+@kernel
+def motor_step(
+    params: NDArray, state: NDArray, voltage_cmd_V: NDArray, omega_rad_s: NDArray
+) -> None:
+    """One exact step of every drive, in place (the module docstring's maths).
+
+    ``params`` = (U_max, i_G/k_E, 1/R, I_max, i_G k_m, e^{-h/τ_e}, φ, D),
+    :attr:`MotorBank.kernel_params`; ``state`` rows = (I(h), Ī, U, τ,
+    saturated, D_step), :attr:`MotorBank.kernel_state`.  D_step is the
+    back-EMF damping of this step's mean torque, zero where Ī is at the limit.
+    """
+    u_max, kb, inv_r, i_max, kt, eps, phi, d_unsat = params[:8]
+    for j in range(state.shape[1]):
+        u = min(max(voltage_cmd_V[j], -u_max), u_max)
+        i_inf = (u - kb * omega_rad_s[j]) * inv_r
+        d0 = state[0, j] - i_inf
+        mean = d0 * phi + i_inf
+        sat = abs(mean) > i_max
+        state[0, j] = min(max(d0 * eps + i_inf, -i_max), i_max)
+        mean = min(max(mean, -i_max), i_max)
+        state[1, j] = mean
+        state[2, j] = u
+        state[3, j] = mean * kt
+        state[4, j] = 1.0 if sat else 0.0
+        state[5, j] = 0.0 if sat else d_unsat

@@ -41,10 +41,11 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from .cuffs import CuffParams, CuffSet
+from ._jit import kernel
+from .cuffs import CuffParams, CuffSet, cuff_forces
 from .exceptions import InvalidModel, SimulationDiverged
 from .model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel
-from .motor import MotorBank, MotorParams
+from .motor import MotorBank, MotorParams, motor_step
 
 __all__ = ["Plant"]
 
@@ -96,7 +97,6 @@ class Plant:
         self.motor_params = motors
         self.motors = MotorBank(4, motors) if motors is not None else None
         rotor = motors.reflected_inertia_kgm2 if motors is not None else 0.0
-        self._arm_base = np.full(4, rotor)
         losses = 1.0 if joint_losses else 0.0
         self._b = losses * np.concatenate((exo.damping, patient.damping))
         self._fr = losses * np.concatenate((exo.friction, patient.friction))
@@ -106,25 +106,39 @@ class Plant:
         self.patient_offset_xz = (hip_e[0] - hip_p[0], hip_e[1] - hip_p[1])
         self.cuff_params = cuffs or CuffParams()
         self.cuffs = CuffSet(exo, patient, self.cuff_params, self.patient_offset_xz)
-        # State and work arrays (allocated once).
-        self.q = np.zeros(8)
-        self.v = np.zeros(8)
-        self.t = 0.0
-        self.drive_torque = np.zeros(4)
-        self.patient_torque = np.zeros(4)
-        self._tau = np.zeros(8)
-        self._tmp = np.zeros(8)
-        self._acc = np.zeros(8)  # acceleration of the last step [rad/s²]
-        self._q_mid = np.zeros(8)
-        self._v_mid = np.zeros(8)
-        self._arm_e = np.zeros(4)
+        # State and work arrays (allocated once), as rows of two buffers the
+        # step kernels fill in place.
+        self._s8 = np.zeros((6, 8))
+        self.q, self.v, self._acc, self._q_mid, self._v_mid, self._tau = self._s8
+        self._s4 = np.zeros((7, 4))
+        (
+            self.drive_torque,
+            #: Joint torque sensor reading at each drive output (gearbox to link) [N·m].
+            self.sensor_torque,
+            self.patient_torque,
+            self._arm_e,
+            self._damping_m,  # h D_m of the drives [kg·m²]
+            self._arm_base,
+            self._arm_const,
+        ) = self._s4
+        self._arm_base[:] = rotor
         # Exo armature = rotor inertia + h b (implicit joint damping, constant)
         # + h D_m (implicit back-EMF damping, per step).
-        self._arm_const = self._arm_base + self.dt * self._b[:4]
+        self._arm_const[:] = self._arm_base + self.dt * self._b[:4]
         self._mp.armature = self.dt * self._b[4:]
-        self._damping_m = np.zeros(4)  # h D_m of the drives [kg·m²]
-        #: Joint torque sensor reading at each drive output (gearbox to link) [N·m].
-        self.sensor_torque = np.zeros(4)
+        self._losses = np.stack((self._b, self._fr))
+        self._flags = np.array([self._has_friction, self.motors is not None, False], dtype=np.bool_)
+        self._no_motor = (np.zeros(8), np.zeros((6, 4)))
+        self.t = 0.0
+        # Contiguous views for the ABA calls, made once.
+        self._views = (
+            self._q_mid[:4],
+            self._v_mid[:4],
+            self._tau[:4],
+            self._q_mid[4:],
+            self._v_mid[4:],
+            self._tau[4:],
+        )
 
     # ------------------------------------------------------------------ state
 
@@ -183,53 +197,42 @@ class Plant:
 
         """
         h = self.dt
-        q, v, tau, acc = self.q, self.v, self._tau, self._acc
-        qm, vm = self._q_mid, self._v_mid
-        # Drift: q(t + h/2); velocity at mid-step extrapolated from the last acceleration.
-        np.multiply(v, 0.5 * h, out=self._tmp)
-        np.add(q, self._tmp, out=qm)
-        np.multiply(acc, 0.5 * h, out=self._tmp)
-        np.add(v, self._tmp, out=vm)
-        self.cuffs.compute(qm, vm)
-        np.copyto(tau, self.cuffs.joint_torque)
-        np.multiply(self._b, v, out=self._tmp)
-        np.subtract(tau, self._tmp, out=tau)
-        if self._has_friction:
-            np.divide(v, FRICTION_SMOOTHING_RAD_S, out=self._tmp)
-            np.tanh(self._tmp, out=self._tmp)
-            np.multiply(self._tmp, self._fr, out=self._tmp)
-            np.subtract(tau, self._tmp, out=tau)
-        if patient_torque_Nm is not None:
-            np.copyto(self.patient_torque, patient_torque_Nm)
-            np.add(tau[4:], self.patient_torque, out=tau[4:])
-        if self.motors is not None:
-            torque = self.motors.step(voltage_V, v[:4], h)
-            np.copyto(self.drive_torque, torque)
-            np.add(tau[:4], torque, out=tau[:4])
-            np.multiply(self.motors.damping_Nm_s_per_rad(h), h, out=self._damping_m)
-            np.add(self._damping_m, self._arm_const, out=self._arm_e)
+        flags = self._flags
+        if patient_torque_Nm is None:
+            flags[2] = False
+            patient_torque_Nm = self.patient_torque
         else:
-            np.copyto(self._arm_e, self._arm_const)
+            flags[2] = True
+        motors = self.motors
+        if motors is not None:
+            motors.set_step(h)
+            motor_params, motor_state = motors.kernel_params, motors.kernel_state
+        else:
+            motor_params, motor_state = self._no_motor
+        cuffs = self.cuffs
+        _drift_and_forces(
+            h,
+            self._s8,
+            self._s4,
+            self._losses,
+            flags,
+            voltage_V,
+            patient_torque_Nm,
+            cuffs.kernel_matrices,
+            cuffs.kernel_params,
+            cuffs.kernel_out,
+            motor_params,
+            motor_state,
+        )
         self._me.armature = self._arm_e
         # Kick: accelerations at mid-step, damping implicit through the armature.
-        acc[:4] = pin.aba(self._me, self._de, qm[:4], vm[:4], tau[:4])
-        acc[4:] = pin.aba(self._mp, self._dp, qm[4:], vm[4:], tau[4:])
-        if self.motors is not None:
-            # Torque the drive actually applied (implicit back-EMF term) and
-            # what the joint torque sensor between gearbox and link reads:
-            # the rotor's reflected inertia takes its share before the sensor.
-            np.multiply(self._damping_m, acc[:4], out=self._tmp[:4])
-            np.subtract(self.drive_torque, self._tmp[:4], out=self.drive_torque)
-            np.multiply(self._arm_base, acc[:4], out=self._tmp[:4])
-            np.subtract(self.drive_torque, self._tmp[:4], out=self.sensor_torque)
-        np.multiply(acc, h, out=self._tmp)
-        np.add(v, self._tmp, out=v)
-        # Drift: q(t + h) = q(t + h/2) + h/2 v(t + h).
-        np.multiply(v, 0.5 * h, out=self._tmp)
-        np.add(qm, self._tmp, out=q)
+        qe, ve, te, qp, vp, tp = self._views
+        acc_e = pin.aba(self._me, self._de, qe, ve, te)
+        acc_p = pin.aba(self._mp, self._dp, qp, vp, tp)
         self.t += h
-        speed2 = float(v @ v)
-        if not speed2 < MAX_JOINT_SPEED_RAD_S**2:
+        if not _kick_and_drift(h, self._s8, self._s4, acc_e, acc_p, flags[1]) < (
+            MAX_JOINT_SPEED_RAD_S**2
+        ):
             self._diverged()
 
     @property
@@ -268,3 +271,81 @@ class Plant:
         stretch = self.cuffs.stretch(self.q)
         energy += 0.5 * self.cuff_params.stiffness_N_per_m * float(stretch @ stretch)
         return energy
+
+
+@kernel
+def _drift_and_forces(
+    h: float,
+    s8: np.ndarray,
+    s4: np.ndarray,
+    losses: np.ndarray,
+    flags: np.ndarray,
+    voltage_V: np.ndarray,
+    patient_torque_Nm: np.ndarray,
+    cuff_matrices: np.ndarray,
+    cuff_params: np.ndarray,
+    cuff_out: np.ndarray,
+    motor_params: np.ndarray,
+    motor_state: np.ndarray,
+) -> None:
+    """First half of :meth:`Plant.step`: drift to mid-step and every force there.
+
+    q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
+    (+ patient torque) (+ drive torque of the exact motor step); the exo
+    armature i_G² J_rotor + h b + h D_m.  Rows of ``s8``: q, v, a, q½, v½, τ;
+    of ``s4``: drive torque, sensor torque, patient torque, exo armature,
+    h D_m, i_G² J_rotor, i_G² J_rotor + h b.  ``flags``: friction, motors,
+    patient torque given.
+    """
+    q, v, acc, qm, vm, tau = s8[0], s8[1], s8[2], s8[3], s8[4], s8[5]
+    half = 0.5 * h
+    for i in range(8):
+        qm[i] = q[i] + v[i] * half
+        vm[i] = v[i] + acc[i] * half
+    cuff_forces(cuff_matrices, cuff_params, qm, vm, cuff_out)
+    for i in range(8):
+        t = cuff_out[1, i] - losses[0, i] * v[i]
+        if flags[0]:
+            t -= np.tanh(v[i] / FRICTION_SMOOTHING_RAD_S) * losses[1, i]
+        tau[i] = t
+    if flags[2]:
+        for j in range(4):
+            s4[2, j] = patient_torque_Nm[j]
+            tau[4 + j] += s4[2, j]
+    if flags[1]:
+        motor_step(motor_params, motor_state, voltage_V, v[:4])
+        for j in range(4):
+            torque = motor_state[3, j]
+            s4[0, j] = torque
+            tau[j] += torque
+            s4[4, j] = motor_state[5, j] * h
+            s4[3, j] = s4[4, j] + s4[6, j]
+    else:
+        for j in range(4):
+            s4[3, j] = s4[6, j]
+
+
+@kernel
+def _kick_and_drift(
+    h: float, s8: np.ndarray, s4: np.ndarray, acc_e: np.ndarray, acc_p: np.ndarray, motors: bool
+) -> float:
+    """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺; returns |v⁺|².
+
+    With drives, the applied torque τ_m - h D_m a and the sensor torque
+    τ_m - h D_m a - i_G² J_rotor a (rows of ``s4`` as in :func:`_drift_and_forces`).
+    """
+    q, v, acc, qm = s8[0], s8[1], s8[2], s8[3]
+    for j in range(4):
+        acc[j] = acc_e[j]
+        acc[4 + j] = acc_p[j]
+    if motors:
+        for j in range(4):
+            s4[0, j] = s4[0, j] - s4[4, j] * acc[j]
+            s4[1, j] = s4[0, j] - s4[5, j] * acc[j]
+    half = 0.5 * h
+    speed2 = 0.0
+    for i in range(8):
+        v[i] = v[i] + acc[i] * h
+        q[i] = qm[i] + v[i] * half
+        speed2 += v[i] * v[i]
+    return speed2

@@ -65,6 +65,7 @@ import numpy as np
 import pinocchio as pin
 
 from . import _validate as v
+from ._jit import kernel
 from .control.base import SensorReadings
 from .exceptions import InvalidParameter
 from .model import CUFF_NAMES, JOINT_NAMES, BodyModel
@@ -175,8 +176,10 @@ class SafetyLimits:
 # Channels of the per-tick excess vector (value - limit; > 0 or NaN is a violation).
 # Groups of 4: cuff force, upper angle, lower angle, speed, current, torque
 # sensor, voltage command.
-_CHANNEL_SLICES = tuple(slice(4 * i, 4 * i + 4) for i in range(7))
 _N_CHANNELS = 28
+# The monitor kernel's buffer: the excess of the channels, then the last
+# normal tick's posture and command, then the channels' limits.
+_W_Q_LAST, _W_U_LAST, _W_LIMIT = 28, 32, 36
 
 
 class SafetySupervisor:
@@ -244,34 +247,27 @@ class SafetySupervisor:
         self._bodies = [(pin.Model(b.model), b) for b in (exo, patient) if b is not None]
         self._resolve_limits(limits, exo, patient, motor)
         self._estop = math.inf if self.estop_at_s is None else self.estop_at_s
-        self._excess = np.zeros(_N_CHANNELS)
-        self._views = tuple(self._excess[sl] for sl in _CHANNEL_SLICES)
-        self._pos = np.zeros(_N_CHANNELS)
-        self._zeros = np.zeros(_N_CHANNELS)
-        self._ones = np.ones(_N_CHANNELS)
-        big = np.full(4, np.finfo(float).max)
-        self._raw = np.zeros(_N_CHANNELS)
-        self._raw_views = tuple(self._raw[sl] for sl in _CHANNEL_SLICES[1:])
-        self._raw_cuff = self._raw[_CHANNEL_SLICES[0]]
-        self._raw_abs = self._raw[12:]  # speed, current and finiteness channels
-        self._sign = np.ones(_N_CHANNELS)
-        self._sign[_CHANNEL_SLICES[2]] = -1.0  # lower - q = (-q) - (-lower)
-        self._limit = np.concatenate(
+        # The monitor kernel's buffer: the excess of every channel over its
+        # limit, the last normal tick's posture and command, and the limit of
+        # every channel as the kernel subtracts it (lower - q = (-q) - (-lower)).
+        self._work = np.zeros(_W_LIMIT + _N_CHANNELS)
+        self._excess = self._work[:_N_CHANNELS]
+        self._q_last = self._work[_W_Q_LAST : _W_Q_LAST + 4]
+        self._u_last = self._work[_W_U_LAST : _W_U_LAST + 4]
+        self._q_last[:] = np.nan
+        big = np.finfo(float).max
+        self._limit = self._work[_W_LIMIT:]
+        self._limit[:] = np.concatenate(
             (
                 self._cuff_limit_sq,
                 self.q_upper,
                 -self.q_lower,
                 self.speed_limit,
                 self.current_limit,
-                big,
-                big,
+                np.full(4, big),
+                np.full(4, big),
             )
         )
-        self._f = np.zeros((4, 2))
-        self._sq = np.zeros((4, 2))
-        self._sq_x, self._sq_z = self._sq[:, 0], self._sq[:, 1]
-        self._q_last = np.full(4, np.nan)
-        self._u_last = np.zeros(4)
         self._u_start = np.zeros(4)
         self._u = np.zeros(4)
         self._e = np.zeros(4)
@@ -363,52 +359,25 @@ class SafetySupervisor:
 
         """
         del k
-        self._fill_excess(sensors, cuff_force, current_A, u_cmd)
-        # Sum of the positive excesses: 0 when all is well, > 0 or NaN if not
-        # (a dot product: a max() reduction allocates a buffer per call).
-        np.maximum(self._excess, self._zeros, out=self._pos)
-        worst = np.dot(self._pos, self._ones)
+        normal = self.state_code == 0 and t < self._estop
+        q, dq, tau = sensors.q, sensors.dq, sensors.tau
+        f, current, u = cuff_force, current_A, u_cmd
+        if not (
+            type(q) is type(dq) is type(tau) is type(f) is type(current) is type(u) is np.ndarray
+        ):
+            # Scalars or sequences: broadcast as numpy would (the kernel takes arrays).
+            q, dq, tau, current, u = (
+                np.broadcast_to(np.asarray(x, dtype=float), (4,)) for x in (q, dq, tau, current, u)
+            )
+            f = np.broadcast_to(np.asarray(f, dtype=float), (4, 2))
+        worst = _monitor_kernel(f, q, dq, tau, current, u, normal, self._work)
+        if normal and worst <= 0.0:
+            return u_cmd
         if self.state_code == 0:
-            if worst <= 0.0 and t < self._estop:
-                np.copyto(self._q_last, sensors.q)
-                np.copyto(self._u_last, u_cmd)
-                return u_cmd
             self._start_stop(t, sensors, u_cmd, worst)
         elif not worst <= 0.0:
             self._log_violations(t)
         return self._stop_command(t, sensors, clean=worst == worst)
-
-    def _fill_excess(
-        self,
-        sensors: SensorReadings,
-        cuff_force: np.ndarray,
-        current_A: np.ndarray,
-        u_cmd: np.ndarray,
-    ) -> None:
-        """Excess of every channel over its limit (> 0 or NaN: violated), in place.
-
-        Gather the readings, then sign × reading - limit for all 28
-        channels at once: the cuff channels hold |f|² - limit², the angle
-        channels q - upper and lower - q, the speed and current channels
-        |x| - limit, and the finiteness channels |x| - DBL_MAX (<= 0, or
-        +inf / NaN for an infinity / a NaN, with no floating-point warning).
-        """
-        raw = self._raw
-        # Copy first: the plant's (4, 2) force is a transposed view.
-        np.copyto(self._f, cuff_force)
-        np.multiply(self._f, self._f, out=self._sq)
-        np.add(self._sq_x, self._sq_z, out=self._raw_cuff)
-        # One copy per reading (np.concatenate would allocate per call).
-        up, low, speed, cur, tau, cmd = self._raw_views
-        np.copyto(up, sensors.q)
-        np.copyto(low, sensors.q)
-        np.copyto(speed, sensors.dq)
-        np.copyto(cur, current_A)
-        np.copyto(tau, sensors.tau)
-        np.copyto(cmd, u_cmd)
-        np.abs(self._raw_abs, out=self._raw_abs)
-        np.multiply(raw, self._sign, out=self._excess)
-        np.subtract(self._excess, self._limit, out=self._excess)
 
     # ------------------------------------------------------------------ stop
 
@@ -579,3 +548,36 @@ class SafetySupervisor:
         self.state = state
         self.state_code = STATES.index(state)
         self._event(t, "state", "state", state, None, f"safety state {old} -> {state}: {why}")
+
+
+@kernel
+def _monitor_kernel(cuff_force, q, dq, tau, current_A, u_cmd, normal, w):
+    """Excess of every channel over its limit into w[:28]; the sum of the positive ones.
+
+    Channels (groups of 4): cuff |f|² - limit², q - upper, lower - q, |q̇| -
+    limit, |i| - limit, and the finiteness channels |τ| - DBL_MAX, |U| -
+    DBL_MAX (<= 0, or +inf / NaN for an infinity / a NaN).  The sum is 0 when
+    all is well, > 0 or NaN if not.  When it is 0 and ``normal``, the posture
+    and command are kept in w (the last good tick's).  The limits are read
+    from w (lower angle limits negated).
+    """
+    for i in range(4):
+        fx = cuff_force[i, 0]
+        fz = cuff_force[i, 1]
+        w[i] = fx * fx + fz * fz - w[_W_LIMIT + i]
+        w[4 + i] = q[i] - w[_W_LIMIT + 4 + i]
+        w[8 + i] = -q[i] - w[_W_LIMIT + 8 + i]
+        w[12 + i] = abs(dq[i]) - w[_W_LIMIT + 12 + i]
+        w[16 + i] = abs(current_A[i]) - w[_W_LIMIT + 16 + i]
+        w[20 + i] = abs(tau[i]) - w[_W_LIMIT + 20 + i]
+        w[24 + i] = abs(u_cmd[i]) - w[_W_LIMIT + 24 + i]
+    worst = 0.0
+    for c in range(28):
+        e = w[c]
+        if not e <= 0.0:
+            worst += e  # a NaN stays NaN
+    if normal and worst <= 0.0:
+        for i in range(4):
+            w[_W_Q_LAST + i] = q[i]
+            w[_W_U_LAST + i] = u_cmd[i]
+    return worst

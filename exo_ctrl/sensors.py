@@ -74,6 +74,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _validate as v
+from ._jit import kernel
 from .control.base import SensorReadings
 from .exceptions import InvalidParameter
 
@@ -174,7 +175,8 @@ class Sensors:
     :class:`~exo_ctrl.control.base.SensorReadings` object every time (copy its
     arrays to keep them).  Noise is drawn in blocks of :data:`NOISE_BLOCK`
     samples; the sequence depends only on ``seed`` and the number of samples
-    taken, so a run is reproducible.
+    taken, so a run is reproducible.  A read is one call of the compiled
+    kernel :func:`_read_kernel`.
 
     Args:
         params: sensor parameters.
@@ -187,30 +189,37 @@ class Sensors:
         self.dt = v.positive("dt", dt, "s")
         p = self.params
         self._period = 0.0 if p.sample_rate_hz is None else 1.0 / p.sample_rate_hz
-        self._rng = np.random.default_rng(p.seed)
-        self._noise_q = np.zeros((NOISE_BLOCK, 4))
-        self._noise_tau = np.zeros((NOISE_BLOCK, 4))
-        self._n_block = NOISE_BLOCK  # index in the block; NOISE_BLOCK: draw a new block
         self._noisy_q = p.encoder_noise_std_rad > 0
         self._noisy_tau = p.torque_noise_std_Nm > 0
         self._bias = p.bias
         self._has_bias = bool(np.any(self._bias != 0))
         self._true_speed = p.velocity == "true"
-        self._q_prev = np.zeros(4)
-        self._tmp = np.zeros(4)
-        self._next_sample_t = -math.inf
-        self._last_sample_t = 0.0
-        self._started = False
-        self.readings = SensorReadings(q=np.zeros(4), dq=np.zeros(4), tau=np.zeros(4))
-        #: Number of samples taken since construction or :meth:`reset`.
-        self.samples = 0
+        # Noise blocks: [0] encoder, [1] torque sensor, each (NOISE_BLOCK, 4).
+        self._noise = np.zeros((2, NOISE_BLOCK, 4))
+        # The kernel's readings, parameters and state in one buffer (layout:
+        # the _W_* indices); the readings' arrays are views of it.
+        w = self._work = np.zeros(_W_SIZE)
+        w[_W_BIAS : _W_BIAS + 4] = self._bias
+        w[_W_DT] = self.dt
+        w[_W_PERIOD] = self._period
+        w[_W_RES_Q] = p.encoder_resolution_rad
+        w[_W_FILTER_HZ] = p.velocity_filter_hz
+        w[_W_RES_TAU] = p.torque_resolution_Nm
+        w[_W_NOISY_Q] = self._noisy_q
+        w[_W_NOISY_TAU] = self._noisy_tau
+        w[_W_HAS_BIAS] = self._has_bias
+        w[_W_TRUE_SPEED] = self._true_speed
+        out = w[_W_Q : _W_Q + 12].reshape(3, 4)
+        self.readings = SensorReadings(q=out[0], dq=out[1], tau=out[2])
+        self.reset()
 
     def reset(self) -> None:
         """Restart: reseed the noise and forget the held sample and speed filter."""
         self._rng = np.random.default_rng(self.params.seed)
-        self._n_block = NOISE_BLOCK
-        self._next_sample_t = -math.inf
-        self._started = False
+        self._work[_W_STARTED] = 0.0
+        self._work[_W_NEXT_T] = -math.inf
+        self._draw()
+        #: Number of samples taken since construction or :meth:`reset`.
         self.samples = 0
 
     def read(
@@ -228,68 +237,102 @@ class Sensors:
             The readings (the same object every call, overwritten by the next).
 
         """
-        t = k * self.dt
-        if self._started and t < self._next_sample_t - 1e-9 * self.dt:
-            return self.readings  # hold the last sample
-        self._sample(t, q_true, dq_true, tau_true)
+        if not (type(q_true) is type(dq_true) is type(tau_true) is np.ndarray):
+            # Scalars or sequences: broadcast as numpy would (the kernel takes arrays).
+            q_true, dq_true, tau_true = (_vector(x) for x in (q_true, dq_true, tau_true))
+        taken = _read_kernel(k, q_true, dq_true, tau_true, self._noise, self._work)
+        if taken:
+            self.samples += 1
+            if taken == 2:  # the block is used up: draw the next for the next sample
+                self._draw()
         return self.readings
 
     # ------------------------------------------------------------------ internals
 
-    def _draw(self) -> int:
-        if self._n_block == NOISE_BLOCK:
-            p = self.params
-            if self._noisy_q:
-                self._rng.standard_normal(out=self._noise_q)
-                np.multiply(self._noise_q, p.encoder_noise_std_rad, out=self._noise_q)
-            if self._noisy_tau:
-                self._rng.standard_normal(out=self._noise_tau)
-                np.multiply(self._noise_tau, p.torque_noise_std_Nm, out=self._noise_tau)
-            self._n_block = 0
-        i = self._n_block
-        self._n_block += 1
-        return i
-
-    def _sample(self, t: float, q_true, dq_true, tau_true) -> None:
+    def _draw(self) -> None:
+        """Draw a block of noise (encoder first, then torque: the stream's order)."""
         p = self.params
-        r = self.readings
-        i = self._draw()
-        # Encoder.
-        np.copyto(self._q_prev, r.q)
         if self._noisy_q:
-            np.add(q_true, self._noise_q[i], out=r.q)
-        else:
-            np.copyto(r.q, q_true)
-        _quantise(r.q, p.encoder_resolution_rad)
-        # Speed.
-        if self._true_speed or not self._started:
-            np.copyto(r.dq, dq_true)
-        else:
-            period = t - self._last_sample_t
-            alpha = 1.0 - math.exp(-2.0 * math.pi * p.velocity_filter_hz * period)
-            np.subtract(r.q, self._q_prev, out=self._tmp)
-            np.divide(self._tmp, period, out=self._tmp)
-            np.subtract(self._tmp, r.dq, out=self._tmp)
-            np.multiply(self._tmp, alpha, out=self._tmp)
-            np.add(r.dq, self._tmp, out=r.dq)
-        # Torque sensor.
-        np.copyto(r.tau, tau_true)
-        if self._has_bias:
-            np.add(r.tau, self._bias, out=r.tau)
+            self._rng.standard_normal(out=self._noise[0])
+            np.multiply(self._noise[0], p.encoder_noise_std_rad, out=self._noise[0])
         if self._noisy_tau:
-            np.add(r.tau, self._noise_tau[i], out=r.tau)
-        _quantise(r.tau, p.torque_resolution_Nm)
-        self._last_sample_t = t
-        # Samples on the grid t_0 + n T_s set by the first sample.
-        nxt = self._next_sample_t + self._period if self._started else t + self._period
-        self._next_sample_t = nxt if nxt > t else t + self._period
-        self._started = True
-        self.samples += 1
+            self._rng.standard_normal(out=self._noise[1])
+            np.multiply(self._noise[1], p.torque_noise_std_Nm, out=self._noise[1])
+        self._work[_W_ROW] = 0.0
 
 
-def _quantise(x: np.ndarray, step: float) -> None:
-    """Quantise in place: x ← step · round(x / step) (nothing when step is 0)."""
-    if step > 0:
-        np.divide(x, step, out=x)
-        np.round(x, out=x)
-        np.multiply(x, step, out=x)
+def _vector(x) -> np.ndarray:
+    """A reading as a float64 array of 4 (a scalar is broadcast)."""
+    return np.broadcast_to(np.asarray(x, dtype=float), (4,))
+
+
+# Layout of the read kernel's buffer: the readings q, dq, tau and the bias β
+# (4 each); parameters Δt, T_s (0: every tick), Δq, f_v, Δτ and the flags
+# noisy q, noisy τ, biased, true speed (0/1); state: started (0/1), time of
+# the last sample [s], time of the next sample [s], row of the noise block
+# for the next sample.
+_W_Q, _W_DQ, _W_TAU, _W_BIAS = 0, 4, 8, 12
+_W_DT, _W_PERIOD, _W_RES_Q, _W_FILTER_HZ, _W_RES_TAU = 16, 17, 18, 19, 20
+_W_NOISY_Q, _W_NOISY_TAU, _W_HAS_BIAS, _W_TRUE_SPEED = 21, 22, 23, 24
+_W_STARTED, _W_LAST_T, _W_NEXT_T, _W_ROW = 25, 26, 27, 28
+_W_SIZE = 29
+
+
+@kernel
+def _quantise(x: float, step: float) -> float:
+    """Quantise a value: step · round(x / step), half to even (x itself when step is 0)."""
+    if step > 0.0:
+        return np.rint(x / step) * step
+    return x
+
+
+@kernel
+def _read_kernel(k, q_true, dq_true, tau_true, noise, w):
+    """One read at tick k: hold, or take a sample into w's readings (module docstring).
+
+    Returns 0 when the last sample is held, 1 when a sample was taken, 2 when
+    it used the last row of the noise block (the caller draws the next block).
+    """
+    dt = w[_W_DT]
+    t = k * dt
+    started = w[_W_STARTED] != 0.0
+    if started and t < w[_W_NEXT_T] - 1e-9 * dt:
+        return 0  # hold the last sample
+    i = int(w[_W_ROW])
+    res_q = w[_W_RES_Q]
+    res_tau = w[_W_RES_TAU]
+    noisy_q = w[_W_NOISY_Q] != 0.0
+    noisy_tau = w[_W_NOISY_TAU] != 0.0
+    has_bias = w[_W_HAS_BIAS] != 0.0
+    differentiate = w[_W_TRUE_SPEED] == 0.0 and started
+    period = alpha = 0.0
+    if differentiate:
+        period = t - w[_W_LAST_T]
+        alpha = 1.0 - math.exp(-2.0 * math.pi * w[_W_FILTER_HZ] * period)
+    for j in range(4):
+        # Encoder: q_m = Δq round((q + n_q) / Δq).
+        q_prev = w[_W_Q + j]
+        q = q_true[j] + noise[0, i, j] if noisy_q else q_true[j]
+        q = _quantise(q, res_q)
+        w[_W_Q + j] = q
+        # Speed: v += α ((q_m - q_m,prev) / T_s - v), or the true speed.
+        if differentiate:
+            dq = w[_W_DQ + j]
+            w[_W_DQ + j] = dq + ((q - q_prev) / period - dq) * alpha
+        else:
+            w[_W_DQ + j] = dq_true[j]
+        # Torque sensor: τ_m = Δτ round((τ + β + n_τ) / Δτ).
+        tau = tau_true[j]
+        if has_bias:
+            tau = tau + w[_W_BIAS + j]
+        if noisy_tau:
+            tau = tau + noise[1, i, j]
+        w[_W_TAU + j] = _quantise(tau, res_tau)
+    # Samples on the grid t_0 + n T_s set by the first sample.
+    period_s = w[_W_PERIOD]
+    nxt = w[_W_NEXT_T] + period_s if started else t + period_s
+    w[_W_NEXT_T] = nxt if nxt > t else t + period_s
+    w[_W_LAST_T] = t
+    w[_W_STARTED] = 1.0
+    w[_W_ROW] = i + 1
+    return 2 if i + 1 == noise.shape[1] else 1

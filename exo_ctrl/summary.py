@@ -74,7 +74,8 @@ class RunStats:
         ``peak_cuff_force_N`` (magnitude of the sagittal force, keyed by cuff),
         ``safety_state`` (the supervisor's final state) and ``safety_events``
         (violations and e-stops: t, quantity, value, limit, message),
-        ``wall_time_s``, ``real_time_factor`` (simulated / wall time); with
+        ``wall_time_s``, ``real_time_factor`` (simulated / wall time of the
+        ticks the wall clock covers, :attr:`SimResult.wall_time_s`); with
         live estimation ``cuff_force_estimate_rms_error_N`` and
         ``cuff_force_estimate_rms_error_rel`` (keyed by cuff: RMS error of
         the estimated normal component, and that over its peak true value).
@@ -102,7 +103,7 @@ class RunStats:
             "safety_state": result.safety_state,
             "safety_events": [e for e in result.events if e.get("kind") in ("violation", "estop")],
             "wall_time_s": wall,
-            "real_time_factor": duration / wall if wall > 0 else 0.0,
+            "real_time_factor": (result.timed_ticks * result.config.dt / wall if wall > 0 else 0.0),
         }
         if self.estimate is not None:
             out.update(self.estimate.summary())

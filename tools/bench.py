@@ -43,7 +43,8 @@ def floor_calls(runner: Runner) -> list:
     """The library calls one tick makes (Pinocchio, proxsuite), as zero-argument callables.
 
     Plant: ABA of both bodies.  Estimator: CRBA, Coriolis matrix and gravity
-    of the exoskeleton.  CT: RNEA of both bodies.  QP: the cuff model's CRBA
+    of the exoskeleton.  CT: none (its feedforward is tabulated along the
+    plan when the controller is built).  QP: the cuff model's CRBA
     and non-linear effects of both bodies, the patient's joint Jacobians and
     four frame Jacobians, and the proxsuite solve (a warm re-solve of the
     tick's problem).  Each is called with the present state.
@@ -65,11 +66,6 @@ def floor_calls(runner: Runner) -> list:
         lambda: pin.computeGeneralizedGravity(em, ed, qe),
     ]
     ctrl = setup.controller
-    ff = getattr(ctrl, "_ff", None)
-    if ff is not None:
-        calls.append(lambda: pin.rnea(ff._me, ff._de, qe, ve, tau[:4]))
-        if ff._mp is not None:
-            calls.append(lambda: pin.rnea(ff._mp, ff._dp, qe, ve, tau[:4]))
     model = getattr(ctrl, "cuff_model", None)
     if model is not None:
         cm = model

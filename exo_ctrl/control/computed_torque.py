@@ -13,7 +13,9 @@ that moves the patient is the patient's own inverse dynamics.  Patient joint
 torques are unknown to the controller and taken as zero.  τ_ff becomes a
 voltage through the steady-state motor model, U_ff = R τ_ff / (i_G k_m) +
 i_G q̇* / k_E (the back-EMF at the planned speed is the larger part), and is
-added to the PD voltage.
+added to the PD voltage.  As U_ff depends on the plan only, it is tabulated
+for every plan row (one gait period for a periodic plan) when the controller
+is built; a tick looks its row up.
 """
 
 from __future__ import annotations
@@ -53,21 +55,22 @@ class ComputedTorqueController(PDController):
         gains: PDGains | None = None,
     ) -> None:
         super().__init__(plan, gains)
-        self._ff = _Feedforward(exo, patient, motor)
+        # The feedforward depends on the plan only: tabulated once per plan row
+        # (one gait period for a periodic plan), looked up per tick.
         self._motor = MotorBank(4, motor)
-        self._u_ff = np.zeros(4)
-        #: Feedforward torque of the last tick [N·m].
-        self.torque_ff = np.zeros(4)
+        self._torque_ff = feedforward_torque(plan, exo, patient, motor)
+        self._u_ff = self._motor.voltage_for(self._torque_ff, plan.dq)
+        self._last = 0
+
+    @property
+    def torque_ff(self) -> np.ndarray:
+        """Feedforward torque of the last tick [N·m], (4,)."""
+        return self._torque_ff[self._last]
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """PD + feedforward voltages [V] for tick k."""
-        plan = self.plan
-        i = k % self._period if self._period else k
-        self._ff.torque(plan.q[i], plan.dq[i], plan.ddq[i], out=self.torque_ff)
-        self._motor.voltage_for(self.torque_ff, plan.dq[i], out=self._u_ff)
-        u = self._pd(k, sensors)
-        np.add(u, self._u_ff, out=u)
-        return u
+        self._last = i = self._row(k)
+        return self._pd(k, sensors, self._u_ff[i])
 
 
 class _Feedforward:

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._jit import kernel
 from ..kinematics import JointTrajectory
 from .base import PDGains, SensorReadings
 
-__all__ = ["PDController"]
+__all__ = ["PDController", "pd_volts"]
 
 
 class PDController:
@@ -26,21 +27,38 @@ class PDController:
         self.plan = plan
         self._period = plan.period_ticks
         self.gains = gains or PDGains()
-        self._kp = np.array(self.gains.kp)
-        self._kd = np.array(self.gains.kd)
+        self._gains = np.array([self.gains.kp, self.gains.kd])
         self._u = np.zeros(4)
-        self._e = np.zeros(4)
+        self._no_ff = np.zeros(4)
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """PD voltages [V] for tick k."""
-        return self._pd(k, sensors)
+        return self._pd(k, sensors, self._no_ff)
 
-    def _pd(self, k: int, sensors: SensorReadings) -> np.ndarray:
-        u, e = self._u, self._e
-        i = k % self._period if self._period else k
-        np.subtract(self.plan.q[i], sensors.q, out=e)
-        np.multiply(self._kp, e, out=u)
-        np.subtract(self.plan.dq[i], sensors.dq, out=e)
-        np.multiply(self._kd, e, out=e)
-        np.add(u, e, out=u)
-        return u
+    def _row(self, k: int) -> int:
+        """The plan row of tick k."""
+        return k % self._period if self._period else k
+
+    def _pd(self, k: int, sensors: SensorReadings, u_ff: np.ndarray) -> np.ndarray:
+        """PD voltages plus ``u_ff`` [V] for tick k."""
+        plan = self.plan
+        pd_volts(self._u, self._gains, plan.q, plan.dq, self._row(k), sensors.q, sensors.dq, u_ff)
+        return self._u
+
+
+@kernel
+def pd_volts(
+    out: np.ndarray,
+    gains: np.ndarray,
+    q_des: np.ndarray,
+    dq_des: np.ndarray,
+    row: int,
+    q: np.ndarray,
+    dq: np.ndarray,
+    u_ff: np.ndarray,
+) -> None:
+    """out = k_p (q*[row] - q) + k_d (q̇*[row] - q̇) + u_ff [V]; ``gains`` rows k_p, k_d."""
+    for j in range(4):
+        out[j] = (
+            gains[0, j] * (q_des[row, j] - q[j]) + gains[1, j] * (dq_des[row, j] - dq[j])
+        ) + u_ff[j]
