@@ -128,17 +128,21 @@ class Plant:
         self._mp.armature = self.dt * self._b[4:]
         self._losses = np.stack((self._b, self._fr))
         self._flags = np.array([self._has_friction, self.motors is not None, False], dtype=np.bool_)
-        self._no_motor = (np.zeros(8), np.zeros((6, 4)))
         self.t = 0.0
-        # Contiguous views for the ABA calls, made once.
-        self._views = (
-            self._q_mid[:4],
-            self._v_mid[:4],
-            self._tau[:4],
-            self._q_mid[4:],
-            self._v_mid[4:],
-            self._tau[4:],
-        )
+        self._arm_e[:] = self._arm_const  # what the exo model's armature holds
+        self._me.armature = self._arm_e
+        # The arguments of every step's calls, gathered once (views stay valid:
+        # the buffers are never reallocated).
+        if self.motors is not None:
+            self.motors.set_step(self.dt)
+            motor_args = (self.motors.kernel_params, self.motors.kernel_state)
+        else:
+            motor_args = (np.zeros(8), np.zeros((6, 4)))
+        c = self.cuffs
+        self._pre_args = (self.dt, self._s8, self._s4, self._losses, self._flags)
+        self._pre_more = (c.kernel_matrices, c.kernel_params, c.kernel_out, *motor_args)
+        self._aba_e = (self._me, self._de, self._q_mid[:4], self._v_mid[:4], self._tau[:4])
+        self._aba_p = (self._mp, self._dp, self._q_mid[4:], self._v_mid[4:], self._tau[4:])
 
     # ------------------------------------------------------------------ state
 
@@ -196,41 +200,19 @@ class Plant:
                 :data:`MAX_JOINT_SPEED_RAD_S`.
 
         """
-        h = self.dt
         flags = self._flags
         if patient_torque_Nm is None:
             flags[2] = False
             patient_torque_Nm = self.patient_torque
         else:
             flags[2] = True
-        motors = self.motors
-        if motors is not None:
-            motors.set_step(h)
-            motor_params, motor_state = motors.kernel_params, motors.kernel_state
-        else:
-            motor_params, motor_state = self._no_motor
-        cuffs = self.cuffs
-        _drift_and_forces(
-            h,
-            self._s8,
-            self._s4,
-            self._losses,
-            flags,
-            voltage_V,
-            patient_torque_Nm,
-            cuffs.kernel_matrices,
-            cuffs.kernel_params,
-            cuffs.kernel_out,
-            motor_params,
-            motor_state,
-        )
-        self._me.armature = self._arm_e
+        if _drift_and_forces(*self._pre_args, voltage_V, patient_torque_Nm, *self._pre_more):
+            self._me.armature = self._arm_e
         # Kick: accelerations at mid-step, damping implicit through the armature.
-        qe, ve, te, qp, vp, tp = self._views
-        acc_e = pin.aba(self._me, self._de, qe, ve, te)
-        acc_p = pin.aba(self._mp, self._dp, qp, vp, tp)
-        self.t += h
-        if not _kick_and_drift(h, self._s8, self._s4, acc_e, acc_p, flags[1]) < (
+        acc_e = pin.aba(*self._aba_e)
+        acc_p = pin.aba(*self._aba_p)
+        self.t += self.dt
+        if not _kick_and_drift(self.dt, self._s8, self._s4, acc_e, acc_p, flags[1]) < (
             MAX_JOINT_SPEED_RAD_S**2
         ):
             self._diverged()
@@ -287,7 +269,7 @@ def _drift_and_forces(
     cuff_out: np.ndarray,
     motor_params: np.ndarray,
     motor_state: np.ndarray,
-) -> None:
+) -> bool:
     """First half of :meth:`Plant.step`: drift to mid-step and every force there.
 
     q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
@@ -295,7 +277,8 @@ def _drift_and_forces(
     armature i_G² J_rotor + h b + h D_m.  Rows of ``s8``: q, v, a, q½, v½, τ;
     of ``s4``: drive torque, sensor torque, patient torque, exo armature,
     h D_m, i_G² J_rotor, i_G² J_rotor + h b.  ``flags``: friction, motors,
-    patient torque given.
+    patient torque given.  Returns whether the exo armature changed (D_m
+    changes only when a drive's current enters or leaves its limit).
     """
     q, v, acc, qm, vm, tau = s8[0], s8[1], s8[2], s8[3], s8[4], s8[5]
     half = 0.5 * h
@@ -312,6 +295,7 @@ def _drift_and_forces(
         for j in range(4):
             s4[2, j] = patient_torque_Nm[j]
             tau[4 + j] += s4[2, j]
+    changed = False
     if flags[1]:
         motor_step(motor_params, motor_state, voltage_V, v[:4])
         for j in range(4):
@@ -319,10 +303,10 @@ def _drift_and_forces(
             s4[0, j] = torque
             tau[j] += torque
             s4[4, j] = motor_state[5, j] * h
-            s4[3, j] = s4[4, j] + s4[6, j]
-    else:
-        for j in range(4):
-            s4[3, j] = s4[6, j]
+            arm = s4[4, j] + s4[6, j]
+            changed = changed or arm != s4[3, j]
+            s4[3, j] = arm
+    return changed
 
 
 @kernel

@@ -412,6 +412,15 @@ class Runner:
         self.patient_model = make_patient_torque(config.patient_torque)
         self._tau_p = np.zeros(4)
         self._q_p, self._v_p = plant.q[4:], plant.v[4:]
+        self._q_e, self._v_e = plant.q[:4], plant.v[:4]
+        self._state = (plant.q, plant.v)
+        self._applied = (
+            plant.motors.applied_voltage_V,
+            plant.motors.mean_current_A,
+            plant.drive_torque,
+            plant.patient_torque,
+            plant.cuffs.force_flat,
+        )
         self.supervisor: SafetySupervisor | None = None
         if config.safety or config.estop_at_s is not None:
             limits = config.safety_limits if config.safety else _NO_LIMITS
@@ -430,8 +439,8 @@ class Runner:
         """Run control tick ``k``, logging into buffer row ``row``."""
         plant = self.setup.plant
         wide = self.wide[row]
-        np.concatenate((plant.q, plant.v), out=wide[:16])
-        sensors = self.sensor_model.read(k, plant.q[:4], plant.v[:4], plant.sensor_torque)
+        np.concatenate(self._state, out=wide[:16])
+        sensors = self.sensor_model.read(k, self._q_e, self._v_e, plant.sensor_torque)
         self.estimator.update(sensors)
         np.concatenate(self._measured, out=wide[53:81])
         controller = self.setup.controller
@@ -443,24 +452,14 @@ class Runner:
         sup = self.supervisor
         if sup is not None:
             force = sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
-            u = sup.step(k, k * self._dt, sensors, force, plant.motors.mean_current_A, u)
+            u = sup.step(k, k * self._dt, sensors, force, self._applied[1], u)
             wide[52] = sup.state_code
         tau_p = None
         for _ in range(self._substeps):
             if self.patient_model is not None:
                 tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
             plant.step(u, tau_p)
-        motors = plant.motors
-        np.concatenate(
-            (
-                motors.applied_voltage_V,
-                motors.mean_current_A,
-                plant.drive_torque,
-                plant.patient_torque,
-                plant.cuffs.force_flat,
-            ),
-            out=wide[20:44],
-        )
+        np.concatenate(self._applied, out=wide[20:44])
 
     def fill_plan(self, start: int, rows: int) -> None:
         """Copy the planned rows ``start:start+rows`` into the buffer."""
