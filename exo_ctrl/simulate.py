@@ -286,7 +286,14 @@ def build(config: SimConfig) -> Setup:
         controller = ComputedTorqueController(plan, exo, patient, motor, config.gains)
     elif config.controller == "qp":
         controller = QPController(
-            plan, exo, patient, motor, config.gains, cuff_force_limit_N=config.cuff_force_limit_N
+            plan,
+            exo,
+            patient,
+            motor,
+            config.gains,
+            cuff_force_limit_N=config.cuff_force_limit_N,
+            cuffs=config.cuffs,
+            dt=config.dt,
         )
     else:
         controller = PDController(plan, config.gains)

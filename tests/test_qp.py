@@ -29,20 +29,27 @@ import pytest
 from scipy.optimize import LinearConstraint, linprog, minimize, nnls
 
 from exo_ctrl.control import ComputedTorqueController, SensorReadings
+from exo_ctrl.control.cuff_prediction import (
+    DEFAULT_HORIZON_TICKS,
+    CuffHorizonModel,
+    CuffStateObserver,
+)
 from exo_ctrl.control.qp import (
     NO_BOUND,
     POLYGON_SIDES,
     SLACK_WEIGHT,
+    CuffForceModel,
     QPController,
     TorqueQP,
     polygon_rows,
 )
+from exo_ctrl.cuffs import CuffParams
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.gait import GaitParams, GaitPlan
 from exo_ctrl.kinematics import plan_joints
 from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel, default_urdf_path, load_body
 from exo_ctrl.motor import MotorParams
-from exo_ctrl.simulate import SimConfig, SimResult, drive_for, simulate
+from exo_ctrl.simulate import Runner, SimConfig, SimResult, build, drive_for, simulate
 
 #: ρ, the brief's slack weight [(N·m)²/N²].
 RHO = 1e4
@@ -51,12 +58,16 @@ RMS_TOLERANCE = 0.05
 #: A bound below CT's peak on the default run (≈ 106 N with the default sensors) [N].
 F_TIGHT = 80.0
 #: Stated margin of the real (elastic) cuff force over F_TIGHT on the passive run:
-#: measured 108.9 N (+36.1 %, right shank), asserted at 40 %.  CT's own peak
-#: (106.0 N) is inside this margin, see the xfail test below.
-TIGHT_MARGIN = 0.40
-#: The spastic scenario's bound [N] and the margin the issue's requirement is
-#: written with: 10 %, the elastic overshoot the 120 N default was sized for
-#: (SimConfig.cuff_force_limit_N).
+#: measured 90.3 N (+12.9 %, left shank; CT 106.0 N), asserted at 15 %.  The
+#: error budget of the compliant prediction (the horizon model's ≤ 4.6 N given
+#: the true cuff state, below, plus the cuff state reconstructed from a force
+#: estimate lagging 10 ms, ~4.5 % of the peak) is absolute, so at 80 N it is
+#: a larger fraction than at 150 N.
+TIGHT_MARGIN = 0.15
+#: The spastic scenario's bound [N] and its stated margin, 10 %: ≤ 4.6 N (3 %)
+#: horizon-model error plus ~7 % from reconstructing the compliant cuffs'
+#: state from the lagging force estimate (qp.py docstring).  Measured 158.7 N
+#: (+5.8 %; CT 180.8 N).
 F_SPASTIC = 150.0
 SPASTIC_MARGIN = 0.10
 #: URDF effort of every joint [N·m].
@@ -248,24 +259,26 @@ class SoftProblem:
     radius: float
 
     def edge_excess(self, tau: np.ndarray) -> np.ndarray:
-        """max_k |n_kᵀ f_c| − r per cuff, f = A τ + b [N]."""
-        f = (self.A @ tau + self.b).reshape(4, 2)
-        return np.abs(f @ octagon().T).max(axis=1) - self.radius
+        """max over horizon points and k of |n_kᵀ f_c| − r per cuff, f = A τ + b [N]."""
+        f = (self.A @ tau + self.b).reshape(-1, 4, 2)
+        return np.abs(f @ octagon().T).max(axis=(0, 2)) - self.radius
 
 
 def soft_problem(ctrl: QPController, b: np.ndarray | None = None) -> SoftProblem:
     """The soft QP of the last tick, from the cuff model's A and b (or a given b)."""
     A = ctrl.cuff_model.A.copy()
     b = ctrl.cuff_model.b.copy() if b is None else np.asarray(b, dtype=float)
-    n_rows = np.kron(np.eye(4), octagon())  # 16×8: row 4c + k holds n_k at cuff c's columns
-    e = np.kron(np.eye(4), np.ones((4, 1)))  # 16×4: row 4c + k → slack c
+    points = A.shape[0] // 8
+    # Row 16p + 4c + k holds n_k at cuff c's columns of horizon point p.
+    n_rows = np.kron(np.eye(4 * points), octagon())
+    e = np.kron(np.ones((points, 1)), np.kron(np.eye(4), np.ones((4, 1))))  # → slack c
     radius = ctrl.cuff_force_limit_N * math.cos(math.pi / 8)
     na = n_rows @ A
     return SoftProblem(
         w=np.concatenate((np.ones(4), np.full(4, RHO))),
         t=np.concatenate((ctrl.torque_cmd, np.zeros(4))),
         C=np.vstack((np.hstack((na, -e)), np.hstack((-na, -e)))),
-        lower=np.full(32, -np.inf),
+        lower=np.full(2 * n_rows.shape[0], -np.inf),
         upper=np.concatenate((radius - n_rows @ b, radius + n_rows @ b)),
         lo=np.concatenate((ctrl.torque_lo, np.zeros(4))),
         hi=np.concatenate((ctrl.torque_hi, np.full(4, np.inf))),
@@ -300,7 +313,9 @@ def test_controller_builds_the_soft_cuff_rows(exo, patient, motor, plan) -> None
     ctrl.command(300, on_plan(plan, 300))
     problem = soft_problem(ctrl)
     qp = ctrl.qp
-    assert qp.n == 8 and qp.n_in == 32
+    points = len(ctrl.cuff_model.horizon_ticks)
+    assert points == len(DEFAULT_HORIZON_TICKS)
+    assert qp.n == 8 and qp.n_in == 32 * points
     np.testing.assert_allclose(qp.C, problem.C, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(qp.upper, problem.upper, rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(qp.lower, -NO_BOUND)  # one-sided rows
@@ -332,7 +347,7 @@ def test_a_tight_limit_the_torques_can_meet_puts_the_force_on_the_polygon(
     """F_max = 60 N on the plan (CT's predicted peak 93.8 N): every solved tick is the optimum.
 
     A fresh (cold) controller per tick.  Some of these cold solves fail
-    (solver tolerance, see the xfail test below); they are counted, checked
+    (solver tolerance); they are counted, checked
     to be solver fallbacks, and printed.
     """
     binding = fallbacks = 0
@@ -368,13 +383,13 @@ def test_a_tight_limit_the_torques_can_meet_puts_the_force_on_the_polygon(
         np.testing.assert_allclose(
             problem.edge_excess(ctrl.torque)[on_edge], ctrl.slack[on_edge], atol=1e-6
         )
-        f = np.linalg.norm(ctrl.cuff_force_pred, axis=1)
+        f = np.linalg.norm(ctrl.cuff_force_pred, axis=2).max(axis=0)
         assert np.all(f <= (problem.radius + ctrl.slack) / math.cos(math.pi / 8) + 1e-6)
     print(
         f"\nF_max = 60 N on the plan: {binding} binding ticks of 48, largest slack "
         f"{slack_max:.4f} N; {fallbacks} cold solves fell back"
     )
-    assert binding >= 10
+    assert binding >= 5  # measured 8 (the horizon model at fitted cuffs, on the plan)
 
 
 def weak_exo(exo: BodyModel, effort: float) -> BodyModel:
@@ -449,71 +464,144 @@ def test_controller_qps_are_soft_optima_near_the_plan(exo, patient, motor, plan)
     assert binding > 20
 
 
-# --------------------------------------------------------------------------- force feedback
+# --------------------------------------------------------------------------- horizon prediction
+
+#: Stated error bound of the horizon prediction against the plant with the
+#: voltage held, given the true cuff state [N]: measured ≤ 4.6 N (3 % of the
+#: 150 N bound) on the spastic run's states; asserted at 6 N.
+PREDICTION_TOL_N = 6.0
 
 
-def test_force_feedback_adds_last_ticks_prediction_error_to_the_offset(
+def test_horizon_prediction_matches_the_plant_with_the_command_held(exo, patient, motor) -> None:
+    """f(t_i) = A τ + b against the elastic plant stepped with U(τ) held for 40 ms.
+
+    States from a CT run with the spastic patient (cuff forces up to ~155 N);
+    the predictor gets the true deflection δ = q_e − q_p and δ̇ (its own
+    estimate of them is the observer's job, tested below) and d = 0 (the
+    held run applies no patient torque).
+    """
+    setup = build(SimConfig(controller="ct", safety=False, patient_torque="spastic"))
+    runner = Runner(setup)
+    plant, drive = setup.plant, setup.plant.motor_params
+    model = CuffHorizonModel(exo, patient, drive)
+    rng = np.random.default_rng(0)
+    worst, peak = 0.0, 0.0
+    for k in range(600):
+        runner.tick(k, k % runner.chunk)
+        if k % 50 != 49:
+            continue
+        q, v, acc = plant.q.copy(), plant.v.copy(), plant.acceleration.copy()
+        tau = rng.uniform(-60.0, 60.0, 4)
+        model.update(q[:4], v[:4], q[:4] - q[4:], v[:4] - v[4:], np.zeros(4))
+        pred = model.forces(tau)
+        u = drive.resistance_ohm / drive.torque_per_amp_Nm_per_A * tau + (
+            drive.back_emf_V_per_rad_s * v[:4]
+        )
+        current = plant.motors.current_A.copy()
+        plant.reset(
+            q[:4],
+            v[:4],
+            q[4:],
+            v[4:],
+            current_A=tau / drive.torque_per_amp_Nm_per_A,
+            fit_cuffs=False,
+        )
+        plant.acceleration[:] = acc
+        true = []
+        for n in range(1, model.horizon_ticks[-1] + 1):
+            plant.step(u, None)
+            if n in model.horizon_ticks:
+                true.append(plant.cuffs.compute(plant.q, plant.v).copy())
+        # Back to the run's state (the cuffs stay fitted where they were).
+        plant.reset(q[:4], v[:4], q[4:], v[4:], current_A=current, fit_cuffs=False)
+        plant.acceleration[:] = acc
+        worst = max(worst, float(np.abs(pred - np.array(true)).max()))
+        peak = max(peak, float(np.abs(np.array(true)).max()))
+    print(f"\nhorizon prediction: worst error {worst:.2f} N on forces up to {peak:.1f} N")
+    assert peak > 100.0  # the states do load the cuffs
+    assert worst <= PREDICTION_TOL_N
+
+
+def test_horizon_prediction_is_affine_and_per_leg(exo, patient, motor, plan) -> None:
+    """A is ∂f/∂τ (finite differences of b over τ are exact) and legs do not couple."""
+    model = CuffHorizonModel(exo, patient, motor)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        k = int(rng.integers(0, 1200))
+        model.update(
+            plan.q[k],
+            plan.dq[k],
+            rng.normal(0, 2e-3, 4),
+            rng.normal(0, 0.05, 4),
+            rng.normal(0, 5, 4),
+        )
+        tau = rng.uniform(-80.0, 80.0, 4)
+        f0 = model.forces(np.zeros(4)).reshape(-1)
+        for j in range(4):
+            step = np.zeros(4)
+            step[j] = 10.0
+            np.testing.assert_allclose(
+                (model.forces(step).reshape(-1) - f0) / 10.0, model.A[:, j], atol=1e-9
+            )
+        np.testing.assert_allclose(model.forces(tau).reshape(-1), model.A @ tau + model.b)
+        a = model.A.reshape(-1, 4, 2, 4)  # (point, cuff, xz, joint)
+        np.testing.assert_array_equal(a[:, :2, :, 2:], 0.0)
+        np.testing.assert_array_equal(a[:, 2:, :, :2], 0.0)
+
+
+def test_observer_recovers_deflection_and_rate_from_the_cuff_law(exo, patient, motor, plan):
+    """f = −J (K δ + C δ̇): a force history from a known δ(t) gives δ̂ → δ, δ̂̇ → δ̇."""
+    model = CuffHorizonModel(exo, patient, motor)
+    cuffs = CuffParams()
+    obs = CuffStateObserver(cuffs.stiffness_N_per_m, cuffs.damping_N_s_per_m, 1e-3, 0.0)
+    q = plan.q[300]
+    model.linearise(q, np.zeros(4))
+    jac = model.jac
+    for n in range(400):
+        t = n * 1e-3
+        delta = 2e-3 * np.array([np.sin(8 * t), np.cos(5 * t), np.sin(3 * t), 1.0])
+        rate = 2e-3 * np.array([8 * np.cos(8 * t), -5 * np.sin(5 * t), 3 * np.cos(3 * t), 0.0])
+        s = cuffs.stiffness_N_per_m * delta + cuffs.damping_N_s_per_m * rate
+        force = np.concatenate([-jac[leg] @ s[2 * leg : 2 * leg + 2] for leg in (0, 1)])
+        obs.update(model, force.reshape(4, 2), np.zeros(4))
+    # Exact up to the zero-order hold of s: δ̂ lags by about h/2, so
+    # |δ̂ − δ| ≤ (h/2) max|δ̇| = 0.5e-3 · 2e-3 · 8 = 8e-6 rad and
+    # |δ̂̇ − δ̇| ≤ (K/C) · 8e-6 = 6.4e-4 rad/s.
+    np.testing.assert_allclose(obs.delta, delta, atol=1e-5, rtol=0)
+    np.testing.assert_allclose(obs.ddelta, rate, atol=8e-4, rtol=0)
+    np.testing.assert_array_equal(obs.disturbance, 0.0)  # bandwidth 0
+
+
+def test_without_a_force_estimate_the_prediction_starts_from_fitted_cuffs(
     exo, patient, motor, plan
 ) -> None:
-    """d = f̂ − (A τ_prev + b_prev) is added to b; the first tick has no prediction yet."""
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=80.0)
-    rng = np.random.default_rng(13)
-    prev = None  # (A, b, τ) of the previous tick, copied here
-    binding = 0
-    for k in (300, 301, 302, 303):
-        f_hat = rng.normal(0.0, 40.0, (4, 2))
-        ctrl.command(k, on_plan(plan, k, f_hat))
+    for feedback, est in (
+        (False, np.full((4, 2), 30.0)),
+        (True, None),
+        (True, np.array([[np.nan, 0.0]] + [[0.0, 0.0]] * 3)),
+    ):
+        ctrl = QPController(
+            plan, exo, patient, motor, cuff_force_limit_N=80.0, force_feedback=feedback
+        )
+        ctrl.command(300, on_plan(plan, 300, est))
         assert ctrl.last_status == "solved" and ctrl.failures == 0
-        b = ctrl.cuff_model.b.copy()
-        if prev is not None:
-            a_prev, b_prev, tau_prev = prev
-            b = b + f_hat.reshape(8) - (a_prev @ tau_prev + b_prev)
-        problem = soft_problem(ctrl, b)
-        np.testing.assert_allclose(ctrl.qp.upper, problem.upper, rtol=1e-12, atol=1e-9)
-        np.testing.assert_allclose(ctrl.qp.C, problem.C, rtol=1e-12, atol=1e-12)
-        assert_is_the_soft_optimum(ctrl, problem)
-        binding += ctrl.slack.max() > 1e-6
-        prev = (ctrl.cuff_model.A.copy(), ctrl.cuff_model.b.copy(), ctrl.torque.copy())
-    assert binding >= 1  # the disturbance did move the bound into play
+        ref = CuffHorizonModel(exo, patient, motor)
+        ref.update(plan.q[300], plan.dq[300], np.zeros(4), np.zeros(4), np.zeros(4))
+        np.testing.assert_allclose(ctrl.cuff_model.b, ref.b, rtol=1e-12, atol=1e-9)
+        assert_is_the_soft_optimum(ctrl, soft_problem(ctrl))
 
 
-@pytest.mark.parametrize("case", ["disabled", "no estimate", "non-finite estimate"])
-def test_force_feedback_leaves_the_model_alone_when_off_absent_or_non_finite(
-    exo, patient, motor, plan, case
-) -> None:
-    ctrl = QPController(
-        plan, exo, patient, motor, cuff_force_limit_N=80.0, force_feedback=case != "disabled"
-    )
-    f_hat = {"disabled": np.full((4, 2), 30.0), "no estimate": None}.get(
-        case, np.array([[np.nan, 0.0]] + [[0.0, 0.0]] * 3)
-    )
-    for k in (300, 301, 302):
-        u = ctrl.command(k, on_plan(plan, k, f_hat))
-        assert ctrl.last_status == "solved" and ctrl.failures == 0
-        assert np.all(np.isfinite(u))
-        problem = soft_problem(ctrl)  # the model's own b
-        np.testing.assert_allclose(ctrl.qp.upper, problem.upper, rtol=1e-12, atol=1e-9)
-        assert_is_the_soft_optimum(ctrl, problem)
-
-
-def test_force_feedback_after_a_fallback_uses_the_torque_the_fallback_applied(
-    exo, patient, motor, plan
-) -> None:
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=80.0)
-    f_hat = np.full((4, 2), 10.0)
-    ctrl.command(300, on_plan(plan, 300, f_hat))
-    assert ctrl.last_status == "solved"
-    # Tick 301 at 20 rad/s on the left hip: an empty torque box, a counted fallback
-    # that still applies a known torque (joint 0 zero, the others τ_cmd clipped).
-    fast = on_plan(plan, 301, f_hat)
-    fast.dq[0] = 20.0
-    ctrl.command(301, fast)
-    assert ctrl.failures == 1 and "empty torque box" in ctrl.last_status
-    a_prev, b_prev, tau_prev = ctrl.cuff_model.A.copy(), ctrl.cuff_model.b.copy(), ctrl.torque
-    tau_prev = tau_prev.copy()
-    ctrl.command(302, on_plan(plan, 302, f_hat))
-    b = ctrl.cuff_model.b + f_hat.reshape(8) - (a_prev @ tau_prev + b_prev)
-    np.testing.assert_allclose(ctrl.qp.upper, soft_problem(ctrl, b).upper, rtol=1e-9, atol=1e-9)
+def test_bad_horizon_and_observer_parameters_are_refused(exo, patient, motor) -> None:
+    with pytest.raises(InvalidParameter, match="horizon_ticks must be strictly increasing"):
+        CuffHorizonModel(exo, patient, motor, horizon_ticks=(10, 5))
+    with pytest.raises(InvalidParameter, match="horizon_ticks"):
+        CuffHorizonModel(exo, patient, motor, horizon_ticks=(0, 5))
+    with pytest.raises(InvalidParameter, match="dt"):
+        CuffHorizonModel(exo, patient, motor, dt=0.0)
+    with pytest.raises(InvalidParameter, match="disturbance_bandwidth"):
+        CuffStateObserver(8000.0, 100.0, 1e-3, -1.0)
+    with pytest.raises(InvalidParameter, match="cuff damping"):
+        CuffStateObserver(8000.0, 0.0)
 
 
 # --------------------------------------------------------------------------- CT equivalence
@@ -556,8 +644,7 @@ def _losses(body: BodyModel, dq: np.ndarray) -> np.ndarray:
 def test_cuff_force_prediction_is_the_min_norm_solution_of_the_rigid_coupling(
     exo, patient, motor, plan
 ) -> None:
-    ctrl = QPController(plan, exo, patient, motor)
-    model = ctrl.cuff_model
+    model = CuffForceModel(exo, patient, motor)
     rng = np.random.default_rng(2)
     for _ in range(20):
         q = rng.uniform(-0.4, 1.5, 4)
@@ -589,8 +676,7 @@ def test_cuff_force_prediction_is_the_min_norm_solution_of_the_rigid_coupling(
 
 def test_cuff_force_is_the_compliant_quasi_static_split(exo, patient, motor, plan) -> None:
     """f = K J δq with δq = −(K JᵀJ)⁻¹ τ_int (per leg), for any equal stiffness K."""
-    ctrl = QPController(plan, exo, patient, motor)
-    model = ctrl.cuff_model
+    model = CuffForceModel(exo, patient, motor)
     q, dq = plan.q[300], plan.dq[300]
     model.update(q, dq)
     tau = np.array([30.0, -10.0, 5.0, 20.0])
@@ -680,21 +766,12 @@ def test_no_torque_beyond_its_limits_on_random_inputs(exo, patient, plan, capped
             if ctrl.last_status != "solved":
                 assert ctrl.last_status.startswith("fallback: τ_cmd clipped to the torque box")
                 continue
-            f = ctrl.cuff_force_pred @ octagon().T  # (cuff, edge direction)
-            assert np.all(np.abs(f).max(axis=1) <= radius + ctrl.slack + 1e-6)
+            f = ctrl.cuff_force_pred @ octagon().T  # (point, cuff, edge direction)
+            assert np.all(np.abs(f).max(axis=(0, 2)) <= radius + ctrl.slack + 1e-6)
         fallbacks += ctrl.failures
     print(f"\nrandom saturated inputs ({'drive_for' if capped else '175 N·m'}): ", end="")
     print(f"{fallbacks} fallbacks of 450 ticks")
     assert at_limit > 50  # the box was binding in many of them
-
-
-SOLVER_TOLERANCE_BUG = (
-    "library: proxsuite's absolute tolerances (eps_abs = 1e-9, eps_duality_gap_abs = 1e-8) "
-    "are out of reach for the 8-variable problem's scale (ρ = 1e4 multiplies any slack "
-    "error into the dual residual; the cost reaches ~1e7 when τ_cmd is thousands of N·m), "
-    "so solves that have found the optimum stop at max_iter and the tick falls back "
-    "(cuff bound dropped).  "
-)
 
 
 @pytest.mark.parametrize(
@@ -712,15 +789,6 @@ SOLVER_TOLERANCE_BUG = (
             None,
             None,
             60.0,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason=SOLVER_TOLERANCE_BUG
-                + "Cuff bound, on the plan at tick 300, F_max = 60 N: dual residual 3.1e-9 "
-                "> 1e-9 at max_iter, and ticks 301-303 (each re-initialised cold) fail the "
-                "same way; 11 of 192 cold ticks on the plan (every 25th, at 40, 50, 60 and "
-                "70 N) fail.  The 80 N closed loop's 19 fallbacks are the same (dual residual "
-                "1e-9 to 8e-8); eps_abs = 1e-7 removes them",
-            ),
             id="cuff bound on the plan",
         ),
     ],
@@ -823,7 +891,7 @@ def test_runs_with_the_human_patient(exo, human, motor, plan) -> None:
         assert ctrl.last_status == "solved", ctrl.last_status
         assert np.all(np.isfinite(u))
         f = ctrl.cuff_force_pred @ octagon().T
-        assert np.all(np.abs(f).max(axis=1) <= radius + ctrl.slack + 1e-6)
+        assert np.all(np.abs(f).max(axis=(0, 2)) <= radius + ctrl.slack + 1e-6)
         assert np.all(ctrl.slack < 0.2)
 
 
@@ -905,28 +973,10 @@ def test_closed_loop_tight_bound_stays_within_the_stated_margin(ct_passive, qp_t
     assert qp_tight.signals["qp_failures"][-1] == qp_tight.qp_failures
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "library: with force feedback (default sensors) an 80 N bound does not lower the "
-        "real peak: measured 108.9 N (right shank) against CT's 106.0 N, RMS error "
-        "12 mrad against CT's ~1 mrad, 19 fallbacks.  Without feedback (force_feedback="
-        "False) the same run peaks at 74.1 N; with ideal sensors and feedback it goes "
-        "unstable (peaks ~250 N, 54–59 fallbacks)"
-    ),
-)
 def test_closed_loop_tight_bound_lowers_the_peak_below_cts(ct_passive, qp_tight) -> None:
     assert peak_force(qp_tight).max() < peak_force(ct_passive).max() - 10.0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "library: the 80 N passive run falls back 19 times, every one a solver failure "
-        "(max_iter_reached: dual residual 1e-9 to 8e-8 against the absolute eps_abs = 1e-9, "
-        "unreachable with ρ = 1e4 in the cost); with eps_abs = 1e-7 there are none"
-    ),
-)
 def test_closed_loop_tight_bound_needs_no_fallback(qp_tight) -> None:
     assert qp_tight.qp_failures == 0
 
@@ -961,15 +1011,5 @@ def test_closed_loop_spastic_patient_qp_completes_and_counts_its_fallbacks(qp_sp
     assert np.all(np.diff(qp_spastic.signals["qp_failures"]) >= 0)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "issue requirement not met: with the spastic patient and F_max = 150 N the measured "
-        "peak cuff force is 194.5 N (right shank; left 192.7 N), +29.6 % over the bound and "
-        "above CT's own 180.8 N, with 6 fallbacks and 25 mrad RMS knee error: the one-tick "
-        "rigid-cuff prediction, even with force feedback, cannot bound the elastic cuffs' "
-        "force against the patient's resistance"
-    ),
-)
 def test_closed_loop_spastic_patient_qp_keeps_the_bound_within_the_margin(qp_spastic) -> None:
     assert peak_force(qp_spastic).max() <= F_SPASTIC * (1.0 + SPASTIC_MARGIN)

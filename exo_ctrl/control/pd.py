@@ -57,7 +57,7 @@ def pd_volts(
     dq: np.ndarray,
     u_ff: np.ndarray,
 ) -> None:
-    """out = k_p (q*[row] - q) + k_d (q̇*[row] - q̇) + u_ff [V]; ``gains`` rows k_p, k_d."""
+    """Write k_p (q*[row] - q) + k_d (q̇*[row] - q̇) + u_ff [V] to ``out`` (gains: k_p; k_d)."""
     for j in range(4):
         out[j] = (
             gains[0, j] * (q_des[row, j] - q[j]) + gains[1, j] * (dq_des[row, j] - dq[j])

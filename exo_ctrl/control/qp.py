@@ -27,96 +27,48 @@ box is the intersection of the three; if it is empty for some joint (a speed
 above ``(U_max + R I_max) k_E / i_G`` ≈ 12.9 rad/s with the defaults) no
 command meets the limits and the tick falls back (below).
 
-**Cuff forces, affine in τ** (design.md §5).  Over one tick the cuffs are
-taken as rigid and the patient's joints follow the exoskeleton's (hip and
-knee axes aligned, as the device is fitted): q_p = q, q̇_p = q̇, q̈_p = q̈ = a.
-The two bodies' equations, with ``f`` the cuff forces ON THE EXOSKELETON
-(the patient receives ``-f``) and h the Coriolis, centrifugal, gravity,
-viscous-damping and smoothed dry-friction terms of each model at the
-measured (q, q̇):
+**Cuff forces, affine in τ, over a horizon** (design.md §5).  The cuffs
+are springs with the patient's leg on them (modes 5–12 Hz): a one-tick
+rigid-cuff prediction (:class:`CuffForceModel`, kept for reference and
+tests) cannot bound their force — measured with it: spastic patient, 150 N
+bound, real peak 194 N; passive, 80 N, 109 N.  The controller instead
+predicts the elastic cuffs' forces at P horizon points (default 5, 10, 20,
+30, 40 ms) with the drive voltage for τ held
+(:class:`~exo_ctrl.control.cuff_prediction.CuffHorizonModel`: the coupled
+exo–patient–cuff system linearised at the measured state, back-EMF damping
+included, solved exactly by a matrix exponential), ``f(t_i) = A_i τ + b_i``,
+and bounds every point.  Its initial state — the patient's lag δ behind the
+exoskeleton, δ̇, and the patient's own torque d — comes from the live cuff
+force estimate (``sensors.cuff_force_est``) through
+:class:`~exo_ctrl.control.cuff_prediction.CuffStateObserver` (``C δ̇ = s − K δ``
+is the cuff law itself; d from the patient's equation of motion, filtered at
+30 1/s).  Without an estimate (or ``force_feedback=False``) the cuffs are
+taken as fitted (δ = δ̇ = d = 0).
 
-.. math::
-
-    (M_e + i_G^2 J_{rotor}) a + h_e = τ + J_e^T f, \qquad
-    M_p a + h_p = τ_p - J_p^T f.
-
-With the cuff points of the two bodies coincident (fitted straps,
-``J_e = J_p``) the cuff terms cancel in the sum, which gives the coupled
-rigid dynamics and the interaction torque the exoskeleton puts into the
-patient through the cuffs:
-
-.. math::
-
-    M a = τ + τ_p - h_e - h_p, \quad M = M_e + i_G^2 J_{rotor} + M_p, \qquad
-    τ_{int} = -J_p^T f = M_p a + h_p - τ_p = P τ + τ_{int,0},
-
-with ``P = M_p M^{-1}`` and ``τ_int,0 = h_p - P (h_e + h_p)``; the patient
-torque τ_p is unknown to the controller and taken as zero.
-
-Per leg, two joint torques meet two 2-D cuff forces (four unknowns): the
-rigid model is statically indeterminate.  The forces are resolved by the
-cuffs' compliance: each cuff is an isotropic spring of stiffness K (the
-same for all cuffs, :class:`~exo_ctrl.cuffs.CuffParams`), and in the
-quasi-static state the patient's joints lag the exoskeleton's by a small
-δq.  The cuff stretch (exo minus patient) is then ``Δp = -J_p δq`` and the
-force on the exoskeleton ``f = -K Δp = K J_p δq``; the patient's
-generalised cuff force must equal τ_int:
-
-.. math::
-
-    -J_p^T f = -K J_p^T J_p δq = τ_{int}
-    \;\Rightarrow\; δq = -(K J_p^T J_p)^{-1} τ_{int}, \qquad
-    f = -J_p (J_p^T J_p)^{-1} τ_{int} = -G τ_{int},
-
-K cancels: the minimum-norm solution of ``-J_pᵀ f = τ_int``.  Hence
-``f = A τ + b`` with ``A = -G P`` and ``b = -G τ_int,0`` (8×4 and 8, rows
-``(f_x, f_z)`` of cuff c at ``2c, 2c+1``), recomputed each tick from the
-controller's own copies of the models (Pinocchio ``crba``,
-``nonLinearEffects`` and the patient's frame Jacobians at the cuff frames),
-never from the plant.  Assumptions: rigid coupling over the tick,
-coincident and aligned joint axes and cuff points, equal isotropic cuff
-stiffness, quasi-static straps (the cuff damping and the strap's own
-oscillation are not modelled), τ_p = 0.
-
-**Cuff-force bound.**  ``|f_c| ≤ F_max`` is replaced by a regular octagon
-inscribed in the circle: ``|n_kᵀ f_c| ≤ F_max cos(π/8)`` for the four
-directions ``n_k = (cos kπ/4, sin kπ/4)``, each as two one-sided rows (32
-rows; the absent lower bounds are ``-NO_BOUND``).  The vertices lie on the
-circle, so the octagon holding implies ``|f_c| ≤ F_max``; it is at most
-``1 - cos(π/8)`` ≈ 7.6 % conservative.  The bound is SOFT: the slack s_c ≥ 0
-widens cuff c's octagon at the cost ρ s_c² (ρ = :data:`SLACK_WEIGHT` = 1e4,
-so 1 N over the bound costs as much as 100 N·m away from the command).  A
-bound the drive limits cannot meet is thus exceeded as little as the cost
-allows instead of making the QP infeasible; because the penalty is
-quadratic, a binding row always leaves a small slack λ/ρ (under 0.2 N in
-the tests).
-
-**Force feedback** (offset-free prediction, on by default).  The rigid
-model knows neither the patient's own torques nor the cuffs' elastic lag.
-Each tick the model's offset b gets d = f̂ - f_pred added: the estimated
-cuff force of this tick (``sensors.cuff_force_est``, from the momentum
-observer, which shares the equal-stiffness assumption) less the model's
-prediction for the torque applied last tick.
+**Cuff-force bound.**  ``|f_c(t_i)| ≤ F_max`` is replaced by a regular
+octagon inscribed in the circle: ``|n_kᵀ f_c| ≤ F_max cos(π/8)`` for
+``n_k = (cos kπ/4, sin kπ/4)``, each as two one-sided rows (32 P rows; the
+absent lower bounds are ``-NO_BOUND``); the vertices lie on the circle, so
+it is at most 7.6 % conservative.  The bound is SOFT: one slack s_c ≥ 0 per
+cuff, shared by the horizon points, costs ρ s_c² (ρ = :data:`SLACK_WEIGHT`
+= 1e4, 1 N over the bound costs as much as 100 N·m off the command).
 
 **What the bound achieves — measured** (default 2.4 s run, default sensors,
-tests/test_qp.py).  The bound is on the PREDICTED force.  The real cuffs
-are springs (8 N/mm) which, with the patient's leg on them, form modes of
-5–12 Hz, slow against a 1 ms tick, so a one-tick prediction cannot bound
-the real force tightly:
+safety off, tests/test_qp.py):
 
-- passive patient, F_max = 120 N (the default): no bound binds in effect;
-  the QP tracks as CT does (RMS 0.62/0.99 mrad hip/knee against CT's
-  0.69/0.99), peak cuff force 104 N;
-- passive patient, F_max = 80 N: real peak 108.9 N (CT: 106 N), RMS 12 mrad;
-  without feedback the real peak is 74 N but the prediction, on noisy
-  speeds, is so conservative that tracking degrades to 100–200 mrad;
-- spastic patient, F_max = 150 N: real peak 194 N (CT: 181 N).
+- spastic patient, F_max = 150 N: real peak 158.7 N (+5.8 %; CT: 180.8 N),
+  RMS error 2.1/17.7 mrad hip/knee, no fallback;
+- passive patient, F_max = 80 N: real peak 90.3 N (+12.9 %; CT: 106.0 N),
+  RMS 9.2/2.4 mrad, no fallback;
+- passive patient, 120 N (default): the bound does not bind; RMS
+  0.62/0.99 mrad against CT's 0.69/0.99.
 
-So the cuff bound does NOT reliably limit the real elastic cuff force; it
-limits the rigid model's prediction.  A real limit needs a prediction over
-the cuff's own dynamics (a horizon of tens of milliseconds, MPC-style),
-which this controller does not have.  The drive limits, by contrast, are
-always met (they are the box).
+Margin, stated in the tests: 10 % at 150 N from the error budget of the
+compliant prediction — the horizon model's own error given the true cuff
+state (≤ 4.6 N ≈ 3 %, test) plus the error of the cuff state reconstructed
+from the force estimate, which lags by the observer's 10 ms (4.5 % RMS of
+the peak, :mod:`exo_ctrl.estimation`), about 7 % at the peak.  At 80 N the
+same absolute errors are a larger fraction: 15 % is asserted there.
 
 **Fallback** (the tick is counted in :attr:`QPController.failures`):
 
@@ -129,13 +81,11 @@ always met (they are the box).
 3. a non-finite reading or command, or an unexpected error: zero volts (the
    windings short through the driver and the back-EMF brakes the joints).
 
-**Cost.**  Each tick: CT+PD, the box (5 array operations), the cuff model
-(two CRBA, two nonLinearEffects, the patient's joint Jacobians and four frame
-Jacobians, then 2×2 algebra per leg in scalars), the QP.  Measured on the
-default run on a shared 2-core machine (scratch script, not the tests):
-``command`` median ≈ 210 µs, p99 ≈ 320 µs, of which the QP with its checks
-≈ 90 µs median; the library floor (Pinocchio calls ≈ 32 µs, proxsuite
-update + solve ≈ 39 µs in the loop) is ≈ 72 µs, a ratio of ≈ 3.
+**Cost.**  Each tick: CT+PD, the box, the linearisation (two CRBA, two
+nonLinearEffects, the patient's joint Jacobians and four frame Jacobians),
+the observer and the horizon prediction (two compiled kernels: a 9×9 matrix
+exponential and its powers per leg), the octagon rows (two matrix
+products) and the QP (8 variables, 32 P rows).  Timings: tools/bench.py.
 
 :meth:`QPController.command` never raises and never returns NaN.
 """
@@ -150,12 +100,14 @@ import pinocchio as pin
 import proxsuite
 
 from .. import _validate as v
+from ..cuffs import CuffParams
 from ..exceptions import InvalidModel, InvalidParameter
 from ..kinematics import JointTrajectory
 from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..motor import MotorParams
 from .base import PDGains, SensorReadings
 from .computed_torque import ComputedTorqueController
+from .cuff_prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel, CuffStateObserver
 
 __all__ = ["POLYGON_SIDES", "CuffForceModel", "QPController", "TorqueQP", "polygon_rows"]
 
@@ -169,6 +121,10 @@ FEASIBILITY_TOL = 1e-6
 SLACK_WEIGHT = 1e4
 #: Stand-in for an absent bound (the QP refuses non-finite data) [N or N·m].
 NO_BOUND = 1e9
+#: proxsuite's absolute accuracy in the controller's QP [N·m or N]: 1e-9 was out
+#: of reach at this problem's scale (ρ = 1e4 multiplies slack errors into the dual
+#: residual) and made solves that had found the optimum stop at max_iter.
+CONTROLLER_EPS_ABS = 1e-7
 #: A row or box bound within this of its limit counts as active [N·m or N].
 ACTIVE_TOL = 1e-6
 
@@ -538,18 +494,16 @@ class QPController(ComputedTorqueController):
         cuff_force_limit_N: F_max, bound on each cuff's force magnitude [N].
         torque_weights: diagonal of W, one per joint, > 0 [-].
         max_iter: proxsuite's iteration limit per solve.
-        force_feedback: correct the model's prediction with the estimated cuff
-            forces (``sensors.cuff_force_est``), see below.
-
-    Force feedback (offset-free prediction): the rigid-cuff model knows
-    neither the patient's own joint torques nor the cuffs' elastic lag, so
-    each tick the QP adds to the model's offset the disturbance
-    d = f̂ - f_pred, the estimated force of this tick less the model's
-    prediction for the torque applied last tick (the estimator and the model
-    share the equal-stiffness assumption, so both live in the same space).
-    With the spastic patient this is what keeps the real force near the
-    bound; without it the prediction misses the patient's resistance
-    entirely.  The estimate lags by about one observer time constant.
+        force_feedback: start the horizon prediction from the cuff state
+            reconstructed from the estimated cuff forces
+            (``sensors.cuff_force_est``); off, or without an estimate, the
+            cuffs are taken as fitted (δ = δ̇ = d = 0).
+        cuffs: the cuffs' K and C the controller believes in (default
+            :class:`~exo_ctrl.cuffs.CuffParams`).
+        dt: control period [s].
+        horizon_ticks: horizon points of the prediction, in ticks.
+        disturbance_bandwidth_per_s: bandwidth of the patient-torque estimate
+            [1/s] (0: none).
 
     Attributes:
         failures: ticks that used the fallback (module docstring).
@@ -583,6 +537,10 @@ class QPController(ComputedTorqueController):
         torque_weights: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0),
         max_iter: int = 100,
         force_feedback: bool = True,
+        cuffs: CuffParams | None = None,
+        dt: float = 1e-3,
+        horizon_ticks: tuple[int, ...] = DEFAULT_HORIZON_TICKS,
+        disturbance_bandwidth_per_s: float = 30.0,
     ) -> None:
         if patient is None:
             raise InvalidParameter("patient", None, "a patient model (the cuff model needs one)")
@@ -594,14 +552,24 @@ class QPController(ComputedTorqueController):
         if np.isnan(effort).any() or (effort <= 0).any():
             raise InvalidModel(exo.source, "", f"effort limits must be > 0 N·m; got {effort}")
         super().__init__(plan, exo, patient, motor, gains)
-        self.cuff_model = CuffForceModel(exo, patient, motor)
-        self._polygon = polygon_rows(4)
+        _check_legs(exo)
+        _check_legs(patient)
+        cuffs = cuffs or CuffParams()
+        self.cuff_model = CuffHorizonModel(exo, patient, motor, cuffs, dt, horizon_ticks)
+        self.observer = CuffStateObserver(
+            cuffs.stiffness_N_per_m, cuffs.damping_N_s_per_m, dt, disturbance_bandwidth_per_s
+        )
+        n_points = len(self.cuff_model.horizon_ticks)
+        self._polygon = np.kron(np.eye(n_points), polygon_rows(4))
         n_poly = self._polygon.shape[0]
-        # Variables x = (τ, s): the four torques and one slack per cuff, the
-        # cuff bound softened to |n_kᵀ f_c| ≤ r + s_c with s_c ≥ 0 and the
-        # cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r.
+        # Variables x = (τ, s): the four torques and one slack per cuff, shared by
+        # the horizon points, the bound softened to |n_kᵀ f_c(t_i)| ≤ r + s_c with
+        # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r.
         self.qp = TorqueQP(
-            np.concatenate((weights, np.full(4, SLACK_WEIGHT))), 2 * n_poly, max_iter
+            np.concatenate((weights, np.full(4, SLACK_WEIGHT))),
+            2 * n_poly,
+            max_iter,
+            eps_abs=CONTROLLER_EPS_ABS,
         )
         radius = self.cuff_force_limit_N * math.cos(math.pi / POLYGON_SIDES)
         self._radius = np.full(n_poly, radius)
@@ -609,8 +577,10 @@ class QPController(ComputedTorqueController):
         self._na = np.zeros((n_poly, 4))
         half = POLYGON_SIDES // 2
         slack_cols = np.zeros((n_poly, 4))
-        for c in range(4):
-            slack_cols[c * half : (c + 1) * half, c] = -1.0
+        for p in range(n_points):
+            for c in range(4):
+                row = p * 4 * half + c * half
+                slack_cols[row : row + half, c] = -1.0
         self.qp.C[:n_poly, 4:] = slack_cols
         self.qp.C[n_poly:, 4:] = slack_cols
         self.qp.lower[:] = -NO_BOUND
@@ -640,15 +610,12 @@ class QPController(ComputedTorqueController):
         self.active_constraints = 0
         self.solve_time_us = 0.0
         self.force_feedback = bool(force_feedback)
-        self._pred = np.zeros(8)  # model prediction for the torque applied last tick
-        self._disturbance = np.zeros(8)  # d = f̂ - f_pred
-        self._have_pred = False
-        self._model_fresh = False
+        self._zero4 = np.zeros(4)
 
     @property
     def cuff_force_pred(self) -> np.ndarray:
-        """Predicted cuff forces on the exoskeleton for the last tick's torque, (4, 2) [N]."""
-        return self.cuff_model.predict(self.torque)
+        """Predicted cuff forces on the exo at the horizon points, last torque, (P, 4, 2) [N]."""
+        return self.cuff_model.forces(self.torque)
 
     # ------------------------------------------------------------------ tick
 
@@ -675,21 +642,23 @@ class QPController(ComputedTorqueController):
         np.negative(lo, out=lo)
         np.maximum(lo, self._neg_cap, out=lo)
         # Octagon rows: |n_kᵀ (A τ + b)_c| ≤ r  →  −r − N b ≤ N A τ ≤ r − N b.
-        self._model_fresh = False
+        model, obs = self.cuff_model, self.observer
         try:
-            self.cuff_model.update(sensors.q, omega)
+            model.linearise(sensors.q, omega)
+            est = sensors.cuff_force_est
+            if self.force_feedback and est is not None and np.isfinite(est).all():
+                obs.update(model, est, omega)
+                model.predict(obs.delta, obs.ddelta, obs.disturbance)
+            else:
+                model.predict(self._zero4, self._zero4, self._zero4)
+            if not np.isfinite(model.b).all() or not np.isfinite(model.A).all():
+                raise np.linalg.LinAlgError("non-finite cuff-force prediction")
         except (np.linalg.LinAlgError, ValueError, RuntimeError) as exc:
             return self._fallback(u_cmd, omega, f"cuff model failed: {exc}")
-        self._model_fresh = True
-        b = self.cuff_model.b
-        if self.force_feedback and sensors.cuff_force_est is not None and self._have_pred:
-            np.subtract(sensors.cuff_force_est.reshape(8), self._pred, out=self._disturbance)
-            if np.isfinite(self._disturbance).all():
-                b = b + self._disturbance
-        np.dot(self._polygon, self.cuff_model.A, out=self._na)
+        np.dot(self._polygon, model.A, out=self._na)
         np.copyto(self._rows_pos, self._na)
         np.negative(self._na, out=self._rows_neg)
-        np.dot(self._polygon, b, out=self._nb)
+        np.dot(self._polygon, model.b, out=self._nb)
         np.subtract(self._radius, self._nb, out=self._upper_pos)
         np.add(self._radius, self._nb, out=self._upper_neg)
         ok = qp.solve_in_place()
@@ -700,15 +669,7 @@ class QPController(ComputedTorqueController):
         self.last_status = "solved"
         # The s >= 0 bounds of slacks at zero are not constraints of the problem.
         self.active_constraints = qp.active - int(np.count_nonzero(self.slack <= ACTIVE_TOL))
-        self._predict()
         return self._motor.voltage_for(self.torque, omega, out=self._out)
-
-    def _predict(self) -> None:
-        """Remember the model's prediction for the torque applied this tick (for feedback)."""
-        if self._model_fresh:
-            np.dot(self.cuff_model.A, self.torque, out=self._pred)
-            np.add(self._pred, self.cuff_model.b, out=self._pred)
-        self._have_pred = self._model_fresh
 
     # ------------------------------------------------------------------ fallbacks
 
@@ -725,12 +686,10 @@ class QPController(ComputedTorqueController):
             self.torque[empty] = 0.0
             joints = ", ".join(str(j) for j in np.flatnonzero(empty))
             self.last_status = f"fallback: empty torque box at joint(s) {joints} ({why})"
-            self._predict()
             out = self._motor.voltage_for(self.torque, omega, out=self._out)
             return np.clip(out, -self._u_max, self._u_max, out=out)
         np.clip(self.torque_cmd, lo, hi, out=self.torque)
         self.last_status = f"fallback: τ_cmd clipped to the torque box ({why})"
-        self._predict()
         return self._motor.voltage_for(self.torque, omega, out=self._out)
 
     def _zero_volts(self, why: str) -> np.ndarray:
@@ -740,5 +699,4 @@ class QPController(ComputedTorqueController):
         self._out.fill(0.0)
         self.torque.fill(0.0)
         self.last_status = f"fallback: zero volts ({why})"
-        self._have_pred = False
         return self._out

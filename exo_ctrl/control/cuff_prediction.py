@@ -1,0 +1,499 @@
+r"""Cuff forces over a horizon, affine in the drive torques held over it.
+
+The cuffs are springs (K = 8 N/mm) with the patient's leg on them: modes of
+5–12 Hz, slow against the 1 ms tick, so a force bound must look ahead over
+about half a cuff period.  Per leg (hip, knee; the legs do not couple), with
+δ = q_exo − q_patient the patient's lag behind the exoskeleton, J the
+patient's cuff Jacobians (rows thigh x, z, shank x, z; 4×2), G = JᵀJ, and
+the cuffs isotropic spring–dampers with the joint axes aligned (as fitted),
+the cuff forces on the exoskeleton are, to first order in δ,
+
+.. math::
+
+    f = -J s, \qquad s = K δ + C \dot δ \quad [\text{N·m per m², joint space}].
+
+The drive's voltage U(τ) = R τ/(i_G k_m) + i_G ω₀/k_E is held over the
+horizon (move blocking), so the joint torque is τ − D (q̇ − ω₀) with the
+back-EMF damping D = i_G k_m (i_G/k_E)/R ≈ 330 N·m·s/rad.  Linearised at
+the measured (q, ω₀), with u_e = q̇_e − ω₀, u_p = q̇_p − ω₀:
+
+.. math::
+
+    \dot δ = u_e - u_p, \\
+    M_e' \dot u_e = τ - h_e - (D + b_e) u_e - G (K δ + C (u_e - u_p)), \\
+    M_p \dot u_p = -h_p + d - b_p u_p + G (K δ + C (u_e - u_p)),
+
+M_e' = M_e + i_G² J_rotor, h the Coriolis, gravity, damping and friction
+torques at the measured state, b the URDF joint damping, d the patient's own
+joint torque (held; estimated by :class:`CuffStateObserver`).  With
+z = (δ, u_e, u_p, τ, 1) this is ż = F z (9×9 per leg), so z(t) = e^{Ft} z(0),
+z(0) = (δ̂, 0, −δ̂̇, τ, 1), and s(t_i) — hence f(t_i) = A_i τ + b_i — is
+affine in τ.  e^{FΔ} (Δ = gcd of the horizon points) is computed by
+scaling and squaring a degree-10 Taylor series, its powers give the points
+(default 5, 10, 20, 30, 40 ms: half the slowest cuff period), all in one
+compiled kernel (:func:`exo_ctrl._jit.kernel`).
+
+Accuracy (tests/test_qp.py): against the plant (nonlinear, elastic cuffs,
+drive current dynamics) stepped 40 ms with the voltage held, given the true
+δ, δ̇: ≤ 4.6 N on forces up to 155 N.  Neglected: the drive's electrical
+time constant (0.7 ms), the change of M, h, J over 40 ms, the speed
+dependence of the Coriolis and friction torques, the cuff's nonlinearity in δ.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from .._jit import kernel
+from ..cuffs import CuffParams
+from ..exceptions import InvalidParameter
+from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ..motor import MotorParams
+
+__all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "CuffStateObserver"]
+
+#: Default horizon points, in control ticks after the present one.
+DEFAULT_HORIZON_TICKS = (5, 10, 20, 30, 40)
+_TAYLOR_ORDER = 10
+
+
+@kernel
+def _matmul(a, b, out):  # pragma: no cover - compiled
+    n, m = a.shape
+    p = b.shape[1]
+    for i in range(n):
+        for j in range(p):
+            acc = 0.0
+            for k in range(m):
+                acc += a[i, k] * b[k, j]
+            out[i, j] = acc
+
+
+@kernel
+def _copy(src, dst):  # pragma: no cover - compiled
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
+
+
+@kernel
+def _expm(f, out, t1, t2):  # pragma: no cover - compiled
+    """exp(f) by scaling and squaring a Taylor series (f small after scaling)."""
+    n = f.shape[0]
+    norm = 0.0
+    for i in range(n):
+        row = 0.0
+        for j in range(n):
+            row += abs(f[i, j])
+        norm = max(norm, row)
+    s = 0
+    while norm > 0.25 and s < 40:
+        norm *= 0.5
+        s += 1
+    scale = 0.5**s
+    # Horner: exp(x) ≈ I + x (I + x/2 (I + x/3 (...)))
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = 1.0 if i == j else 0.0
+    for order in range(_TAYLOR_ORDER, 0, -1):
+        c = scale / order
+        for i in range(n):
+            for j in range(n):
+                acc = 0.0
+                for k in range(n):
+                    acc += f[i, k] * out[k, j]
+                t1[i, j] = c * acc
+        for i in range(n):
+            for j in range(n):
+                out[i, j] = t1[i, j] + (1.0 if i == j else 0.0)
+    for _ in range(s):
+        _matmul(out, out, t1)
+        _copy(t1, out)
+
+
+@kernel
+def _predict(
+    me,
+    mp,
+    jac,
+    he,
+    hp,
+    damp_e,
+    damp_p,
+    stiff,
+    damp_c,
+    dt_block,
+    powers,
+    delta,
+    ddelta,
+    dist,
+    a_out,
+    b_out,
+    f,
+    e,
+    pw,
+    t1,
+    t2,
+):  # pragma: no cover - compiled
+    """Fill a_out (P*8, 4) and b_out (P*8) -- see module docstring."""
+    n_pts = powers.shape[0]
+    for leg in range(2):
+        i0 = 2 * leg
+        # 2x2 blocks: exo mass (with armature), patient mass, G = J^T J.
+        m11, m12, m22 = me[i0, i0], me[i0, i0 + 1], me[i0 + 1, i0 + 1]
+        p11, p12, p22 = mp[i0, i0], mp[i0, i0 + 1], mp[i0 + 1, i0 + 1]
+        g11 = g12 = g22 = 0.0
+        for r in range(4):
+            g11 += jac[leg, r, 0] * jac[leg, r, 0]
+            g12 += jac[leg, r, 0] * jac[leg, r, 1]
+            g22 += jac[leg, r, 1] * jac[leg, r, 1]
+        de = m11 * m22 - m12 * m12
+        dp = p11 * p22 - p12 * p12
+        ie11, ie12, ie22 = m22 / de, -m12 / de, m11 / de
+        ip11, ip12, ip22 = p22 / dp, -p12 / dp, p11 / dp
+        for r in range(9):
+            for c in range(9):
+                f[r, c] = 0.0
+        f[0, 2] = f[1, 3] = 1.0
+        f[0, 4] = f[1, 5] = -1.0
+        # Generalised forces on the exo per unit of each state/input column.
+        # exo: tau - he - D u_e - G K delta - G C (u_e - u_p)
+        # patient: -hp + d - Dp u_p + G K delta + G C (u_e - u_p)
+        ge = t2[0:2]  # t2 is free until _expm (which does not use it)
+        gp = t2[2:4]
+        for r in range(4):
+            for c in range(9):
+                t2[r, c] = 0.0
+        gm = ((g11, g12), (g12, g22))
+        for r in range(2):
+            for c in range(2):
+                gk = stiff * gm[r][c]
+                gc = damp_c * gm[r][c]
+                ge[r, c] = -gk
+                ge[r, 2 + c] = -gc
+                ge[r, 4 + c] = gc
+                gp[r, c] = gk
+                gp[r, 2 + c] = gc
+                gp[r, 4 + c] = -gc
+            ge[r, 2 + r] -= damp_e[i0 + r]
+            gp[r, 4 + r] -= damp_p[i0 + r]
+            ge[r, 6 + r] = 1.0
+            ge[r, 8] = -he[i0 + r]
+            gp[r, 8] = -hp[i0 + r] + dist[i0 + r]
+        for c in range(9):
+            f[2, c] = (ie11 * ge[0, c] + ie12 * ge[1, c]) * dt_block
+            f[3, c] = (ie12 * ge[0, c] + ie22 * ge[1, c]) * dt_block
+            f[4, c] = (ip11 * gp[0, c] + ip12 * gp[1, c]) * dt_block
+            f[5, c] = (ip12 * gp[0, c] + ip22 * gp[1, c]) * dt_block
+        f[0, 2] = f[1, 3] = dt_block
+        f[0, 4] = f[1, 5] = -dt_block
+        _expm(f, e, t1, t2)
+        # z0 = (delta, 0, -ddelta, tau, 1)
+        _copy(e, pw)
+        done = 1
+        for p in range(n_pts):
+            while done < powers[p]:
+                _matmul(pw, e, t1)
+                _copy(t1, pw)
+                done += 1
+            # s = K delta + C (u_e - u_p): rows of pw for s
+            for r in range(2):
+                srow = t2[4]
+                for c in range(9):
+                    srow[c] = stiff * pw[r, c] + damp_c * (pw[2 + r, c] - pw[4 + r, c])
+                s_t0 = srow[6]
+                s_t1 = srow[7]
+                s_c = srow[8]
+                for c in range(2):
+                    s_c += srow[c] * delta[i0 + c] - srow[4 + c] * ddelta[i0 + c]
+                # f = -J s
+                for rr in range(4):
+                    row = p * 8 + leg * 4 + rr
+                    jj = jac[leg, rr, r]
+                    a_out[row, i0] -= jj * s_t0
+                    a_out[row, i0 + 1] -= jj * s_t1
+                    b_out[row] -= jj * s_c
+
+
+@kernel
+def _observe(
+    mp,
+    hp,
+    jac,
+    force,
+    omega,
+    stiff,
+    damp_c,
+    a_delta,
+    a_dist,
+    h,
+    delta,
+    ddelta,
+    vp_prev,
+    dist,
+    first,
+):  # pragma: no cover - compiled
+    """One observer tick per leg (CuffStateObserver docstring)."""
+    for leg in range(2):
+        i0 = 2 * leg
+        g11 = g12 = g22 = 0.0
+        r1 = r2 = 0.0
+        for r in range(4):
+            j0, j1 = jac[leg, r, 0], jac[leg, r, 1]
+            g11 += j0 * j0
+            g12 += j0 * j1
+            g22 += j1 * j1
+            fr = force[2 * leg + r // 2, r % 2]
+            r1 += j0 * fr
+            r2 += j1 * fr
+        dg = g11 * g22 - g12 * g12
+        # s = -G⁻¹ Jᵀ f̂
+        s1 = -(g22 * r1 - g12 * r2) / dg
+        s2 = -(g11 * r2 - g12 * r1) / dg
+        delta[i0] += a_delta * (s1 / stiff - delta[i0])
+        delta[i0 + 1] += a_delta * (s2 / stiff - delta[i0 + 1])
+        dd1 = (s1 - stiff * delta[i0]) / damp_c
+        dd2 = (s2 - stiff * delta[i0 + 1]) / damp_c
+        ddelta[i0], ddelta[i0 + 1] = dd1, dd2
+        vp1, vp2 = omega[i0] - dd1, omega[i0 + 1] - dd2
+        if not first:
+            a1 = (vp1 - vp_prev[i0]) / h
+            a2 = (vp2 - vp_prev[i0 + 1]) / h
+            e1 = mp[i0, i0] * a1 + mp[i0, i0 + 1] * a2 + hp[i0] - (g11 * s1 + g12 * s2)
+            e2 = mp[i0, i0 + 1] * a1 + mp[i0 + 1, i0 + 1] * a2 + hp[i0 + 1] - (g12 * s1 + g22 * s2)
+            dist[i0] += a_dist * (e1 - dist[i0])
+            dist[i0 + 1] += a_dist * (e2 - dist[i0 + 1])
+        vp_prev[i0], vp_prev[i0 + 1] = vp1, vp2
+
+
+class CuffHorizonModel:
+    """Cuff forces at horizon points, affine in the held drive torques (module docstring).
+
+    Args:
+        exo: the exoskeleton model the controller believes in.
+        patient: the patient model the controller believes in.
+        motor: the drive (reflected rotor inertia, back-EMF damping).
+        cuffs: the cuffs' stiffness K and damping C (default: CuffParams()).
+        dt: control period [s], finite and > 0.
+        horizon_ticks: the horizon points t_i = n_i Δt, increasing integers in
+            [1, 1000].
+
+    Attributes:
+        A: ∂f/∂τ, (8 P, 4) [1/m]; row 8 p + 2 c + i is component i (x, z)
+            of cuff c at horizon point p.
+        b: forces at τ = 0, (8 P,) [N].
+        jac: patient cuff Jacobians per leg, (2, 4, 2): rows thigh x, thigh z,
+            shank x, shank z; columns hip, knee [m/rad].
+        mass_patient: patient mass matrix (upper triangle valid), (4, 4).
+        bias_patient: h_p, patient bias torques at the measured state [N·m].
+
+    Raises:
+        InvalidParameter: a bad dt or horizon.
+
+    """
+
+    def __init__(
+        self,
+        exo: BodyModel,
+        patient: BodyModel,
+        motor: MotorParams,
+        cuffs: CuffParams | None = None,
+        dt: float = 1e-3,
+        horizon_ticks: tuple[int, ...] = DEFAULT_HORIZON_TICKS,
+    ) -> None:
+        cuffs = cuffs or CuffParams()
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise InvalidParameter("dt", dt, "a finite control period > 0 s")
+        try:
+            ticks = tuple(int(t) for t in horizon_ticks)
+        except (TypeError, ValueError):
+            ticks = ()
+        if not ticks or ticks[0] < 1 or ticks[-1] > 1000 or list(ticks) != sorted(set(ticks)):
+            raise InvalidParameter(
+                "horizon_ticks", horizon_ticks, "strictly increasing integers in [1, 1000] ticks"
+            )
+        block = math.gcd(*ticks)
+        self.horizon_ticks = ticks
+        self.horizon_s = tuple(t * dt for t in ticks)
+        self._powers = np.array([t // block for t in ticks], dtype=np.int64)
+        self._block = block * dt
+        self.dt = float(dt)
+        self._me = pin.Model(exo.model)
+        self._me.armature = np.full(4, motor.reflected_inertia_kgm2)
+        self._de = self._me.createData()
+        self._mp = pin.Model(patient.model)
+        self._dp = self._mp.createData()
+        self._cuffs = tuple(int(f) for f in patient.cuff_frame_ids)
+        kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
+        #: Back-EMF damping of a drive held at constant voltage, i_G k_m (i_G/k_E)/R [N·m·s/rad].
+        self.back_emf_damping = kt * kb / r
+        self._damp_e = self.back_emf_damping + exo.damping
+        self._damp_p = patient.damping.copy()
+        self._b_e, self._f_e = exo.damping.copy(), exo.friction.copy()
+        self._b_p, self._f_p = patient.damping.copy(), patient.friction.copy()
+        self.stiffness = float(cuffs.stiffness_N_per_m)
+        self.damping = float(cuffs.damping_N_s_per_m)
+        n = len(ticks)
+        self.A = np.zeros((8 * n, 4))
+        self.b = np.zeros(8 * n)
+        self.jac = np.zeros((2, 4, 2))
+        self.mass_exo = np.zeros((4, 4))
+        self.mass_patient = np.zeros((4, 4))
+        self.bias_exo = np.zeros(4)
+        self.bias_patient = np.zeros(4)
+        self._work = [np.zeros((9, 9)) for _ in range(5)]
+
+    def linearise(self, q: np.ndarray, dq: np.ndarray) -> None:
+        """Mass matrices, bias torques and cuff Jacobians at the measured state.
+
+        Args:
+            q: exoskeleton joint angles [rad] (the patient's are taken equal).
+            dq: exoskeleton joint speeds [rad/s].
+
+        """
+        me, de, mp, dp = self._me, self._de, self._mp, self._dp
+        self.mass_exo[:] = pin.crba(me, de, q)
+        self.mass_patient[:] = pin.crba(mp, dp, q)
+        sgn = np.tanh(dq / FRICTION_SMOOTHING_RAD_S)
+        self.bias_exo[:] = pin.nonLinearEffects(me, de, q, dq) + self._b_e * dq + self._f_e * sgn
+        self.bias_patient[:] = (
+            pin.nonLinearEffects(mp, dp, q, dq) + self._b_p * dq + self._f_p * sgn
+        )
+        pin.computeJointJacobians(mp, dp, q)
+        jac = self.jac
+        for c, fid in enumerate(self._cuffs):
+            full = pin.getFrameJacobian(mp, dp, fid, pin.LOCAL_WORLD_ALIGNED)
+            leg, k = divmod(c, 2)
+            jac[leg, 2 * k] = full[0, 2 * leg : 2 * leg + 2]
+            jac[leg, 2 * k + 1] = full[2, 2 * leg : 2 * leg + 2]
+
+    def predict(self, delta: np.ndarray, ddelta: np.ndarray, disturbance: np.ndarray) -> None:
+        """Fill :attr:`A` and :attr:`b` from the state of the last :meth:`linearise`.
+
+        Args:
+            delta: δ = q_exo − q_patient [rad], (4,).
+            ddelta: δ̇ [rad/s], (4,).
+            disturbance: patient joint torque d, held over the horizon [N·m], (4,).
+
+        """
+        self.A.fill(0.0)
+        self.b.fill(0.0)
+        w = self._work
+        _predict(
+            self.mass_exo,
+            self.mass_patient,
+            self.jac,
+            self.bias_exo,
+            self.bias_patient,
+            self._damp_e,
+            self._damp_p,
+            self.stiffness,
+            self.damping,
+            self._block,
+            self._powers,
+            delta,
+            ddelta,
+            disturbance,
+            self.A,
+            self.b,
+            w[0],
+            w[1],
+            w[2],
+            w[3],
+            w[4],
+        )
+
+    def update(
+        self,
+        q: np.ndarray,
+        dq: np.ndarray,
+        delta: np.ndarray,
+        ddelta: np.ndarray,
+        disturbance: np.ndarray,
+    ) -> None:
+        """:meth:`linearise` at (q, q̇), then :meth:`predict` from (δ, δ̇, d)."""
+        self.linearise(q, dq)
+        self.predict(delta, ddelta, disturbance)
+
+    def forces(self, tau: np.ndarray) -> np.ndarray:
+        """Predicted cuff forces A τ + b, (P, 4, 2) [N] (allocates)."""
+        return (self.A @ np.asarray(tau, dtype=float) + self.b).reshape(-1, 4, 2)
+
+
+class CuffStateObserver:
+    """Cuff deflection δ, its rate δ̇ and the patient's torque d from the force estimate.
+
+    Per leg, with s = −G⁻¹ Jᵀ f̂ the joint-space cuff load (module docstring):
+    the deflection obeys C δ̇ = s − K δ exactly (isotropic spring–damper), so
+
+    - δ̂ is s/K through a first-order filter of time constant C/K (12.5 ms
+      with the defaults), discretised exactly (zero-order hold of s);
+    - δ̇̂ = (s − K δ̂)/C, and the patient's joint speed v̂_p = q̇ − δ̇̂;
+    - d̂, the patient's own joint torque, from the patient's equation
+      M_p v̇_p + h_p = G s + d: the residual M_p Δv̂_p/Δt + h_p − G s through
+      a first-order filter of bandwidth ``disturbance_bandwidth_per_s``.
+
+    Args:
+        stiffness: K [N/m].
+        damping: C [N·s/m], > 0.
+        dt: control period [s].
+        disturbance_bandwidth_per_s: bandwidth of the d̂ filter [1/s], ≥ 0
+            (0: d̂ = 0).
+
+    Raises:
+        InvalidParameter: a value outside its range.
+
+    """
+
+    def __init__(
+        self,
+        stiffness: float,
+        damping: float,
+        dt: float = 1e-3,
+        disturbance_bandwidth_per_s: float = 30.0,
+    ) -> None:
+        from .. import _validate as v
+
+        k = v.positive("cuff stiffness", stiffness, "N/m")
+        c = v.positive("cuff damping", damping, "N·s/m")
+        h = v.positive("dt", dt, "s")
+        bw = v.non_negative("disturbance_bandwidth", disturbance_bandwidth_per_s, "1/s")
+        self.stiffness, self.damping, self.dt = k, c, h
+        self._a_delta = -math.expm1(-h * k / c)
+        self._a_dist = -math.expm1(-h * bw)
+        self.delta = np.zeros(4)
+        self.ddelta = np.zeros(4)
+        self.disturbance = np.zeros(4)
+        self._vp = np.zeros(4)
+        self._first = True
+
+    def reset(self) -> None:
+        """Forget the state (cuffs taken as just fitted: δ = 0, d = 0)."""
+        self.delta.fill(0.0)
+        self.ddelta.fill(0.0)
+        self.disturbance.fill(0.0)
+        self._first = True
+
+    def update(self, model: CuffHorizonModel, force_est: np.ndarray, omega: np.ndarray) -> None:
+        """One tick: f̂ (4, 2) [N] and q̇ [rad/s], with ``model`` linearised at this tick."""
+        _observe(
+            model.mass_patient,
+            model.bias_patient,
+            model.jac,
+            force_est,
+            omega,
+            self.stiffness,
+            self.damping,
+            self._a_delta,
+            self._a_dist,
+            self.dt,
+            self.delta,
+            self.ddelta,
+            self._vp,
+            self.disturbance,
+            self._first,
+        )
+        self._first = False
