@@ -304,7 +304,18 @@ class TorqueQP:
         qp = self._qp
         first = ""
         if self._ready:
-            qp.update(g=g, C=self.C, l=self.lower, u=self.upper, l_box=self.lo, u_box=self.hi)
+            # The equilibration computed at init is kept (the problem's scale
+            # changes slowly from tick to tick; recomputing it every tick cost
+            # about a third of the solve); a re-init recomputes it.
+            qp.update(
+                g=g,
+                C=self.C,
+                l=self.lower,
+                u=self.upper,
+                l_box=self.lo,
+                u_box=self.hi,
+                update_preconditioner=False,
+            )
             qp.solve()
             if self._accept():
                 return True
