@@ -38,7 +38,6 @@ from exo_ctrl.control.qp import (
     NO_BOUND,
     POLYGON_SIDES,
     SLACK_WEIGHT,
-    CuffForceModel,
     QPController,
     TorqueQP,
     polygon_rows,
@@ -639,61 +638,6 @@ def _rnea_mass_and_bias(model: pin.Model, q: np.ndarray, dq: np.ndarray):
 
 def _losses(body: BodyModel, dq: np.ndarray) -> np.ndarray:
     return body.damping * dq + body.friction * np.tanh(dq / FRICTION_SMOOTHING_RAD_S)
-
-
-def test_cuff_force_prediction_is_the_min_norm_solution_of_the_rigid_coupling(
-    exo, patient, motor, plan
-) -> None:
-    model = CuffForceModel(exo, patient, motor)
-    rng = np.random.default_rng(2)
-    for _ in range(20):
-        q = rng.uniform(-0.4, 1.5, 4)
-        dq = rng.uniform(-3.0, 3.0, 4)
-        tau = rng.uniform(-100.0, 100.0, 4)
-        model.update(q, dq)
-        # Independent: coupled rigid dynamics from RNEA, reflected rotor inertia added.
-        m_e, h_e = _rnea_mass_and_bias(exo.model, q, dq)
-        m_p, h_p = _rnea_mass_and_bias(patient.model, q, dq)
-        m_e += np.eye(4) * motor.gear_ratio**2 * motor.rotor_inertia_kgm2
-        h_e += _losses(exo, dq)
-        h_p += _losses(patient, dq)
-        acc = np.linalg.solve(m_e + m_p, tau - h_e - h_p)
-        tau_int = m_p @ acc + h_p
-        # Patient cuff Jacobians (x, z rows) and the min-norm f with −J_pᵀ f = τ_int.
-        data = patient.model.createData()
-        jac = np.zeros((8, 4))
-        for c, fid in enumerate(patient.cuff_frame_ids):
-            full = pin.computeFrameJacobian(
-                patient.model, data, q, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-            )
-            jac[2 * c], jac[2 * c + 1] = full[0], full[2]
-        f_ref = np.linalg.lstsq(-jac.T, tau_int, rcond=None)[0]
-        f = model.A @ tau + model.b
-        np.testing.assert_allclose(f, f_ref, rtol=1e-9, atol=1e-9 * np.abs(f_ref).max())
-        np.testing.assert_allclose(jac.T @ (-f), tau_int, rtol=1e-9, atol=1e-9)
-        np.testing.assert_allclose(model.predict(tau), f.reshape(4, 2))
-
-
-def test_cuff_force_is_the_compliant_quasi_static_split(exo, patient, motor, plan) -> None:
-    """f = K J δq with δq = −(K JᵀJ)⁻¹ τ_int (per leg), for any equal stiffness K."""
-    model = CuffForceModel(exo, patient, motor)
-    q, dq = plan.q[300], plan.dq[300]
-    model.update(q, dq)
-    tau = np.array([30.0, -10.0, 5.0, 20.0])
-    data = patient.model.createData()
-    pin.computeJointJacobians(patient.model, data, q)
-    jac = np.zeros((8, 4))
-    for c, fid in enumerate(patient.cuff_frame_ids):
-        full = pin.getFrameJacobian(patient.model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        jac[2 * c], jac[2 * c + 1] = full[0], full[2]
-    f = model.A @ tau + model.b
-    tau_int = -jac.T @ f
-    for stiffness in (1e3, 8e3, 5e4):
-        dq_lag = -np.linalg.solve(stiffness * jac.T @ jac, tau_int)
-        np.testing.assert_allclose(stiffness * jac @ dq_lag, f, rtol=1e-9, atol=1e-9)
-    # Each cuff's force depends only on its own leg's torques.
-    np.testing.assert_array_equal(model.A[:4, 2:], 0.0)
-    np.testing.assert_array_equal(model.A[4:, :2], 0.0)
 
 
 def test_polygon_is_inscribed_in_the_force_circle() -> None:

@@ -3,12 +3,11 @@
 from .base import Controller, PDGains, SensorReadings
 from .computed_torque import ComputedTorqueController, feedforward_torque
 from .pd import PDController
-from .qp import CuffForceModel, QPController, TorqueQP
+from .qp import QPController, TorqueQP
 
 __all__ = [
     "ComputedTorqueController",
     "Controller",
-    "CuffForceModel",
     "PDController",
     "PDGains",
     "QPController",

@@ -29,8 +29,8 @@ command meets the limits and the tick falls back (below).
 
 **Cuff forces, affine in τ, over a horizon** (design.md §5).  The cuffs
 are springs with the patient's leg on them (modes 5–12 Hz): a one-tick
-rigid-cuff prediction (:class:`CuffForceModel`, kept for reference and
-tests) cannot bound their force — measured with it: spastic patient, 150 N
+rigid-cuff prediction (the first version of this controller) cannot
+bound their force — measured with it: spastic patient, 150 N
 bound, real peak 194 N; passive, 80 N, 109 N.  The controller instead
 predicts the elastic cuffs' forces at P horizon points (default 5, 10, 20,
 30, 40 ms) with the drive voltage for τ held
@@ -96,20 +96,19 @@ import math
 import time
 
 import numpy as np
-import pinocchio as pin
 import proxsuite
 
 from .. import _validate as v
 from ..cuffs import CuffParams
 from ..exceptions import InvalidModel, InvalidParameter
 from ..kinematics import JointTrajectory
-from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ..model import BodyModel
 from ..motor import MotorParams
 from .base import PDGains, SensorReadings
 from .computed_torque import ComputedTorqueController
 from .cuff_prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel, CuffStateObserver
 
-__all__ = ["POLYGON_SIDES", "CuffForceModel", "QPController", "TorqueQP", "polygon_rows"]
+__all__ = ["POLYGON_SIDES", "QPController", "TorqueQP", "polygon_rows"]
 
 #: Sides of the regular polygon inscribed in each cuff's force circle (even).
 POLYGON_SIDES = 8
@@ -354,121 +353,6 @@ class TorqueQP:
         return True
 
 
-class CuffForceModel:
-    """Cuff forces predicted as an affine function of the drive torques, f = A τ + b.
-
-    The model and its assumptions are in the module docstring.  Each leg is
-    an independent 2-DoF chain (hip on the fixed frame, knee on the hip, the
-    thigh cuff on the thigh, the shank cuff on the shank; checked here), so
-    M, P and JᵀJ are 2×2 per leg and are inverted in closed form, in scalar
-    arithmetic (cheaper than numpy's linear algebra on arrays this small).
-
-    Args:
-        exo: the exoskeleton model the controller believes in.
-        patient: the patient model the controller believes in.
-        motor: the drive (its reflected rotor inertia joins the exo's mass matrix).
-
-    Attributes:
-        A: ∂f/∂τ, (8, 4) [1/m]; row 2c + i is component i (x, z) of cuff c
-            in CUFF_NAMES order, columns in JOINT_NAMES order.
-        b: the forces at τ = 0, (8,) [N].
-
-    Raises:
-        InvalidModel: a body without exactly the four driven joints in order,
-            or whose legs are not two independent hip–knee chains with the
-            cuffs on the thigh and the shank.
-
-    """
-
-    def __init__(self, exo: BodyModel, patient: BodyModel, motor: MotorParams) -> None:
-        for body in (exo, patient):
-            _check_legs(body)
-        self._me = pin.Model(exo.model)
-        self._me.armature = np.full(4, motor.reflected_inertia_kgm2)
-        self._de = self._me.createData()
-        self._mp = pin.Model(patient.model)
-        self._dp = self._mp.createData()
-        self._cuffs = tuple(int(f) for f in patient.cuff_frame_ids)
-        self._b_e = exo.damping.tolist()
-        self._f_e = exo.friction.tolist()
-        self._b_p = patient.damping.tolist()
-        self._f_p = patient.friction.tolist()
-        # A (8×4, row-major) then b (8) in one buffer, written at once.
-        self._ab = np.zeros(40)
-        self.A = self._ab[:32].reshape(8, 4)
-        self.b = self._ab[32:]
-        self._flat = [0.0] * 40
-
-    def update(self, q: np.ndarray, dq: np.ndarray) -> None:
-        """Recompute :attr:`A` and :attr:`b` at the measured state.
-
-        Args:
-            q: exoskeleton joint angles [rad] (the patient's are taken equal).
-            dq: exoskeleton joint speeds [rad/s].
-
-        Raises:
-            numpy.linalg.LinAlgError: a mass matrix or JᵀJ that is not positive
-                definite (or not finite).
-
-        """
-        me, de, mp, dp = self._me, self._de, self._mp, self._dp
-        m_e = pin.crba(me, de, q).tolist()  # upper triangles are read
-        m_p = pin.crba(mp, dp, q).tolist()
-        n_e = pin.nonLinearEffects(me, de, q, dq).tolist()
-        n_p = pin.nonLinearEffects(mp, dp, q, dq).tolist()
-        pin.computeJointJacobians(mp, dp, q)
-        jac = [
-            pin.getFrameJacobian(mp, dp, f, pin.LOCAL_WORLD_ALIGNED).tolist() for f in self._cuffs
-        ]
-        w = dq.tolist()
-        eps = FRICTION_SMOOTHING_RAD_S
-        sgn = [math.tanh(wj / eps) for wj in w]
-        be, fe, bp, fp = self._b_e, self._f_e, self._b_p, self._f_p
-        # h_p and h = h_e + h_p: Coriolis, gravity, damping, friction [N·m].
-        hp = [n_p[j] + bp[j] * w[j] + fp[j] * sgn[j] for j in range(4)]
-        h = [n_e[j] + be[j] * w[j] + fe[j] * sgn[j] + hp[j] for j in range(4)]
-        flat = self._flat
-        for leg in (0, 1):
-            i, k = 2 * leg, 2 * leg + 1
-            # M = M_e + i_G² J_rotor + M_p and M_p, 2×2 (upper triangle).
-            p11, p12, p22 = m_p[i][i], m_p[i][k], m_p[k][k]
-            m11, m12, m22 = m_e[i][i] + p11, m_e[i][k] + p12, m_e[k][k] + p22
-            det = m11 * m22 - m12 * m12
-            if not (m11 > 0.0 and det > 0.0 and math.isfinite(det)):
-                raise np.linalg.LinAlgError("coupled mass matrix not positive definite")
-            # P = M_p M⁻¹.
-            a11 = (p11 * m22 - p12 * m12) / det
-            a12 = (p12 * m11 - p11 * m12) / det
-            a21 = (p12 * m22 - p22 * m12) / det
-            a22 = (p22 * m11 - p12 * m12) / det
-            # τ_int = P τ + t0, t0 = h_p − P h.
-            t1 = hp[i] - (a11 * h[i] + a12 * h[k])
-            t2 = hp[k] - (a21 * h[i] + a22 * h[k])
-            # J_p rows of this leg's cuffs: thigh x, z, shank x, z (world x–z).
-            leg_rows = (jac[i][0], jac[i][2], jac[k][0], jac[k][2])
-            g11 = g12 = g22 = 0.0
-            for r in leg_rows:
-                g11 += r[i] * r[i]
-                g12 += r[i] * r[k]
-                g22 += r[k] * r[k]
-            dg = g11 * g22 - g12 * g12
-            if not (g11 > 0.0 and dg > 1e-12 * g11 * g22 and math.isfinite(dg)):
-                raise np.linalg.LinAlgError("cuff Jacobian JᵀJ singular")
-            for n, r in enumerate(leg_rows):
-                # G = J (JᵀJ)⁻¹ row; f = −G τ_int → A = −G P, b = −G t0.
-                c1 = (r[i] * g22 - r[k] * g12) / dg
-                c2 = (r[k] * g11 - r[i] * g12) / dg
-                row = 4 * (4 * leg + n)  # A[4·leg + n, :] in the flat buffer
-                flat[row + i] = -(c1 * a11 + c2 * a21)
-                flat[row + k] = -(c1 * a12 + c2 * a22)
-                flat[32 + 4 * leg + n] = -(c1 * t1 + c2 * t2)
-        self._ab[:] = flat
-
-    def predict(self, tau: np.ndarray) -> np.ndarray:
-        """Predicted cuff forces on the exoskeleton A τ + b, (4, 2) [N] (allocates)."""
-        return (self.A @ np.asarray(tau, dtype=float) + self.b).reshape(4, 2)
-
-
 def _check_legs(body: BodyModel) -> None:
     model = body.model
     if model.nq != 4 or model.nv != 4 or not np.array_equal(body.q_index, np.arange(4)):
@@ -530,7 +414,7 @@ class QPController(ComputedTorqueController):
 
     Raises:
         InvalidParameter: a bad limit, weight or iteration count, or no patient.
-        InvalidModel: a model the cuff model cannot use (:class:`CuffForceModel`),
+        InvalidModel: a model the cuff model cannot use (:func:`_check_legs`),
             or an effort limit that is not > 0.
 
     """
