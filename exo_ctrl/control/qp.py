@@ -99,6 +99,7 @@ import numpy as np
 import proxsuite
 
 from .. import _validate as v
+from .._jit import kernel
 from ..cuffs import CuffParams
 from ..exceptions import InvalidModel, InvalidParameter
 from ..kinematics import JointTrajectory
@@ -222,10 +223,7 @@ class TorqueQP:
         self.hi = self._upper_all[n_in:]
         self.target = self._buf[m * n + 2 * m :]
         self._g = np.zeros(n)
-        self._cx = np.zeros(m)
         self._slack = np.zeros(m)
-        self._slack_hi = np.zeros(m)
-        self._near = np.zeros(m, dtype=bool)
         qp = proxsuite.proxqp.dense.QP(n, 0, n_in, True)
         s = qp.settings
         s.eps_abs = float(eps_abs)
@@ -337,18 +335,13 @@ class TorqueQP:
         if info_status != _SOLVED:
             self.status = _STATUS.get(info_status, "unknown solver status")
             return False
-        x = res.x
-        cx, slack = self._cx, self._slack
-        np.dot(self._c_all, x, out=cx)  # rows, then x itself (the box)
-        np.subtract(cx, self._lower_all, out=slack)
-        np.subtract(self._upper_all, cx, out=self._slack_hi)
-        np.minimum(slack, self._slack_hi, out=slack)
-        if not np.minimum.reduce(slack) >= -FEASIBILITY_TOL:  # also false for NaN
+        active = _check_answer(
+            self._c_all, self._lower_all, self._upper_all, res.x, self.lo, self.hi, self.x
+        )
+        if active < 0:  # also for a NaN
             self.status = "solution violates the constraints or is not finite"
             return False
-        np.minimum(x, self.hi, out=self.x)
-        np.maximum(self.x, self.lo, out=self.x)
-        self.active = int(np.count_nonzero(np.less_equal(slack, ACTIVE_TOL, out=self._near)))
+        self.active = active
         self.status = "solved"
         return True
 
@@ -455,8 +448,9 @@ class QPController(ComputedTorqueController):
             cuffs.stiffness_N_per_m, cuffs.damping_N_s_per_m, dt, disturbance_bandwidth_per_s
         )
         n_points = len(self.cuff_model.horizon_ticks)
-        self._polygon = np.kron(np.eye(n_points), polygon_rows(4))
-        n_poly = self._polygon.shape[0]
+        half = POLYGON_SIDES // 2
+        self._directions = polygon_rows(1)  # (S/2, 2): n_k of one cuff
+        n_poly = n_points * 4 * half
         # Variables x = (τ, s): the four torques and one slack per cuff, shared by
         # the horizon points, the bound softened to |n_kᵀ f_c(t_i)| ≤ r + s_c with
         # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r.
@@ -467,10 +461,7 @@ class QPController(ComputedTorqueController):
             eps_abs=CONTROLLER_EPS_ABS,
         )
         radius = self.cuff_force_limit_N * math.cos(math.pi / POLYGON_SIDES)
-        self._radius = np.full(n_poly, radius)
-        self._nb = np.zeros(n_poly)
-        self._na = np.zeros((n_poly, 4))
-        half = POLYGON_SIDES // 2
+        self._radius = radius
         slack_cols = np.zeros((n_poly, 4))
         for p in range(n_points):
             for c in range(4):
@@ -481,10 +472,6 @@ class QPController(ComputedTorqueController):
         self.qp.lower[:] = -NO_BOUND
         self.qp.lo[4:] = 0.0
         self.qp.hi[4:] = NO_BOUND
-        self._rows_pos = self.qp.C[:n_poly, :4]
-        self._rows_neg = self.qp.C[n_poly:, :4]
-        self._upper_pos = self.qp.upper[:n_poly]
-        self._upper_neg = self.qp.upper[n_poly:]
         # Torque box at speed ω: hi = min(cap, c0 − c1 ω), lo = max(−cap, −c0 − c1 ω).
         kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
         self._u_max = motor.supply_voltage_V
@@ -546,16 +533,11 @@ class QPController(ComputedTorqueController):
                 model.predict(obs.delta, obs.ddelta, obs.disturbance)
             else:
                 model.predict(self._zero4, self._zero4, self._zero4)
-            if not np.isfinite(model.b).all() or not np.isfinite(model.A).all():
-                raise np.linalg.LinAlgError("non-finite cuff-force prediction")
         except (np.linalg.LinAlgError, ValueError, RuntimeError) as exc:
             return self._fallback(u_cmd, omega, f"cuff model failed: {exc}")
-        np.dot(self._polygon, model.A, out=self._na)
-        np.copyto(self._rows_pos, self._na)
-        np.negative(self._na, out=self._rows_neg)
-        np.dot(self._polygon, model.b, out=self._nb)
-        np.subtract(self._radius, self._nb, out=self._upper_pos)
-        np.add(self._radius, self._nb, out=self._upper_neg)
+        total = _bound_rows(self._directions, model.A, model.b, self._radius, qp.C, qp.upper)
+        if not math.isfinite(total):
+            return self._fallback(u_cmd, omega, "cuff model failed: non-finite prediction")
         ok = qp.solve_in_place()
         self.solve_time_us = qp.solve_time_us
         if not ok:
@@ -595,3 +577,71 @@ class QPController(ComputedTorqueController):
         self.torque.fill(0.0)
         self.last_status = f"fallback: zero volts ({why})"
         return self._out
+
+
+@kernel
+def _bound_rows(
+    directions: np.ndarray,
+    A: np.ndarray,
+    b: np.ndarray,
+    radius: float,
+    rows_C: np.ndarray,
+    rows_upper: np.ndarray,
+) -> float:
+    """Fill the octagon rows ±n_kᵀ(A τ + b)_c ≤ r (τ columns) and their bounds.
+
+    Row ``16 p + 4 c + k`` (and the same plus half the rows, negated) holds
+    n_k = ``directions[k]`` on cuff c's (f_x, f_z) rows ``8 p + 2c, +1`` of
+    (A, b); only the τ columns (0-3) of ``rows_C`` are written.  Returns the
+    sum of every entry written: finite iff they all are.
+    """
+    half = directions.shape[0]
+    n_poly = rows_C.shape[0] // 2
+    total = 0.0
+    for p in range(A.shape[0] // 8):
+        for c in range(4):
+            ix = 8 * p + 2 * c
+            for k in range(half):
+                cx, cz = directions[k, 0], directions[k, 1]
+                row = p * 4 * half + c * half + k
+                for j in range(4):
+                    na = cx * A[ix, j] + cz * A[ix + 1, j]
+                    rows_C[row, j] = na
+                    rows_C[n_poly + row, j] = -na
+                    total += na
+                nb = cx * b[ix] + cz * b[ix + 1]
+                rows_upper[row] = radius - nb
+                rows_upper[n_poly + row] = radius + nb
+                total += nb
+    return total
+
+
+@kernel
+def _check_answer(
+    c_all: np.ndarray,
+    lower_all: np.ndarray,
+    upper_all: np.ndarray,
+    x: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    x_out: np.ndarray,
+) -> int:
+    """Check lower ≤ [C; I] x ≤ upper within FEASIBILITY_TOL, independently of the solver.
+
+    Returns -1 if a row or box bound is violated or not finite; otherwise
+    writes x rounded into the box ``[lo, hi]`` to ``x_out`` and returns the
+    number of rows and box bounds within ACTIVE_TOL of a limit.
+    """
+    active = 0
+    for i in range(c_all.shape[0]):
+        acc = 0.0
+        for j in range(c_all.shape[1]):
+            acc += c_all[i, j] * x[j]
+        room = min(acc - lower_all[i], upper_all[i] - acc)
+        if not room >= -FEASIBILITY_TOL:
+            return -1
+        if room <= ACTIVE_TOL:
+            active += 1
+    for j in range(x.shape[0]):
+        x_out[j] = max(min(x[j], hi[j]), lo[j])
+    return active
