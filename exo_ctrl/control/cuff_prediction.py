@@ -269,6 +269,52 @@ def _observe(
         vp_prev[i0], vp_prev[i0 + 1] = vp1, vp2
 
 
+@kernel
+def _gather(
+    mass_e_in,
+    mass_p_in,
+    nle_e,
+    nle_p,
+    dq,
+    losses,
+    jac0,
+    jac1,
+    jac2,
+    jac3,
+    mass_e,
+    mass_p,
+    bias_e,
+    bias_p,
+    jac,
+):  # pragma: no cover - compiled
+    """Fill what :meth:`CuffHorizonModel.linearise` keeps from the Pinocchio calls.
+
+    The mass matrices; bias = nle + b q̇ + f_c tanh(q̇/ε) per body (``losses``
+    rows b_e, f_e, b_p, f_p); the (x, z) rows of the four cuff frame
+    Jacobians on their leg's two joints.
+    """
+    for i in range(4):
+        for j in range(4):
+            mass_e[i, j] = mass_e_in[i, j]
+            mass_p[i, j] = mass_p_in[i, j]
+        sgn = np.tanh(dq[i] / FRICTION_SMOOTHING_RAD_S)
+        bias_e[i] = nle_e[i] + losses[0, i] * dq[i] + losses[1, i] * sgn
+        bias_p[i] = nle_p[i] + losses[2, i] * dq[i] + losses[3, i] * sgn
+    _jacobian_rows(jac0, 0, jac)
+    _jacobian_rows(jac1, 1, jac)
+    _jacobian_rows(jac2, 2, jac)
+    _jacobian_rows(jac3, 3, jac)
+
+
+@kernel
+def _jacobian_rows(full, c, jac):  # pragma: no cover - compiled
+    """Cuff c = 2 leg + k: rows x, z of its 6×4 frame Jacobian on the leg's joints."""
+    leg, k = c // 2, c % 2
+    for j in range(2):
+        jac[leg, 2 * k, j] = full[0, 2 * leg + j]
+        jac[leg, 2 * k + 1, j] = full[2, 2 * leg + j]
+
+
 class CuffHorizonModel:
     """Cuff forces at horizon points, affine in the held drive torques (module docstring).
 
@@ -334,6 +380,7 @@ class CuffHorizonModel:
         self._damp_p = patient.damping.copy()
         self._b_e, self._f_e = exo.damping.copy(), exo.friction.copy()
         self._b_p, self._f_p = patient.damping.copy(), patient.friction.copy()
+        self._losses = np.stack((self._b_e, self._f_e, self._b_p, self._f_p))
         self.stiffness = float(cuffs.stiffness_N_per_m)
         self.damping = float(cuffs.damping_N_s_per_m)
         n = len(ticks)
@@ -355,20 +402,30 @@ class CuffHorizonModel:
 
         """
         me, de, mp, dp = self._me, self._de, self._mp, self._dp
-        self.mass_exo[:] = pin.crba(me, de, q)
-        self.mass_patient[:] = pin.crba(mp, dp, q)
-        sgn = np.tanh(dq / FRICTION_SMOOTHING_RAD_S)
-        self.bias_exo[:] = pin.nonLinearEffects(me, de, q, dq) + self._b_e * dq + self._f_e * sgn
-        self.bias_patient[:] = (
-            pin.nonLinearEffects(mp, dp, q, dq) + self._b_p * dq + self._f_p * sgn
-        )
+        mass_e = pin.crba(me, de, q)
+        mass_p = pin.crba(mp, dp, q)
+        nle_e = pin.nonLinearEffects(me, de, q, dq)
+        nle_p = pin.nonLinearEffects(mp, dp, q, dq)
         pin.computeJointJacobians(mp, dp, q)
-        jac = self.jac
-        for c, fid in enumerate(self._cuffs):
-            full = pin.getFrameJacobian(mp, dp, fid, pin.LOCAL_WORLD_ALIGNED)
-            leg, k = divmod(c, 2)
-            jac[leg, 2 * k] = full[0, 2 * leg : 2 * leg + 2]
-            jac[leg, 2 * k + 1] = full[2, 2 * leg : 2 * leg + 2]
+        c0, c1, c2, c3 = self._cuffs
+        frame = pin.LOCAL_WORLD_ALIGNED
+        _gather(
+            mass_e,
+            mass_p,
+            nle_e,
+            nle_p,
+            dq,
+            self._losses,
+            pin.getFrameJacobian(mp, dp, c0, frame),
+            pin.getFrameJacobian(mp, dp, c1, frame),
+            pin.getFrameJacobian(mp, dp, c2, frame),
+            pin.getFrameJacobian(mp, dp, c3, frame),
+            self.mass_exo,
+            self.mass_patient,
+            self.bias_exo,
+            self.bias_patient,
+            self.jac,
+        )
 
     def predict(self, delta: np.ndarray, ddelta: np.ndarray, disturbance: np.ndarray) -> None:
         """Fill :attr:`A` and :attr:`b` from the state of the last :meth:`linearise`.
