@@ -484,6 +484,8 @@ class CuffForceEstimator:
         self.tau_ext = self._work[_B_R : _B_R + 4]
         self.normal = self._work[_B_NORMAL : _B_NORMAL + 4]
         self.force = self._work[_B_FORCE : _B_FORCE + 8].reshape(4, 2)
+        #: (tau_ext, normal, force) as one contiguous (16,) view, for logging.
+        self.outputs_flat = self._work[_B_R : _B_R + 16]
 
     @property
     def stiffness_ratio(self) -> float:

@@ -122,6 +122,12 @@ class Plant:
             self._arm_const,
         ) = self._s4
         self._arm_base[:] = rotor
+        #: q and v stacked, (16,) view of the state [rad, rad/s].
+        self.state = self._s8[:2].reshape(16)
+        #: The last step's applied drive voltage [V], mean drive current [A],
+        #: drive torque and patient torque [N·m] (4 each) and cuff forces on
+        #: the exoskeleton (fx of the 4 cuffs, fz of the 4 cuffs) [N]: (24,).
+        self.outputs = np.zeros(24)
         # Exo armature = rotor inertia + h b (implicit joint damping, constant)
         # + h D_m (implicit back-EMF damping, per step).
         self._arm_const[:] = self._arm_base + self.dt * self._b[:4]
@@ -141,6 +147,7 @@ class Plant:
         c = self.cuffs
         self._pre_args = (self.dt, self._s8, self._s4, self._losses, self._flags)
         self._pre_more = (c.kernel_matrices, c.kernel_params, c.kernel_out, *motor_args)
+        self._post_more = (motor_args[1], c.kernel_out, self.outputs)
         self._aba_e = (self._me, self._de, self._q_mid[:4], self._v_mid[:4], self._tau[:4])
         self._aba_p = (self._mp, self._dp, self._q_mid[4:], self._v_mid[4:], self._tau[4:])
 
@@ -212,9 +219,8 @@ class Plant:
         acc_e = pin.aba(*self._aba_e)
         acc_p = pin.aba(*self._aba_p)
         self.t += self.dt
-        if not _kick_and_drift(self.dt, self._s8, self._s4, acc_e, acc_p, flags[1]) < (
-            MAX_JOINT_SPEED_RAD_S**2
-        ):
+        speed2 = _kick_and_drift(self.dt, self._s8, self._s4, acc_e, acc_p, flags, *self._post_more)
+        if not speed2 < MAX_JOINT_SPEED_RAD_S**2:
             self._diverged()
 
     @property
@@ -311,21 +317,37 @@ def _drift_and_forces(
 
 @kernel
 def _kick_and_drift(
-    h: float, s8: np.ndarray, s4: np.ndarray, acc_e: np.ndarray, acc_p: np.ndarray, motors: bool
+    h: float,
+    s8: np.ndarray,
+    s4: np.ndarray,
+    acc_e: np.ndarray,
+    acc_p: np.ndarray,
+    flags: np.ndarray,
+    motor_state: np.ndarray,
+    cuff_out: np.ndarray,
+    outputs: np.ndarray,
 ) -> float:
     """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺; returns |v⁺|².
 
     With drives, the applied torque τ_m - h D_m a and the sensor torque
     τ_m - h D_m a - i_G² J_rotor a (rows of ``s4`` as in :func:`_drift_and_forces`).
+    Fills :attr:`Plant.outputs`.
     """
     q, v, acc, qm = s8[0], s8[1], s8[2], s8[3]
     for j in range(4):
         acc[j] = acc_e[j]
         acc[4 + j] = acc_p[j]
-    if motors:
+    if flags[1]:
         for j in range(4):
             s4[0, j] = s4[0, j] - s4[4, j] * acc[j]
             s4[1, j] = s4[0, j] - s4[5, j] * acc[j]
+    for j in range(4):
+        outputs[j] = motor_state[2, j]
+        outputs[4 + j] = motor_state[1, j]
+        outputs[8 + j] = s4[0, j]
+        outputs[12 + j] = s4[2, j]
+    for i in range(8):
+        outputs[16 + i] = cuff_out[0, i]
     half = 0.5 * h
     speed2 = 0.0
     for i in range(8):

@@ -211,6 +211,8 @@ class Sensors:
         w[_W_TRUE_SPEED] = self._true_speed
         out = w[_W_Q : _W_Q + 12].reshape(3, 4)
         self.readings = SensorReadings(q=out[0], dq=out[1], tau=out[2])
+        #: The readings' (q, dq, tau) as one contiguous (12,) view, for logging.
+        self.readings_flat = w[_W_Q : _W_Q + 12]
         self.reset()
 
     def reset(self) -> None:

@@ -27,6 +27,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from . import _validate as v
+from ._jit import kernel
 from ._progress import Progress
 from .control import (
     ComputedTorqueController,
@@ -404,15 +405,6 @@ class Runner:
         )
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
-        # Logged each tick: Sensors.read always fills the same readings object.
-        self._measured = (
-            self.sensors.q,
-            self.sensors.dq,
-            self.sensors.tau,
-            self.estimator.tau_ext,
-            self.estimator.normal,
-            self.estimator.force.reshape(8),
-        )
         self._substeps = config.plant_substeps
         self._dt = config.dt
         self._qp = isinstance(setup.controller, QPController)
@@ -420,13 +412,12 @@ class Runner:
         self._tau_p = np.zeros(4)
         self._q_p, self._v_p = plant.q[4:], plant.v[4:]
         self._q_e, self._v_e = plant.q[:4], plant.v[:4]
-        self._state = (plant.q, plant.v)
-        self._applied = (
-            plant.motors.applied_voltage_V,
-            plant.motors.mean_current_A,
-            plant.drive_torque,
-            plant.patient_torque,
-            plant.cuffs.force_flat,
+        self._mean_current = plant.motors.mean_current_A
+        # Logged each tick: Sensors.read always fills the same readings object.
+        self._measured = (
+            plant.state,
+            self.sensor_model.readings_flat,
+            self.estimator.outputs_flat,
         )
         self.supervisor: SafetySupervisor | None = None
         if config.safety or config.estop_at_s is not None:
@@ -445,28 +436,26 @@ class Runner:
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into buffer row ``row``."""
         plant = self.setup.plant
-        wide = self.wide[row]
-        np.concatenate(self._state, out=wide[:16])
+        wide = self.wide
         sensors = self.sensor_model.read(k, self._q_e, self._v_e, plant.sensor_torque)
         self.estimator.update(sensors)
-        np.concatenate(self._measured, out=wide[53:81])
+        _log_measured(wide, row, *self._measured)
         controller = self.setup.controller
-        u = controller.command(k, sensors)
-        np.copyto(wide[16:20], u)
+        u = u_cmd = controller.command(k, sensors)
         if self._qp:
-            wide[81] = controller.active_constraints
-            wide[82] = controller.failures
+            wide[row, 81] = controller.active_constraints
+            wide[row, 82] = controller.failures
         sup = self.supervisor
         if sup is not None:
             force = sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
-            u = sup.step(k, k * self._dt, sensors, force, self._applied[1], u)
-            wide[52] = sup.state_code
+            u = sup.step(k, k * self._dt, sensors, force, self._mean_current, u)
+            wide[row, 52] = sup.state_code
         tau_p = None
         for _ in range(self._substeps):
             if self.patient_model is not None:
                 tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
             plant.step(u, tau_p)
-        np.concatenate(self._applied, out=wide[20:44])
+        _log_applied(wide, row, u_cmd, plant.outputs)
 
     def fill_plan(self, start: int, rows: int) -> None:
         """Copy the planned rows ``start:start+rows`` into the buffer."""
@@ -592,3 +581,24 @@ def simulate(
     if error is not None:
         raise error
     return result
+
+
+@kernel
+def _log_measured(
+    wide: np.ndarray, row: int, state: np.ndarray, readings: np.ndarray, estimates: np.ndarray
+) -> None:
+    """Columns 0-15 (q, v of both bodies) and 53-80 (readings, estimates) of a log row."""
+    for i in range(16):
+        wide[row, i] = state[i]
+        wide[row, 65 + i] = estimates[i]
+    for i in range(12):
+        wide[row, 53 + i] = readings[i]
+
+
+@kernel
+def _log_applied(wide: np.ndarray, row: int, u_cmd: np.ndarray, outputs: np.ndarray) -> None:
+    """Columns 16-19 (commanded voltage) and 20-43 (the plant's outputs) of a log row."""
+    for i in range(4):
+        wide[row, 16 + i] = u_cmd[i]
+    for i in range(24):
+        wide[row, 20 + i] = outputs[i]
