@@ -62,14 +62,20 @@ _TAYLOR_ORDER = 10
 
 @kernel
 def _matmul(a, b, out):  # pragma: no cover - compiled
+    """Write a b to ``out``, each entry summed over k in order.
+
+    A row is updated as a whole per k, so consecutive additions are to
+    different entries (no dependency chain) and the loop vectorises.
+    """
     n, m = a.shape
     p = b.shape[1]
     for i in range(n):
         for j in range(p):
-            acc = 0.0
-            for k in range(m):
-                acc += a[i, k] * b[k, j]
-            out[i, j] = acc
+            out[i, j] = 0.0
+        for k in range(m):
+            aik = a[i, k]
+            for j in range(p):
+                out[i, j] += aik * b[k, j]
 
 
 @kernel
@@ -100,12 +106,10 @@ def _expm(f, out, t1, t2):  # pragma: no cover - compiled
             out[i, j] = 1.0 if i == j else 0.0
     for order in range(_TAYLOR_ORDER, 0, -1):
         c = scale / order
+        _matmul(f, out, t1)
         for i in range(n):
             for j in range(n):
-                acc = 0.0
-                for k in range(n):
-                    acc += f[i, k] * out[k, j]
-                t1[i, j] = c * acc
+                t1[i, j] = c * t1[i, j]
         for i in range(n):
             for j in range(n):
                 out[i, j] = t1[i, j] + (1.0 if i == j else 0.0)
