@@ -127,7 +127,6 @@ class CuffSet:
         self._DPT = np.ascontiguousarray(self._DP.T)
         self._Dp0 = diff @ self._p0
         self._sel2 = np.vstack((sel, sel))
-        self._diff = diff
         self._k = float(params.stiffness_N_per_m)
         self._c = float(params.damping_N_s_per_m)
         #: (S | D P | (D P)ᵀ) for :func:`cuff_forces`, (16, 40): S in rows 0-7 of
