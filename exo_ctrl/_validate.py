@@ -25,6 +25,22 @@ def finite(name: str, value: float, unit: str = "") -> float:
     return x
 
 
+def array(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+    """Return ``value`` as a float64 array of ``shape`` for a compiled kernel.
+
+    A float64 array of that shape is returned as it is (the per-tick case,
+    no copy); anything else that broadcasts to the shape (a scalar, a list)
+    is broadcast; what does not raises, as a kernel would otherwise read
+    past the end of a short array.
+    """
+    if type(value) is np.ndarray and value.shape == shape and value.dtype == np.float64:
+        return value
+    try:
+        return np.broadcast_to(np.asarray(value, dtype=float), shape)
+    except (TypeError, ValueError):
+        raise InvalidParameter(name, value, f"numbers broadcastable to shape {shape}") from None
+
+
 def positive(name: str, value: float, unit: str = "") -> float:
     """Return ``value`` if it is finite and > 0."""
     x = finite(name, value, unit)

@@ -538,8 +538,9 @@ class CuffForceEstimator:
         The first step after construction or :meth:`reset` starts the observer
         at these readings (estimate zero; ``tau`` and ``h`` unused).
         """
-        if not (type(q) is type(dq) is type(tau) is np.ndarray):  # the kernel takes arrays
-            q, dq, tau = (np.asarray(x, dtype=float) for x in (q, dq, tau))
+        q = v.array("q", q, (4,))
+        dq = v.array("dq", dq, (4,))
+        tau = v.array("tau", tau, (4,))
         if not self._started:
             self._started = True  # the kernel starts the observer at these readings
         elif h != self._h_cached:

@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._jit import kernel
-from ._validate import positive
+from ._validate import array, positive
 from .exceptions import InvalidParameter
 
 __all__ = ["MotorBank", "MotorParams", "motor_step"]
@@ -171,6 +171,7 @@ class MotorBank:
         p = self.params
         n = int(n_drives)
         self._n = n
+        self._shape = (n,)
         self._kt = p.torque_per_amp_Nm_per_A
         self._kb = p.back_emf_V_per_rad_s
         self._tau_e = p.electrical_time_constant_s
@@ -270,11 +271,8 @@ class MotorBank:
         # repeated valid dt costs one float comparison.
         if dt_s != self._dt:
             self._set_dt(dt_s)
-        n = self._n
-        if type(voltage_cmd_V) is not np.ndarray or voltage_cmd_V.shape != (n,):
-            voltage_cmd_V = np.broadcast_to(np.asarray(voltage_cmd_V, dtype=float), (n,))
-        if type(omega_rad_s) is not np.ndarray or omega_rad_s.shape != (n,):
-            omega_rad_s = np.broadcast_to(np.asarray(omega_rad_s, dtype=float), (n,))
+        voltage_cmd_V = array("voltage_cmd_V", voltage_cmd_V, self._shape)
+        omega_rad_s = array("omega_rad_s", omega_rad_s, self._shape)
         motor_step(self.kernel_params, self.kernel_state, voltage_cmd_V, omega_rad_s)
         return self._ro_torque
 

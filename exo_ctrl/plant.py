@@ -41,6 +41,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
+from . import _validate as _v
 from ._jit import kernel
 from .cuffs import CuffParams, CuffSet, cuff_forces
 from .exceptions import InvalidModel, SimulationDiverged
@@ -205,14 +206,17 @@ class Plant:
         Raises:
             SimulationDiverged: a joint speed became non-finite or exceeded
                 :data:`MAX_JOINT_SPEED_RAD_S`.
+            InvalidParameter: an input that is not 4 numbers (or one).
 
         """
         flags = self._flags
+        voltage_V = _v.array("voltage_V", voltage_V, (4,))
         if patient_torque_Nm is None:
             flags[2] = False
             patient_torque_Nm = self.patient_torque
         else:
             flags[2] = True
+            patient_torque_Nm = _v.array("patient_torque_Nm", patient_torque_Nm, (4,))
         if _drift_and_forces(*self._pre_args, voltage_V, patient_torque_Nm, *self._pre_more):
             self._me.armature = self._arm_e
         # Kick: accelerations at mid-step, damping implicit through the armature.

@@ -360,16 +360,12 @@ class SafetySupervisor:
         """
         del k
         normal = self.state_code == 0 and t < self._estop
-        q, dq, tau = sensors.q, sensors.dq, sensors.tau
-        f, current, u = cuff_force, current_A, u_cmd
-        if not (
-            type(q) is type(dq) is type(tau) is type(f) is type(current) is type(u) is np.ndarray
-        ):
-            # Scalars or sequences: broadcast as numpy would (the kernel takes arrays).
-            q, dq, tau, current, u = (
-                np.broadcast_to(np.asarray(x, dtype=float), (4,)) for x in (q, dq, tau, current, u)
-            )
-            f = np.broadcast_to(np.asarray(f, dtype=float), (4, 2))
+        q = v.array("sensors.q", sensors.q, (4,))
+        dq = v.array("sensors.dq", sensors.dq, (4,))
+        tau = v.array("sensors.tau", sensors.tau, (4,))
+        f = v.array("cuff_force", cuff_force, (4, 2))
+        current = v.array("current_A", current_A, (4,))
+        u = v.array("u_cmd", u_cmd, (4,))
         worst = _monitor_kernel(f, q, dq, tau, current, u, normal, self._work)
         if normal and worst <= 0.0:
             return u_cmd

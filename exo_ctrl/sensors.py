@@ -239,9 +239,9 @@ class Sensors:
             The readings (the same object every call, overwritten by the next).
 
         """
-        if not (type(q_true) is type(dq_true) is type(tau_true) is np.ndarray):
-            # Scalars or sequences: broadcast as numpy would (the kernel takes arrays).
-            q_true, dq_true, tau_true = (_vector(x) for x in (q_true, dq_true, tau_true))
+        q_true = v.array("q_true", q_true, (4,))
+        dq_true = v.array("dq_true", dq_true, (4,))
+        tau_true = v.array("tau_true", tau_true, (4,))
         taken = _read_kernel(k, q_true, dq_true, tau_true, self._noise, self._work)
         if taken:
             self.samples += 1
@@ -261,11 +261,6 @@ class Sensors:
             self._rng.standard_normal(out=self._noise[1])
             np.multiply(self._noise[1], p.torque_noise_std_Nm, out=self._noise[1])
         self._work[_W_ROW] = 0.0
-
-
-def _vector(x) -> np.ndarray:
-    """A reading as a float64 array of 4 (a scalar is broadcast)."""
-    return np.broadcast_to(np.asarray(x, dtype=float), (4,))
 
 
 # Layout of the read kernel's buffer: the readings q, dq, tau and the bias β

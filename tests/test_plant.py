@@ -439,3 +439,19 @@ def test_runaway_speed_raises_simulation_diverged(exo, patient, index, value, na
         assert err.quantity == name
         assert abs(err.value) > 100.0 and np.sign(err.value) == np.sign(value)
         assert float(match.group(5)) == pytest.approx(err.value, rel=1e-3)
+
+
+def test_inputs_of_the_wrong_length_are_refused_by_name(exo, patient) -> None:
+    # The step runs in a compiled kernel: a short array must not be read past its end.
+    plant = Plant(exo, patient, dt=1e-3, motors=MotorParams())
+    plant.reset(np.zeros(4), np.zeros(4))
+    with pytest.raises(
+        InvalidParameter,
+        match=re.escape("voltage_V must be numbers broadcastable to shape (4,); got array("),
+    ):
+        plant.step(np.zeros(3))
+    with pytest.raises(InvalidParameter, match=re.escape("patient_torque_Nm must be numbers")):
+        plant.step(np.zeros(4), np.zeros(5))
+    q_before = plant.q.copy()
+    plant.step(1.0, [0.0, 0.0, 0.0, 0.0])  # a scalar and a list broadcast as numpy would
+    assert not np.array_equal(plant.q, q_before)

@@ -253,3 +253,11 @@ def test_bad_period_is_refused() -> None:
 def test_bias_is_stored_per_joint() -> None:
     assert SensorParams(torque_bias_Nm=0.7).torque_bias_Nm == (0.7, 0.7, 0.7, 0.7)
     assert np.array_equal(SensorParams(torque_bias_Nm=[1, 2, 3, 4]).bias, [1.0, 2.0, 3.0, 4.0])
+
+
+def test_readings_of_the_wrong_length_are_refused_by_name() -> None:
+    sensors = Sensors(SensorParams(), dt=1e-3)
+    with pytest.raises(
+        InvalidParameter, match=r"^dq_true must be numbers broadcastable to shape \(4,\)"
+    ):
+        sensors.read(0, np.zeros(4), np.zeros(2), np.zeros(4))
