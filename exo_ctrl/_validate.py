@@ -25,6 +25,9 @@ def finite(name: str, value: float, unit: str = "") -> float:
     return x
 
 
+_FLOAT64 = np.dtype(np.float64)  # the canonical instance: an identity test suffices
+
+
 def array(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
     """Return ``value`` as a float64 array of ``shape`` for a compiled kernel.
 
@@ -33,12 +36,28 @@ def array(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
     is broadcast; what does not raises, as a kernel would otherwise read
     past the end of a short array.
     """
-    if type(value) is np.ndarray and value.shape == shape and value.dtype == np.float64:
+    if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == shape:
         return value
     try:
         return np.broadcast_to(np.asarray(value, dtype=float), shape)
     except (TypeError, ValueError):
         raise InvalidParameter(name, value, f"numbers broadcastable to shape {shape}") from None
+
+
+def arrays(shape: tuple[int, ...], **values: object) -> tuple[np.ndarray, ...]:
+    """:func:`array` for each ``name=value``, in order (for non-array inputs)."""
+    return tuple(array(name, value, shape) for name, value in values.items())
+
+
+def refuse_shapes(shape: tuple[int, ...], **values: object) -> None:
+    """Raise for the first ``name=value`` whose shape is not ``shape``.
+
+    For a compiled kernel that found an input of the wrong shape (it checks
+    before it writes anything, so the call had no effect).
+    """
+    for name, value in values.items():
+        if np.shape(value) != shape:
+            raise InvalidParameter(name, value, f"an array of shape {shape}")
 
 
 def positive(name: str, value: float, unit: str = "") -> float:

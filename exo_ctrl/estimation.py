@@ -538,9 +538,10 @@ class CuffForceEstimator:
         The first step after construction or :meth:`reset` starts the observer
         at these readings (estimate zero; ``tau`` and ``h`` unused).
         """
-        q = v.array("q", q, (4,))
-        dq = v.array("dq", dq, (4,))
-        tau = v.array("tau", tau, (4,))
+        if not (type(q) is type(dq) is type(tau) is np.ndarray):
+            q, dq, tau = v.arrays((4,), q=q, dq=dq, tau=tau)
+        if q.shape != (4,) or dq.shape != (4,):  # before Pinocchio sees them
+            v.refuse_shapes((4,), q=q, dq=dq)
         if not self._started:
             self._started = True  # the kernel starts the observer at these readings
         elif h != self._h_cached:
@@ -549,7 +550,8 @@ class CuffForceEstimator:
         mass = pin.crba(model, data, q)
         coriolis = pin.computeCoriolisMatrix(model, data, q, dq)
         gravity = pin.computeGeneralizedGravity(model, data, q)
-        _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, self._work)
+        if _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, self._work) < 0:
+            v.refuse_shapes((4,), tau=tau)
         return self.force
 
     # ------------------------------------------------------------------ internals
@@ -586,7 +588,10 @@ def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
     p = M q̇, m = Cᵀ q̇ − g − b q̇ − f_c tanh(q̇/ε);
     s += h (τ − β + ½ (m_{k-1} + m) + r), r = K_d (p − s).
     Not started (w's flag 0): s = p, m_{k-1} = m, r = f = 0, flag set.
+    Returns 0, or -1 (and nothing done) when ``tau`` is not of length 4.
     """
+    if tau.shape[0] != 4:
+        return -1
     has_friction = w[_P_HAS_FRICTION] != 0.0
     eps = w[_P_EPS]
     for i in range(4):
@@ -610,7 +615,7 @@ def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
             w[_B_FORCE + 2 * i] = 0.0
             w[_B_FORCE + 2 * i + 1] = 0.0
         w[_B_STARTED] = 1.0
-        return
+        return 0
     has_bias = w[_P_HAS_BIAS] != 0.0
     kd = w[_B_KD]
     for i in range(4):
@@ -622,6 +627,7 @@ def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
         w[_B_R + i] = (w[_B_P + i] - s) * kd
         w[_B_M_PREV + i] = w[_B_M + i]
     _cuffs_kernel(q, w)
+    return 0
 
 
 @kernel

@@ -210,14 +210,19 @@ class Plant:
 
         """
         flags = self._flags
-        voltage_V = _v.array("voltage_V", voltage_V, (4,))
         if patient_torque_Nm is None:
             flags[2] = False
             patient_torque_Nm = self.patient_torque
         else:
             flags[2] = True
-            patient_torque_Nm = _v.array("patient_torque_Nm", patient_torque_Nm, (4,))
-        if _drift_and_forces(*self._pre_args, voltage_V, patient_torque_Nm, *self._pre_more):
+        if not (type(voltage_V) is type(patient_torque_Nm) is np.ndarray):
+            voltage_V, patient_torque_Nm = _v.arrays(
+                (4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm
+            )
+        changed = _drift_and_forces(*self._pre_args, voltage_V, patient_torque_Nm, *self._pre_more)
+        if changed < 0:
+            _v.refuse_shapes((4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
+        if changed:
             self._me.armature = self._arm_e
         # Kick: accelerations at mid-step, damping implicit through the armature.
         acc_e = pin.aba(*self._aba_e)
@@ -279,7 +284,7 @@ def _drift_and_forces(
     cuff_out: np.ndarray,
     motor_params: np.ndarray,
     motor_state: np.ndarray,
-) -> bool:
+) -> int:
     """First half of :meth:`Plant.step`: drift to mid-step and every force there.
 
     q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
@@ -287,9 +292,12 @@ def _drift_and_forces(
     armature i_G² J_rotor + h b + h D_m.  Rows of ``s8``: q, v, a, q½, v½, τ;
     of ``s4``: drive torque, sensor torque, patient torque, exo armature,
     h D_m, i_G² J_rotor, i_G² J_rotor + h b.  ``flags``: friction, motors,
-    patient torque given.  Returns whether the exo armature changed (D_m
-    changes only when a drive's current enters or leaves its limit).
+    patient torque given.  Returns 1 if the exo armature changed (D_m
+    changes only when a drive's current enters or leaves its limit), else 0;
+    -1 (and nothing done) when the voltages or patient torques are not 4.
     """
+    if voltage_V.shape[0] != 4 or patient_torque_Nm.shape[0] != 4:
+        return -1
     q, v, acc, qm, vm, tau = s8[0], s8[1], s8[2], s8[3], s8[4], s8[5]
     half = 0.5 * h
     for i in range(8):
@@ -316,7 +324,7 @@ def _drift_and_forces(
             arm = s4[4, j] + s4[6, j]
             changed = changed or arm != s4[3, j]
             s4[3, j] = arm
-    return changed
+    return 1 if changed else 0
 
 
 @kernel

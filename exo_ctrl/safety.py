@@ -360,13 +360,21 @@ class SafetySupervisor:
         """
         del k
         normal = self.state_code == 0 and t < self._estop
-        q = v.array("sensors.q", sensors.q, (4,))
-        dq = v.array("sensors.dq", sensors.dq, (4,))
-        tau = v.array("sensors.tau", sensors.tau, (4,))
-        f = v.array("cuff_force", cuff_force, (4, 2))
-        current = v.array("current_A", current_A, (4,))
-        u = v.array("u_cmd", u_cmd, (4,))
+        q, dq, tau = sensors.q, sensors.dq, sensors.tau
+        f, current, u = cuff_force, current_A, u_cmd
+        if not (
+            type(q) is type(dq) is type(tau) is type(f) is type(current) is type(u) is np.ndarray
+        ):
+            q, dq, tau, current, u = v.arrays(
+                (4,), sensors_q=q, sensors_dq=dq, sensors_tau=tau, current_A=current, u_cmd=u
+            )
+            f = v.array("cuff_force", f, (4, 2))
         worst = _monitor_kernel(f, q, dq, tau, current, u, normal, self._work)
+        if worst < 0.0:
+            v.refuse_shapes(
+                (4,), sensors_q=q, sensors_dq=dq, sensors_tau=tau, current_A=current, u_cmd=u
+            )
+            v.refuse_shapes((4, 2), cuff_force=f)
         if normal and worst <= 0.0:
             return u_cmd
         if self.state_code == 0:
@@ -555,8 +563,19 @@ def _monitor_kernel(cuff_force, q, dq, tau, current_A, u_cmd, normal, w):
     DBL_MAX (<= 0, or +inf / NaN for an infinity / a NaN).  The sum is 0 when
     all is well, > 0 or NaN if not.  When it is 0 and ``normal``, the posture
     and command are kept in w (the last good tick's).  The limits are read
-    from w (lower angle limits negated).
+    from w (lower angle limits negated).  Returns -1 (and nothing done) when
+    an input is not of length 4 (the cuff forces: not (4, 2)).
     """
+    if (
+        q.shape[0] != 4
+        or dq.shape[0] != 4
+        or tau.shape[0] != 4
+        or current_A.shape[0] != 4
+        or u_cmd.shape[0] != 4
+        or cuff_force.shape[0] != 4
+        or cuff_force.shape[1] != 2
+    ):
+        return -1.0
     for i in range(4):
         fx = cuff_force[i, 0]
         fz = cuff_force[i, 1]

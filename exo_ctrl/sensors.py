@@ -239,10 +239,13 @@ class Sensors:
             The readings (the same object every call, overwritten by the next).
 
         """
-        q_true = v.array("q_true", q_true, (4,))
-        dq_true = v.array("dq_true", dq_true, (4,))
-        tau_true = v.array("tau_true", tau_true, (4,))
+        if not (type(q_true) is type(dq_true) is type(tau_true) is np.ndarray):
+            q_true, dq_true, tau_true = v.arrays(
+                (4,), q_true=q_true, dq_true=dq_true, tau_true=tau_true
+            )
         taken = _read_kernel(k, q_true, dq_true, tau_true, self._noise, self._work)
+        if taken < 0:
+            v.refuse_shapes((4,), q_true=q_true, dq_true=dq_true, tau_true=tau_true)
         if taken:
             self.samples += 1
             if taken == 2:  # the block is used up: draw the next for the next sample
@@ -288,8 +291,11 @@ def _read_kernel(k, q_true, dq_true, tau_true, noise, w):
     """One read at tick k: hold, or take a sample into w's readings (module docstring).
 
     Returns 0 when the last sample is held, 1 when a sample was taken, 2 when
-    it used the last row of the noise block (the caller draws the next block).
+    it used the last row of the noise block (the caller draws the next block),
+    -1 (and nothing done) when an input is not of length 4.
     """
+    if q_true.shape[0] != 4 or dq_true.shape[0] != 4 or tau_true.shape[0] != 4:
+        return -1
     dt = w[_W_DT]
     t = k * dt
     started = w[_W_STARTED] != 0.0

@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from exo_ctrl.control.base import SensorReadings
 from exo_ctrl.cuffs import CuffParams
 from exo_ctrl.estimation import (
     CSV_REQUIRED_COLUMNS,
@@ -638,7 +639,6 @@ def test_reset_and_update_cost(exo, ideal_run: Run) -> None:
     est = CuffForceEstimator(exo, DT)
     est.reset(run.q[0], run.dq[0])
     assert np.all(est.normal == 0)
-    from exo_ctrl.control.base import SensorReadings
 
     readings = [SensorReadings(run.q[k], run.dq[k], run.tau[k]) for k in range(1, 1001)]
     start = time.perf_counter()
@@ -684,3 +684,16 @@ def test_running_error_stats_match_the_offline_errors(noisy_run: Run) -> None:
     assert summary["cuff_force_estimate_rms_error_rel"]["left_shank"] == pytest.approx(
         offline.rms_error_rel[1]
     )
+
+
+def test_readings_of_the_wrong_length_are_refused_by_name() -> None:
+    setup = build(SimConfig())
+    est = CuffForceEstimator(setup.exo, 1e-3)
+    q = setup.plan.q[0].copy()
+    est.update(SensorReadings(q=q, dq=np.zeros(4), tau=np.zeros(4)))
+    before = est.outputs_flat.copy()
+    with pytest.raises(InvalidParameter, match=r"^tau must be an array of shape \(4,\)"):
+        est.step(q, np.zeros(4), np.zeros(3), 1e-3)
+    with pytest.raises(InvalidParameter, match=r"^dq must be an array of shape \(4,\)"):
+        est.step(q, np.zeros(5), np.zeros(4), 1e-3)
+    np.testing.assert_array_equal(est.outputs_flat, before)  # no effect

@@ -447,10 +447,12 @@ def test_inputs_of_the_wrong_length_are_refused_by_name(exo, patient) -> None:
     plant.reset(np.zeros(4), np.zeros(4))
     with pytest.raises(
         InvalidParameter,
-        match=re.escape("voltage_V must be numbers broadcastable to shape (4,); got array("),
+        match=re.escape("voltage_V must be an array of shape (4,); got array("),
     ):
         plant.step(np.zeros(3))
-    with pytest.raises(InvalidParameter, match=re.escape("patient_torque_Nm must be numbers")):
+    with pytest.raises(
+        InvalidParameter, match=re.escape("patient_torque_Nm must be an array of shape (4,)")
+    ):
         plant.step(np.zeros(4), np.zeros(5))
     q_before = plant.q.copy()
     plant.step(1.0, [0.0, 0.0, 0.0, 0.0])  # a scalar and a list broadcast as numpy would

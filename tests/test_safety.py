@@ -481,3 +481,17 @@ def test_supervisor_validation_messages() -> None:
     assert str(exc.value).startswith(
         "rom_margin_rad must be such that left_hip keeps a range (lower 0.98 rad, upper 0.59 rad)"
     )
+
+
+def test_inputs_of_the_wrong_length_are_refused_by_name() -> None:
+    # The monitor runs in a compiled kernel: a short array must not be read past its end.
+    setup = build(SimConfig())
+    sup = SafetySupervisor(SafetyLimits(), setup.exo, setup.patient, setup.plant.motor_params, 1e-3)
+    sensors = SensorReadings(q=setup.plan.q[0].copy(), dq=np.zeros(4), tau=np.zeros(4))
+    with pytest.raises(InvalidParameter, match=r"^u_cmd must be an array of shape \(4,\)"):
+        sup.step(0, 0.0, sensors, np.zeros((4, 2)), np.zeros(4), np.zeros(3))
+    with pytest.raises(InvalidParameter, match=r"^cuff_force must be an array of shape \(4, 2\)"):
+        sup.step(0, 0.0, sensors, np.zeros((2, 2)), np.zeros(4), np.zeros(4))
+    assert sup.state_code == 0 and not sup.events
+    u = np.full(4, 0.5)
+    assert sup.step(0, 0.0, sensors, np.zeros((4, 2)), np.zeros(4), u) is u  # then normal
