@@ -225,3 +225,13 @@ def test_computed_torque_voltage_stays_within_the_supply(runs) -> None:
     assert np.max(np.abs(ct["voltage_cmd"])) < supply
     np.testing.assert_array_equal(ct["voltage_cmd"], ct["voltage"])
     assert math.isfinite(float(np.max(np.abs(ct["drive_torque"]))))
+
+
+def test_readings_of_the_wrong_length_are_refused_by_name(plan) -> None:
+    # The PD law runs in a compiled kernel: a short array must not be read past its end.
+    pd = PDController(plan)
+    bad = SensorReadings(q=np.zeros(4), dq=np.zeros(3), tau=np.zeros(4))
+    with pytest.raises(InvalidParameter, match=r"^sensors_dq must be an array of shape \(4,\)"):
+        pd.command(0, bad)
+    good = SensorReadings(q=plan.q[0].copy(), dq=plan.dq[0].copy(), tau=np.zeros(4))
+    np.testing.assert_array_equal(pd.command(0, good), np.zeros(4))  # on the plan: 0 V

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import _validate as v
 from .._jit import kernel
 from ..kinematics import JointTrajectory
 from .base import PDGains, SensorReadings
@@ -42,7 +43,11 @@ class PDController:
     def _pd(self, k: int, sensors: SensorReadings, u_ff: np.ndarray) -> np.ndarray:
         """PD voltages plus ``u_ff`` [V] for tick k."""
         plan = self.plan
-        pd_volts(self._u, self._gains, plan.q, plan.dq, self._row(k), sensors.q, sensors.dq, u_ff)
+        q, dq = sensors.q, sensors.dq
+        if not (type(q) is type(dq) is np.ndarray):
+            q, dq = v.arrays((4,), sensors_q=q, sensors_dq=dq)
+        if pd_volts(self._u, self._gains, plan.q, plan.dq, self._row(k), q, dq, u_ff) < 0:
+            v.refuse_shapes((4,), sensors_q=q, sensors_dq=dq)
         return self._u
 
 
@@ -56,9 +61,12 @@ def pd_volts(
     q: np.ndarray,
     dq: np.ndarray,
     u_ff: np.ndarray,
-) -> None:
+) -> int:
     """Write k_p (q*[row] - q) + k_d (q̇*[row] - q̇) + u_ff [V] to ``out`` (gains: k_p; k_d)."""
+    if q.shape[0] != 4 or dq.shape[0] != 4:
+        return -1  # nothing written
     for j in range(4):
         out[j] = (
             gains[0, j] * (q_des[row, j] - q[j]) + gains[1, j] * (dq_des[row, j] - dq[j])
         ) + u_ff[j]
+    return 0
