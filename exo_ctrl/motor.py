@@ -228,7 +228,11 @@ class MotorBank:
 
     # -- stepping --------------------------------------------------------------
     def set_step(self, dt_s: float) -> None:
-        """Prepare the constants of a step length h [s] (cached; done by :meth:`step` too)."""
+        """Prepare the constants of a step length h [s] (cached; done by :meth:`step` too).
+
+        A new h (NaN never equals the cache) is validated in :meth:`_set_dt`; a
+        repeated valid h costs one float comparison.
+        """
         if dt_s != self._dt:
             self._set_dt(dt_s)
 
@@ -267,10 +271,7 @@ class MotorBank:
             InvalidParameter: ``dt_s`` is not a finite number > 0.
 
         """
-        # A new dt (NaN never equals the cache) is validated in _set_dt, so a
-        # repeated valid dt costs one float comparison.
-        if dt_s != self._dt:
-            self._set_dt(dt_s)
+        self.set_step(dt_s)
         voltage_cmd_V = array("voltage_cmd_V", voltage_cmd_V, self._shape)
         omega_rad_s = array("omega_rad_s", omega_rad_s, self._shape)
         motor_step(self.kernel_params, self.kernel_state, voltage_cmd_V, omega_rad_s)
@@ -300,8 +301,7 @@ class MotorBank:
             InvalidParameter: ``dt_s`` is not a finite number > 0.
 
         """
-        if dt_s != self._dt:
-            self._set_dt(dt_s)
+        self.set_step(dt_s)
         np.multiply(self._sat == 0.0, self.kernel_params[7], out=self._damping)
         return self._ro_damping
 

@@ -86,7 +86,7 @@ def _copy(src, dst):  # pragma: no cover - compiled
 
 
 @kernel
-def _expm(f, out, t1, t2):  # pragma: no cover - compiled
+def _expm(f, out, t1):  # pragma: no cover - compiled
     """exp(f) by scaling and squaring a Taylor series (f small after scaling)."""
     n = f.shape[0]
     norm = 0.0
@@ -166,7 +166,7 @@ def _predict(
         # Generalised forces on the exo per unit of each state/input column.
         # exo: tau - he - D u_e - G K delta - G C (u_e - u_p)
         # patient: -hp + d - Dp u_p + G K delta + G C (u_e - u_p)
-        ge = t2[0:2]  # t2 is free until _expm (which does not use it)
+        ge = t2[0:2]  # t2 is scratch here (_expm works in t1)
         gp = t2[2:4]
         for r in range(4):
             for c in range(9):
@@ -194,7 +194,7 @@ def _predict(
             f[5, c] = (ip12 * gp[0, c] + ip22 * gp[1, c]) * dt_block
         f[0, 2] = f[1, 3] = dt_block
         f[0, 4] = f[1, 5] = -dt_block
-        _expm(f, e, t1, t2)
+        _expm(f, e, t1)
         # z0 = (delta, 0, -ddelta, tau, 1)
         _copy(e, pw)
         done = 1
