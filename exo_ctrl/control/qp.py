@@ -84,8 +84,9 @@ same absolute errors are a larger fraction: 15 % is asserted there.
 **Cost.**  Each tick: CT+PD, the box, the linearisation (two CRBA, two
 nonLinearEffects, the patient's joint Jacobians and four frame Jacobians),
 the observer and the horizon prediction (two compiled kernels: a 9×9 matrix
-exponential and its powers per leg), the octagon rows (two matrix
-products) and the QP (8 variables, 32 P rows).  Timings: tools/bench.py.
+exponential and its powers per leg), the octagon rows (one kernel) and
+the QP (8 variables, 32 P rows) with its independent check (one kernel).
+Timings: tools/bench.py.
 
 :meth:`QPController.command` never raises and never returns NaN.
 """
