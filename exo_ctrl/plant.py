@@ -15,17 +15,23 @@ Integration, step h (default 1 ms): drift–kick–drift leapfrog,
 q½ = q + (h/2) v,  a = ABA(q½, v½),  v⁺ = v + h a,  q⁺ = q½ + (h/2) v⁺,
 with v½ = v + (h/2) a⁻ extrapolated from the previous step's acceleration, so
 the velocity-dependent forces (Coriolis, cuff damping) are also taken at
-mid-step: second order with one ABA call per body and step.  Symplectic
-Euler, also one call, drifted 3 % in energy over 10 s at 1 ms on the passive
-system; this scheme stays within 0.1 % (tests/test_plant.py).
+mid-step: second order with one ABA call per step.  Symplectic Euler, also
+one call, drifted 3 % in energy over 10 s at 1 ms on the passive system; this
+scheme stays within 0.1 % (tests/test_plant.py).
+The two bodies are one Pinocchio model for that call: the patient's model
+appended to the exoskeleton's at the world frame (``pin.appendModel``; two
+independent fixed-base trees, so the dynamics are those of the two models
+apart, and the coordinates are q_all's, exo first).  Both source models must
+have the same gravity.
 The stiff viscous terms are taken implicitly: the drive's back-EMF damping
 D_m = -∂τ/∂ω (about 330 N·m·s/rad at the default gear ratio; its time
 constant with the shank's inertia is well under 1 ms, so an explicit step
 would be unstable) and the joint damping b.  Linearising the torque at the
 present speed, (M + h D) a = τ(v) - b(q, v) - ..., and M + h D is M with h D
 added to its diagonal, which is exactly what Pinocchio's ``armature`` does: the
-ABA call runs with armature = i_G² J_rotor + h D.  The drive current itself
-is integrated exactly over the step (:class:`~exo_ctrl.motor.MotorBank`).
+ABA call runs with armature = [i_G² J_rotor + h b + h D_m (exo), h b (patient)].
+The drive current itself is integrated exactly over the step
+(:class:`~exo_ctrl.motor.MotorBank`).
 
 Outputs of a step: ``drive_torque`` is the torque the drive applied at the
 joint, τ_m(v) - h D_m a (the mean-current torque with its implicit back-EMF
@@ -57,14 +63,22 @@ MAX_JOINT_SPEED_RAD_S = 100.0
 class Plant:
     """Exoskeleton + patient + drives + cuffs, stepped at a fixed step.
 
+    Both bodies are stepped by one ABA call on a combined Pinocchio model
+    (see the module docstring).
+
     Args:
         exo: the exoskeleton body.
-        patient: the patient body.
+        patient: the patient body (same gravity as the exoskeleton's model).
         dt: integration step h [s].
         motors: drive parameters; None disconnects the drives (no torque, no
             rotor inertia, no back-EMF) — for passive tests.
         cuffs: cuff parameters.
         joint_losses: apply the URDF's joint damping and friction.
+
+    Raises:
+        InvalidModel: a body without exactly the four joints in JOINT_NAMES
+            order, or the two models' gravities differ.
+        InvalidParameter: a step that is not a positive number.
 
     """
 
@@ -91,10 +105,9 @@ class Plant:
         self.exo = exo
         self.patient = patient
         self.dt = float(dt)
-        self._me = pin.Model(exo.model)
-        self._mp = pin.Model(patient.model)
-        self._de = self._me.createData()
-        self._dp = self._mp.createData()
+        # Both bodies in one model: one ABA call per step.
+        self._model = _combined_model(exo, patient)
+        self._data = self._model.createData()
         self.motor_params = motors
         self.motors = MotorBank(4, motors) if motors is not None else None
         rotor = motors.reflected_inertia_kgm2 if motors is not None else 0.0
@@ -109,15 +122,14 @@ class Plant:
         self.cuffs = CuffSet(exo, patient, self.cuff_params, self.patient_offset_xz)
         # State and work arrays (allocated once), as rows of two buffers the
         # step kernels fill in place.
-        self._s8 = np.zeros((6, 8))
-        self.q, self.v, self._acc, self._q_mid, self._v_mid, self._tau = self._s8
-        self._s4 = np.zeros((7, 4))
+        self._s8 = np.zeros((7, 8))
+        self.q, self.v, self._acc, self._q_mid, self._v_mid, self._tau, self._arm = self._s8
+        self._s4 = np.zeros((6, 4))
         (
             self.drive_torque,
             #: Joint torque sensor reading at each drive output (gearbox to link) [N·m].
             self.sensor_torque,
             self.patient_torque,
-            self._arm_e,
             self._damping_m,  # h D_m of the drives [kg·m²]
             self._arm_base,
             self._arm_const,
@@ -129,15 +141,16 @@ class Plant:
         #: drive torque and patient torque [N·m] (4 each) and cuff forces on
         #: the exoskeleton (fx of the 4 cuffs, fz of the 4 cuffs) [N]: (24,).
         self.outputs = np.zeros(24)
-        # Exo armature = rotor inertia + h b (implicit joint damping, constant)
-        # + h D_m (implicit back-EMF damping, per step).
+        # The combined model's armature: exo = rotor inertia + h b (implicit
+        # joint damping, constant) + h D_m (implicit back-EMF damping, per
+        # step); patient = h b.
         self._arm_const[:] = self._arm_base + self.dt * self._b[:4]
-        self._mp.armature = self.dt * self._b[4:]
+        self._arm[:4] = self._arm_const
+        self._arm[4:] = self.dt * self._b[4:]
+        self._model.armature = self._arm
         self._losses = np.stack((self._b, self._fr))
         self._flags = np.array([self._has_friction, self.motors is not None, False], dtype=np.bool_)
         self.t = 0.0
-        self._arm_e[:] = self._arm_const  # what the exo model's armature holds
-        self._me.armature = self._arm_e
         # The arguments of every step's calls, gathered once (views stay valid:
         # the buffers are never reallocated).
         if self.motors is not None:
@@ -149,8 +162,7 @@ class Plant:
         self._pre_args = (self.dt, self._s8, self._s4, self._losses, self._flags)
         self._pre_more = (c.kernel_matrices, c.kernel_params, c.kernel_out, *motor_args)
         self._post_more = (motor_args[1], c.kernel_out, self.outputs)
-        self._aba_e = (self._me, self._de, self._q_mid[:4], self._v_mid[:4], self._tau[:4])
-        self._aba_p = (self._mp, self._dp, self._q_mid[4:], self._v_mid[4:], self._tau[4:])
+        self._aba = (self._model, self._data, self._q_mid, self._v_mid, self._tau)
 
     # ------------------------------------------------------------------ state
 
@@ -223,12 +235,12 @@ class Plant:
         if changed < 0:
             _v.refuse_shapes((4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
         if changed:
-            self._me.armature = self._arm_e
-        # Kick: accelerations at mid-step, damping implicit through the armature.
-        acc_e = pin.aba(*self._aba_e)
-        acc_p = pin.aba(*self._aba_p)
+            self._model.armature = self._arm
+        # Kick: accelerations of both bodies at mid-step, damping implicit
+        # through the armature.
+        acc = pin.aba(*self._aba)
         self.t += self.dt
-        speed2 = _kick_and_drift(self.dt, self._s8, self._s4, acc_e, acc_p, flags, *self._post_more)
+        speed2 = _kick_and_drift(self.dt, self._s8, self._s4, acc, flags, *self._post_more)
         if not speed2 < MAX_JOINT_SPEED_RAD_S**2:
             self._diverged()
 
@@ -270,6 +282,43 @@ class Plant:
         return energy
 
 
+def _combined_model(exo: BodyModel, patient: BodyModel) -> pin.Model:
+    """One Pinocchio model of both bodies, q = v = [q_exo (4), q_patient (4)].
+
+    The patient's model is appended to the exoskeleton's at the world frame,
+    its joint and frame names prefixed with ``patient/`` (appendModel refuses
+    clashing names).  Both are fixed-base, so the trees stay independent and
+    ABA on the result is ABA on each model apart.
+    """
+    g_exo, g_pat = exo.model.gravity.vector, patient.model.gravity.vector
+    if not np.array_equal(g_exo, g_pat):
+        raise InvalidModel(
+            patient.source,
+            "",
+            f"its gravity {g_pat.tolist()} differs from the exoskeleton's {g_exo.tolist()}; "
+            "the plant needs the same gravity in both models",
+        )
+    pat = pin.Model(patient.model)
+    for i in range(1, pat.njoints):
+        pat.names[i] = "patient/" + pat.names[i]
+    for i in range(1, pat.nframes):
+        frame = pat.frames[i]
+        frame.name = "patient/" + frame.name
+        pat.frames[i] = frame
+    model = pin.appendModel(exo.model, pat, 0, pin.SE3.Identity())
+    model.gravity = pin.Motion(exo.model.gravity)
+    ids = [model.getJointId(exo.model.names[j]) for j in exo.joint_ids]
+    ids += [model.getJointId(pat.names[j]) for j in patient.joint_ids]
+    order = [(model.joints[j].idx_q, model.joints[j].idx_v) for j in ids]
+    if model.nq != 8 or model.nv != 8 or order != [(i, i) for i in range(8)]:
+        raise InvalidModel(
+            f"{exo.source} + {patient.source}",
+            "",
+            f"the combined model's coordinates {order} are not [exo, patient] in joint order",
+        )
+    return model
+
+
 @kernel
 def _drift_and_forces(
     h: float,
@@ -289,10 +338,10 @@ def _drift_and_forces(
 
     q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
     (+ patient torque) (+ drive torque of the exact motor step); the exo
-    armature i_G² J_rotor + h b + h D_m.  Rows of ``s8``: q, v, a, q½, v½, τ;
-    of ``s4``: drive torque, sensor torque, patient torque, exo armature,
-    h D_m, i_G² J_rotor, i_G² J_rotor + h b.  ``flags``: friction, motors,
-    patient torque given.  Returns 1 if the exo armature changed (D_m
+    armature i_G² J_rotor + h b + h D_m.  Rows of ``s8``: q, v, a, q½, v½, τ,
+    armature (exo, patient); of ``s4``: drive torque, sensor torque, patient
+    torque, h D_m, i_G² J_rotor, i_G² J_rotor + h b.  ``flags``: friction,
+    motors, patient torque given.  Returns 1 if the exo armature changed (D_m
     changes only when a drive's current enters or leaves its limit), else 0;
     -1 (and nothing done) when the voltages or patient torques are not 4.
     """
@@ -320,10 +369,10 @@ def _drift_and_forces(
             torque = motor_state[3, j]
             s4[0, j] = torque
             tau[j] += torque
-            s4[4, j] = motor_state[5, j] * h
-            arm = s4[4, j] + s4[6, j]
-            changed = changed or arm != s4[3, j]
-            s4[3, j] = arm
+            s4[3, j] = motor_state[5, j] * h
+            arm = s4[3, j] + s4[5, j]
+            changed = changed or arm != s8[6, j]
+            s8[6, j] = arm
     return 1 if changed else 0
 
 
@@ -332,8 +381,7 @@ def _kick_and_drift(
     h: float,
     s8: np.ndarray,
     s4: np.ndarray,
-    acc_e: np.ndarray,
-    acc_p: np.ndarray,
+    acc_all: np.ndarray,
     flags: np.ndarray,
     motor_state: np.ndarray,
     cuff_out: np.ndarray,
@@ -341,18 +389,18 @@ def _kick_and_drift(
 ) -> float:
     """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺; returns |v⁺|².
 
+    ``acc_all``: the ABA accelerations of both bodies, (8,) in q_all order.
     With drives, the applied torque τ_m - h D_m a and the sensor torque
     τ_m - h D_m a - i_G² J_rotor a (rows of ``s4`` as in :func:`_drift_and_forces`).
     Fills :attr:`Plant.outputs`.
     """
     q, v, acc, qm = s8[0], s8[1], s8[2], s8[3]
-    for j in range(4):
-        acc[j] = acc_e[j]
-        acc[4 + j] = acc_p[j]
+    for i in range(8):
+        acc[i] = acc_all[i]
     if flags[1]:
         for j in range(4):
-            s4[0, j] = s4[0, j] - s4[4, j] * acc[j]
-            s4[1, j] = s4[0, j] - s4[5, j] * acc[j]
+            s4[0, j] = s4[0, j] - s4[3, j] * acc[j]
+            s4[1, j] = s4[0, j] - s4[4, j] * acc[j]
     for j in range(4):
         outputs[j] = motor_state[2, j]
         outputs[4 + j] = motor_state[1, j]

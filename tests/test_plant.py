@@ -24,6 +24,7 @@ equations are the special case I = 0, c = l (point masses at the link ends).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import xml.etree.ElementTree as ET
@@ -35,7 +36,7 @@ import pinocchio as pin
 import pytest
 
 from exo_ctrl.cuffs import CuffParams
-from exo_ctrl.exceptions import InvalidParameter, SimulationDiverged
+from exo_ctrl.exceptions import InvalidModel, InvalidParameter, SimulationDiverged
 from exo_ctrl.model import BodyModel, default_urdf_path, load_body
 from exo_ctrl.motor import MotorParams
 from exo_ctrl.plant import Plant
@@ -396,6 +397,70 @@ def test_drive_torque_moves_the_legs(exo, patient) -> None:
     assert plant.q[0] == pytest.approx(-plant.q[2], rel=1e-9)
     # The patient's thigh is carried along by the cuffs.
     assert plant.q[4] > 0.1 * plant.q[0]
+
+
+# --------------------------------------------------------------------------- one ABA call
+
+
+@pytest.mark.parametrize("which", ["patient", "human"])
+def test_combined_aba_is_the_two_bodies_apart(request, exo, patient, which) -> None:
+    """The plant's one ABA call on both bodies = one call per body's own model.
+
+    Separate models built from ``exo.model`` and ``patient.model`` with the
+    same armatures: the plant's own (exo i_G² J_rotor + h b (+ h D_m), patient
+    h b), then random ones, on random states and torques; and the
+    accelerations of a real step from its mid-step rows.
+    """
+    body = patient if which == "patient" else request.getfixturevalue("human")
+    params = MotorParams()
+    plant = Plant(exo, body, dt=1e-3, motors=params)
+    h = plant.dt
+    expected_arm = np.concatenate(
+        (params.reflected_inertia_kgm2 + h * exo.damping, h * body.damping)
+    )
+    np.testing.assert_allclose(plant._model.armature, expected_arm, rtol=1e-15)
+    model = pin.Model(plant._model)
+    data = model.createData()
+    me, mp = pin.Model(exo.model), pin.Model(body.model)
+    de, dp = me.createData(), mp.createData()
+
+    def apart(arm, q, v, tau):
+        me.armature, mp.armature = arm[:4], arm[4:]
+        return np.concatenate(
+            (pin.aba(me, de, q[:4], v[:4], tau[:4]), pin.aba(mp, dp, q[4:], v[4:], tau[4:]))
+        )
+
+    rng = np.random.default_rng(21)
+    for k in range(20):
+        arm = expected_arm if k < 5 else rng.uniform(0.0, 0.5, 8)
+        model.armature = arm
+        q, v, tau = rng.uniform(-2, 2, 8), rng.uniform(-6, 6, 8), rng.uniform(-40, 40, 8)
+        both = pin.aba(model, data, q, v, tau)
+        assert np.max(np.abs(both)) > 1.0
+        np.testing.assert_allclose(both, apart(arm, q, v, tau), rtol=0.0, atol=1e-12)
+    # In the plant's step: its accelerations are those of its mid-step state
+    # and armature, h D_m included (zero while a drive's current is at its
+    # limit: the large voltages).
+    plant.reset(np.array([0.3, 0.5, -0.1, 0.2]), np.array([1.0, -2.0, 0.5, 0.0]))
+    plant.q[4:] += 0.05  # stretch the straps
+    saturated = 0
+    for k in range(6):
+        voltage = np.array([3.0, -2.0, 1.0, 4.0]) * (10.0 if k % 3 == 2 else 1.0)
+        plant.step(voltage, np.array([1.0, 2.0, -3.0, 0.5]))
+        saturated += int(np.any(plant.motors.saturated))
+        arm = expected_arm.copy()
+        arm[:4] += h * plant.motors.damping_Nm_s_per_rad(h)
+        expected = apart(arm, plant._q_mid, plant._v_mid, plant._tau)
+        np.testing.assert_allclose(plant.acceleration, expected, rtol=0.0, atol=1e-12)
+    assert 0 < saturated < 6
+
+
+def test_bodies_under_different_gravity_are_refused(exo, patient) -> None:
+    model = pin.Model(patient.model)
+    model.gravity = pin.Motion(np.array([0.0, 0.0, -1.62, 0.0, 0.0, 0.0]))
+    on_the_moon = dataclasses.replace(patient, model=model)
+    with pytest.raises(InvalidModel, match=r"gravity .* differs from the exoskeleton's"):
+        Plant(exo, on_the_moon)
 
 
 # --------------------------------------------------------------------------- errors
