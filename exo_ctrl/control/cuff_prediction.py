@@ -28,10 +28,15 @@ torques at the measured state, b the URDF joint damping, d the patient's own
 joint torque (held; estimated by :class:`CuffStateObserver`).  With
 z = (δ, u_e, u_p, τ, 1) this is ż = F z (9×9 per leg), so z(t) = e^{Ft} z(0),
 z(0) = (δ̂, 0, −δ̂̇, τ, 1), and s(t_i) — hence f(t_i) = A_i τ + b_i — is
-affine in τ.  e^{FΔ} (Δ = gcd of the horizon points) is computed by
-scaling and squaring a degree-10 Taylor series, its powers give the points
-(default 5, 10, 20, 30, 40 ms: half the slowest cuff period), all in one
-compiled kernel (:func:`exo_ctrl._jit.kernel`).
+affine in τ.  F's rows 6–8 are zero (τ and 1 are held), so e^{Ft} =
+[[E₁₁, E₁₂], [0, I]], as is every product of such matrices: only their rows
+0–5 are formed.  e^{FΔ} (Δ = gcd of the horizon points) is computed by
+scaling and squaring a degree-10 Taylor polynomial (evaluated
+Paterson–Stockmeyer: X, X², X³, then Horner in X³), and squared on to
+e^{FΔ 2^k}; the point nΔ (default 5, 10, 20, 30, 40 ms: half the slowest
+cuff period; n = 1, 2, 4, 6, 8) needs only the two rows S of s = S z, which
+are S e^{FΔ 2^{k₀}} times the squares of n's other binary digits.  All in
+one compiled kernel (:func:`exo_ctrl._jit.kernel`).
 
 Accuracy (tests/test_qp.py): against the plant (nonlinear, elastic cuffs,
 drive current dynamics) stepped 40 ms with the voltage held, given the true
@@ -58,24 +63,47 @@ __all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "CuffStateObserver"]
 #: Default horizon points, in control ticks after the present one.
 DEFAULT_HORIZON_TICKS = (5, 10, 20, 30, 40)
 _TAYLOR_ORDER = 10
+#: The Taylor polynomial is evaluated Paterson–Stockmeyer in blocks of this
+#: many terms: X, X², X³ formed, then Horner in X³ (5 products for degree 10,
+#: against 9 for Horner in X).
+_PS_BLOCK = 3
+#: z = (δ, u_e, u_p, τ, 1) has _NZ entries of which the first _NM move (τ and
+#: 1 are held): F's rows 6–8 are zero, e^{Ft}'s are [0 | I], and the kernels
+#: store and compute only rows 0–5 of every matrix.
+_NZ = 9
+_NM = 6
+#: Slots of :func:`_predict`'s scratch array, (_W_SQUARES + bits of the largest
+#: power, 6, 9): F Δ; the generalised forces per column of z (rows 0–1 exo,
+#: 2–3 patient); the s rows of a power (rows 0–1, rows 2–3 scratch);
+#: :func:`_expm`'s scratch; e^{FΔ 2^k}, k = 0, 1, ...
+_W_F = 0
+_W_G = 1
+_W_S = 2
+_W_EXPM = 3
+_W_SQUARES = _W_EXPM + _PS_BLOCK + 1
 
 
 @kernel
-def _matmul(a, b, out):  # pragma: no cover - compiled
-    """Write a b to ``out``, each entry summed over k in order.
+def _mul_top(a, b, beta, out):  # pragma: no cover - compiled
+    """Write the first rows of a b to ``out`` (as many as it has); b's rows 6–8 are β [0 | I].
 
-    A row is updated as a whole per k, so consecutive additions are to
-    different entries (no dependency chain) and the loop vectorises.
+    a: rows of 9 columns (rows 0–5 of a 9×9 matrix of the block form, or
+    combinations of them); b: rows 0–5 of a 9×9 matrix; out must overlap
+    neither.  out = a[:, :6] b[:6] + β a[:, 6:] (added to columns 6–8), each
+    entry summed over k in order; the six a[i, k] are held in registers and
+    the loop over j is independent (it vectorises).
     """
-    n, m = a.shape
-    p = b.shape[1]
-    for i in range(n):
-        for j in range(p):
-            out[i, j] = 0.0
-        for k in range(m):
-            aik = a[i, k]
-            for j in range(p):
-                out[i, j] += aik * b[k, j]
+    for i in range(out.shape[0]):
+        a0, a1, a2, a3, a4, a5 = a[i, 0], a[i, 1], a[i, 2], a[i, 3], a[i, 4], a[i, 5]
+        for j in range(_NM):
+            out[i, j] = (
+                a0 * b[0, j] + a1 * b[1, j] + a2 * b[2, j] + a3 * b[3, j] + a4 * b[4, j]
+            ) + a5 * b[5, j]
+        for j in range(_NM, _NZ):
+            out[i, j] = (
+                (a0 * b[0, j] + a1 * b[1, j] + a2 * b[2, j] + a3 * b[3, j] + a4 * b[4, j])
+                + a5 * b[5, j]
+            ) + beta * a[i, j]
 
 
 @kernel
@@ -86,13 +114,19 @@ def _copy(src, dst):  # pragma: no cover - compiled
 
 
 @kernel
-def _expm(f, out, t1):  # pragma: no cover - compiled
-    """exp(f) by scaling and squaring a Taylor series (f small after scaling)."""
-    n = f.shape[0]
+def _expm(f, out, work):  # pragma: no cover - compiled
+    """exp(F) by scaling and squaring a degree-10 Taylor polynomial (F small after scaling).
+
+    F is 9×9 with rows 6–8 zero: ``f`` holds its rows 0–5, (6, 9), and
+    ``out`` gets those of exp(F), whose rows 6–8 are [0 | I].  With
+    X = F/2^s, ‖X‖∞ ≤ 1/4, T(X) = Σ_{k≤10} X^k/k! = B_0 + X³ (B_1 + X³ (B_2 +
+    X³ B_3)), B_j = Σ_{i<3} X^i/(3j+i)!; then squared s times.
+    ``work``: (_PS_BLOCK + 1, 6, 9) scratch.
+    """
     norm = 0.0
-    for i in range(n):
+    for i in range(_NM):
         row = 0.0
-        for j in range(n):
+        for j in range(_NZ):
             row += abs(f[i, j])
         norm = max(norm, row)
     s = 0
@@ -100,22 +134,43 @@ def _expm(f, out, t1):  # pragma: no cover - compiled
         norm *= 0.5
         s += 1
     scale = 0.5**s
-    # Horner: exp(x) ≈ I + x (I + x/2 (I + x/3 (...)))
-    for i in range(n):
-        for j in range(n):
-            out[i, j] = 1.0 if i == j else 0.0
-    for order in range(_TAYLOR_ORDER, 0, -1):
-        c = scale / order
-        _matmul(f, out, t1)
-        for i in range(n):
-            for j in range(n):
-                t1[i, j] = c * t1[i, j]
-        for i in range(n):
-            for j in range(n):
-                out[i, j] = t1[i, j] + (1.0 if i == j else 0.0)
+    q = _PS_BLOCK
+    tmp = work[q]
+    # work[k] = X^(k+1) (rows 6-8 zero: the product's β is 0)
+    for i in range(_NM):
+        for j in range(_NZ):
+            work[0, i, j] = scale * f[i, j]
+    for k in range(1, q):
+        _mul_top(work[0], work[k - 1], 0.0, work[k])
+    top = _TAYLOR_ORDER // q
+    # Horner in X^q over the blocks B_j, top one first; the running
+    # polynomial's rows 6-8 are beta [0 | I] (beta = 1/(jq)!).
+    beta = 0.0
+    for jb in range(top, -1, -1):
+        c = 1.0
+        for k in range(2, jb * q + 1):
+            c /= k
+        if jb == top:
+            for i in range(_NM):
+                for j in range(_NZ):
+                    out[i, j] = 0.0
+        else:
+            _mul_top(work[q - 1], out, beta, tmp)
+            _copy(tmp, out)
+        beta = c
+        for i in range(_NM):
+            out[i, i] += c
+        for k in range(1, q):
+            if jb * q + k > _TAYLOR_ORDER:
+                break
+            c /= jb * q + k
+            xk = work[k - 1]
+            for i in range(_NM):
+                for j in range(_NZ):
+                    out[i, j] += c * xk[i, j]
     for _ in range(s):
-        _matmul(out, out, t1)
-        _copy(t1, out)
+        _mul_top(out, out, 1.0, tmp)
+        _copy(tmp, out)
 
 
 @kernel
@@ -136,14 +191,25 @@ def _predict(
     dist,
     a_out,
     b_out,
-    f,
-    e,
-    pw,
-    t1,
-    t2,
+    work,
 ):  # pragma: no cover - compiled
-    """Fill a_out (P*8, 4) and b_out (P*8) -- see module docstring."""
+    """Fill a_out (P*8, 4) and b_out (P*8) -- see module docstring.
+
+    ``work``: (_W_SQUARES + bit length of powers[-1], 6, 9) scratch.
+    """
     n_pts = powers.shape[0]
+    n_sq = 0  # squares e^{FΔ 2^k}, k < n_sq, needed for the largest power
+    while powers[n_pts - 1] >> n_sq > 0:
+        n_sq += 1
+    for r in range(a_out.shape[0]):
+        b_out[r] = 0.0
+        for c in range(4):
+            a_out[r, c] = 0.0
+    f = work[_W_F]
+    ge = work[_W_G, 0:2]
+    gp = work[_W_G, 2:4]
+    sv = work[_W_S, 0:2]
+    sv_tmp = work[_W_S, 2:4]
     for leg in range(2):
         i0 = 2 * leg
         # 2x2 blocks: exo mass (with armature), patient mass, G = J^T J.
@@ -158,19 +224,13 @@ def _predict(
         dp = p11 * p22 - p12 * p12
         ie11, ie12, ie22 = m22 / de, -m12 / de, m11 / de
         ip11, ip12, ip22 = p22 / dp, -p12 / dp, p11 / dp
-        for r in range(9):
-            for c in range(9):
-                f[r, c] = 0.0
-        f[0, 2] = f[1, 3] = 1.0
-        f[0, 4] = f[1, 5] = -1.0
         # Generalised forces on the exo per unit of each state/input column.
         # exo: tau - he - D u_e - G K delta - G C (u_e - u_p)
         # patient: -hp + d - Dp u_p + G K delta + G C (u_e - u_p)
-        ge = t2[0:2]  # t2 is scratch here (_expm works in t1)
-        gp = t2[2:4]
-        for r in range(4):
-            for c in range(9):
-                t2[r, c] = 0.0
+        for r in range(2):
+            for c in range(_NZ):
+                ge[r, c] = 0.0
+                gp[r, c] = 0.0
         gm = ((g11, g12), (g12, g22))
         for r in range(2):
             for c in range(2):
@@ -187,32 +247,44 @@ def _predict(
             ge[r, 6 + r] = 1.0
             ge[r, 8] = -he[i0 + r]
             gp[r, 8] = -hp[i0 + r] + dist[i0 + r]
-        for c in range(9):
+        # Rows 0-5 of F Δ (rows 6-8 are zero).
+        for c in range(_NZ):
+            f[0, c] = 0.0
+            f[1, c] = 0.0
             f[2, c] = (ie11 * ge[0, c] + ie12 * ge[1, c]) * dt_block
             f[3, c] = (ie12 * ge[0, c] + ie22 * ge[1, c]) * dt_block
             f[4, c] = (ip11 * gp[0, c] + ip12 * gp[1, c]) * dt_block
             f[5, c] = (ip12 * gp[0, c] + ip22 * gp[1, c]) * dt_block
         f[0, 2] = f[1, 3] = dt_block
         f[0, 4] = f[1, 5] = -dt_block
-        _expm(f, e, t1)
+        _expm(f, work[_W_SQUARES], work[_W_EXPM:_W_SQUARES])
+        for k in range(1, n_sq):
+            sq = work[_W_SQUARES + k - 1]
+            _mul_top(sq, sq, 1.0, work[_W_SQUARES + k])
         # z0 = (delta, 0, -ddelta, tau, 1)
-        _copy(e, pw)
-        done = 1
         for p in range(n_pts):
-            while done < powers[p]:
-                _matmul(pw, e, t1)
-                _copy(t1, pw)
-                done += 1
-            # s = K delta + C (u_e - u_p): rows of pw for s
+            # The s rows (s = K delta + C (u_e - u_p)) of e^{F Δ n}, n = Σ_k 2^k
+            # over n's bits: S e^{F Δ 2^k0}, times the other squares in turn.
+            n = powers[p]
+            k = 0
+            while (n >> k) & 1 == 0:
+                k += 1
+            sq = work[_W_SQUARES + k]
             for r in range(2):
-                srow = t2[4]
-                for c in range(9):
-                    srow[c] = stiff * pw[r, c] + damp_c * (pw[2 + r, c] - pw[4 + r, c])
-                s_t0 = srow[6]
-                s_t1 = srow[7]
-                s_c = srow[8]
+                for c in range(_NZ):
+                    sv[r, c] = stiff * sq[r, c] + damp_c * (sq[2 + r, c] - sq[4 + r, c])
+            k += 1
+            while n >> k > 0:
+                if (n >> k) & 1 == 1:
+                    _mul_top(sv, work[_W_SQUARES + k], 1.0, sv_tmp)
+                    _copy(sv_tmp, sv)
+                k += 1
+            for r in range(2):
+                s_t0 = sv[r, 6]
+                s_t1 = sv[r, 7]
+                s_c = sv[r, 8]
                 for c in range(2):
-                    s_c += srow[c] * delta[i0 + c] - srow[4 + c] * ddelta[i0 + c]
+                    s_c += sv[r, c] * delta[i0 + c] - sv[r, 4 + c] * ddelta[i0 + c]
                 # f = -J s
                 for rr in range(4):
                     row = p * 8 + leg * 4 + rr
@@ -395,7 +467,8 @@ class CuffHorizonModel:
         self.mass_patient = np.zeros((4, 4))
         self.bias_exo = np.zeros(4)
         self.bias_patient = np.zeros(4)
-        self._work = [np.zeros((9, 9)) for _ in range(5)]
+        n_squares = int(self._powers[-1]).bit_length()
+        self._work = np.zeros((_W_SQUARES + n_squares, _NM, _NZ))
 
     def linearise(self, q: np.ndarray, dq: np.ndarray) -> None:
         """Mass matrices, bias torques and cuff Jacobians at the measured state.
@@ -440,9 +513,6 @@ class CuffHorizonModel:
             disturbance: patient joint torque d, held over the horizon [N·m], (4,).
 
         """
-        self.A.fill(0.0)
-        self.b.fill(0.0)
-        w = self._work
         _predict(
             self.mass_exo,
             self.mass_patient,
@@ -460,11 +530,7 @@ class CuffHorizonModel:
             disturbance,
             self.A,
             self.b,
-            w[0],
-            w[1],
-            w[2],
-            w[3],
-            w[4],
+            self._work,
         )
 
     def update(

@@ -1,0 +1,163 @@
+"""The cuff horizon model's compiled kernels against dense scipy computations.
+
+The kernel forms only rows 0–5 of each 9×9 matrix (rows 6–8 of F are zero),
+evaluates the Taylor polynomial Paterson–Stockmeyer and gets the horizon
+points from repeated squares; here everything is dense: scipy's expm of the
+full F, and of F t_i for each horizon point directly (no powers), with F
+assembled from the equations of the module docstring on 4 joints at once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from exo_ctrl.control.cuff_prediction import CuffHorizonModel, _expm
+from exo_ctrl.gait import GaitParams, GaitPlan
+from exo_ctrl.kinematics import plan_joints
+from exo_ctrl.model import BodyModel, default_urdf_path, load_body
+from exo_ctrl.motor import MotorParams
+from exo_ctrl.simulate import drive_for
+
+#: _expm's scratch slots (X, X², X³ and one product).
+EXPM_SCRATCH = 4
+
+
+@pytest.fixture(scope="module")
+def patient() -> BodyModel:
+    return load_body(default_urdf_path("patient"), name="patient")
+
+
+@pytest.fixture(scope="module")
+def motor(exo) -> MotorParams:
+    return drive_for(MotorParams(), exo)
+
+
+@pytest.fixture(scope="module")
+def plan(exo):
+    return plan_joints(GaitPlan(GaitParams()), exo, np.arange(1201) * 1e-3)
+
+
+def kernel_expm(f: np.ndarray) -> np.ndarray:
+    """The kernel's exp(F) for a 9×9 F with zero rows 6–8, completed to 9×9."""
+    out = np.full((6, 9), np.nan)
+    _expm(np.ascontiguousarray(f[:6]), out, np.full((EXPM_SCRATCH, 6, 9), np.nan))
+    full = np.zeros((9, 9))
+    full[:6] = out
+    full[6:, 6:] = np.eye(3)
+    return full
+
+
+@pytest.mark.parametrize("size", [0.0, 1e-3, 0.1, 1.0, 5.0, 30.0, 300.0])
+def test_expm_of_block_matrices_matches_scipy(size: float) -> None:
+    """Row sums of |F| from 0 (no scaling) to ~1000 (12 squarings).
+
+    Against a long-double reference, the kernel's error grows with the number
+    of squarings: ≤ 2e-14 up to size 5, 1.2e-13 at 30, 1.3e-12 at 300
+    (scipy's: ≤ 8e-14); asserted at 5e-14 · max(1, size).
+    """
+    rng = np.random.default_rng(int(size * 1000))
+    for _ in range(20):
+        f = np.zeros((9, 9))
+        f[:6] = rng.normal(0.0, size / 3.0, (6, 9))
+        f[:6, :6] -= size / 3.0 * np.eye(6)  # damped, as the model's F
+        ref = expm(f)
+        got = kernel_expm(f)  # rows 6-8 set to [0 | I], compared too
+        err = np.abs(got - ref).max() / np.abs(ref).max()
+        assert err <= 5e-14 * max(1.0, size), err
+
+
+def dense_prediction(
+    model: CuffHorizonModel,
+    exo: BodyModel,
+    patient: BodyModel,
+    delta: np.ndarray,
+    ddelta: np.ndarray,
+    dist: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A, b from z(t) = e^{F t} z(0) on the 17 states (δ, u_e, u_p, τ, 1) of all four joints."""
+    k, c = model.stiffness, model.damping
+
+    def per_leg(m: np.ndarray) -> np.ndarray:
+        sym = np.triu(m) + np.triu(m, 1).T  # the upper triangle is the valid one
+        out = np.zeros((4, 4))
+        out[:2, :2], out[2:, 2:] = sym[:2, :2], sym[2:, 2:]
+        return out
+
+    jac = np.zeros((8, 4))  # f = -jac s, rows leg 0 (thigh x, z, shank x, z), leg 1
+    jac[:4, :2], jac[4:, 2:] = model.jac[0], model.jac[1]
+    g = jac.T @ jac
+    me_inv = np.linalg.inv(per_leg(model.mass_exo))
+    mp_inv = np.linalg.inv(per_leg(model.mass_patient))
+    d_e = np.diag(model.back_emf_damping + exo.damping)
+    d_p = np.diag(patient.damping)
+    eye = np.eye(4)
+    d, ue, up, tau, one = slice(0, 4), slice(4, 8), slice(8, 12), slice(12, 16), 16
+    f = np.zeros((17, 17))
+    f[d, ue], f[d, up] = eye, -eye
+    # M_e' u̇_e = τ − h_e − (D + b_e) u_e − G (K δ + C (u_e − u_p))
+    f[ue, d] = me_inv @ (-k * g)
+    f[ue, ue] = me_inv @ (-d_e - c * g)
+    f[ue, up] = me_inv @ (c * g)
+    f[ue, tau] = me_inv
+    f[ue, one] = me_inv @ -model.bias_exo
+    # M_p u̇_p = −h_p + d − b_p u_p + G (K δ + C (u_e − u_p))
+    f[up, d] = mp_inv @ (k * g)
+    f[up, ue] = mp_inv @ (c * g)
+    f[up, up] = mp_inv @ (-d_p - c * g)
+    f[up, one] = mp_inv @ (dist - model.bias_patient)
+    z0 = np.zeros(17)
+    z0[d], z0[up], z0[one] = delta, -ddelta, 1.0
+    a_ref, b_ref = [], []
+    for t in model.horizon_s:
+        phi = expm(f * t)
+        s = k * phi[d] + c * (phi[ue] - phi[up])  # s = K δ + C (u_e − u_p), rows of e^{Ft}
+        a_ref.append(-jac @ s[:, tau])
+        b_ref.append(-jac @ (s @ z0))
+    return np.vstack(a_ref), np.concatenate(b_ref)
+
+
+@pytest.mark.parametrize(
+    "ticks",
+    [
+        (5, 10, 20, 30, 40),  # the default: powers 1, 2, 4, 6, 8 of e^{5 F dt}
+        (1, 3, 7, 8, 13, 40),  # Δ = 1: powers with several bits
+        (37,),  # one point, 37 = 100101b
+        (6, 1000),  # Δ = 2: powers 3 and 500 (1 s: the slow modes only)
+    ],
+)
+def test_prediction_matches_dense_matrix_exponentials(exo, patient, motor, plan, ticks) -> None:
+    model = CuffHorizonModel(exo, patient, motor, horizon_ticks=ticks)
+    rng = np.random.default_rng(len(ticks))
+    for _ in range(8):
+        k = int(rng.integers(0, 1200))
+        model.linearise(plan.q[k] + rng.normal(0, 0.01, 4), plan.dq[k] + rng.normal(0, 0.2, 4))
+        delta, ddelta, dist = rng.normal(0, 2e-3, 4), rng.normal(0, 0.05, 4), rng.normal(0, 5, 4)
+        model.predict(delta, ddelta, dist)
+        a_ref, b_ref = dense_prediction(model, exo, patient, delta, ddelta, dist)
+        # per horizon point, relative to that point's largest entry
+        for p in range(len(ticks)):
+            rows = slice(8 * p, 8 * p + 8)
+            for got, ref in ((model.A[rows], a_ref[rows]), (model.b[rows], b_ref[rows])):
+                err = np.abs(got - ref).max() / np.abs(ref).max()
+                assert err <= 1e-9, (ticks[p], err)
+
+
+def test_predict_overwrites_its_outputs(exo, patient, motor, plan) -> None:
+    """A and b depend on the last call only (the kernel zeroes them, nothing accumulates)."""
+    model = CuffHorizonModel(exo, patient, motor)
+    args = (np.full(4, 1e-3), np.full(4, 0.02), np.full(4, 3.0))
+    model.linearise(plan.q[100], plan.dq[100])
+    model.predict(*args)
+    a_first, b_first = model.A.copy(), model.b.copy()
+    model.A.fill(np.nan)
+    model.b.fill(np.nan)
+    model.predict(*args)
+    np.testing.assert_array_equal(model.A, a_first)
+    np.testing.assert_array_equal(model.b, b_first)
+    model.predict(-2.0 * args[0], args[1], args[2])
+    model.linearise(plan.q[100], plan.dq[100])
+    model.predict(*args)
+    np.testing.assert_array_equal(model.A, a_first)
+    np.testing.assert_array_equal(model.b, b_first)
