@@ -37,6 +37,8 @@ from exo_ctrl.control.cuff_prediction import (
 from exo_ctrl.control.qp import (
     NO_BOUND,
     POLYGON_SIDES,
+    SCREEN_ROUNDS,
+    SCREENED_ROWS,
     SLACK_WEIGHT,
     QPController,
     TorqueQP,
@@ -314,9 +316,14 @@ def test_controller_builds_the_soft_cuff_rows(exo, patient, motor, plan) -> None
     qp = ctrl.qp
     points = len(ctrl.cuff_model.horizon_ticks)
     assert points == len(DEFAULT_HORIZON_TICKS)
-    assert qp.n == 8 and qp.n_in == 32 * points
-    np.testing.assert_allclose(qp.C, problem.C, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(qp.upper, problem.upper, rtol=1e-12, atol=1e-9)
+    assert ctrl.cuff_rows.shape == (32 * points, 8)
+    np.testing.assert_allclose(ctrl.cuff_rows, problem.C, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(ctrl.cuff_upper, problem.upper, rtol=1e-12, atol=1e-9)
+    # proxsuite holds SCREENED_ROWS distinct rows of the full set.
+    assert qp.n == 8 and qp.n_in == SCREENED_ROWS < 32 * points
+    assert len(set(ctrl.screened.tolist())) == SCREENED_ROWS
+    np.testing.assert_allclose(qp.C, problem.C[ctrl.screened], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(qp.upper, problem.upper[ctrl.screened], rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(qp.lower, -NO_BOUND)  # one-sided rows
     np.testing.assert_array_equal(qp.lo[4:], 0.0)
     np.testing.assert_array_equal(qp.hi[4:], NO_BOUND)
@@ -325,6 +332,75 @@ def test_controller_builds_the_soft_cuff_rows(exo, patient, motor, plan) -> None
     np.testing.assert_array_equal(qp.lo[:4], ctrl.torque_lo)
     np.testing.assert_array_equal(qp.hi[:4], ctrl.torque_hi)
     np.testing.assert_array_equal(qp.x[4:], ctrl.slack)
+
+
+def screening_measure(problem: SoftProblem, *taus: np.ndarray) -> np.ndarray:
+    """Per cuff row: max over the given τ of its τ part minus its bound, slack 0 [N]."""
+    return np.max([problem.C[:, :4] @ tau - problem.upper for tau in taus], axis=0)
+
+
+def test_screening_hands_proxsuite_the_rows_nearest_to_binding(exo, patient, motor, plan) -> None:
+    """A fresh controller (last torque 0): the screened rows are the top SCREENED_ROWS
+    of the measure at τ_cmd and at 0, and the answer meets every row."""
+    checked = 0
+    for k in range(0, 1200, 100):
+        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+        ctrl.command(k, on_plan(plan, k))
+        if ctrl.last_status != "solved" or ctrl.screen_rounds != 1:
+            continue
+        problem = soft_problem(ctrl)
+        measure = screening_measure(problem, ctrl.torque_cmd, np.zeros(4))
+        top = np.sort(measure)[::-1]
+        chosen = measure[ctrl.screened]
+        # The chosen ones are the largest (ties at the threshold either way).
+        assert chosen.min() >= top[SCREENED_ROWS - 1] - 1e-12
+        assert np.sort(chosen)[::-1][0] == top[0]
+        x = np.concatenate((ctrl.torque, ctrl.slack))
+        assert np.all(problem.C @ x <= problem.upper + 1e-6)
+        checked += 1
+    assert checked >= 8
+
+
+def test_screened_rows_keep_their_slots_from_tick_to_tick(exo, patient, motor, plan) -> None:
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+    rng = np.random.default_rng(8)
+    kept = 0
+    previous = None
+    for k in range(300, 340):
+        ctrl.command(k, near_plan(plan, rng, k, q_noise=1e-4, dq_noise=1e-3))
+        assert ctrl.last_status == "solved", ctrl.last_status
+        now = ctrl.screened.copy()
+        if previous is not None:
+            for row in set(previous.tolist()) & set(now.tolist()):
+                assert np.flatnonzero(previous == row) == np.flatnonzero(now == row)
+                kept += 1
+        previous = now
+    assert kept > 39 * SCREENED_ROWS // 2  # most rows stay screened between ticks
+
+
+def test_few_screened_rows_are_widened_until_every_row_holds(exo, patient, motor, plan) -> None:
+    """Four rows only: the violated rows must be swapped in and the QP solved again.
+
+    Every solved tick is still the optimum of the FULL soft problem (the
+    relaxation argument of the module docstring); a tick that needs more
+    than SCREEN_ROUNDS solves falls back with the stated reason.
+    """
+    rng = np.random.default_rng(5)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0, screened_rows=4)
+    assert ctrl.qp.n_in == 4
+    widened = solved = 0
+    for k in rng.integers(0, plan.q.shape[0], 60):
+        ctrl.command(int(k), near_plan(plan, rng, int(k), dq_noise=0.5))
+        if ctrl.last_status != "solved":
+            assert "did not cover the bound after 4 solves" in ctrl.last_status
+            assert ctrl.screen_rounds == SCREEN_ROUNDS == 4
+            continue
+        solved += 1
+        widened += ctrl.screen_rounds > 1
+        assert_is_the_soft_optimum(ctrl, soft_problem(ctrl))
+    print(f"\n4 screened rows: {solved} of 60 ticks solved, {widened} of them widened")
+    assert ctrl.failures == 60 - solved
+    assert widened >= 10 and solved >= 25  # measured 28 and 36
 
 
 def test_a_generous_limit_leaves_zero_slack_and_the_commanded_torque(
@@ -821,6 +897,9 @@ def test_construction_checks_its_arguments(exo, patient, motor, plan) -> None:
         QPController(plan, exo, patient, motor, torque_weights=(1.0, 1.0))
     with pytest.raises(InvalidParameter, match="max_iter"):
         QPController(plan, exo, patient, motor, max_iter=0)
+    for bad in (0, 2.5, True):
+        with pytest.raises(InvalidParameter, match=r"screened_rows.*an integer ≥ 1"):
+            QPController(plan, exo, patient, motor, screened_rows=bad)
     with pytest.raises(InvalidParameter, match="patient"):
         QPController(plan, exo, None, motor)
 

@@ -70,9 +70,24 @@ from the force estimate, which lags by the observer's 10 ms (4.5 % RMS of
 the peak, :mod:`exo_ctrl.estimation`), about 7 % at the peak.  At 80 N the
 same absolute errors are a larger fraction: 15 % is asserted there.
 
+**Row screening.**  Of the 32 P rows (160 by default) only a few can bind
+at once, and proxsuite's cost grows with the rows it carries (measured on
+2,400 recorded ticks of the spastic run: 8 rows ≈ 44 µs, 16 ≈ 51 µs, 160
+≈ 148 µs a solve).  Each tick the controller hands proxsuite the
+:data:`SCREENED_ROWS` rows most nearly binding — the largest
+``n_kᵀ f_c(τ) − r`` at τ_cmd or at the last tick's torque — solves, and
+checks the answer against every row (a compiled kernel, independent of the
+solver).  A QP over a subset of the rows is a relaxation of the full one:
+if its optimum meets every row it is the optimum of the full problem.
+Otherwise the violated rows replace the slackest screened ones and the QP
+is solved again, at most :data:`SCREEN_ROUNDS` times in all; after that the
+tick falls back (1. below).  A row keeps its slot from tick to tick while
+it stays screened, so the warm start's multipliers stay with their rows.
+
 **Fallback** (the tick is counted in :attr:`QPController.failures`):
 
-1. solver failed twice: τ_cmd clipped into the torque box.  The drive
+1. solver failed twice, or the screened rows did not cover the bound
+   after :data:`SCREEN_ROUNDS` solves: τ_cmd clipped into the torque box.  The drive
    limits are kept (they are physical); the cuff bound is given up for that
    tick;
 2. the torque box is empty for a joint: that joint gets zero torque, the
@@ -84,8 +99,9 @@ same absolute errors are a larger fraction: 15 % is asserted there.
 **Cost.**  Each tick: CT+PD, the box, the linearisation (two CRBA, two
 nonLinearEffects, the patient's joint Jacobians and four frame Jacobians),
 the observer and the horizon prediction (two compiled kernels: a 9×9 matrix
-exponential and its powers per leg), the octagon rows (one kernel) and
-the QP (8 variables, 32 P rows) with its independent check (one kernel).
+exponential and its powers per leg), the octagon rows and their screening
+(two kernels) and the QP (8 variables, :data:`SCREENED_ROWS` rows) with
+its independent checks (two kernels).
 Timings: tools/bench.py.
 
 :meth:`QPController.command` never raises and never returns NaN.
@@ -110,7 +126,7 @@ from .base import PDGains, SensorReadings
 from .computed_torque import ComputedTorqueController
 from .cuff_prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel, CuffStateObserver
 
-__all__ = ["POLYGON_SIDES", "QPController", "TorqueQP", "polygon_rows"]
+__all__ = ["POLYGON_SIDES", "SCREENED_ROWS", "QPController", "TorqueQP", "polygon_rows"]
 
 #: Sides of the regular polygon inscribed in each cuff's force circle (even).
 POLYGON_SIDES = 8
@@ -128,6 +144,11 @@ NO_BOUND = 1e9
 CONTROLLER_EPS_ABS = 1e-7
 #: A row or box bound within this of its limit counts as active [N·m or N].
 ACTIVE_TOL = 1e-6
+#: Cuff rows handed to proxsuite each tick (of 32 per horizon point; see
+#: "Row screening" in the module docstring).
+SCREENED_ROWS = 16
+#: Solves per tick with the screened rows widened by the violated ones, at most.
+SCREEN_ROUNDS = 4
 
 _Output = proxsuite.proxqp.QPSolverOutput
 _SOLVED = _Output.PROXQP_SOLVED
@@ -224,7 +245,6 @@ class TorqueQP:
         self.hi = self._upper_all[n_in:]
         self.target = self._buf[m * n + 2 * m :]
         self._g = np.zeros(n)
-        self._slack = np.zeros(m)
         qp = proxsuite.proxqp.dense.QP(n, 0, n_in, True)
         s = qp.settings
         s.eps_abs = float(eps_abs)
@@ -289,16 +309,15 @@ class TorqueQP:
         return ok
 
     def _solve(self) -> bool:
-        # A NaN or ±inf anywhere makes the sum non-finite.
-        if not math.isfinite(np.add.reduce(self._buf)):
-            self.status = "non-finite problem data"
-            return False
-        np.subtract(self._upper_all, self._lower_all, out=self._slack)
-        if not np.minimum.reduce(self._slack) >= 0.0:
-            self.status = "infeasible bounds (lower > upper or lo > hi)"
-            return False
         g = self._g
-        np.multiply(self._neg_w, self.target, out=g)
+        bad = _prepare(self._buf, self._lower_all, self._upper_all, self._neg_w, self.target, g)
+        if bad:
+            self.status = (
+                "non-finite problem data"
+                if bad == 1
+                else "infeasible bounds (lower > upper or lo > hi)"
+            )
+            return False
         qp = self._qp
         first = ""
         if self._ready:
@@ -393,6 +412,9 @@ class QPController(ComputedTorqueController):
         horizon_ticks: horizon points of the prediction, in ticks.
         disturbance_bandwidth_per_s: bandwidth of the patient-torque estimate
             [1/s] (0: none).
+        screened_rows: cuff rows handed to proxsuite per tick, an integer
+            ≥ 1 (module docstring, "Row screening"); more than the 32 P rows
+            means all of them, unscreened.
 
     Attributes:
         failures: ticks that used the fallback (module docstring).
@@ -404,6 +426,13 @@ class QPController(ComputedTorqueController):
         torque_lo: lower torque bounds of the last tick [N·m].
         torque_hi: upper torque bounds of the last tick [N·m].
         cuff_model: the affine cuff-force prediction of the last tick.
+        cuff_rows: every cuff row of the last tick, (32 P, 8): row
+            ``16 p + 4 c + k`` is ``n_kᵀ (A τ + b)_c − s_c ≤ r`` at horizon
+            point p, cuff c, edge normal n_k; the next 16 P rows the same
+            with −n_k.  Columns: the four τ, then the four slacks.
+        cuff_upper: their upper bounds r − n_kᵀ b_c (and r + n_kᵀ b_c), (32 P,) [N].
+        screened: which of :attr:`cuff_rows` each QP row holds, last tick.
+        screen_rounds: solves the last tick took (1 unless rows were added).
         qp: the proxsuite workspace.
 
     Raises:
@@ -430,6 +459,7 @@ class QPController(ComputedTorqueController):
         dt: float = 1e-3,
         horizon_ticks: tuple[int, ...] = DEFAULT_HORIZON_TICKS,
         disturbance_bandwidth_per_s: float = 30.0,
+        screened_rows: int = SCREENED_ROWS,
     ) -> None:
         if patient is None:
             raise InvalidParameter("patient", None, "a patient model (the cuff model needs one)")
@@ -437,6 +467,12 @@ class QPController(ComputedTorqueController):
         weights = np.asarray(torque_weights, dtype=float)
         if weights.shape != (4,):
             raise InvalidParameter("torque_weights", torque_weights, "four numbers > 0")
+        if (
+            isinstance(screened_rows, bool)
+            or not isinstance(screened_rows, (int, np.integer))
+            or screened_rows < 1
+        ):
+            raise InvalidParameter("screened_rows", screened_rows, "an integer ≥ 1")
         effort = exo.effort_limit
         if np.isnan(effort).any() or (effort <= 0).any():
             raise InvalidModel(exo.source, "", f"effort limits must be > 0 N·m; got {effort}")
@@ -452,24 +488,30 @@ class QPController(ComputedTorqueController):
         half = POLYGON_SIDES // 2
         self._directions = polygon_rows(1)  # (S/2, 2): n_k of one cuff
         n_poly = n_points * 4 * half
+        n_screened = min(int(screened_rows), 2 * n_poly)
         # Variables x = (τ, s): the four torques and one slack per cuff, shared by
         # the horizon points, the bound softened to |n_kᵀ f_c(t_i)| ≤ r + s_c with
-        # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r.
+        # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r,
+        # all of them in cuff_rows; the screened ones in the QP.
         self.qp = TorqueQP(
             np.concatenate((weights, np.full(4, SLACK_WEIGHT))),
-            2 * n_poly,
+            n_screened,
             max_iter,
             eps_abs=CONTROLLER_EPS_ABS,
         )
         radius = self.cuff_force_limit_N * math.cos(math.pi / POLYGON_SIDES)
         self._radius = radius
-        slack_cols = np.zeros((n_poly, 4))
+        self.cuff_rows = np.zeros((2 * n_poly, 8))
+        self.cuff_upper = np.zeros(2 * n_poly)
         for p in range(n_points):
             for c in range(4):
                 row = p * 4 * half + c * half
-                slack_cols[row : row + half, c] = -1.0
-        self.qp.C[:n_poly, 4:] = slack_cols
-        self.qp.C[n_poly:, 4:] = slack_cols
+                self.cuff_rows[row : row + half, 4 + c] = -1.0
+                self.cuff_rows[n_poly + row : n_poly + row + half, 4 + c] = -1.0
+        self.screened = np.arange(n_screened, dtype=np.int64)
+        self.screen_rounds = 0
+        self._row_value = np.zeros(2 * n_poly)  # scratch of the screening kernels
+        self._row_mark = np.zeros(2 * n_poly, dtype=np.int64)
         self.qp.lower[:] = -NO_BOUND
         self.qp.lo[4:] = 0.0
         self.qp.hi[4:] = NO_BOUND
@@ -477,11 +519,9 @@ class QPController(ComputedTorqueController):
         kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
         self._u_max = motor.supply_voltage_V
         self._cap = np.minimum(effort, kt * motor.current_limit_A)
-        self._neg_cap = -self._cap
         self._c0 = kt * motor.supply_voltage_V / r
         self._c1 = np.full(4, kt * kb / r)  # N·m per rad/s
         self._c2 = np.full(4, kt / r)  # N·m per V
-        self._t = np.zeros(4)
         self._out = np.zeros(4)
         self.torque_cmd = self.qp.target[:4]  # τ_cmd is written straight into the QP
         self.torque_lo = self.qp.lo[:4]
@@ -512,18 +552,12 @@ class QPController(ComputedTorqueController):
     def _command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         u_cmd = ComputedTorqueController.command(self, k, sensors)
         omega = sensors.dq
-        qp, t = self.qp, self._t
-        # τ_cmd = (i_G k_m / R) U_cmd − (i_G k_m i_G / (k_E R)) ω.
-        np.multiply(self._c1, omega, out=t)
+        qp = self.qp
         tgt, lo, hi = self.torque_cmd, self.torque_lo, self.torque_hi
-        np.multiply(self._c2, u_cmd, out=tgt)
-        np.subtract(tgt, t, out=tgt)
-        # Torque box (NaN in ω propagates and is caught by the QP's checks).
-        np.subtract(self._c0, t, out=hi)
-        np.minimum(hi, self._cap, out=hi)
-        np.add(self._c0, t, out=lo)
-        np.negative(lo, out=lo)
-        np.maximum(lo, self._neg_cap, out=lo)
+        # τ_cmd and the torque box (a NaN in ω or U_cmd propagates to them and
+        # is caught by the QP's checks).
+        if _torque_box(self._c0, self._c1, self._c2, self._cap, u_cmd, omega, tgt, lo, hi):
+            raise ValueError(f"readings of shape {np.shape(omega)}, command {np.shape(u_cmd)}")
         # Octagon rows: |n_kᵀ (A τ + b)_c| ≤ r  →  −r − N b ≤ N A τ ≤ r − N b.
         model, obs = self.cuff_model, self.observer
         try:
@@ -536,18 +570,34 @@ class QPController(ComputedTorqueController):
                 model.predict(self._zero4, self._zero4, self._zero4)
         except (np.linalg.LinAlgError, ValueError, RuntimeError) as exc:
             return self._fallback(u_cmd, omega, f"cuff model failed: {exc}")
-        total = _bound_rows(self._directions, model.A, model.b, self._radius, qp.C, qp.upper)
+        rows, upper = self.cuff_rows, self.cuff_upper
+        total = _bound_rows(self._directions, model.A, model.b, self._radius, rows, upper)
         if not math.isfinite(total):
             return self._fallback(u_cmd, omega, "cuff model failed: non-finite prediction")
-        ok = qp.solve_in_place()
-        self.solve_time_us = qp.solve_time_us
-        if not ok:
-            return self._fallback(u_cmd, omega, qp.status)
+        value, mark, slots = self._row_value, self._row_mark, self.screened
+        _screen(rows, upper, tgt, self.torque, value, mark, slots, qp.C, qp.upper)
+        self.solve_time_us = 0.0
+        for rounds in range(1, SCREEN_ROUNDS + 1):
+            ok = qp.solve_in_place()
+            self.solve_time_us += qp.solve_time_us
+            self.screen_rounds = rounds
+            if not ok:
+                return self._fallback(u_cmd, omega, qp.status)
+            if _widen(rows, upper, qp.x, value, mark, slots, qp.C, qp.upper) == 0:
+                break
+        else:
+            why = f"the screened rows did not cover the bound after {SCREEN_ROUNDS} solves"
+            return self._fallback(u_cmd, omega, why)
         np.copyto(self.torque, qp.x[:4])
         self.last_status = "solved"
         # The s >= 0 bounds of slacks at zero are not constraints of the problem.
         self.active_constraints = qp.active - int(np.count_nonzero(self.slack <= ACTIVE_TOL))
-        return self._motor.voltage_for(self.torque, omega, out=self._out)
+        return self._volts(omega)
+
+    def _volts(self, omega: np.ndarray) -> np.ndarray:
+        """The voltage giving :attr:`torque` at speed ω in steady state, U = (τ + c1 ω)/c2 [V]."""
+        _voltage(self._c1, self._c2, self.torque, omega, self._out)
+        return self._out
 
     # ------------------------------------------------------------------ fallbacks
 
@@ -564,11 +614,11 @@ class QPController(ComputedTorqueController):
             self.torque[empty] = 0.0
             joints = ", ".join(str(j) for j in np.flatnonzero(empty))
             self.last_status = f"fallback: empty torque box at joint(s) {joints} ({why})"
-            out = self._motor.voltage_for(self.torque, omega, out=self._out)
+            out = self._volts(omega)
             return np.clip(out, -self._u_max, self._u_max, out=out)
         np.clip(self.torque_cmd, lo, hi, out=self.torque)
         self.last_status = f"fallback: τ_cmd clipped to the torque box ({why})"
-        return self._motor.voltage_for(self.torque, omega, out=self._out)
+        return self._volts(omega)
 
     def _zero_volts(self, why: str) -> np.ndarray:
         self.failures += 1
@@ -581,6 +631,70 @@ class QPController(ComputedTorqueController):
 
 
 @kernel
+def _prepare(
+    buf: np.ndarray,
+    lower_all: np.ndarray,
+    upper_all: np.ndarray,
+    neg_w: np.ndarray,
+    target: np.ndarray,
+    g: np.ndarray,
+) -> int:
+    """Check a :class:`TorqueQP` problem and form g = −W x_t.
+
+    Returns 1 if an entry of the problem is not finite, 2 if a lower bound
+    exceeds its upper bound, else 0 (and g written).
+    """
+    for i in range(buf.shape[0]):
+        if not math.isfinite(buf[i]):
+            return 1
+    for i in range(lower_all.shape[0]):
+        if not upper_all[i] >= lower_all[i]:
+            return 2
+    for j in range(g.shape[0]):
+        g[j] = neg_w[j] * target[j]
+    return 0
+
+
+@kernel
+def _torque_box(
+    c0: float,
+    c1: np.ndarray,
+    c2: np.ndarray,
+    cap: np.ndarray,
+    u_cmd: np.ndarray,
+    omega: np.ndarray,
+    target: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+) -> int:
+    """τ_cmd = c2 U_cmd − c1 ω; box hi = min(cap, c0 − c1 ω), lo = max(−cap, −c0 − c1 ω).
+
+    A NaN speed gives a NaN box.  Returns -1 (nothing written) unless
+    ``u_cmd`` and ``omega`` have 4 entries, else 0.
+    """
+    if u_cmd.shape[0] != 4 or omega.shape[0] != 4:
+        return -1
+    for j in range(4):
+        t = c1[j] * omega[j]
+        target[j] = c2[j] * u_cmd[j] - t
+        if t != t:
+            hi[j] = lo[j] = t
+        else:
+            hi[j] = min(c0 - t, cap[j])
+            lo[j] = max(-c0 - t, -cap[j])
+    return 0
+
+
+@kernel
+def _voltage(
+    c1: np.ndarray, c2: np.ndarray, torque: np.ndarray, omega: np.ndarray, out: np.ndarray
+) -> None:
+    """U = (τ + c1 ω) / c2, the inverse of τ_cmd's map in :func:`_torque_box` [V]."""
+    for j in range(4):
+        out[j] = (torque[j] + c1[j] * omega[j]) / c2[j]
+
+
+@kernel
 def _bound_rows(
     directions: np.ndarray,
     A: np.ndarray,
@@ -589,7 +703,7 @@ def _bound_rows(
     rows_C: np.ndarray,
     rows_upper: np.ndarray,
 ) -> float:
-    """Fill the octagon rows ±n_kᵀ(A τ + b)_c ≤ r (τ columns) and their bounds.
+    """Fill the cuff rows ±n_kᵀ(A τ + b)_c ≤ r (τ columns) and their bounds.
 
     Row ``16 p + 4 c + k`` (and the same plus half the rows, negated) holds
     n_k = ``directions[k]`` on cuff c's (f_x, f_z) rows ``8 p + 2c, +1`` of
@@ -615,6 +729,117 @@ def _bound_rows(
                 rows_upper[n_poly + row] = radius + nb
                 total += nb
     return total
+
+
+@kernel
+def _screen(
+    rows: np.ndarray,
+    upper: np.ndarray,
+    tau_a: np.ndarray,
+    tau_b: np.ndarray,
+    value: np.ndarray,
+    mark: np.ndarray,
+    slots: np.ndarray,
+    qp_C: np.ndarray,
+    qp_upper: np.ndarray,
+) -> None:
+    """Put the ``len(slots)`` cuff rows most nearly binding into the QP's rows.
+
+    A row's measure is max over τ ∈ {τ_a, τ_b} of its τ part at τ minus its
+    bound (slacks at zero).  A row already in a slot that is chosen again
+    keeps that slot; the others take the freed slots in row order.
+    ``value`` and ``mark`` are scratch, one entry per cuff row.
+    """
+    n = rows.shape[0]
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for j in range(4):
+            a += rows[i, j] * tau_a[j]
+            b += rows[i, j] * tau_b[j]
+        value[i] = max(a, b) - upper[i]
+        mark[i] = 0
+    for _ in range(slots.shape[0]):
+        best = -1
+        for i in range(n):
+            if mark[i] == 0 and (best < 0 or value[i] > value[best]):
+                best = i
+        mark[best] = 1
+    for s in range(slots.shape[0]):  # chosen and already in place: keep
+        if mark[slots[s]] == 1:
+            mark[slots[s]] = 2
+        else:
+            slots[s] = -1
+    nxt = 0
+    for s in range(slots.shape[0]):
+        if slots[s] < 0:
+            while mark[nxt] != 1:
+                nxt += 1
+            slots[s] = nxt
+            mark[nxt] = 2
+    _copy_rows(rows, upper, slots, qp_C, qp_upper)
+
+
+@kernel
+def _widen(
+    rows: np.ndarray,
+    upper: np.ndarray,
+    x: np.ndarray,
+    value: np.ndarray,
+    mark: np.ndarray,
+    slots: np.ndarray,
+    qp_C: np.ndarray,
+    qp_upper: np.ndarray,
+) -> int:
+    """Check x against every cuff row; swap violated ones into the QP's rows.
+
+    Returns the number of rows not in the QP that x violates by more than
+    FEASIBILITY_TOL (0: x meets every row, and the screened QP's optimum is
+    the full QP's).  Those rows, most violated first, replace the screened
+    rows with the most room at x (as many as there are slots).
+    """
+    n = rows.shape[0]
+    m = slots.shape[0]
+    for i in range(n):
+        mark[i] = 0
+    for s in range(m):
+        mark[slots[s]] = 2
+    violated = 0
+    for i in range(n):
+        acc = 0.0
+        for j in range(rows.shape[1]):
+            acc += rows[i, j] * x[j]
+        value[i] = acc - upper[i]
+        if mark[i] == 0 and not value[i] <= FEASIBILITY_TOL:
+            mark[i] = 1
+            violated += 1
+    for _ in range(min(violated, m)):
+        worst = -1
+        for i in range(n):
+            if mark[i] == 1 and (worst < 0 or value[i] > value[worst]):
+                worst = i
+        roomy = -1
+        for s in range(m):
+            if mark[slots[s]] == 2 and (roomy < 0 or value[slots[s]] < value[slots[roomy]]):
+                roomy = s
+        mark[slots[roomy]] = 0
+        slots[roomy] = worst
+        mark[worst] = 3  # just added: stays
+    if violated:
+        _copy_rows(rows, upper, slots, qp_C, qp_upper)
+    return violated
+
+
+@kernel
+def _copy_rows(
+    rows: np.ndarray, upper: np.ndarray, slots: np.ndarray, qp_C: np.ndarray, qp_upper: np.ndarray
+) -> None:
+    """QP row s := cuff row ``slots[s]`` (all columns) and its bound."""
+    for s in range(slots.shape[0]):
+        r = slots[s]
+        for j in range(rows.shape[1]):
+            qp_C[s, j] = rows[r, j]
+        qp_upper[s] = upper[r]
 
 
 @kernel
