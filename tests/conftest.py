@@ -1,12 +1,17 @@
-"""Shared fixtures: the default exoskeleton, the human patient and a URDF with other lengths."""
+"""Shared fixtures: the default bodies, drive and gait plan, the human patient, other lengths."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from exo_ctrl.gait import GaitParams, GaitPlan
+from exo_ctrl.kinematics import JointTrajectory, plan_joints
 from exo_ctrl.model import BodyModel, default_urdf_path, load_body, load_human_patient
+from exo_ctrl.motor import MotorParams
+from exo_ctrl.simulate import drive_for
 from exo_ctrl.urdfgen import BodyParams, write_urdf
 
 #: Thigh and shank of the "other lengths" exoskeleton [m].
@@ -35,6 +40,24 @@ def exo_path() -> Path:
 def exo(exo_path: Path) -> BodyModel:
     """The default exoskeleton (paper Table I: 0.52 m links)."""
     return load_body(exo_path, name="exoskeleton")
+
+
+@pytest.fixture(scope="session")
+def patient() -> BodyModel:
+    """The default patient (modules may define their own)."""
+    return load_body(default_urdf_path("patient"), name="patient")
+
+
+@pytest.fixture(scope="session")
+def motor(exo: BodyModel) -> MotorParams:
+    """The default drive, configured for the default exoskeleton (modules may define their own)."""
+    return drive_for(MotorParams(), exo)
+
+
+@pytest.fixture(scope="session")
+def plan(exo: BodyModel) -> JointTrajectory:
+    """The default gait's joint targets over 1.2 s at 1 kHz (modules may define their own)."""
+    return plan_joints(GaitPlan(GaitParams()), exo, np.arange(1201) * 1e-3)
 
 
 @pytest.fixture(scope="session")

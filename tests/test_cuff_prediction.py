@@ -14,29 +14,10 @@ import pytest
 from scipy.linalg import expm
 
 from exo_ctrl.control.cuff_prediction import CuffHorizonModel, _expm
-from exo_ctrl.gait import GaitParams, GaitPlan
-from exo_ctrl.kinematics import plan_joints
-from exo_ctrl.model import BodyModel, default_urdf_path, load_body
-from exo_ctrl.motor import MotorParams
-from exo_ctrl.simulate import drive_for
+from exo_ctrl.model import BodyModel
 
 #: _expm's scratch slots (X, X², X³ and one product).
 EXPM_SCRATCH = 4
-
-
-@pytest.fixture(scope="module")
-def patient() -> BodyModel:
-    return load_body(default_urdf_path("patient"), name="patient")
-
-
-@pytest.fixture(scope="module")
-def motor(exo) -> MotorParams:
-    return drive_for(MotorParams(), exo)
-
-
-@pytest.fixture(scope="module")
-def plan(exo):
-    return plan_joints(GaitPlan(GaitParams()), exo, np.arange(1201) * 1e-3)
 
 
 def kernel_expm(f: np.ndarray) -> np.ndarray:

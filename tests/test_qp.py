@@ -46,9 +46,7 @@ from exo_ctrl.control.qp import (
 )
 from exo_ctrl.cuffs import CuffParams
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.gait import GaitParams, GaitPlan
-from exo_ctrl.kinematics import plan_joints
-from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel, default_urdf_path, load_body
+from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from exo_ctrl.motor import MotorParams
 from exo_ctrl.simulate import Runner, SimConfig, SimResult, build, drive_for, simulate
 
@@ -73,22 +71,6 @@ F_SPASTIC = 150.0
 SPASTIC_MARGIN = 0.10
 #: URDF effort of every joint [N·m].
 EFFORT = 150.0
-
-
-@pytest.fixture(scope="module")
-def patient() -> BodyModel:
-    return load_body(default_urdf_path("patient"), name="patient")
-
-
-@pytest.fixture(scope="module")
-def motor(exo) -> MotorParams:
-    return drive_for(MotorParams(), exo)
-
-
-@pytest.fixture(scope="module")
-def plan(exo):
-    t = np.arange(1201) * 1e-3
-    return plan_joints(GaitPlan(GaitParams()), exo, t)
 
 
 def near_plan(

@@ -84,22 +84,7 @@ def floor_calls(runner: Runner) -> list:
             (lambda f=f: pin.getFrameJacobian(cm._mp, cm._dp, f, pin.LOCAL_WORLD_ALIGNED))
             for f in cm._cuffs
         ]
-        tq = ctrl.qp
-        solver = tq._qp
-
-        def update_and_solve() -> None:
-            solver.update(
-                g=tq._g,
-                C=tq.C,
-                l=tq.lower,
-                u=tq.upper,
-                l_box=tq.lo,
-                u_box=tq.hi,
-                update_preconditioner=False,
-            )
-            solver.solve()
-
-        calls.append(update_and_solve)
+        calls.append(ctrl.qp.update_and_solve)
     return calls
 
 

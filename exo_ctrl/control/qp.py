@@ -321,19 +321,7 @@ class TorqueQP:
         qp = self._qp
         first = ""
         if self._ready:
-            # The equilibration computed at init is kept (the problem's scale
-            # changes slowly from tick to tick; recomputing it every tick cost
-            # about a third of the solve); a re-init recomputes it.
-            qp.update(
-                g=g,
-                C=self.C,
-                l=self.lower,
-                u=self.upper,
-                l_box=self.lo,
-                u_box=self.hi,
-                update_preconditioner=False,
-            )
-            qp.solve()
+            self.update_and_solve()
             if self._accept():
                 return True
             first = self.status
@@ -348,6 +336,24 @@ class TorqueQP:
         if not self._ready and first:
             self.status = f"{first}; after re-init: {self.status}"
         return self._ready
+
+    def update_and_solve(self) -> None:
+        """Warm-update proxsuite with the workspace's data, then solve (no checks).
+
+        The equilibration computed at init is kept (the problem's scale
+        changes slowly from tick to tick; recomputing it every tick cost
+        about a third of the solve); a re-init recomputes it.
+        """
+        self._qp.update(
+            g=self._g,
+            C=self.C,
+            l=self.lower,
+            u=self.upper,
+            l_box=self.lo,
+            u_box=self.hi,
+            update_preconditioner=False,
+        )
+        self._qp.solve()
 
     def _accept(self) -> bool:
         res = self._qp.results
