@@ -695,7 +695,10 @@ def _torque_box(
 def _voltage(
     c1: np.ndarray, c2: np.ndarray, torque: np.ndarray, omega: np.ndarray, out: np.ndarray
 ) -> None:
-    """U = (τ + c1 ω) / c2, the inverse of τ_cmd's map in :func:`_torque_box` [V]."""
+    """U = (τ + c1 ω) / c2, the inverse of τ_cmd's map in :func:`_torque_box` [V].
+
+    Called only after :func:`_torque_box` accepted ω's length (4).
+    """
     for j in range(4):
         out[j] = (torque[j] + c1[j] * omega[j]) / c2[j]
 
