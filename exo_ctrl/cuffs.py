@@ -117,6 +117,9 @@ class CuffSet:
         ax, az = vec[..., 0], vec[..., 1]
         # (x; z) of the 8 points = P (cos θ; sin θ) + p0, rows: 8 x then 8 z.
         self._P = np.block([[ax, -az], [az, ax]])
+        #: P of the module docstring, (16, 16): rows x then z of the 8 points
+        #: (exo cuffs 0-3, patient cuffs 4-7), columns cos θ then sin θ.
+        self.kernel_points = self._P
         self._p0 = np.concatenate((base[:, 0], base[:, 1]))
         diff = np.zeros((8, 16))  # exo minus patient, rows: 4 x then 4 z
         for c in range(4):

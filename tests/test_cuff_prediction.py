@@ -10,11 +10,13 @@ assembled from the equations of the module docstring on 4 joints at once.
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from scipy.linalg import expm
 
 from exo_ctrl.control.cuff_prediction import CuffHorizonModel, _expm
-from exo_ctrl.model import BodyModel
+from exo_ctrl.exceptions import InvalidParameter
+from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
 
 #: _expm's scratch slots (X, X², X³ and one product).
 EXPM_SCRATCH = 4
@@ -142,3 +144,50 @@ def test_predict_overwrites_its_outputs(exo, patient, motor, plan) -> None:
     model.predict(*args)
     np.testing.assert_array_equal(model.A, a_first)
     np.testing.assert_array_equal(model.b, b_first)
+
+
+@pytest.mark.parametrize("which", ["patient", "human"])
+def test_linearisation_matches_each_body_apart_in_pinocchio(
+    request, exo, motor, which: str
+) -> None:
+    """One CRBA and one nonLinearEffects of both bodies, and the cuff Jacobians from
+    the cuff points' closed form, against each body's own Pinocchio model (CRBA,
+    RNEA, LOCAL_WORLD_ALIGNED frame Jacobians) on random states."""
+    patient = request.getfixturevalue(which)
+    model = CuffHorizonModel(exo, patient, motor)
+    me, mp = pin.Model(exo.model), pin.Model(patient.model)
+    me.armature = np.full(4, motor.reflected_inertia_kgm2)
+    de, dp = me.createData(), mp.createData()
+    rng = np.random.default_rng(17)
+    for _ in range(10):
+        q, dq = rng.uniform(-1.0, 1.0, 4), rng.uniform(-3.0, 3.0, 4)
+        model.linearise(q, dq)
+        for body, m, d, mass, bias in (
+            (exo, me, de, model.mass_exo, model.bias_exo),
+            (patient, mp, dp, model.mass_patient, model.bias_patient),
+        ):
+            ref = pin.crba(m, d, q)
+            np.testing.assert_allclose(np.triu(mass), np.triu(ref), rtol=0, atol=1e-12)
+            losses = body.damping * dq + body.friction * np.tanh(dq / FRICTION_SMOOTHING_RAD_S)
+            ref_bias = pin.rnea(m, d, q, dq, np.zeros(4)) + losses
+            np.testing.assert_allclose(bias, ref_bias, rtol=0, atol=1e-10)
+        pin.computeJointJacobians(mp, dp, q)
+        pin.updateFramePlacements(mp, dp)
+        for c, frame in enumerate(patient.cuff_frame_ids):
+            leg, k = divmod(c, 2)
+            full = pin.getFrameJacobian(mp, dp, frame, pin.LOCAL_WORLD_ALIGNED)
+            np.testing.assert_allclose(
+                model.jac[leg, 2 * k : 2 * k + 2],
+                full[[0, 2]][:, 2 * leg : 2 * leg + 2],
+                rtol=0,
+                atol=1e-12,
+            )
+            others = np.delete(full[[0, 2]], [2 * leg, 2 * leg + 1], axis=1)
+            np.testing.assert_array_equal(others, 0.0)  # a cuff moves with its leg only
+
+
+def test_linearisation_refuses_readings_of_the_wrong_length(exo, patient, motor) -> None:
+    model = CuffHorizonModel(exo, patient, motor)
+    message = r"q and dq must be arrays of 4 joint values each; got 'shapes \(3,\) and \(4,\)'"
+    with pytest.raises(InvalidParameter, match=message):
+        model.linearise(np.zeros(3), np.zeros(4))

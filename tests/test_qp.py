@@ -293,7 +293,11 @@ def test_slack_weight_and_polygon_are_as_designed() -> None:
 
 def test_controller_builds_the_soft_cuff_rows(exo, patient, motor, plan) -> None:
     ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
-    ctrl.command(300, on_plan(plan, 300))
+    for k in range(300, 1200, 25):  # the first tick on the plan that calls proxsuite
+        ctrl.command(k, on_plan(plan, k))
+        if ctrl.screen_rounds:
+            break
+    assert ctrl.screen_rounds >= 1 and ctrl.solver_ticks == 1
     problem = soft_problem(ctrl)
     qp = ctrl.qp
     points = len(ctrl.cuff_model.horizon_ticks)
@@ -325,7 +329,7 @@ def test_screening_hands_proxsuite_the_rows_nearest_to_binding(exo, patient, mot
     """A fresh controller (last torque 0): the screened rows are the top SCREENED_ROWS
     of the measure at τ_cmd and at 0, and the answer meets every row."""
     checked = 0
-    for k in range(0, 1200, 100):
+    for k in range(0, 1200, 25):
         ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
         ctrl.command(k, on_plan(plan, k))
         if ctrl.last_status != "solved" or ctrl.screen_rounds != 1:
@@ -341,6 +345,42 @@ def test_screening_hands_proxsuite_the_rows_nearest_to_binding(exo, patient, mot
         assert np.all(problem.C @ x <= problem.upper + 1e-6)
         checked += 1
     assert checked >= 8
+
+
+def test_a_tick_whose_clipped_command_meets_every_row_skips_proxsuite(
+    exo, patient, motor, plan
+) -> None:
+    """The skip decision, checked both ways against the independently built problem.
+
+    A tick without proxsuite (screen_rounds 0) commands τ_cmd clipped into
+    the box, which meets every row and is the KKT optimum of the full soft
+    problem; a tick with proxsuite is one whose clipped τ_cmd violates a row.
+    """
+    rng = np.random.default_rng(13)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=80.0)
+    skipped = clipped = solved = 0
+    for i, k in enumerate(rng.integers(0, plan.q.shape[0], 80)):
+        # Alternately close to the plan (τ_cmd inside the box) and far (clipped).
+        noise = (1e-4, 1e-3) if i % 2 else (0.003, 2.0)
+        ctrl.command(int(k), near_plan(plan, rng, int(k), *noise))
+        if ctrl.last_status != "solved":
+            continue
+        problem = soft_problem(ctrl)
+        tau_clip = np.clip(ctrl.torque_cmd, ctrl.torque_lo, ctrl.torque_hi)
+        x_clip = np.concatenate((tau_clip, np.zeros(4)))
+        meets = bool(np.all(problem.C @ x_clip <= problem.upper))
+        assert meets == (ctrl.screen_rounds == 0), (int(k), ctrl.screen_rounds)
+        if ctrl.screen_rounds == 0:
+            skipped += 1
+            clipped += not np.array_equal(tau_clip, ctrl.torque_cmd)
+            np.testing.assert_array_equal(ctrl.torque, tau_clip)
+            np.testing.assert_array_equal(ctrl.slack, 0.0)
+        else:
+            solved += 1
+        assert_is_the_soft_optimum(ctrl, problem)
+    print(f"\n{skipped} ticks without proxsuite ({clipped} clipped), {solved} with")
+    assert ctrl.solver_ticks == solved + ctrl.failures
+    assert skipped >= 10 and clipped >= 3 and solved >= 10  # measured 64 (24 clipped), 16
 
 
 def test_screened_rows_keep_their_slots_from_tick_to_tick(exo, patient, motor, plan) -> None:

@@ -53,9 +53,9 @@ import numpy as np
 import pinocchio as pin
 
 from .._jit import kernel
-from ..cuffs import CuffParams
+from ..cuffs import CuffParams, CuffSet
 from ..exceptions import InvalidParameter
-from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
 from ..motor import MotorParams
 
 __all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "CuffStateObserver"]
@@ -312,7 +312,13 @@ def _observe(
     dist,
     first,
 ):  # pragma: no cover - compiled
-    """One observer tick per leg (CuffStateObserver docstring)."""
+    """One observer tick per leg (CuffStateObserver docstring).
+
+    Returns False (and nothing done) if an entry of ``force`` is not finite.
+    """
+    for c in range(4):
+        if not (math.isfinite(force[c, 0]) and math.isfinite(force[c, 1])):
+            return False
     for leg in range(2):
         i0 = 2 * leg
         g11 = g12 = g22 = 0.0
@@ -343,52 +349,60 @@ def _observe(
             dist[i0] += a_dist * (e1 - dist[i0])
             dist[i0 + 1] += a_dist * (e2 - dist[i0 + 1])
         vp_prev[i0], vp_prev[i0 + 1] = vp1, vp2
+    return True
 
 
 @kernel
-def _gather(
-    mass_e_in,
-    mass_p_in,
-    nle_e,
-    nle_p,
-    dq,
-    losses,
-    jac0,
-    jac1,
-    jac2,
-    jac3,
-    mass_e,
-    mass_p,
-    bias_e,
-    bias_p,
-    jac,
-):  # pragma: no cover - compiled
+def _pair(q, dq, q_all, v_all):  # pragma: no cover - compiled
+    """q_all = [q, q], v_all = [q̇, q̇]: the patient taken in the exoskeleton's state.
+
+    Returns False (nothing written) unless q and q̇ have 4 entries.
+    """
+    if q.shape[0] != 4 or dq.shape[0] != 4:
+        return False
+    for i in range(4):
+        q_all[i] = q_all[4 + i] = q[i]
+        v_all[i] = v_all[4 + i] = dq[i]
+    return True
+
+
+@kernel
+def _gather(mass, nle, q, dq, losses, points, select, mass_e, mass_p, bias_e, bias_p, jac):
     """Fill what :meth:`CuffHorizonModel.linearise` keeps from the Pinocchio calls.
 
-    The mass matrices; bias = nle + b q̇ + f_c tanh(q̇/ε) per body (``losses``
-    rows b_e, f_e, b_p, f_p); the (x, z) rows of the four cuff frame
-    Jacobians on their leg's two joints.
+    ``q``, ``dq``: the measured state (the patient's taken equal).  ``mass``
+    and ``nle``: CRBA and nonLinearEffects of the model of both bodies
+    (q_all = [q, q]); the mass matrices are its diagonal blocks; bias
+    = nle + b q̇ + f_c tanh(q̇/ε) per body (``losses`` rows b_e, f_e, b_p,
+    f_p).  The patient's cuff Jacobians, (x, z) rows on their leg's two
+    joints, from the cuff points' form p = P (cos θ, sin θ) + p₀ with link
+    rotations θ = S q_all (``points`` = P, ``select`` = S of
+    :class:`~exo_ctrl.cuffs.CuffSet`; patient points 4-7, rotations 4-7):
+    ∂p/∂q = Σ_j (−P_j sin θ_j + P_{8+j} cos θ_j) S_j.
     """
     for i in range(4):
         for j in range(4):
-            mass_e[i, j] = mass_e_in[i, j]
-            mass_p[i, j] = mass_p_in[i, j]
+            mass_e[i, j] = mass[i, j]
+            mass_p[i, j] = mass[4 + i, 4 + j]
         sgn = np.tanh(dq[i] / FRICTION_SMOOTHING_RAD_S)
-        bias_e[i] = nle_e[i] + losses[0, i] * dq[i] + losses[1, i] * sgn
-        bias_p[i] = nle_p[i] + losses[2, i] * dq[i] + losses[3, i] * sgn
-    _jacobian_rows(jac0, 0, jac)
-    _jacobian_rows(jac1, 1, jac)
-    _jacobian_rows(jac2, 2, jac)
-    _jacobian_rows(jac3, 3, jac)
-
-
-@kernel
-def _jacobian_rows(full, c, jac):  # pragma: no cover - compiled
-    """Cuff c = 2 leg + k: rows x, z of its 6×4 frame Jacobian on the leg's joints."""
-    leg, k = c // 2, c % 2
-    for j in range(2):
-        jac[leg, 2 * k, j] = full[0, 2 * leg + j]
-        jac[leg, 2 * k + 1, j] = full[2, 2 * leg + j]
+        bias_e[i] = nle[i] + losses[0, i] * dq[i] + losses[1, i] * sgn
+        bias_p[i] = nle[4 + i] + losses[2, i] * dq[i] + losses[3, i] * sgn
+    for c in range(4):  # cuff c = 2 leg + k, k: thigh 0, shank 1
+        leg, k = c // 2, c % 2
+        for col in range(2):
+            joint = 4 + 2 * leg + col  # q_all index of the patient joint
+            for axis in range(2):  # x, z
+                row = 4 + c + 8 * axis  # row of P
+                acc = 0.0
+                for j in range(4, 8):
+                    s = select[j, joint]
+                    if s != 0.0:
+                        theta = 0.0
+                        for m in range(4):
+                            theta += select[j, 4 + m] * q[m]
+                        cos_t, sin_t = math.cos(theta), math.sin(theta)
+                        acc += s * (points[row, 8 + j] * cos_t - points[row, j] * sin_t)
+                jac[leg, 2 * k + axis, col] = acc
 
 
 class CuffHorizonModel:
@@ -443,12 +457,17 @@ class CuffHorizonModel:
         self._powers = np.array([t // block for t in ticks], dtype=np.int64)
         self._block = block * dt
         self.dt = float(dt)
-        self._me = pin.Model(exo.model)
-        self._me.armature = np.full(4, motor.reflected_inertia_kgm2)
-        self._de = self._me.createData()
-        self._mp = pin.Model(patient.model)
-        self._dp = self._mp.createData()
-        self._cuffs = tuple(int(f) for f in patient.cuff_frame_ids)
+        # Both bodies in one model (exo joints 0-3 with the rotors' reflected
+        # inertia, patient 4-7); the patient's cuff points as in the plant.
+        self._model = combined_model(exo, patient)
+        rotor = np.full(4, motor.reflected_inertia_kgm2)
+        self._model.armature = np.concatenate((rotor, np.zeros(4)))
+        self._data = self._model.createData()
+        self._q_all = np.zeros(8)
+        self._v_all = np.zeros(8)
+        cuff_set = CuffSet(exo, patient, cuffs)
+        self._points = np.ascontiguousarray(cuff_set.kernel_points)
+        self._select = np.ascontiguousarray(cuff_set.kernel_matrices[:8, :8])
         kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
         #: Back-EMF damping of a drive held at constant voltage, i_G k_m (i_G/k_E)/R [N·m·s/rad].
         self.back_emf_damping = kt * kb / r
@@ -477,26 +496,25 @@ class CuffHorizonModel:
             q: exoskeleton joint angles [rad] (the patient's are taken equal).
             dq: exoskeleton joint speeds [rad/s].
 
+        Raises:
+            InvalidParameter: q or dq without 4 entries.
+
         """
-        me, de, mp, dp = self._me, self._de, self._mp, self._dp
-        mass_e = pin.crba(me, de, q)
-        mass_p = pin.crba(mp, dp, q)
-        nle_e = pin.nonLinearEffects(me, de, q, dq)
-        nle_p = pin.nonLinearEffects(mp, dp, q, dq)
-        pin.computeJointJacobians(mp, dp, q)
-        c0, c1, c2, c3 = self._cuffs
-        frame = pin.LOCAL_WORLD_ALIGNED
+        q_all, v_all = self._q_all, self._v_all
+        if not _pair(q, dq, q_all, v_all):
+            shapes = f"shapes {np.shape(q)} and {np.shape(dq)}"
+            raise InvalidParameter("q and dq", shapes, "arrays of 4 joint values each")
+        model, data = self._model, self._data
+        mass = pin.crba(model, data, q_all)
+        nle = pin.nonLinearEffects(model, data, q_all, v_all)
         _gather(
-            mass_e,
-            mass_p,
-            nle_e,
-            nle_p,
+            mass,
+            nle,
+            q,
             dq,
             self._losses,
-            pin.getFrameJacobian(mp, dp, c0, frame),
-            pin.getFrameJacobian(mp, dp, c1, frame),
-            pin.getFrameJacobian(mp, dp, c2, frame),
-            pin.getFrameJacobian(mp, dp, c3, frame),
+            self._points,
+            self._select,
             self.mass_exo,
             self.mass_patient,
             self.bias_exo,
@@ -604,9 +622,12 @@ class CuffStateObserver:
         self.disturbance.fill(0.0)
         self._first = True
 
-    def update(self, model: CuffHorizonModel, force_est: np.ndarray, omega: np.ndarray) -> None:
-        """One tick: f̂ (4, 2) [N] and q̇ [rad/s], with ``model`` linearised at this tick."""
-        _observe(
+    def update(self, model: CuffHorizonModel, force_est: np.ndarray, omega: np.ndarray) -> bool:
+        """One tick: f̂ (4, 2) [N] and q̇ [rad/s], with ``model`` linearised at this tick.
+
+        Returns False, and leaves the observer as it was, if f̂ is not finite.
+        """
+        if not _observe(
             model.mass_patient,
             model.bias_patient,
             model.jac,
@@ -622,5 +643,7 @@ class CuffStateObserver:
             self._vp,
             self.disturbance,
             self._first,
-        )
+        ):
+            return False
         self._first = False
+        return True
