@@ -546,13 +546,25 @@ class CuffForceEstimator:
             self._started = True  # the kernel starts the observer at these readings
         elif h != self._h_cached:
             self._set_step(h)
-        model, data = self._model, self._data
-        mass = pin.crba(model, data, q)
-        coriolis = pin.computeCoriolisMatrix(model, data, q, dq)
-        gravity = pin.computeGeneralizedGravity(model, data, q)
-        if _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, self._work) < 0:
+        if _observer_kernel(*self.model_terms(q, dq), q, dq, tau, h, self._work) < 0:
             v.refuse_shapes((4,), tau=tau)
         return self.force
+
+    def model_terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, ...]:
+        """M(q), C(q, q̇) and g(q) of the link model (Pinocchio's data, overwritten next call).
+
+        ``q`` and ``dq`` must be (4,) arrays.
+        """
+        model, data = self._model, self._data
+        return (
+            pin.crba(model, data, q),
+            pin.computeCoriolisMatrix(model, data, q, dq),
+            pin.computeGeneralizedGravity(model, data, q),
+        )
+
+    def running_at(self, h: float) -> bool:
+        """Whether the observer has started and steps by h (its next update takes no set-up)."""
+        return self._started and h == self._h_cached
 
     # ------------------------------------------------------------------ internals
 

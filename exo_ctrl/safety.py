@@ -333,6 +333,10 @@ class SafetySupervisor:
 
     # ------------------------------------------------------------------ per tick
 
+    def normal_at(self, t: float) -> bool:
+        """Whether the supervisor is in its normal state at time t [s] (no stop, e-stop not due)."""
+        return self.state_code == 0 and t < self._estop
+
     def step(
         self,
         k: int,
@@ -359,7 +363,7 @@ class SafetySupervisor:
 
         """
         del k
-        normal = self.state_code == 0 and t < self._estop
+        normal = self.normal_at(t)
         q, dq, tau = sensors.q, sensors.dq, sensors.tau
         f, current, u = cuff_force, current_A, u_cmd
         if not (

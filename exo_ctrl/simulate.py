@@ -27,13 +27,14 @@ from typing import Any, Protocol
 import numpy as np
 
 from . import _validate as v
-from ._jit import kernel
 from ._progress import Progress
+from ._tick import FusedTick, _log_applied, _log_measured
 from .control import (
     ComputedTorqueController,
     PDController,
     PDGains,
     QPController,
+    SensorReadings,
     feedforward_torque,
 )
 from .cuffs import CuffParams
@@ -362,7 +363,7 @@ class Runner:
     ``tools/bench.py`` times exactly it.
     """
 
-    def __init__(self, setup: Setup) -> None:
+    def __init__(self, setup: Setup, fused: bool = True) -> None:
         self.setup = setup
         config = setup.config
         plant = setup.plant
@@ -432,30 +433,43 @@ class Runner:
                 use_estimate=config.safety_use_estimate,
             )
         start_on_plan(setup)
+        self._fused = FusedTick.of(self) if fused else None
 
     def tick(self, k: int, row: int) -> None:
-        """Run control tick ``k``, logging into buffer row ``row``."""
+        """Run control tick ``k``, logging into buffer row ``row``.
+
+        PD and CT ticks run fused when they can (:mod:`exo_ctrl._tick`,
+        bit-identical); otherwise, and for the QP, the stages are composed here.
+        """
+        if self._fused is not None and self._fused.tick(k, row):
+            return
         plant = self.setup.plant
         wide = self.wide
         sensors = self.sensor_model.read(k, self._q_e, self._v_e, plant.sensor_torque)
         self.estimator.update(sensors)
         _log_measured(wide, row, *self._measured)
         controller = self.setup.controller
-        u = u_cmd = controller.command(k, sensors)
+        u_cmd = controller.command(k, sensors)
         if self._qp:
             wide[row, 81] = controller.active_constraints
             wide[row, 82] = controller.failures
+        self._apply(k, row, sensors, u_cmd)
+
+    def _apply(self, k: int, row: int, sensors: SensorReadings, u_cmd: np.ndarray) -> None:
+        """The rest of tick k from the command on: supervisor, plant steps, log of the applied."""
+        plant = self.setup.plant
+        u = u_cmd
         sup = self.supervisor
         if sup is not None:
             force = sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
             u = sup.step(k, k * self._dt, sensors, force, self._mean_current, u)
-            wide[row, 52] = sup.state_code
+            self.wide[row, 52] = sup.state_code
         tau_p = None
         for _ in range(self._substeps):
             if self.patient_model is not None:
                 tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
             plant.step(u, tau_p)
-        _log_applied(wide, row, u_cmd, plant.outputs)
+        _log_applied(self.wide, row, u_cmd, plant.outputs)
 
     def fill_plan(self, start: int, rows: int) -> None:
         """Copy the planned rows ``start:start+rows`` into the buffer."""
@@ -472,6 +486,7 @@ def simulate(
     observers: Sequence[SimObserver] = (),
     progress: bool = False,
     keep_history: bool = True,
+    fused: bool = True,
 ) -> SimResult:
     """Run the closed loop.
 
@@ -482,6 +497,8 @@ def simulate(
         keep_history: keep every signal in the result (off: only the
             statistics and the chunk being written are held, for long
             recorded runs; ``result.t`` is then empty).
+        fused: run PD and CT ticks fused where they can
+            (:mod:`exo_ctrl._tick`, bit-identical); off: always composed.
 
     Returns:
         The result; ``status`` says whether it completed.  A divergence or
@@ -491,7 +508,7 @@ def simulate(
 
     """
     setup = build(config)
-    runner = Runner(setup)
+    runner = Runner(setup, fused=fused)
     n = config.n_ticks
     hist_n = n if keep_history else 0
     history = {name: np.zeros((hist_n, *shape)) for name, (shape, _, _) in SIGNALS.items()}
@@ -581,24 +598,3 @@ def simulate(
     if error is not None:
         raise error
     return result
-
-
-@kernel
-def _log_measured(
-    wide: np.ndarray, row: int, state: np.ndarray, readings: np.ndarray, estimates: np.ndarray
-) -> None:
-    """Columns 0-15 (q, v of both bodies) and 53-80 (readings, estimates) of a log row."""
-    for i in range(16):
-        wide[row, i] = state[i]
-        wide[row, 65 + i] = estimates[i]
-    for i in range(12):
-        wide[row, 53 + i] = readings[i]
-
-
-@kernel
-def _log_applied(wide: np.ndarray, row: int, u_cmd: np.ndarray, outputs: np.ndarray) -> None:
-    """Columns 16-19 (commanded voltage) and 20-43 (the plant's outputs) of a log row."""
-    for i in range(4):
-        wide[row, 16 + i] = u_cmd[i]
-    for i in range(24):
-        wide[row, 20 + i] = outputs[i]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import re
@@ -10,13 +11,14 @@ import numpy as np
 import pytest
 
 from exo_ctrl.control import PDGains
-from exo_ctrl.exceptions import InvalidParameter
+from exo_ctrl.exceptions import InvalidParameter, SimulationDiverged
 from exo_ctrl.gait import GaitParams, GaitPlan
 from exo_ctrl.kinematics import plan_joints
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES, BodyModel
 from exo_ctrl.motor import MotorParams
+from exo_ctrl.safety import SafetyLimits
 from exo_ctrl.sensors import SensorParams
-from exo_ctrl.simulate import SIGNALS, SimConfig, SimResult, simulate
+from exo_ctrl.simulate import SIGNALS, Runner, SimConfig, SimResult, build, simulate
 from exo_ctrl.urdfgen import BodyParams, write_urdf
 
 #: SimulationDiverged's message, with the quantities the plant watches.
@@ -67,6 +69,40 @@ def test_two_runs_are_bit_identical(controller: str, pd_run, ct_run) -> None:
     assert {k: v for k, v in s1.items() if k not in timing} == {
         k: v for k, v in s2.items() if k not in timing
     }
+
+
+FUSED_CASES = {
+    "pd": {},
+    "ct": {},
+    "ct, no supervisor": {"safety": False},
+    "pd, supervisor on the estimate": {"safety_use_estimate": True},
+    "ct, e-stop at 0.5 s": {"estop_at_s": 0.5},
+    "ct, speed limit tripped": {"safety_limits": SafetyLimits(speed_limit_rad_s=2.0)},
+}
+
+
+@pytest.mark.parametrize("case", list(FUSED_CASES))
+def test_fused_ticks_equal_the_composed_ones(case: str, pd_run, ct_run) -> None:
+    """exo_ctrl._tick runs the same kernels in two compiled calls: bit-identical runs.
+
+    The supervisor cases leave the fused path mid-run (its stop is composed).
+    """
+    kwargs = FUSED_CASES[case]
+    config = SimConfig(controller=case[:2], **kwargs)
+    fused = {"pd": pd_run, "ct": ct_run}[case] if not kwargs else simulate(config)
+    assert_same_run(fused, simulate(config, fused=False))
+    runner = Runner(build(config))
+    n = config.n_ticks
+    with contextlib.suppress(SimulationDiverged):
+        for k in range(n):
+            runner.tick(k, k % runner.chunk)
+    stopped = [e for e in fused.events if e["kind"] in ("estop", "violation")]
+    print(f"\n{case}: {runner._fused.ticks} of {n} ticks fused, events {len(fused.events)}")
+    assert bool(stopped) == ("e-stop" in case or "tripped" in case)
+    if stopped:
+        assert 100 <= runner._fused.ticks < n - 100  # both paths ran
+    else:
+        assert runner._fused.ticks == n - 2  # the estimator starts composed
 
 
 def test_chunking_changes_nothing(ct_run) -> None:

@@ -69,8 +69,12 @@ class ComputedTorqueController(PDController):
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """PD + feedforward voltages [V] for tick k."""
+        return self._pd(k, sensors, self.feedforward(k)[1])
+
+    def feedforward(self, k: int) -> tuple[int, np.ndarray]:
+        """The plan row of tick k and its tabulated feedforward voltage [V], (4,)."""
         self._last = i = self._row(k)
-        return self._pd(k, sensors, self._u_ff[i])
+        return i, self._u_ff[i]
 
 
 class _Feedforward:

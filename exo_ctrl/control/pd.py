@@ -40,6 +40,10 @@ class PDController:
         """The plan row of tick k."""
         return k % self._period if self._period else k
 
+    def feedforward(self, k: int) -> tuple[int, np.ndarray]:
+        """The plan row of tick k and the feedforward voltage added to the PD [V] (none here)."""
+        return self._row(k), self._no_ff
+
     def _pd(self, k: int, sensors: SensorReadings, u_ff: np.ndarray) -> np.ndarray:
         """PD voltages plus ``u_ff`` [V] for tick k."""
         plan = self.plan
