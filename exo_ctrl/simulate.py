@@ -361,6 +361,12 @@ class Runner:
     :meth:`tick` is the whole per-tick work of a run (sensors, estimator,
     controller, safety supervisor, patient torque, plant steps, logging);
     ``tools/bench.py`` times exactly it.
+
+    Args:
+        setup: the run's pieces.
+        fused: run PD and CT ticks fused where they can (:mod:`exo_ctrl._tick`,
+            bit-identical); off: always call the stages one by one.
+
     """
 
     def __init__(self, setup: Setup, fused: bool = True) -> None:
