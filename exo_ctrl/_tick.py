@@ -23,6 +23,8 @@ the composed path from that stage, so the rare branches exist once.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pinocchio as pin
 
@@ -33,6 +35,9 @@ from .estimation import _observer_kernel
 from .plant import MAX_JOINT_SPEED_RAD_S, _drift_and_forces, _kick_and_drift
 from .safety import _monitor_kernel
 
+if TYPE_CHECKING:
+    from .simulate import Runner
+
 #: What :func:`_front` returns.
 _DONE, _SUPERVISOR, _ARMATURE = 0, 1, 2
 
@@ -40,7 +45,7 @@ _DONE, _SUPERVISOR, _ARMATURE = 0, 1, 2
 class FusedTick:
     """The fused tick of a runner (module docstring); build it with :meth:`of`."""
 
-    def __init__(self, runner) -> None:
+    def __init__(self, runner: Runner) -> None:
         setup = runner.setup
         self.runner = runner
         plant, ctrl, est = setup.plant, setup.controller, runner.estimator
@@ -68,7 +73,7 @@ class FusedTick:
         self.ticks = 0
 
     @classmethod
-    def of(cls, runner) -> FusedTick | None:
+    def of(cls, runner: Runner) -> FusedTick | None:
         """The fused tick of ``runner``, or None if its configuration needs the composed one."""
         ctrl = runner.setup.controller
         fits = (
@@ -109,6 +114,7 @@ class FusedTick:
         if code == _SUPERVISOR:  # the supervisor acts: composed from here
             runner._apply(k, row, sensors, ctrl._u)
             return True
+        # From here as the end of Plant.step.
         if code == _ARMATURE:
             plant._model.armature = plant._arm
         acc = pin.aba(*self._aba)

@@ -89,10 +89,10 @@ rows is solved by clipping τ_cmd into the torque box (slacks zero).  That
 QP is a relaxation of the full one, so when the clipped τ_cmd meets every
 cuff row (exactly, no tolerance) it is the full QP's optimum, and the tick
 takes it without calling proxsuite (one compiled kernel,
-:func:`_clip_if_feasible`).  Measured (2.4 s runs, tests/test_qp.py): every
-tick of the default run (120 N); spastic patient at 150 N, about 70 % of
-the ticks.  proxsuite's warm start then stays with the last tick that
-called it.
+:func:`_clip_if_feasible`).  Measured on the 2.4 s runs (tools/bench.py):
+proxsuite is called on none of the default run's ticks (120 N) and on
+29.5 % of the spastic patient's at 150 N.  Its warm start stays with the
+last tick that called it.
 
 **Fallback** (the tick is counted in :attr:`QPController.failures`):
 
