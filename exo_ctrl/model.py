@@ -50,6 +50,8 @@ __all__ = [
 SIDES = ("left", "right")
 #: Canonical order of the driven joints everywhere in exo_ctrl.
 JOINT_NAMES = ("left_hip", "left_knee", "right_hip", "right_knee")
+#: File name of each kind's committed URDF (in the repository's ``urdf/``).
+DEFAULT_URDF_NAMES: dict[str, str] = {"exo": "exoskeleton.urdf", "patient": "patient.urdf"}
 #: Canonical order of the cuffs; each is a frame of that name on both bodies.
 CUFF_NAMES = ("left_thigh", "left_shank", "right_thigh", "right_shank")
 
@@ -218,10 +220,9 @@ def default_urdf_path(kind: str) -> Path:
     generated from the default parameters into a per-user cache; a test
     checks that the committed files equal the generator's output.
     """
-    names = {"exo": "exoskeleton.urdf", "patient": "patient.urdf"}
-    if kind not in names:
+    if kind not in DEFAULT_URDF_NAMES:
         raise InvalidModel(kind, "", f"unknown default body {kind!r}; expected 'exo' or 'patient'")
-    filename = names[kind]
+    filename = DEFAULT_URDF_NAMES[kind]
     path = Path(__file__).resolve().parent.parent / "urdf" / filename
     if path.is_file():
         return path

@@ -49,6 +49,7 @@ import yourdfpy
 
 from . import _validate as v
 from .exceptions import InvalidParameter
+from .model import DEFAULT_URDF_NAMES
 
 __all__ = [
     "DEFAULT_URDF_NAMES",
@@ -61,8 +62,6 @@ __all__ = [
     "write_urdf",
 ]
 
-#: File name of each kind's committed URDF (in the repository's ``urdf/``).
-DEFAULT_URDF_NAMES: dict[str, str] = {"exo": "exoskeleton.urdf", "patient": "patient.urdf"}
 
 #: Leg prefixes, in the order the links and joints are written.
 SIDES: tuple[str, str] = ("left", "right")
