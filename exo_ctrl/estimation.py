@@ -453,15 +453,11 @@ class CuffForceEstimator:
         self._model = pin.Model(exo.model)
         self._model.armature = np.zeros(self._model.nv)  # link side: no rotor inertia
         self._data = self._model.createData()
-        self._b = exo.damping
-        self._fr = exo.friction
-        self._has_friction = bool(np.any(self._fr > 0))
-        self._eps = FRICTION_SMOOTHING_RAD_S
         par = self._work
-        par[_P_DAMPING : _P_DAMPING + 4] = self._b
-        par[_P_FRICTION : _P_FRICTION + 4] = self._fr
-        par[_P_EPS] = self._eps
-        par[_P_HAS_FRICTION] = self._has_friction
+        par[_P_DAMPING : _P_DAMPING + 4] = exo.damping
+        par[_P_FRICTION : _P_FRICTION + 4] = exo.friction
+        par[_P_EPS] = FRICTION_SMOOTHING_RAD_S
+        par[_P_HAS_FRICTION] = bool(np.any(exo.friction > 0))
         par[_P_HAS_BIAS] = self._has_bias
         g = self.geometry
         for s in range(2):
@@ -585,9 +581,8 @@ class CuffForceEstimator:
 # (s_h, s_k, a, ψ_t0, l₁, ψ_k0, c, ψ_s0).
 _P_DAMPING, _P_FRICTION, _P_BIAS, _P_EPS, _P_HAS_FRICTION, _P_HAS_BIAS = 0, 4, 8, 12, 13, 14
 _P_KAPPA, _P_LEGS = 15, 16
-_P_SIZE = 32
-# Then state and outputs: s, p, m, m_{k-1}, r, f⊥ (4 each), the forces
-# (4 × 2, row-major), K_d, started flag.
+# Then, from 32 (after the two legs' 8), state and outputs: s, p, m,
+# m_{k-1}, r, f⊥ (4 each), the forces (4 × 2, row-major), K_d, started flag.
 _B_S, _B_P, _B_M, _B_M_PREV, _B_R, _B_NORMAL, _B_FORCE = 32, 36, 40, 44, 48, 52, 56
 _B_KD, _B_STARTED = 64, 65
 _W_SIZE = 66
