@@ -67,6 +67,7 @@ class FusedTick:
         self._plant_args = plant._pre_args[1:]
         self._plant_more = (plant.patient_torque, *plant._pre_more)
         self._aba = plant._aba
+        plant._flags[2] = False  # no patient torque, here and in the composed ticks
         self._back_args = (plant._s8, plant._s4)
         self._back_more = (plant._flags, *plant._post_more, runner.wide, ctrl._u)
         #: Ticks run fused (the others went the composed way).
@@ -102,7 +103,6 @@ class FusedTick:
         sup = self._sup
         normal = sup is None or sup.normal_at(k * runner._dt)
         plant = self._plant
-        plant._flags[2] = False  # no patient torque
         h_est, est_work, wide = self._est_args
         code = _front(
             mass, coriolis, gravity, q, dq, sensors.tau, h_est, est_work,
