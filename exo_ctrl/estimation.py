@@ -21,29 +21,41 @@ and identification", IEEE T-RO 33(6), 2017).  With p = M(q) q̇ and
 
 obeys ṙ = K_O (τ_ext − r): r is τ_ext through a first-order low-pass of
 bandwidth K_O [1/s] (K_O / 2π Hz).  Neither q̈ nor a derivative of the
-measured speed is needed.  Cᵀ q̇ comes from Pinocchio's
-``computeCoriolisMatrix`` (the Christoffel-consistent C, for which
-Ṁ = C + Cᵀ holds), g from ``computeGeneralizedGravity``, M from ``crba``.
+measured speed is needed.  The update makes two Pinocchio calls, ``crba``
+(M) and ``nonLinearEffects`` (n = C q̇ + g): with Ṁ = C + Cᵀ (Pinocchio's C
+is the Christoffel-consistent one), Cᵀ q̇ − g = Ṁ q̇ − n, and the Ṁ q̇ part
+is integrated along the path from the encoder readings alone, ∫ Ṁ q̇ ds
+over a step ≈ (M_k − M_{k-1}) (q_k − q_{k-1}) / h, so C itself is never
+formed (pairing M(q_k) with the filtered speed instead would pair it with
+a lagged signal: a mean error of up to 0.05 N·m on the default gait).
 
 *Discrete form* (step h, readings q_k, q̇_k, τ_k, where τ_k is the sensor
 reading over [t_{k-1}, t_k]; the plant's reading at tick k is the one of the
-step just taken):  with m = Cᵀq̇ − g − b q̇ − f_c tanh(q̇/ε),
+step just taken):  with m = −n(q, q̇) − b q̇ − f_c tanh(q̇/ε) and M_k = M(q_k),
 
-    s_k = s_{k-1} + h (τ_k + ½ (m_{k-1} + m_k) + r_{k-1}),   s_0 = p_0,
+    s_k = s_{k-1} + h (τ_k + ½ (m_{k-1} + m_k) + r_{k-1})
+                  + (M_k − M_{k-1}) (q_k − q_{k-1}) / h,   s_0 = p_0,
     r_k = K_d (p_k − s_k),   K_d = (1 − e^{−K_O h}) / h,
 
-which gives r_k = r_{k-1} + (1 − e^{−K_O h}) (e_k − r_{k-1}) with
-e_k = (p_k − p_{k-1})/h − τ_k − m̄_k the external torque over the step: the
-exact zero-order-hold discretisation of the continuous filter, stable for
-every K_O > 0 (K_d → K_O as h → 0).  When h changes (a log with uneven
-time stamps) s is re-anchored to s = p − r/K_d, which keeps that identity.
+which gives r_k = r_{k-1} + (1 − e^{−K_O h}) (e_k − r_{k-1}) with e_k the
+external torque over the step.  As M_k q̇_k − M_{k-1} q̇_{k-1} =
+½ (M_k + M_{k-1}) (q̇_k − q̇_{k-1}) + ½ (M_k − M_{k-1}) (q̇_k + q̇_{k-1}),
+and (q_k − q_{k-1}) / h ≈ ½ (q̇_{k-1} + q̇_k),
+
+    e_k ≈ ½ (M_{k-1} + M_k) (q̇_k − q̇_{k-1}) / h − ½ (m_{k-1} + m_k) − τ_k,
+
+inverse dynamics with the mean mass matrix times the finite-difference
+acceleration.  Given e_k, the r recursion is the exact zero-order-hold
+discretisation of the continuous filter, stable for every K_O > 0 (K_d → K_O
+as h → 0).  When h changes (a log with uneven time stamps) s is re-anchored
+to s = p − r/K_d, which keeps that identity.
 
 **Default gain** K_O = 100 1/s (bandwidth 16 Hz, time constant 10 ms).
 The observer passes encoder-speed noise to r with a gain of about K_O M
 (p = M q̇ enters r multiplied by K_O), and lags the cuff forces by 1/K_O.
 On the default gait (cycle 1.2 s) with the default sensors
 (:mod:`exo_ctrl.sensors`) the worst cuff's RMS error of the normal
-component is 7.3 % of its peak at K_O = 50 1/s (lag), 4.5 % at 100 and 200,
+component is 7.3 % of its peak at K_O = 50 1/s (lag), 4.4 % at 100 and 200,
 and 7.0 % at 400 (speed noise) (tests/test_estimation.py prints this);
 100 1/s is the less noisy end of the flat optimum.  With ideal sensors the
 error is the lag alone: 4.6 % at 100 1/s, 0.45 % at 1000 1/s.
@@ -142,7 +154,7 @@ import pinocchio as pin
 
 from . import _validate as v
 from ._io import atomic_write
-from ._jit import kernel
+from ._jit import kernel, preload
 from .control.base import SensorReadings
 from .exceptions import InvalidLog, InvalidModel, InvalidParameter
 from .model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, SIDES, BodyModel
@@ -400,9 +412,10 @@ def cuff_forces_from_torque(
 class CuffForceEstimator:
     """Live cuff-force estimate from the sensor readings, one update per tick.
 
-    An update is the three Pinocchio calls (CRBA, Coriolis matrix, gravity)
-    and one call of the compiled kernel :func:`_observer_kernel`, which does
-    the rest (momentum, model terms, the observer step, the cuff forces).
+    An update is two Pinocchio calls (CRBA and nonLinearEffects, see
+    :meth:`model_terms`) and one call of the compiled kernel
+    :func:`_observer_kernel`, which does the rest (momentum, model terms, the
+    observer step, the cuff forces).
 
     Args:
         exo: the exoskeleton model (its link model is used; see the module
@@ -546,17 +559,14 @@ class CuffForceEstimator:
             v.refuse_shapes((4,), tau=tau)
         return self.force
 
-    def model_terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, ...]:
-        """M(q), C(q, q̇) and g(q) of the link model (Pinocchio's data, overwritten next call).
+    def model_terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """M(q) and n(q, q̇) = C(q, q̇) q̇ + g(q) of the link model: the kernel's first two arguments.
 
-        ``q`` and ``dq`` must be (4,) arrays.
+        Pinocchio's ``crba`` and ``nonLinearEffects`` (arrays of its data,
+        overwritten by the next call).  ``q`` and ``dq`` must be (4,) arrays.
         """
         model, data = self._model, self._data
-        return (
-            pin.crba(model, data, q),
-            pin.computeCoriolisMatrix(model, data, q, dq),
-            pin.computeGeneralizedGravity(model, data, q),
-        )
+        return pin.crba(model, data, q), pin.nonLinearEffects(model, data, q, dq)
 
     def running_at(self, h: float) -> bool:
         """Whether the observer has started and steps by h (its next update takes no set-up)."""
@@ -582,19 +592,24 @@ class CuffForceEstimator:
 _P_DAMPING, _P_FRICTION, _P_BIAS, _P_EPS, _P_HAS_FRICTION, _P_HAS_BIAS = 0, 4, 8, 12, 13, 14
 _P_KAPPA, _P_LEGS = 15, 16
 # Then, from 32 (after the two legs' 8), state and outputs: s, p, m,
-# m_{k-1}, r, f⊥ (4 each), the forces (4 × 2, row-major), K_d, started flag.
+# m_{k-1}, r, f⊥ (4 each), the forces (4 × 2, row-major), K_d, started flag,
+# M_{k-1} (4 × 4, row-major), q_{k-1} (4).  r, f⊥ and the forces stay
+# contiguous (CuffForceEstimator.outputs_flat).
 _B_S, _B_P, _B_M, _B_M_PREV, _B_R, _B_NORMAL, _B_FORCE = 32, 36, 40, 44, 48, 52, 56
-_B_KD, _B_STARTED = 64, 65
-_W_SIZE = 66
+_B_KD, _B_STARTED, _B_MASS_PREV, _B_Q_PREV = 64, 65, 66, 82
+_W_SIZE = 86
 
 
 @kernel
-def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
+def _observer_kernel(mass, nle, q, dq, tau, h, w):
     """One observer step in place (module docstring, discrete form), then the cuff forces.
 
-    p = M q̇, m = Cᵀ q̇ − g − b q̇ − f_c tanh(q̇/ε);
-    s += h (τ − β + ½ (m_{k-1} + m) + r), r = K_d (p − s).
-    Not started (w's flag 0): s = p, m_{k-1} = m, r = f = 0, flag set.
+    ``mass``, ``nle``: M(q) and n(q, q̇) (:meth:`CuffForceEstimator.model_terms`).
+    p = M q̇, m = −n − b q̇ − f_c tanh(q̇/ε);
+    s += h (τ − β + ½ (m_{k-1} + m) + r) + (M − M_{k-1}) (q − q_{k-1}) / h,
+    r = K_d (p − s).
+    Not started (w's flag 0): s = p, m_{k-1} = m, M_{k-1} = M, q_{k-1} = q,
+    r = f = 0, flag set.
     Returns 0, or -1 (and nothing done) when ``tau`` is not of length 4.
     """
     if tau.shape[0] != 4:
@@ -603,12 +618,9 @@ def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
     eps = w[_P_EPS]
     for i in range(4):
         p = 0.0
-        m = 0.0
         for j in range(4):
             p += mass[i, j] * dq[j]
-            m += coriolis[j, i] * dq[j]
-        m = m - gravity[i]
-        m = m - w[_P_DAMPING + i] * dq[i]
+        m = -nle[i] - w[_P_DAMPING + i] * dq[i]
         if has_friction:
             m = m - math.tanh(dq[i] / eps) * w[_P_FRICTION + i]
         w[_B_P + i] = p
@@ -621,6 +633,9 @@ def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
             w[_B_NORMAL + i] = 0.0
             w[_B_FORCE + 2 * i] = 0.0
             w[_B_FORCE + 2 * i + 1] = 0.0
+            w[_B_Q_PREV + i] = q[i]
+            for j in range(4):
+                w[_B_MASS_PREV + 4 * i + j] = mass[i, j]
         w[_B_STARTED] = 1.0
         return 0
     has_bias = w[_P_HAS_BIAS] != 0.0
@@ -629,10 +644,17 @@ def _observer_kernel(mass, coriolis, gravity, q, dq, tau, h, w):
         x = (w[_B_M_PREV + i] + w[_B_M + i]) * 0.5 + tau[i]
         if has_bias:
             x = x - w[_P_BIAS + i]
-        s = w[_B_S + i] + (x + w[_B_R + i]) * h
+        dp = 0.0  # (M_k − M_{k-1}) (q_k − q_{k-1}), row i; then M_{k-1} = M_k
+        for j in range(4):
+            o = _B_MASS_PREV + 4 * i + j
+            dp += (mass[i, j] - w[o]) * (q[j] - w[_B_Q_PREV + j])
+            w[o] = mass[i, j]
+        s = w[_B_S + i] + (x + w[_B_R + i]) * h + dp / h
         w[_B_S + i] = s
         w[_B_R + i] = (w[_B_P + i] - s) * kd
         w[_B_M_PREV + i] = w[_B_M + i]
+    for i in range(4):
+        w[_B_Q_PREV + i] = q[i]
     _cuffs_kernel(q, w)
     return 0
 
@@ -908,10 +930,12 @@ class EstimateErrorStats:
         self.exo = exo
         self.skip = round(v.non_negative("skip", skip_s, "s") / v.positive("dt", dt, "s"))
         self.rows = 0
-        self._prev_force: np.ndarray | None = None
-        self._sq = np.zeros(4)
-        self._max = np.zeros(4)
-        self._peak = np.zeros(4)
+        g = _geometry(exo)
+        # Per leg: s_h, s_k, ψ_t0, ψ_s0 (the cuff directions of CuffGeometry).
+        self._legs = np.stack((g.sign_hip, g.sign_knee, g.thigh_dir0, g.shank_dir0), axis=1)
+        self._prev_force = np.zeros((4, 2))  # the last row's force, once a row was seen
+        # Σ err², max |err|, max |truth| per cuff: _error_sums' buffer.
+        self._sums = np.zeros((3, 4))
         self._n = 0
 
     def update(self, q: np.ndarray, cuff_force: np.ndarray, normal_est: np.ndarray) -> None:
@@ -919,32 +943,27 @@ class EstimateErrorStats:
         n = np.shape(q)[0]
         if n == 0:
             return
-        force = np.asarray(cuff_force, dtype=float)
-        prev = np.empty_like(force)  # truth paired with row i: the force of row i - 1
-        prev[1:] = force[:-1]
-        if self._prev_force is not None:
-            prev[0] = self._prev_force
-        start = max(self.skip - self.rows, 0 if self._prev_force is not None else 1)
+        # Truth paired with row i: the force of row i - 1 (the previous chunk's last).
+        start = max(self.skip - self.rows, 0 if self.rows else 1)
         if start < n:
-            truth = cuff_normal_components(
-                np.asarray(q, dtype=float)[start:], prev[start:], self.exo
-            )
-            err = np.asarray(normal_est, dtype=float)[start:] - truth
-            self._sq += np.sum(err**2, axis=0)
-            np.maximum(self._max, np.max(np.abs(err), axis=0), out=self._max)
-            np.maximum(self._peak, np.max(np.abs(truth), axis=0), out=self._peak)
-            self._n += err.shape[0]
-        self._prev_force = force[-1].copy()
+            _error_sums(q, cuff_force, self._prev_force, normal_est, start, self._legs, self._sums)
+            self._n += n - start
+        self._prev_force[:] = cuff_force[-1]
         self.rows += n
+
+    def preload(self, q: np.ndarray, cuff_force: np.ndarray, normal_est: np.ndarray) -> None:
+        """Load the compiled kernel for rows of these arrays' types (before a timed run)."""
+        preload(_error_sums, q, cuff_force, self._prev_force, normal_est, 0, self._legs, self._sums)
 
     def result(self) -> EstimateErrors:
         """The errors so far (zeros before any compared row)."""
-        rms = np.sqrt(self._sq / max(self._n, 1))
-        rel = np.divide(rms, self._peak, out=np.zeros(4), where=self._peak > 0)
+        sq, max_err, peak = self._sums
+        rms = np.sqrt(sq / max(self._n, 1))
+        rel = np.divide(rms, peak, out=np.zeros(4), where=peak > 0)
         return EstimateErrors(
             rms_error_N=rms,
-            max_error_N=self._max.copy(),
-            peak_true_N=self._peak.copy(),
+            max_error_N=max_err.copy(),
+            peak_true_N=peak.copy(),
             rms_error_rel=rel,
             rows=self._n,
         )
@@ -952,6 +971,32 @@ class EstimateErrorStats:
     def summary(self) -> dict[str, dict[str, float]]:
         """``cuff_force_estimate_rms_error_N`` and ``…_rel`` keyed by cuff."""
         return self.result().summary()
+
+
+@kernel
+def _error_sums(q, force, prev_force, normal_est, start, legs, sums):
+    """Add rows start… to :class:`EstimateErrorStats`' sums (Σ err², max |err|, max |truth|).
+
+    The truth of row i is the normal component n(q_i) · f_{i-1} of the
+    previous row's force (``prev_force`` for row 0), per cuff in CUFF_NAMES
+    order, with ψ_t = ψ_t0 + s_h q_hip and ψ_s = ψ_s0 + s_h q_hip + s_k q_knee
+    (:meth:`CuffGeometry.directions`; ``legs`` rows (s_h, s_k, ψ_t0, ψ_s0)).
+    """
+    for r in range(start, q.shape[0]):
+        for s in range(2):
+            sh, sk, psi_t0, psi_s0 = legs[s, 0], legs[s, 1], legs[s, 2], legs[s, 3]
+            turn = sh * q[r, 2 * s]
+            for c in range(2 * s, 2 * s + 2):
+                psi = psi_t0 + turn if c == 2 * s else psi_s0 + turn + sk * q[r, 2 * s + 1]
+                if r == 0:
+                    fx, fz = prev_force[c, 0], prev_force[c, 1]
+                else:
+                    fx, fz = force[r - 1, c, 0], force[r - 1, c, 1]
+                truth = -math.sin(psi) * fx + math.cos(psi) * fz
+                err = normal_est[r, c] - truth
+                sums[0, c] += err * err
+                sums[1, c] = max(sums[1, c], abs(err))
+                sums[2, c] = max(sums[2, c], abs(truth))
 
 
 # --------------------------------------------------------------------------- bias
@@ -1004,7 +1049,8 @@ def estimate_bias(
     ``torque_bias_Nm`` to :class:`CuffForceEstimator` (or
     :func:`estimate_series`) to remove it.  Prefer a window of whole gait
     cycles, or a still posture: errors that follow the motion (the speed
-    filter's lag) average out over a cycle.
+    filter's lag) mostly average out over a cycle (on the default gait the
+    default sensors' 5 ms speed lag leaves a mean of up to 0.05 N·m).
 
     Args:
         tau_ext: observer output r over the window (skip the observer's

@@ -220,9 +220,8 @@ class Sensors:
         self._rng = np.random.default_rng(self.params.seed)
         self._work[_W_STARTED] = 0.0
         self._work[_W_NEXT_T] = -math.inf
-        self._draw()
-        #: Number of samples taken since construction or :meth:`reset`.
-        self.samples = 0
+        self._work[_W_SAMPLES] = 0.0
+        self.draw()
 
     def read(
         self, k: int, q_true: np.ndarray, dq_true: np.ndarray, tau_true: np.ndarray
@@ -246,16 +245,21 @@ class Sensors:
         taken = _read_kernel(k, q_true, dq_true, tau_true, self._noise, self._work)
         if taken < 0:
             v.refuse_shapes((4,), q_true=q_true, dq_true=dq_true, tau_true=tau_true)
-        if taken:
-            self.samples += 1
-            if taken == 2:  # the block is used up: draw the next for the next sample
-                self._draw()
+        if taken == 2:
+            self.draw()
         return self.readings
 
-    # ------------------------------------------------------------------ internals
+    @property
+    def samples(self) -> int:
+        """Number of samples taken since construction or :meth:`reset`."""
+        return int(self._work[_W_SAMPLES])
 
-    def _draw(self) -> None:
-        """Draw a block of noise (encoder first, then torque: the stream's order)."""
+    def draw(self) -> None:
+        """Draw a block of noise (encoder first, then torque: the stream's order).
+
+        A read calls it when the kernel used the last block up (for the
+        callers of the kernel itself, :mod:`exo_ctrl._tick`).
+        """
         p = self.params
         if self._noisy_q:
             self._rng.standard_normal(out=self._noise[0])
@@ -270,12 +274,12 @@ class Sensors:
 # (4 each); parameters Δt, T_s (0: every tick), Δq, f_v, Δτ and the flags
 # noisy q, noisy τ, biased, true speed (0/1); state: started (0/1), time of
 # the last sample [s], time of the next sample [s], row of the noise block
-# for the next sample.
+# for the next sample, samples taken.
 _W_Q, _W_DQ, _W_TAU, _W_BIAS = 0, 4, 8, 12
 _W_DT, _W_PERIOD, _W_RES_Q, _W_FILTER_HZ, _W_RES_TAU = 16, 17, 18, 19, 20
 _W_NOISY_Q, _W_NOISY_TAU, _W_HAS_BIAS, _W_TRUE_SPEED = 21, 22, 23, 24
-_W_STARTED, _W_LAST_T, _W_NEXT_T, _W_ROW = 25, 26, 27, 28
-_W_SIZE = 29
+_W_STARTED, _W_LAST_T, _W_NEXT_T, _W_ROW, _W_SAMPLES = 25, 26, 27, 28, 29
+_W_SIZE = 30
 
 
 @kernel
@@ -338,4 +342,5 @@ def _read_kernel(k, q_true, dq_true, tau_true, noise, w):
     w[_W_LAST_T] = t
     w[_W_STARTED] = 1.0
     w[_W_ROW] = i + 1
+    w[_W_SAMPLES] += 1.0
     return 2 if i + 1 == noise.shape[1] else 1

@@ -563,6 +563,7 @@ def simulate(
             result.events.append({"t": t, "kind": status, "message": message})
 
     error: Exception | None = None
+    result.stats.preload(runner.buf)
     start_wall = time.perf_counter()
     try:
         for k in range(n):

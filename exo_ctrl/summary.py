@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._jit import kernel, preload
 from .model import CUFF_NAMES, JOINT_NAMES
 
 if TYPE_CHECKING:
@@ -28,39 +30,29 @@ class RunStats:
     def __init__(self, estimate: EstimateErrorStats | None = None) -> None:
         self.estimate = estimate
         self.ticks = 0
-        self._sq_err = np.zeros(4)
-        self._sq_tau = np.zeros(4)
-        self._peaks = {
-            "max_err": np.zeros(4),
-            "tau": np.zeros(4),
-            "current": np.zeros(4),
-            "voltage": np.zeros(4),
-            "power": np.zeros(4),
-            "cuff": np.zeros(4),
-        }
+        # Running sums (Σ err², Σ τ²) and peaks (|err|, |τ|, |i|, |U|, |τ q̇|,
+        # cuff |f|), a row of 4 each: :func:`_accumulate`'s buffers.
+        self._sums = np.zeros((2, 4))
+        self._peaks = np.zeros((6, 4))
 
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
-        n = rows["q"].shape[0]
-        if n == 0:
-            return
         if self.estimate is not None:
             self.estimate.update(rows["q"], rows["cuff_force"], rows["cuff_normal_est"])
-        err = rows["q_des"] - rows["q"]
-        tau = rows["drive_torque"]
-        self.ticks += n
-        self._sq_err += np.sum(err**2, axis=0)
-        self._sq_tau += np.sum(tau**2, axis=0)
-        p = self._peaks
-        for key, values in (
-            ("max_err", np.abs(err)),
-            ("tau", np.abs(tau)),
-            ("current", np.abs(rows["current"])),
-            ("voltage", np.abs(rows["voltage"])),
-            ("power", np.abs(tau * rows["dq"])),
-            ("cuff", np.linalg.norm(rows["cuff_force"], axis=2)),
-        ):
-            np.maximum(p[key], values.max(axis=0), out=p[key])
+        self.ticks += rows["q"].shape[0]
+        _accumulate(
+            rows["q"], rows["q_des"], rows["drive_torque"], rows["current"], rows["voltage"],
+            rows["dq"], rows["cuff_force"], self._sums, self._peaks,
+        )  # fmt: skip
+
+    def preload(self, rows: dict[str, np.ndarray]) -> None:
+        """Load the compiled kernels for rows of these arrays' types (before a timed run)."""
+        if self.estimate is not None:
+            self.estimate.preload(rows["q"], rows["cuff_force"], rows["cuff_normal_est"])
+        preload(
+            _accumulate, rows["q"], rows["q_des"], rows["drive_torque"], rows["current"],
+            rows["voltage"], rows["dq"], rows["cuff_force"], self._sums, self._peaks,
+        )  # fmt: skip
 
     def summary(self, result: SimResult) -> dict[str, Any]:
         """The JSON summary of a run.
@@ -81,7 +73,8 @@ class RunStats:
         the estimated normal component, and that over its peak true value).
         """
         n = max(self.ticks, 1)
-        p = self._peaks
+        sq_err, sq_tau = self._sums
+        max_err, tau, current, voltage, power, cuff = self._peaks
         duration = self.ticks * result.config.dt
         wall = result.wall_time_s
         out = {
@@ -91,14 +84,14 @@ class RunStats:
             "duration_s": duration,
             "ticks": self.ticks,
             "belt_speed_mps": result.belt_speed_mps,
-            "rms_tracking_error_rad": _keyed(np.sqrt(self._sq_err / n), JOINT_NAMES),
-            "max_tracking_error_rad": _keyed(p["max_err"], JOINT_NAMES),
-            "peak_drive_torque_Nm": _keyed(p["tau"], JOINT_NAMES),
-            "rms_drive_torque_Nm": _keyed(np.sqrt(self._sq_tau / n), JOINT_NAMES),
-            "peak_motor_current_A": _keyed(p["current"], JOINT_NAMES),
-            "peak_motor_voltage_V": _keyed(p["voltage"], JOINT_NAMES),
-            "peak_mechanical_power_W": _keyed(p["power"], JOINT_NAMES),
-            "peak_cuff_force_N": _keyed(p["cuff"], CUFF_NAMES),
+            "rms_tracking_error_rad": _keyed(np.sqrt(sq_err / n), JOINT_NAMES),
+            "max_tracking_error_rad": _keyed(max_err, JOINT_NAMES),
+            "peak_drive_torque_Nm": _keyed(tau, JOINT_NAMES),
+            "rms_drive_torque_Nm": _keyed(np.sqrt(sq_tau / n), JOINT_NAMES),
+            "peak_motor_current_A": _keyed(current, JOINT_NAMES),
+            "peak_motor_voltage_V": _keyed(voltage, JOINT_NAMES),
+            "peak_mechanical_power_W": _keyed(power, JOINT_NAMES),
+            "peak_cuff_force_N": _keyed(cuff, CUFF_NAMES),
             "qp_failures": result.qp_failures,
             "safety_state": result.safety_state,
             "safety_events": [e for e in result.events if e.get("kind") in ("violation", "estop")],
@@ -108,3 +101,25 @@ class RunStats:
         if self.estimate is not None:
             out.update(self.estimate.summary())
         return out
+
+
+@kernel
+def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks):
+    """Add rows to the running sums and peaks of :class:`RunStats` (its buffers' layout).
+
+    One pass over the rows in place of a dozen numpy reductions over the
+    strided columns of the chunk buffer (1.4 ms → a few µs per 2000 rows).
+    """
+    for r in range(q.shape[0]):
+        for j in range(4):
+            err = q_des[r, j] - q[r, j]
+            t = tau[r, j]
+            sums[0, j] += err * err
+            sums[1, j] += t * t
+            peaks[0, j] = max(peaks[0, j], abs(err))
+            peaks[1, j] = max(peaks[1, j], abs(t))
+            peaks[2, j] = max(peaks[2, j], abs(current[r, j]))
+            peaks[3, j] = max(peaks[3, j], abs(voltage[r, j]))
+            peaks[4, j] = max(peaks[4, j], abs(t * dq[r, j]))
+            fx, fz = cuff_force[r, j, 0], cuff_force[r, j, 1]
+            peaks[5, j] = max(peaks[5, j], math.sqrt(fx * fx + fz * fz))

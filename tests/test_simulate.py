@@ -86,18 +86,23 @@ FUSED_CASES = {
     "pd, supervisor on the estimate": {"safety_use_estimate": True},
     "ct, e-stop at 0.5 s": {"estop_at_s": 0.5},
     "ct, speed limit tripped": {"safety_limits": SafetyLimits(speed_limit_rad_s=2.0)},
+    "qp": {},
+    # The bound binds: proxsuite solves, in Python, on some ticks of the fused path.
+    "qp, 60 N bound, no supervisor": {"cuff_force_limit_N": 60.0, "safety": False},
+    "qp, e-stop at 0.5 s": {"estop_at_s": 0.5},
 }
 
 
 @pytest.mark.parametrize("case", list(FUSED_CASES))
 def test_fused_ticks_equal_the_composed_ones(case: str, pd_run, ct_run) -> None:
-    """exo_ctrl._tick runs the same kernels in two compiled calls: bit-identical runs.
+    """exo_ctrl._tick runs the same kernels in three compiled calls: bit-identical runs.
 
-    The supervisor cases leave the fused path mid-run (its stop is composed).
+    The supervisor cases leave the fused path mid-run (its stop is composed);
+    a QP tick that calls proxsuite goes on in Python from its solve.
     """
     kwargs = FUSED_CASES[case]
     config = SimConfig(controller=case[:2], **kwargs)
-    fused = {"pd": pd_run, "ct": ct_run}[case] if not kwargs else simulate(config)
+    fused = {"pd": pd_run, "ct": ct_run}.get(case) or simulate(config)
     assert_same_run(fused, simulate(config, fused=False))
     runner = Runner(build(config))
     n = config.n_ticks
@@ -109,8 +114,10 @@ def test_fused_ticks_equal_the_composed_ones(case: str, pd_run, ct_run) -> None:
     assert bool(stopped) == ("e-stop" in case or "tripped" in case)
     if stopped:
         assert 100 <= runner._fused.ticks < n - 100  # both paths ran
-    else:
-        assert runner._fused.ticks == n - 2  # the estimator starts composed
+    else:  # the estimator starts composed; QP ticks that solve finish in Python
+        solved = getattr(runner.setup.controller, "solver_ticks", 0)
+        assert solved > 0 if "bound" in case else solved == 0
+        assert runner._fused.ticks + solved == n - 2
 
 
 def test_chunking_changes_nothing(ct_run) -> None:

@@ -47,8 +47,8 @@ def _time_calls(calls, repeats: int = 2000) -> float:
 def floor_calls(runner: Runner) -> list:
     """The Pinocchio calls one tick makes, as zero-argument callables.
 
-    Plant: one ABA of the model holding both bodies.  Estimator: CRBA,
-    Coriolis matrix and gravity of the exoskeleton.  CT: none (its
+    Plant: one ABA of the model holding both bodies.  Estimator: CRBA and
+    nonLinearEffects of the exoskeleton.  CT: none (its
     feedforward is tabulated along the plan when the controller is built).
     QP: the cuff model's CRBA and nonLinearEffects of the model holding both
     bodies.  Each is called with the present state.  (The QP's proxsuite
@@ -66,8 +66,7 @@ def floor_calls(runner: Runner) -> list:
     em, ed = est._model, est._data
     calls += [
         lambda: pin.crba(em, ed, qe),
-        lambda: pin.computeCoriolisMatrix(em, ed, qe, ve),
-        lambda: pin.computeGeneralizedGravity(em, ed, qe),
+        lambda: pin.nonLinearEffects(em, ed, qe, ve),
     ]
     model = getattr(setup.controller, "cuff_model", None)
     if model is not None:

@@ -60,21 +60,16 @@ class ComputedTorqueController(PDController):
         self._motor = MotorBank(4, motor)
         self._torque_ff = feedforward_torque(plan, exo, patient, motor)
         self._u_ff = self._motor.voltage_for(self._torque_ff, plan.dq)
-        self._last = 0
 
     @property
     def torque_ff(self) -> np.ndarray:
         """Feedforward torque of the last tick [N·m], (4,)."""
-        return self._torque_ff[self._last]
+        return self._torque_ff[self.last_row]
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """PD + feedforward voltages [V] for tick k."""
-        return self._pd(k, sensors, self.feedforward(k)[1])
-
-    def feedforward(self, k: int) -> tuple[int, np.ndarray]:
-        """The plan row of tick k and its tabulated feedforward voltage [V], (4,)."""
-        self._last = i = self._row(k)
-        return i, self._u_ff[i]
+        row = self.plan_row(k)
+        return self._pd(row, sensors, self._u_ff[row])
 
 
 class _Feedforward:

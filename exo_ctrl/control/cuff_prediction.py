@@ -314,7 +314,8 @@ def _observe(
 ):  # pragma: no cover - compiled
     """One observer tick per leg (CuffStateObserver docstring).
 
-    Returns False (and nothing done) if an entry of ``force`` is not finite.
+    ``first``: (1,), 1 before the first tick, set to 0 by it.  Returns False
+    (and nothing done) if an entry of ``force`` is not finite.
     """
     for c in range(4):
         if not (math.isfinite(force[c, 0]) and math.isfinite(force[c, 1])):
@@ -341,7 +342,7 @@ def _observe(
         dd2 = (s2 - stiff * delta[i0 + 1]) / damp_c
         ddelta[i0], ddelta[i0 + 1] = dd1, dd2
         vp1, vp2 = omega[i0] - dd1, omega[i0 + 1] - dd2
-        if not first:
+        if first[0] == 0.0:
             a1 = (vp1 - vp_prev[i0]) / h
             a2 = (vp2 - vp_prev[i0 + 1]) / h
             e1 = mp[i0, i0] * a1 + mp[i0, i0 + 1] * a2 + hp[i0] - (g11 * s1 + g12 * s2)
@@ -349,6 +350,7 @@ def _observe(
             dist[i0] += a_dist * (e1 - dist[i0])
             dist[i0 + 1] += a_dist * (e2 - dist[i0 + 1])
         vp_prev[i0], vp_prev[i0 + 1] = vp1, vp2
+    first[0] = 0.0
     return True
 
 
@@ -500,13 +502,7 @@ class CuffHorizonModel:
             InvalidParameter: q or dq without 4 entries.
 
         """
-        q_all, v_all = self._q_all, self._v_all
-        if not _pair(q, dq, q_all, v_all):
-            shapes = f"shapes {np.shape(q)} and {np.shape(dq)}"
-            raise InvalidParameter("q and dq", shapes, "arrays of 4 joint values each")
-        model, data = self._model, self._data
-        mass = pin.crba(model, data, q_all)
-        nle = pin.nonLinearEffects(model, data, q_all, v_all)
+        mass, nle = self.terms(q, dq)
         _gather(
             mass,
             nle,
@@ -521,6 +517,28 @@ class CuffHorizonModel:
             self.bias_patient,
             self.jac,
         )
+
+    def terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The Pinocchio part of :meth:`linearise`: M and C q̇ + g of both bodies at (q, q, q̇, q̇).
+
+        Arrays of Pinocchio's data (:attr:`data_terms` views the same
+        memory), overwritten by the next call.
+
+        Raises:
+            InvalidParameter: q or dq without 4 entries.
+
+        """
+        q_all, v_all = self._q_all, self._v_all
+        if not _pair(q, dq, q_all, v_all):
+            shapes = f"shapes {np.shape(q)} and {np.shape(dq)}"
+            raise InvalidParameter("q and dq", shapes, "arrays of 4 joint values each")
+        model, data = self._model, self._data
+        return pin.crba(model, data, q_all), pin.nonLinearEffects(model, data, q_all, v_all)
+
+    @property
+    def data_terms(self) -> tuple[np.ndarray, np.ndarray]:
+        """Views of where :meth:`terms` leaves M (C-ordered: M is symmetric) and C q̇ + g."""
+        return self._data.M.T, self._data.nle
 
     def predict(self, delta: np.ndarray, ddelta: np.ndarray, disturbance: np.ndarray) -> None:
         """Fill :attr:`A` and :attr:`b` from the state of the last :meth:`linearise`.
@@ -613,21 +631,22 @@ class CuffStateObserver:
         self.ddelta = np.zeros(4)
         self.disturbance = np.zeros(4)
         self._vp = np.zeros(4)
-        self._first = True
+        #: 1 until the first update (no speed difference yet), then 0.
+        self.first = np.ones(1)
 
     def reset(self) -> None:
         """Forget the state (cuffs taken as just fitted: δ = 0, d = 0)."""
         self.delta.fill(0.0)
         self.ddelta.fill(0.0)
         self.disturbance.fill(0.0)
-        self._first = True
+        self.first[0] = 1.0
 
     def update(self, model: CuffHorizonModel, force_est: np.ndarray, omega: np.ndarray) -> bool:
         """One tick: f̂ (4, 2) [N] and q̇ [rad/s], with ``model`` linearised at this tick.
 
         Returns False, and leaves the observer as it was, if f̂ is not finite.
         """
-        if not _observe(
+        return _observe(
             model.mass_patient,
             model.bias_patient,
             model.jac,
@@ -642,8 +661,5 @@ class CuffStateObserver:
             self.ddelta,
             self._vp,
             self.disturbance,
-            self._first,
-        ):
-            return False
-        self._first = False
-        return True
+            self.first,
+        )

@@ -31,26 +31,30 @@ class PDController:
         self._gains = np.array([self.gains.kp, self.gains.kd])
         self._u = np.zeros(4)
         self._no_ff = np.zeros(4)
+        self._last_row = np.zeros(1)  # where a compiled tick writes it too
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """PD voltages [V] for tick k."""
-        return self._pd(k, sensors, self._no_ff)
+        return self._pd(self.plan_row(k), sensors, self._no_ff)
 
-    def _row(self, k: int) -> int:
-        """The plan row of tick k."""
-        return k % self._period if self._period else k
+    def plan_row(self, k: int) -> int:
+        """The plan row of tick k, kept as :attr:`last_row`."""
+        row = k % self._period if self._period else k
+        self._last_row[0] = row
+        return row
 
-    def feedforward(self, k: int) -> tuple[int, np.ndarray]:
-        """The plan row of tick k and the feedforward voltage added to the PD [V] (none here)."""
-        return self._row(k), self._no_ff
+    @property
+    def last_row(self) -> int:
+        """The plan row of the last tick."""
+        return int(self._last_row[0])
 
-    def _pd(self, k: int, sensors: SensorReadings, u_ff: np.ndarray) -> np.ndarray:
-        """PD voltages plus ``u_ff`` [V] for tick k."""
+    def _pd(self, row: int, sensors: SensorReadings, u_ff: np.ndarray) -> np.ndarray:
+        """PD voltages plus ``u_ff`` [V] towards plan row ``row``."""
         plan = self.plan
         q, dq = sensors.q, sensors.dq
         if not (type(q) is type(dq) is np.ndarray):
             q, dq = v.arrays((4,), sensors_q=q, sensors_dq=dq)
-        if pd_volts(self._u, self._gains, plan.q, plan.dq, self._row(k), q, dq, u_ff) < 0:
+        if pd_volts(self._u, self._gains, plan.q, plan.dq, row, q, dq, u_ff) < 0:
             v.refuse_shapes((4,), sensors_q=q, sensors_dq=dq)
         return self._u
 

@@ -128,7 +128,7 @@ import numpy as np
 import proxsuite
 
 from .. import _validate as v
-from .._jit import kernel
+from .._jit import address_table, kernel, matrix_at, tensor_at, vector_at
 from ..cuffs import CuffParams
 from ..exceptions import InvalidModel, InvalidParameter
 from ..kinematics import JointTrajectory
@@ -136,7 +136,14 @@ from ..model import BodyModel
 from ..motor import MotorParams
 from .base import PDGains, SensorReadings
 from .computed_torque import ComputedTorqueController
-from .cuff_prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel, CuffStateObserver
+from .cuff_prediction import (
+    DEFAULT_HORIZON_TICKS,
+    CuffHorizonModel,
+    CuffStateObserver,
+    _gather,
+    _observe,
+    _predict,
+)
 
 __all__ = ["POLYGON_SIDES", "SCREENED_ROWS", "QPController", "TorqueQP", "polygon_rows"]
 
@@ -439,9 +446,8 @@ class QPController(ComputedTorqueController):
         solver_ticks: ticks that called proxsuite (the others met every
             bound with τ_cmd clipped into the torque box; module docstring,
             "Ticks without proxsuite").
-        last_status: ``"solved"`` or why the last tick fell back.
-        active_constraints: active box bounds plus active cuff rows, last tick.
-        solve_time_us: the QP's wall time in the last tick, checks included [µs].
+        last_status, active_constraints, solve_time_us, screen_rounds: the
+            last tick's figures (properties).
         torque_cmd: τ_cmd of the last tick [N·m].
         torque: the torque commanded in the last tick [N·m].
         slack: the cuff slacks s_c of the last tick [N], (4,).
@@ -454,8 +460,6 @@ class QPController(ComputedTorqueController):
             with −n_k.  Columns: the four τ, then the four slacks.
         cuff_upper: their upper bounds r − n_kᵀ b_c (and r + n_kᵀ b_c), (32 P,) [N].
         screened: which of :attr:`cuff_rows` each QP row holds, last tick.
-        screen_rounds: solves the last tick took (0: no proxsuite; 1 unless
-            rows were added).
         qp: the proxsuite workspace.
 
     Raises:
@@ -532,7 +536,6 @@ class QPController(ComputedTorqueController):
                 self.cuff_rows[row : row + half, 4 + c] = -1.0
                 self.cuff_rows[n_poly + row : n_poly + row + half, 4 + c] = -1.0
         self.screened = np.arange(n_screened, dtype=np.int64)
-        self.screen_rounds = 0
         self._row_value = np.zeros(2 * n_poly)  # scratch of the screening kernels
         self._row_mark = np.zeros(2 * n_poly, dtype=np.int64)
         self.qp.lower[:] = -NO_BOUND
@@ -553,11 +556,73 @@ class QPController(ComputedTorqueController):
         self.torque = np.zeros(4)
         self.failures = 0
         self.solver_ticks = 0
+        # The last tick's active_constraints, solve_time_us, screen_rounds and
+        # status (0: "solved", 1: _status_text), where _qp_step writes them.
+        self._info = np.zeros(4)
+        self._status_text = "not_run"
         self.last_status = "not_run"
-        self.active_constraints = 0
-        self.solve_time_us = 0.0
         self.force_feedback = bool(force_feedback)
         self._zero4 = np.zeros(4)
+        self._zero_force = np.zeros((4, 2))
+        model, obs = self.cuff_model, self.observer
+        params = np.zeros(_QP_N_PARAMS)
+        params[:] = (
+            self._c0, radius, self.force_feedback, obs.stiffness, obs.damping, obs._a_delta,
+            obs._a_dist, obs.dt, model.stiffness, model.damping, model._block,
+        )  # fmt: skip
+        mass, nle = model.data_terms
+        tables = dict(
+            params=params, c1=self._c1, c2=self._c2, cap=self._cap, target=self.torque_cmd,
+            lo=self.torque_lo, hi=self.torque_hi, mass=mass, nle=nle, losses=model._losses,
+            points=model._points, select=model._select, mass_e=model.mass_exo,
+            mass_p=model.mass_patient, bias_e=model.bias_exo, bias_p=model.bias_patient,
+            jac=model.jac, damp_e=model._damp_e, damp_p=model._damp_p, delta=obs.delta,
+            ddelta=obs.ddelta, vp=obs._vp, dist=obs.disturbance, first=obs.first, A=model.A,
+            b=model.b, work=model._work, directions=self._directions, rows=self.cuff_rows,
+            upper=self.cuff_upper, torque=self.torque, out=self._out, zero4=self._zero4,
+            slack=self.slack, info=self._info,
+        )  # fmt: skip
+        self._arrays = [tables[name] for name in _QP_ROWS]
+        #: The addresses of the tick's buffers (:func:`_qp_step`, rows :data:`_QP_ROWS`).
+        self.table = address_table(self._arrays)
+        self._powers = model._powers
+
+    @property
+    def active_constraints(self) -> int:
+        """Active box bounds plus active cuff rows, last tick."""
+        return int(self._info[0])
+
+    @active_constraints.setter
+    def active_constraints(self, value: int) -> None:
+        self._info[0] = value
+
+    @property
+    def solve_time_us(self) -> float:
+        """The QP's wall time in the last tick, checks included [µs]."""
+        return float(self._info[1])
+
+    @solve_time_us.setter
+    def solve_time_us(self, value: float) -> None:
+        self._info[1] = value
+
+    @property
+    def screen_rounds(self) -> int:
+        """Solves the last tick took (0: no proxsuite; 1 unless rows were added)."""
+        return int(self._info[2])
+
+    @screen_rounds.setter
+    def screen_rounds(self, value: int) -> None:
+        self._info[2] = value
+
+    @property
+    def last_status(self) -> str:
+        """``"solved"`` or why the last tick fell back."""
+        return "solved" if self._info[3] == 0.0 else self._status_text
+
+    @last_status.setter
+    def last_status(self, value: str) -> None:
+        self._info[3] = 0.0 if value == "solved" else 1.0
+        self._status_text = value
 
     @property
     def cuff_force_pred(self) -> np.ndarray:
@@ -576,37 +641,39 @@ class QPController(ComputedTorqueController):
     def _command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         u_cmd = ComputedTorqueController.command(self, k, sensors)
         omega = sensors.dq
-        qp = self.qp
-        tgt, lo, hi = self.torque_cmd, self.torque_lo, self.torque_hi
-        # τ_cmd and the torque box (a NaN in ω or U_cmd propagates to them and
-        # is caught by the QP's checks).
-        if _torque_box(self._c0, self._c1, self._c2, self._cap, u_cmd, omega, tgt, lo, hi):
-            raise ValueError(f"readings of shape {np.shape(omega)}, command {np.shape(u_cmd)}")
-        # Octagon rows: |n_kᵀ (A τ + b)_c| ≤ r  →  −r − N b ≤ N A τ ≤ r − N b.
-        model, obs = self.cuff_model, self.observer
         try:
-            model.linearise(sensors.q, omega)
-            est = sensors.cuff_force_est
-            if self.force_feedback and est is not None and obs.update(model, est, omega):
-                model.predict(obs.delta, obs.ddelta, obs.disturbance)
-            else:
-                model.predict(self._zero4, self._zero4, self._zero4)
+            self.cuff_model.terms(sensors.q, omega)
         except (np.linalg.LinAlgError, ValueError, RuntimeError) as exc:
             return self._fallback(u_cmd, omega, f"cuff model failed: {exc}")
-        rows, upper = self.cuff_rows, self.cuff_upper
-        total = _bound_rows(self._directions, model.A, model.b, self._radius, rows, upper)
-        if not math.isfinite(total):
+        est = sensors.cuff_force_est
+        force = self._zero_force if est is None else est
+        code = _qp_step(self.table, self._powers, sensors.q, omega, u_cmd, force, est is not None)
+        return self.finish(code, u_cmd, omega)
+
+    def resume(self, code: int, omega: np.ndarray) -> np.ndarray:
+        """:meth:`finish` for a tick whose :func:`_qp_step` a caller's kernel ran; never raises."""
+        try:
+            return self.finish(code, self._u, omega)
+        except Exception as exc:  # the tick must return a safe command
+            return self._zero_volts(f"error: {type(exc).__name__}: {exc}")
+
+    def finish(self, code: int, u_cmd: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """The tick after :func:`_qp_step` returned ``code`` (its docstring): the voltages [V].
+
+        Raises:
+            ValueError: readings or command not of 4 entries (code -1).
+
+        """
+        if code == _STEP_SHAPE:
+            raise ValueError(f"readings of shape {np.shape(omega)}, command {np.shape(u_cmd)}")
+        if code == _STEP_NON_FINITE:
             return self._fallback(u_cmd, omega, "cuff model failed: non-finite prediction")
+        if code >= 0:  # τ_cmd clipped into the box met every row: the optimum, slacks 0
+            return self._out  # (and _qp_step wrote the tick's figures)
         self.solve_time_us = 0.0
         self.screen_rounds = 0
-        # The box-only relaxation's optimum, τ_cmd clipped into the box, when it
-        # meets every cuff row ("Ticks without proxsuite", module docstring).
-        active = _clip_if_feasible(rows, upper, tgt, lo, hi, self.torque)
-        if active >= 0:
-            self.slack.fill(0.0)
-            self.last_status = "solved"
-            self.active_constraints = active
-            return self._volts(omega)
+        qp = self.qp
+        tgt, rows, upper = self.torque_cmd, self.cuff_rows, self.cuff_upper
         self.solver_ticks += 1
         value, mark, slots = self._row_value, self._row_mark, self.screened
         _screen(rows, upper, tgt, self.torque, value, mark, slots, qp.C, qp.upper)
@@ -662,6 +729,97 @@ class QPController(ComputedTorqueController):
         self.torque.fill(0.0)
         self.last_status = f"fallback: zero volts ({why})"
         return self._out
+
+
+#: The rows of a QP controller's address table (:func:`_qp_step`), in order.
+_QP_ROWS = (
+    "params",  # :data:`_QP_N_PARAMS` scalars, see QPController.__init__
+    "c1", "c2", "cap", "target", "lo", "hi",  # the torque box
+    "mass", "nle", "losses", "points", "select",  # _gather's inputs
+    "mass_e", "mass_p", "bias_e", "bias_p", "jac", "damp_e", "damp_p",  # the linearisation
+    "delta", "ddelta", "vp", "dist", "first",  # the cuff-state observer
+    "A", "b", "work",  # the prediction
+    "directions", "rows", "upper", "torque", "out", "zero4", "slack", "info",
+)  # fmt: skip
+(
+    _QP_PARAMS, _QP_C1, _QP_C2, _QP_CAP, _QP_TARGET, _QP_LO, _QP_HI,
+    _QP_MASS, _QP_NLE, _QP_LOSSES, _QP_POINTS, _QP_SELECT,
+    _QP_MASS_E, _QP_MASS_P, _QP_BIAS_E, _QP_BIAS_P, _QP_JAC, _QP_DAMP_E, _QP_DAMP_P,
+    _QP_DELTA, _QP_DDELTA, _QP_VP, _QP_DIST, _QP_FIRST,
+    _QP_A, _QP_B, _QP_WORK, _QP_DIRECTIONS, _QP_ROWS_C, _QP_UPPER, _QP_TORQUE, _QP_OUT,
+    _QP_ZERO4, _QP_SLACK, _QP_INFO,
+) = range(len(_QP_ROWS))  # fmt: skip
+#: params: c0 [N·m], r [N], force feedback (0/1), the observer's K [N/m], C
+#: [N·s/m], a_δ, a_d, h [s], the prediction's K, C and block step [s].
+_QP_N_PARAMS = 11
+#: What :func:`_qp_step` returns besides a count of active bounds (≥ 0).
+_STEP_SHAPE, _STEP_NON_FINITE, _STEP_SOLVE = -1, -2, -3
+
+
+@kernel
+def _qp_step(t, powers, q, dq, u_cmd, force_est, has_estimate):
+    """The QP tick up to proxsuite, on the buffers of address table ``t`` (:data:`_QP_ROWS`).
+
+    After the cuff model's Pinocchio terms (:meth:`CuffHorizonModel.terms`):
+    τ_cmd and the torque box (:func:`_torque_box`), the linearisation
+    (``_gather``), the cuff-state observer when force feedback is on and an
+    estimate came (``_observe``), the prediction (``_predict``), the cuff rows
+    (:func:`_bound_rows`) and the check of τ_cmd clipped into the box
+    (:func:`_clip_if_feasible`) — :meth:`QPController._command`'s steps in its
+    order.  Returns the number of active bounds (≥ 0) when the clip met every
+    row (τ, zero slacks, the voltage and the tick's figures — active bounds,
+    no solve, status solved — written), or :data:`_STEP_SHAPE`
+    (readings or command not of length 4), :data:`_STEP_NON_FINITE` (a
+    non-finite prediction) or :data:`_STEP_SOLVE` (proxsuite must solve).
+    """
+    p = vector_at(t, _QP_PARAMS)
+    c1, c2 = vector_at(t, _QP_C1), vector_at(t, _QP_C2)
+    target, lo, hi = vector_at(t, _QP_TARGET), vector_at(t, _QP_LO), vector_at(t, _QP_HI)
+    if _torque_box(p[0], c1, c2, vector_at(t, _QP_CAP), u_cmd, dq, target, lo, hi) < 0:
+        return _STEP_SHAPE
+    mass_e, mass_p = matrix_at(t, _QP_MASS_E), matrix_at(t, _QP_MASS_P)
+    bias_e, bias_p, jac = vector_at(t, _QP_BIAS_E), vector_at(t, _QP_BIAS_P), tensor_at(t, _QP_JAC)
+    _gather(
+        matrix_at(t, _QP_MASS), vector_at(t, _QP_NLE), q, dq, matrix_at(t, _QP_LOSSES),
+        matrix_at(t, _QP_POINTS), matrix_at(t, _QP_SELECT), mass_e, mass_p, bias_e, bias_p, jac,
+    )  # fmt: skip
+    delta, ddelta, dist = vector_at(t, _QP_DELTA), vector_at(t, _QP_DDELTA), vector_at(t, _QP_DIST)
+    observed = False
+    if p[2] != 0.0 and has_estimate:
+        observed = _observe(
+            mass_p, bias_p, jac, force_est, dq, p[3], p[4], p[5], p[6], p[7], delta, ddelta,
+            vector_at(t, _QP_VP), dist, vector_at(t, _QP_FIRST),
+        )  # fmt: skip
+    a, b = matrix_at(t, _QP_A), vector_at(t, _QP_B)
+    damp_e, damp_p = vector_at(t, _QP_DAMP_E), vector_at(t, _QP_DAMP_P)
+    work = tensor_at(t, _QP_WORK)
+    if observed:
+        _predict(
+            mass_e, mass_p, jac, bias_e, bias_p, damp_e, damp_p, p[8], p[9], p[10], powers,
+            delta, ddelta, dist, a, b, work,
+        )  # fmt: skip
+    else:
+        zero = vector_at(t, _QP_ZERO4)
+        _predict(
+            mass_e, mass_p, jac, bias_e, bias_p, damp_e, damp_p, p[8], p[9], p[10], powers,
+            zero, zero, zero, a, b, work,
+        )  # fmt: skip
+    rows, upper = matrix_at(t, _QP_ROWS_C), vector_at(t, _QP_UPPER)
+    total = _bound_rows(matrix_at(t, _QP_DIRECTIONS), a, b, p[1], rows, upper)
+    if not math.isfinite(total):
+        return _STEP_NON_FINITE
+    torque = vector_at(t, _QP_TORQUE)
+    active = _clip_if_feasible(rows, upper, target, lo, hi, torque)
+    if active < 0:
+        return _STEP_SOLVE
+    slack = vector_at(t, _QP_SLACK)
+    for j in range(4):
+        slack[j] = 0.0
+    _voltage(c1, c2, torque, dq, vector_at(t, _QP_OUT))
+    info = vector_at(t, _QP_INFO)
+    info[0] = active
+    info[1] = info[2] = info[3] = 0.0
+    return active
 
 
 @kernel
