@@ -1,17 +1,19 @@
-"""The control tick of a PD or CT run in three compiled calls.
+"""The control tick of a PD, CT or QP run in three compiled calls.
 
 :meth:`exo_ctrl.simulate.Runner.tick` composes the stages through their
 public methods — sensors, estimator, controller, supervisor, plant, logging
 — about a dozen calls from Python a tick, each a compiled kernel or a
 Pinocchio call with some Python around it.  For the common configuration (a
-PD or computed-torque controller, one plant step per tick, no patient-torque
-model) :class:`FusedTick` runs the same kernels in the same order in three
+PD, computed-torque or QP controller, one plant step per tick, no
+patient-torque model) :class:`FusedTick` runs the same kernels in the same order in three
 compiled calls between the Pinocchio calls:
 
 - :func:`_sense`: the sensors' read;
-- :func:`_front`, after the estimator's Pinocchio calls: the observer step,
-  the log of the measured state, the PD (+ feedforward) voltage, the
-  supervisor's monitor and the plant's first half-step;
+- :func:`_front`, after the estimator's (and the QP cuff model's) Pinocchio
+  calls: the observer step, the log of the measured state, the PD (+
+  feedforward) voltage, the QP up to proxsuite
+  (:func:`~exo_ctrl.control.qp._qp_step`), the supervisor's monitor and the
+  plant's first half-step;
 - :func:`_back`, after the plant's ABA: its second half-step and the log of
   what was applied.
 
@@ -23,8 +25,8 @@ arrays would cost about 5 µs of dispatch a tick.  The Pinocchio calls'
 results are read where Pinocchio leaves them (its data's ``M``, ``nle``,
 ``ddq``).  Where the composed tick branches into Python — the estimator's
 first update or a new step length, a supervisor that is stopping or sees a
-violation — the tick goes on along the composed path from that stage, so
-the rare branches exist once.
+violation, a QP tick that must call proxsuite — the tick goes on along the
+composed path from that stage, so the rare branches exist once.
 """
 
 from __future__ import annotations
@@ -112,7 +114,7 @@ class FusedTick:
             self._cuff_terms = (model._model, model._data, model._q_all, model._v_all)
         else:
             self._qp_args = (np.zeros((1, 4), dtype=np.int64), np.zeros(1, dtype=np.int64))
-        #: Ticks run fused (the others went the composed way).
+        #: Ticks whose plant step ran fused (the others went on composed).
         self.ticks = 0
 
     @classmethod
