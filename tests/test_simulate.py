@@ -108,7 +108,7 @@ def test_fused_ticks_equal_the_composed_ones(case: str, pd_run, ct_run) -> None:
     fused = {"pd": pd_run, "ct": ct_run}.get(case) or simulate(config)
     # proxsuite's solves round differently (≈ 1e-11) with where its inputs sit
     # in memory, and the two paths allocate differently; the loop carries that
-    # to ≈ 3e-8 by the run's end: equal to 1e-5 there (a wrong kernel: ≫ 1e-3).
+    # to ≈ 3e-8 by the run's end: equal to 1e-5 there.
     assert_same_run(fused, simulate(config, fused=False), 1e-5 if "bound" in case else 0.0)
     runner = Runner(build(config))
     n = config.n_ticks
