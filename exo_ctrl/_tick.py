@@ -40,7 +40,7 @@ from ._jit import address_table, kernel, matrix_at, tensor_at, vector_at
 from .control import ComputedTorqueController, PDController, QPController
 from .control.cuff_prediction import _pair
 from .control.pd import pd_volts
-from .control.qp import _qp_step
+from .control.qp import _QP_INFO, _qp_step
 from .estimation import _observer_kernel
 from .plant import MAX_JOINT_SPEED_RAD_S, _drift_and_forces, _kick_and_drift
 from .safety import _monitor_kernel
@@ -55,7 +55,7 @@ _DONE, _SUPERVISOR, _ARMATURE = 0, 1, 2
 #: The rows of the address table, in order.
 _ROWS = (
     # h_est, h_plant [s], supervised, force transposed, Δt [s], e-stop time [s],
-    # QP (0/1), the QP's failures so far, the plan's period in ticks (0: none),
+    # QP (0/1), the plan's period in ticks (0: none),
     # feedforward per plan row (CT, QP: 1; PD: 0)
     "params",
     "q_true", "dq_true", "tau_true", "noise", "sensor",  # the sensors' read
@@ -104,7 +104,6 @@ class FusedTick:
         self._running = False
         self._normal = True
         ctrl = self._ctrl
-        self._params = arrays[_PARAMS]
         self._cmd = arrays[_CMD]
         # The QP's own table and its cuff model's Pinocchio terms (PD, CT: unused stand-ins).
         self._qp = isinstance(ctrl, QPController)
@@ -148,7 +147,6 @@ class FusedTick:
                 runner._dt,
                 estop_s,
                 qp,
-                0.0,
                 ctrl.plan.period_ticks or 0,
                 isinstance(ctrl, ComputedTorqueController),
             ]
@@ -224,9 +222,7 @@ class FusedTick:
         plant = self._plant
         if code < 0:  # the QP goes on in Python (proxsuite, a fallback): composed from here
             u = ctrl.resume(code, self._sensors.dq)
-            wide = self.runner.wide
-            wide[row, 81] = ctrl.active_constraints
-            wide[row, 82] = self._params[7] = ctrl.failures
+            self.runner._log_qp(row)
             self.runner._apply(k, row, self._sensors, u)
             self._normal = self._sup is None or self._sup.state_code == 0
             return True
@@ -284,18 +280,19 @@ def _front(t, qp_table, powers, k, row, normal, flags):
     _log_measured(
         wide, row, vector_at(t, _STATE), vector_at(t, _READINGS), vector_at(t, _ESTIMATES)
     )
-    period = int(params[8])
+    period = int(params[7])
     plan_row = k % period if period else k  # PDController.plan_row
     vector_at(t, _LAST_ROW)[0] = plan_row
-    u_ff = matrix_at(t, _U_FF)[plan_row if params[9] != 0.0 else 0]
+    u_ff = matrix_at(t, _U_FF)[plan_row if params[8] != 0.0 else 0]
     gains, q_des, dq_des = matrix_at(t, _GAINS), matrix_at(t, _Q_DES), matrix_at(t, _DQ_DES)
     pd_volts(u, gains, q_des, dq_des, plan_row, q, dq, u_ff)
     if params[6] != 0.0:
         active = _qp_step(qp_table, powers, q, dq, u, matrix_at(t, _FORCE_EST), True)
         if active < 0:
             return active
-        wide[row, 81] = active
-        wide[row, 82] = params[7]  # the QP's failures: unchanged
+        info = vector_at(qp_table, _QP_INFO)  # as Runner._log_qp
+        wide[row, 81] = info[0]
+        wide[row, 82] = info[4]
     cmd = vector_at(t, _CMD)
     if params[2] != 0.0:
         normal = normal and k * params[4] < params[5]

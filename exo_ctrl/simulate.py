@@ -462,9 +462,14 @@ class Runner:
         controller = self.setup.controller
         u_cmd = controller.command(k, sensors)
         if self._qp:
-            wide[row, 81] = controller.active_constraints
-            wide[row, 82] = controller.failures
+            self._log_qp(row)
         self._apply(k, row, sensors, u_cmd)
+
+    def _log_qp(self, row: int) -> None:
+        """Columns 81-82 of a log row: the QP's active bounds this tick, its failures so far."""
+        controller = self.setup.controller
+        self.wide[row, 81] = controller.active_constraints
+        self.wide[row, 82] = controller.failures
 
     def _apply(self, k: int, row: int, sensors: SensorReadings, u_cmd: np.ndarray) -> None:
         """The rest of tick k from the command on: supervisor, plant steps, log of the applied."""

@@ -442,12 +442,12 @@ class QPController(ComputedTorqueController):
             means all of them, unscreened.
 
     Attributes:
-        failures: ticks that used the fallback (module docstring).
         solver_ticks: ticks that called proxsuite (the others met every
             bound with τ_cmd clipped into the torque box; module docstring,
             "Ticks without proxsuite").
-        last_status, active_constraints, solve_time_us, screen_rounds: the
-            last tick's figures (properties).
+        failures, last_status, active_constraints, solve_time_us,
+            screen_rounds: the run's fallbacks and the last tick's figures
+            (properties).
         torque_cmd: τ_cmd of the last tick [N·m].
         torque: the torque commanded in the last tick [N·m].
         slack: the cuff slacks s_c of the last tick [N], (4,).
@@ -554,11 +554,11 @@ class QPController(ComputedTorqueController):
         self.torque_hi = self.qp.hi[:4]
         self.slack = np.zeros(4)
         self.torque = np.zeros(4)
-        self.failures = 0
         self.solver_ticks = 0
         # The last tick's active_constraints, solve_time_us, screen_rounds and
-        # status (0: "solved", 1: _status_text), where _qp_step writes them.
-        self._info = np.zeros(4)
+        # status (0: "solved", 1: _status_text), then failures: where _qp_step
+        # writes them and a compiled tick reads them.
+        self._info = np.zeros(5)
         self._status_text = "not_run"
         self.last_status = "not_run"
         self.force_feedback = bool(force_feedback)
@@ -586,6 +586,15 @@ class QPController(ComputedTorqueController):
         #: The addresses of the tick's buffers (:func:`_qp_step`, rows :data:`_QP_ROWS`).
         self.table = address_table(self._arrays)
         self._powers = model._powers
+
+    @property
+    def failures(self) -> int:
+        """Ticks that used the fallback (module docstring)."""
+        return int(self._info[4])
+
+    @failures.setter
+    def failures(self, value: int) -> None:
+        self._info[4] = value
 
     @property
     def active_constraints(self) -> int:
@@ -790,20 +799,13 @@ def _qp_step(t, powers, q, dq, u_cmd, force_est, has_estimate):
             mass_p, bias_p, jac, force_est, dq, p[3], p[4], p[5], p[6], p[7], delta, ddelta,
             vector_at(t, _QP_VP), dist, vector_at(t, _QP_FIRST),
         )  # fmt: skip
+    if not observed:  # the cuffs taken as fitted: δ = δ̇ = d = 0
+        delta = ddelta = dist = vector_at(t, _QP_ZERO4)
     a, b = matrix_at(t, _QP_A), vector_at(t, _QP_B)
-    damp_e, damp_p = vector_at(t, _QP_DAMP_E), vector_at(t, _QP_DAMP_P)
-    work = tensor_at(t, _QP_WORK)
-    if observed:
-        _predict(
-            mass_e, mass_p, jac, bias_e, bias_p, damp_e, damp_p, p[8], p[9], p[10], powers,
-            delta, ddelta, dist, a, b, work,
-        )  # fmt: skip
-    else:
-        zero = vector_at(t, _QP_ZERO4)
-        _predict(
-            mass_e, mass_p, jac, bias_e, bias_p, damp_e, damp_p, p[8], p[9], p[10], powers,
-            zero, zero, zero, a, b, work,
-        )  # fmt: skip
+    _predict(
+        mass_e, mass_p, jac, bias_e, bias_p, vector_at(t, _QP_DAMP_E), vector_at(t, _QP_DAMP_P),
+        p[8], p[9], p[10], powers, delta, ddelta, dist, a, b, tensor_at(t, _QP_WORK),
+    )  # fmt: skip
     rows, upper = matrix_at(t, _QP_ROWS_C), vector_at(t, _QP_UPPER)
     total = _bound_rows(matrix_at(t, _QP_DIRECTIONS), a, b, p[1], rows, upper)
     if not math.isfinite(total):
