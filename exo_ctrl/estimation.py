@@ -660,6 +660,13 @@ def _observer_kernel(mass, nle, q, dq, tau, h, w):
 
 
 @kernel
+def _cuff_directions(sign_hip, sign_knee, psi_t0, psi_s0, q_hip, q_knee):
+    """ψ_t = ψ_t0 + s_h q_hip, ψ_s = ψ_s0 + s_h q_hip + s_k q_knee [rad] (as CuffGeometry)."""
+    turn = sign_hip * q_hip
+    return psi_t0 + turn, psi_s0 + turn + sign_knee * q_knee
+
+
+@kernel
 def _cuffs_kernel(q, w):
     """Normal components and forces from r: solve A(q) (f_t⊥, f_s⊥) = (τ_hip, τ_knee) per leg."""
     kappa = w[_P_KAPPA]
@@ -668,8 +675,7 @@ def _cuffs_kernel(q, w):
         sh, sk, a, dt0 = w[o], w[o + 1], w[o + 2], w[o + 3]
         l1, dk0, c, ds0 = w[o + 4], w[o + 5], w[o + 6], w[o + 7]
         qh, qk = q[2 * s], q[2 * s + 1]
-        psi_t = dt0 + sh * qh
-        psi_s = ds0 + sh * qh + sk * qk
+        psi_t, psi_s = _cuff_directions(sh, sk, dt0, ds0, qh, qk)
         psi_k = dk0 + sh * qh
         f_s = w[_B_R + 2 * s + 1] / (sk * c)
         w_arm = l1 * math.cos(psi_s - psi_k) + c  # w of the module docstring
@@ -984,10 +990,11 @@ def _error_sums(q, force, prev_force, normal_est, start, legs, sums):
     """
     for r in range(start, q.shape[0]):
         for s in range(2):
-            sh, sk, psi_t0, psi_s0 = legs[s, 0], legs[s, 1], legs[s, 2], legs[s, 3]
-            turn = sh * q[r, 2 * s]
+            psi_t, psi_s = _cuff_directions(
+                legs[s, 0], legs[s, 1], legs[s, 2], legs[s, 3], q[r, 2 * s], q[r, 2 * s + 1]
+            )
             for c in range(2 * s, 2 * s + 2):
-                psi = psi_t0 + turn if c == 2 * s else psi_s0 + turn + sk * q[r, 2 * s + 1]
+                psi = psi_t if c == 2 * s else psi_s
                 if r == 0:
                     fx, fz = prev_force[c, 0], prev_force[c, 1]
                 else:
@@ -1049,8 +1056,7 @@ def estimate_bias(
     ``torque_bias_Nm`` to :class:`CuffForceEstimator` (or
     :func:`estimate_series`) to remove it.  Prefer a window of whole gait
     cycles, or a still posture: errors that follow the motion (the speed
-    filter's lag) mostly average out over a cycle (on the default gait the
-    default sensors' 5 ms speed lag leaves a mean of up to 0.05 N·m).
+    filter's lag) average out over a cycle.
 
     Args:
         tau_ext: observer output r over the window (skip the observer's

@@ -40,19 +40,17 @@ class RunStats:
         if self.estimate is not None:
             self.estimate.update(rows["q"], rows["cuff_force"], rows["cuff_normal_est"])
         self.ticks += rows["q"].shape[0]
-        _accumulate(
-            rows["q"], rows["q_des"], rows["drive_torque"], rows["current"], rows["voltage"],
-            rows["dq"], rows["cuff_force"], self._sums, self._peaks,
-        )  # fmt: skip
+        _accumulate(*self._accumulate_args(rows))
 
     def preload(self, rows: dict[str, np.ndarray]) -> None:
         """Load the compiled kernels for rows of these arrays' types (before a timed run)."""
         if self.estimate is not None:
             self.estimate.preload(rows["q"], rows["cuff_force"], rows["cuff_normal_est"])
-        preload(
-            _accumulate, rows["q"], rows["q_des"], rows["drive_torque"], rows["current"],
-            rows["voltage"], rows["dq"], rows["cuff_force"], self._sums, self._peaks,
-        )  # fmt: skip
+        preload(_accumulate, *self._accumulate_args(rows))
+
+    def _accumulate_args(self, rows: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
+        names = ("q", "q_des", "drive_torque", "current", "voltage", "dq", "cuff_force")
+        return (*(rows[name] for name in names), self._sums, self._peaks)
 
     def summary(self, result: SimResult) -> dict[str, Any]:
         """The JSON summary of a run.
