@@ -16,16 +16,7 @@ from .exceptions import (
     SweepError,
     UnreachableFootTarget,
 )
-from .gait import FootTrajectory, GaitParams, GaitPlan
-from .kinematics import (
-    JointTrajectory,
-    forward_kinematics,
-    inverse_kinematics,
-    joint_accelerations,
-    joint_rates,
-    plan_joints,
-)
-from .model import (
+from .model.body import (
     CUFF_NAMES,
     JOINT_NAMES,
     BodyModel,
@@ -36,6 +27,17 @@ from .model import (
     load_human_patient,
     load_patient,
 )
+from .plan.gait import FootTrajectory, GaitParams, GaitPlan
+from .plan.kinematics import (
+    JointTrajectory,
+    forward_kinematics,
+    inverse_kinematics,
+    joint_accelerations,
+    joint_rates,
+    plan_joints,
+)
+from .record import read_recording
+from .sim import SimConfig, SimResult, simulate
 
 __version__ = "0.1.0"
 
@@ -54,6 +56,8 @@ __all__ = [
     "LegGeometry",
     "MissingDependency",
     "RecordingError",
+    "SimConfig",
+    "SimResult",
     "SimulationDiverged",
     "SweepError",
     "UnreachableFootTarget",
@@ -68,4 +72,6 @@ __all__ = [
     "load_human_patient",
     "load_patient",
     "plan_joints",
+    "read_recording",
+    "simulate",
 ]

@@ -23,17 +23,17 @@ from exo_ctrl.control import (
     feedforward_torque,
 )
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.gait import GaitParams, GaitPlan
-from exo_ctrl.kinematics import plan_joints
-from exo_ctrl.model import (
+from exo_ctrl.model.body import (
     FRICTION_SMOOTHING_RAD_S,
     JOINT_NAMES,
     BodyModel,
     default_urdf_path,
     load_body,
 )
-from exo_ctrl.motor import MotorParams
-from exo_ctrl.simulate import SimConfig, simulate
+from exo_ctrl.plan.gait import GaitParams, GaitPlan
+from exo_ctrl.plan.kinematics import plan_joints
+from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.sim.loop import SimConfig, simulate
 
 
 @pytest.fixture(scope="module")

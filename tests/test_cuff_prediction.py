@@ -14,9 +14,9 @@ import pinocchio as pin
 import pytest
 from scipy.linalg import expm
 
-from exo_ctrl.control.cuff_prediction import CuffHorizonModel, _expm
+from exo_ctrl.control.qp.prediction import CuffHorizonModel, _expm
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from exo_ctrl.model.body import FRICTION_SMOOTHING_RAD_S, BodyModel
 
 #: _expm's scratch slots (X, X², X³ and one product).
 EXPM_SCRATCH = 4

@@ -4,7 +4,7 @@ Independent references used here: Pinocchio's frame placements and frame
 Jacobians (``LOCAL_WORLD_ALIGNED``, rows x and z), finite differences of the
 frame positions, and the spring energy V = ½ K Σ |Δp − r₀|² computed from
 Pinocchio's positions.  Forces on the exoskeleton are laid out (4 cuffs, x z)
-in :data:`~exo_ctrl.model.CUFF_NAMES` order.
+in :data:`~exo_ctrl.model.body.CUFF_NAMES` order.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from exo_ctrl.cuffs import CuffParams, CuffSet
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model import BodyModel, default_urdf_path, load_body
-from exo_ctrl.plant import Plant
+from exo_ctrl.model.body import BodyModel, default_urdf_path, load_body
+from exo_ctrl.plant.cuffs import CuffParams, CuffSet
+from exo_ctrl.plant.plant import Plant
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 XZ = [0, 2]

@@ -1,6 +1,6 @@
 """Momentum observer and cuff-force estimation, checked on real closed-loop runs.
 
-Every run here is the closed loop that :func:`exo_ctrl.simulate.simulate`
+Every run here is the closed loop that :func:`exo_ctrl.sim.loop.simulate`
 runs (CT controller, default gait: 2 cycles, 2.4 s), with the sensors and the
 estimator in the loop: per tick, readings = sensors.read(k, plant state),
 estimate = estimator.update(readings), u = controller.command(k, readings),
@@ -34,9 +34,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from exo_ctrl.control.base import SensorReadings
-from exo_ctrl.cuffs import CuffParams
-from exo_ctrl.estimation import (
+from exo_ctrl.estimation.observer import (
     CSV_REQUIRED_COLUMNS,
     DEFAULT_GAIN_PER_S,
     CuffForceEstimator,
@@ -55,10 +53,12 @@ from exo_ctrl.estimation import (
     write_csv_log,
 )
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter
-from exo_ctrl.model import CUFF_NAMES, BodyModel
-from exo_ctrl.plant import Plant
-from exo_ctrl.sensors import SensorParams, Sensors
-from exo_ctrl.simulate import SimConfig, build, start_on_plan
+from exo_ctrl.model.body import CUFF_NAMES, BodyModel
+from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.plant.plant import Plant
+from exo_ctrl.sensing.readings import SensorReadings
+from exo_ctrl.sensing.sensors import SensorParams, Sensors
+from exo_ctrl.sim.loop import SimConfig, build, start_on_plan
 
 DT = 1e-3
 SKIP_S = 0.05
@@ -103,7 +103,7 @@ def closed_loop(
     torque_model = None
     torque_buf = np.zeros(4)
     if patient_torque is not None:
-        from exo_ctrl.patient import make_patient_torque
+        from exo_ctrl.plant.patient import make_patient_torque
 
         torque_model = make_patient_torque(patient_torque)
     n = config.n_ticks
@@ -245,7 +245,7 @@ def test_free_swing_without_interaction_gives_no_external_torque(exo) -> None:
     damping and friction of the observer's link model (no drives, cuffs of
     negligible stiffness, so τ_ext = 0 and τ_s = 0).
     """
-    from exo_ctrl.model import default_urdf_path, load_body
+    from exo_ctrl.model.body import default_urdf_path, load_body
 
     patient = load_body(default_urdf_path("patient"), name="patient")
     plant = Plant(exo, patient, motors=None, cuffs=CuffParams(1e-9, 0.0))
@@ -271,7 +271,7 @@ def _smooth_readings(exo: BodyModel, h: float, tau_ext: np.ndarray) -> tuple[np.
     reading k its mean over [t_{k-1}, t_k] (5-point Gauss–Legendre), as the
     plant's sensor torque is.
     """
-    from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S
+    from exo_ctrl.model.body import FRICTION_SMOOTHING_RAD_S
 
     model = pin.Model(exo.model)
     model.armature = np.zeros(model.nv)
@@ -487,7 +487,7 @@ def test_spastic_patient_estimates_stay_within_the_same_bounds() -> None:
     the filter's 10 ms, so filtering the truth's normal component is not
     exactly the observer's output; printed, not asserted.)
     """
-    pytest.importorskip("exo_ctrl.patient")
+    pytest.importorskip("exo_ctrl.plant.patient")
     ideal = closed_loop(SensorParams.ideal(), patient_torque="spastic")
     check_accuracy(ideal, "spastic patient, ideal sensors")
     fast = estimate_series(ideal.t, ideal.q, ideal.dq, ideal.tau, ideal.exo, 1000.0, dt=DT)

@@ -1,4 +1,4 @@
-"""Tests of exo_ctrl.gait against the paper's §III planner, written out independently here."""
+"""Tests of exo_ctrl.plan.gait against the paper's §III planner, written out independently here."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter, UnreachableFootTarget
-from exo_ctrl.gait import GaitParams, GaitPlan
+from exo_ctrl.plan.gait import GaitParams, GaitPlan
 
 #: (s, h_s, H_s, k_v, T_s): paper Fig. 3 (a) and (b), and the library's default.
 VECTORS = {

@@ -1,4 +1,4 @@
-"""Tests of exo_ctrl.kinematics, checked against Pinocchio's model of the URDF and by hand."""
+"""Tests of exo_ctrl.plan.kinematics, checked against Pinocchio's model of the URDF and by hand."""
 
 from __future__ import annotations
 
@@ -9,15 +9,15 @@ import pinocchio as pin
 import pytest
 
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter, UnreachableFootTarget
-from exo_ctrl.gait import GaitParams, GaitPlan
-from exo_ctrl.kinematics import (
+from exo_ctrl.model.body import SIDES, BodyModel
+from exo_ctrl.plan.gait import GaitParams, GaitPlan
+from exo_ctrl.plan.kinematics import (
     forward_kinematics,
     inverse_kinematics,
     joint_accelerations,
     joint_rates,
     plan_joints,
 )
-from exo_ctrl.model import SIDES, BodyModel
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 SHORT_THIGH, SHORT_SHANK = 0.45, 0.40  # the conftest short_exo [m]

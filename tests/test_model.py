@@ -1,4 +1,4 @@
-"""Tests of exo_ctrl.model: what is read from a URDF, checked against the file's own text."""
+"""Tests of exo_ctrl.model.body: what is read from a URDF, checked against the file's own text."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 
 from exo_ctrl.exceptions import ExoCtrlError, InvalidModel
-from exo_ctrl.model import (
+from exo_ctrl.model.body import (
     CUFF_NAMES,
     JOINT_NAMES,
     SIDES,

@@ -1,4 +1,4 @@
-"""Tests of exo_ctrl.motor: exact current step, limits, damping, feedforward.
+"""Tests of exo_ctrl.plant.motor: exact current step, limits, damping, feedforward.
 
 The references below are written from the ODE of paper §V,
 ``L dI/dt + R I + i_G ω / k_E = U``, with the constants of Table I typed in
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter
-from exo_ctrl.motor import MotorBank, MotorParams
+from exo_ctrl.plant.motor import MotorBank, MotorParams
 
 # Paper Table I and the documented choices, typed independently of the module.
 L = 0.072e-3  # H

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_ctrl import cli
-from exo_ctrl.estimation import write_csv_log
-from exo_ctrl.model import CUFF_NAMES
-from exo_ctrl.offline import estimate_file, write_estimate_recording
-from exo_ctrl.record import RerunRecorder
-from exo_ctrl.simulate import SimConfig, simulate
+from exo_ctrl.cli import app as cli
+from exo_ctrl.estimation.observer import write_csv_log
+from exo_ctrl.estimation.offline import estimate_file, write_estimate_recording
+from exo_ctrl.model.body import CUFF_NAMES
+from exo_ctrl.record.recorder import RerunRecorder
+from exo_ctrl.sim.loop import SimConfig, simulate
 
 
 @pytest.fixture(scope="module")

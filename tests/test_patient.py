@@ -1,7 +1,7 @@
 """Patient joint torques: the spastic law's shape, its parameters and its effect on the cuffs.
 
 The law's derivatives are checked by finite differences against the
-documented slopes (module docstring of exo_ctrl.patient); the closed-loop
+documented slopes (module docstring of exo_ctrl.plant.patient); the closed-loop
 test runs the computed-torque controller, which does not know the patient
 torque, on the default scenario with and without the spastic patient.
 """
@@ -15,14 +15,14 @@ import pytest
 
 from exo_ctrl.control import SensorReadings
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model import JOINT_NAMES
-from exo_ctrl.patient import (
+from exo_ctrl.model.body import JOINT_NAMES
+from exo_ctrl.plant.patient import (
     PATIENT_TORQUES,
     SpasticParams,
     SpasticPatient,
     make_patient_torque,
 )
-from exo_ctrl.simulate import SimConfig, build, start_on_plan
+from exo_ctrl.sim.loop import SimConfig, build, start_on_plan
 
 Q = np.array([0.5, 1.2, 0.4, 1.0])  # a posture inside the gait's range [rad]
 H = 1e-6  # finite-difference step [rad, rad/s]

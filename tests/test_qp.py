@@ -9,7 +9,7 @@ controller), the affine cuff-force prediction against the coupled rigid
 dynamics assembled from Pinocchio's RNEA (not CRBA / nonLinearEffects, which
 the controller uses) and solved with numpy's least squares, the limits
 against the motor equations written out here, and the closed loop against
-the plant's elastic cuffs (through :func:`exo_ctrl.simulate.simulate`).
+the plant's elastic cuffs (through :func:`exo_ctrl.sim.loop.simulate`).
 
 The soft problem, x = (τ, s):  min ½ (τ − τ_cmd)ᵀ W (τ − τ_cmd) + ½ ρ sᵀs  s.t.
 ±N (A τ + b) − E s ≤ r, τ_lo ≤ τ ≤ τ_hi, s ≥ 0, with r = F_max cos(π/8).
@@ -29,12 +29,7 @@ import pytest
 from scipy.optimize import LinearConstraint, linprog, minimize, nnls
 
 from exo_ctrl.control import ComputedTorqueController, SensorReadings
-from exo_ctrl.control.cuff_prediction import (
-    DEFAULT_HORIZON_TICKS,
-    CuffHorizonModel,
-    CuffStateObserver,
-)
-from exo_ctrl.control.qp import (
+from exo_ctrl.control.qp.controller import (
     NO_BOUND,
     POLYGON_SIDES,
     SCREEN_ROUNDS,
@@ -44,11 +39,16 @@ from exo_ctrl.control.qp import (
     TorqueQP,
     polygon_rows,
 )
-from exo_ctrl.cuffs import CuffParams
+from exo_ctrl.control.qp.prediction import (
+    DEFAULT_HORIZON_TICKS,
+    CuffHorizonModel,
+    CuffStateObserver,
+)
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
-from exo_ctrl.motor import MotorParams
-from exo_ctrl.simulate import Runner, SimConfig, SimResult, build, drive_for, simulate
+from exo_ctrl.model.body import FRICTION_SMOOTHING_RAD_S, BodyModel
+from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.sim.loop import Runner, SimConfig, SimResult, build, drive_for, simulate
 
 #: ρ, the brief's slack weight [(N·m)²/N²].
 RHO = 1e4

@@ -1,4 +1,4 @@
-"""Tests of exo_ctrl.record: real simulations written to real .rrd files and read back.
+"""Tests of exo_ctrl.record.recorder: real simulations written to real .rrd files and read back.
 
 Exactness: rerun stores scalars as float64, so every signal must come back
 bit for bit (``np.array_equal``), and ``t`` too (rebuilt as k Δt).  3-D
@@ -25,18 +25,18 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
-from exo_ctrl import record
-from exo_ctrl.cuffs import CuffParams
 from exo_ctrl.exceptions import RecordingError
-from exo_ctrl.gait import GaitParams
-from exo_ctrl.model import CUFF_NAMES, SIDES, load_body, load_patient
-from exo_ctrl.record import (
+from exo_ctrl.model.body import CUFF_NAMES, SIDES, load_body, load_patient
+from exo_ctrl.plan.gait import GaitParams
+from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.record import recorder as record
+from exo_ctrl.record.recorder import (
     FORCE_ARROW_M_PER_N,
     RerunRecorder,
     blueprint_views,
     read_recording,
 )
-from exo_ctrl.simulate import SIGNALS, SimConfig, SimResult, simulate
+from exo_ctrl.sim.loop import SIGNALS, SimConfig, SimResult, simulate
 
 #: A short run; 70-tick chunks so the last chunk (300 = 4 x 70 + 20) is partial.
 SHORT = SimConfig(duration_s=0.3, chunk_ticks=70)
@@ -334,8 +334,8 @@ def test_hard_crash_keeps_every_flushed_chunk(tmp_path, reference):
     script = textwrap.dedent(
         f"""
         import os
-        from exo_ctrl.record import RerunRecorder
-        from exo_ctrl.simulate import SimConfig, simulate
+        from exo_ctrl.record.recorder import RerunRecorder
+        from exo_ctrl.sim.loop import SimConfig, simulate
 
         class Crash:
             def start(self, result): pass
@@ -393,10 +393,10 @@ def test_write_failure_mid_run_raises_recording_error(tmp_path, reference):
     script = textwrap.dedent(
         f"""
         import resource, signal
-        from exo_ctrl import record
+        from exo_ctrl.record import recorder as record
         from exo_ctrl.exceptions import RecordingError
-        from exo_ctrl.record import RerunRecorder
-        from exo_ctrl.simulate import SimConfig, simulate
+        from exo_ctrl.record.recorder import RerunRecorder
+        from exo_ctrl.sim.loop import SimConfig, simulate
 
         # After the write error rerun's flush sometimes blocks until the timeout.
         record.FLUSH_TIMEOUT_S = 3.0
@@ -548,8 +548,8 @@ def test_human_friendly_series_match_signals(short_run):
 MEMORY_CHILD = textwrap.dedent(
     """
     import json, sys
-    from exo_ctrl.record import RerunRecorder
-    from exo_ctrl.simulate import SimConfig, simulate
+    from exo_ctrl.record.recorder import RerunRecorder
+    from exo_ctrl.sim.loop import SimConfig, simulate
 
     def status_kb(key):
         with open("/proc/self/status") as f:

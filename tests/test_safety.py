@@ -18,10 +18,10 @@ import pytest
 
 from exo_ctrl.control import SensorReadings
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
-from exo_ctrl.patient import PatientTorque, make_patient_torque
-from exo_ctrl.safety import SafetyLimits, SafetySupervisor
-from exo_ctrl.simulate import SimConfig, build, start_on_plan
+from exo_ctrl.model.body import CUFF_NAMES, JOINT_NAMES
+from exo_ctrl.plant.patient import PatientTorque, make_patient_torque
+from exo_ctrl.safety.supervisor import SafetyLimits, SafetySupervisor
+from exo_ctrl.sim.loop import SimConfig, build, start_on_plan
 
 DT = 1e-3
 #: Largest change of the applied voltage between two ticks during the stop

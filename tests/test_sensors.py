@@ -15,9 +15,9 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from exo_ctrl.control.base import SensorReadings
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.sensors import NOISE_BLOCK, SensorParams, Sensors
+from exo_ctrl.sensing.readings import SensorReadings
+from exo_ctrl.sensing.sensors import NOISE_BLOCK, SensorParams, Sensors
 
 DT = 1e-3
 

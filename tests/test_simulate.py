@@ -12,13 +12,14 @@ import pytest
 
 from exo_ctrl.control import PDGains
 from exo_ctrl.exceptions import InvalidParameter, SimulationDiverged
-from exo_ctrl.gait import GaitParams, GaitPlan
-from exo_ctrl.kinematics import plan_joints
-from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES, BodyModel
-from exo_ctrl.motor import MotorParams
-from exo_ctrl.safety import SafetyLimits
-from exo_ctrl.sensors import SensorParams
-from exo_ctrl.simulate import (
+from exo_ctrl.model.body import CUFF_NAMES, JOINT_NAMES, BodyModel
+from exo_ctrl.model.urdfgen import BodyParams, write_urdf
+from exo_ctrl.plan.gait import GaitParams, GaitPlan
+from exo_ctrl.plan.kinematics import plan_joints
+from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.safety.supervisor import SafetyLimits
+from exo_ctrl.sensing.sensors import SensorParams
+from exo_ctrl.sim.loop import (
     SIGNALS,
     UNTIMED_TICKS,
     Runner,
@@ -27,7 +28,6 @@ from exo_ctrl.simulate import (
     build,
     simulate,
 )
-from exo_ctrl.urdfgen import BodyParams, write_urdf
 
 #: SimulationDiverged's message, with the quantities the plant watches.
 DIVERGED = re.compile(
@@ -98,7 +98,7 @@ FUSED_CASES = {
 
 @pytest.mark.parametrize("case", list(FUSED_CASES))
 def test_fused_ticks_equal_the_composed_ones(case: str, pd_run, ct_run) -> None:
-    """exo_ctrl._tick runs the same kernels in three compiled calls: bit-identical runs.
+    """exo_ctrl.sim._tick runs the same kernels in three compiled calls: bit-identical runs.
 
     The supervisor cases leave the fused path mid-run (its stop is composed);
     a QP tick that calls proxsuite goes on in Python from its solve.

@@ -13,14 +13,15 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-import exo_ctrl.sweep as sweep
-from exo_ctrl.cuffs import CuffParams
+import exo_ctrl.sweep.sweep as sweep
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.gait import GaitParams
-from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
-from exo_ctrl.motor import MotorParams
-from exo_ctrl.simulate import CONTROLLERS, SimConfig, simulate
-from exo_ctrl.sweep import (
+from exo_ctrl.model.body import CUFF_NAMES, JOINT_NAMES
+from exo_ctrl.model.urdfgen import BodyParams, urdf_xml, write_urdf
+from exo_ctrl.plan.gait import GaitParams
+from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.sim.loop import CONTROLLERS, SimConfig, simulate
+from exo_ctrl.sweep.sweep import (
     OUTPUT_COLUMNS,
     MissingDependency,
     SweepInterrupted,
@@ -32,7 +33,6 @@ from exo_ctrl.sweep import (
     run_sweep,
     run_sweep_command,
 )
-from exo_ctrl.urdfgen import BodyParams, urdf_xml, write_urdf
 
 DURATION = 0.4  # simulated time per run [s]: short, but past the start-up transient
 

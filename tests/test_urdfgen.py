@@ -1,4 +1,4 @@
-"""Tests of exo_ctrl.urdfgen: generated URDFs checked through Pinocchio against hand maths."""
+"""Tests of exo_ctrl.model.urdfgen: generated URDFs checked through Pinocchio against hand maths."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 import yourdfpy
 
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.urdfgen import (
+from exo_ctrl.model.urdfgen import (
     DEFAULT_URDF_NAMES,
     BodyParams,
     build_urdf,

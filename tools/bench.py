@@ -30,7 +30,7 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from exo_ctrl.simulate import Runner, SimConfig, build, simulate
+from exo_ctrl.sim.loop import Runner, SimConfig, build, simulate
 
 
 def _time_calls(calls, repeats: int = 2000) -> float:
@@ -128,7 +128,7 @@ def bench_scenario(name: str, ticks: int) -> dict[str, float]:
     rtf = simulate(config).summary()["real_time_factor"]
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            from exo_ctrl.record import RerunRecorder
+            from exo_ctrl.record.recorder import RerunRecorder
 
             rec = simulate(config, observers=[RerunRecorder(Path(tmp) / "b.rrd")])
             rtf_rec = rec.summary()["real_time_factor"]

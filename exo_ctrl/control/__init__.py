@@ -1,9 +1,10 @@
 """Controllers: plan and sensor readings in, drive voltages out."""
 
-from .base import Controller, PDGains, SensorReadings
+from ..sensing.readings import SensorReadings
+from .base import Controller, PDGains
 from .computed_torque import ComputedTorqueController, feedforward_torque
 from .pd import PDController
-from .qp import QPController, TorqueQP
+from .qp.controller import QPController, TorqueQP
 
 __all__ = [
     "ComputedTorqueController",

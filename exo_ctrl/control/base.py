@@ -14,27 +14,9 @@ import numpy as np
 
 from .. import _validate as v
 from ..exceptions import InvalidParameter
+from ..sensing.readings import SensorReadings
 
-__all__ = ["Controller", "PDGains", "SensorReadings"]
-
-
-@dataclass
-class SensorReadings:
-    """One tick's sensor readings, arrays of shape (4,) in JOINT_NAMES order.
-
-    Attributes:
-        q: joint angles from the encoders [rad].
-        dq: joint speeds [rad/s].
-        tau: joint torques at the drive outputs, from the torque sensors [N·m].
-        cuff_force_est: estimated cuff forces on the exoskeleton, (4, 2) [N],
-            when an estimator runs (None otherwise).
-
-    """
-
-    q: np.ndarray
-    dq: np.ndarray
-    tau: np.ndarray
-    cuff_force_est: np.ndarray | None = None
+__all__ = ["Controller", "PDGains"]
 
 
 class Controller(Protocol):

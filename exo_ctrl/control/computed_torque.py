@@ -23,10 +23,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..kinematics import JointTrajectory
-from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
-from ..motor import MotorBank, MotorParams
-from .base import PDGains, SensorReadings
+from ..model.body import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ..plan.kinematics import JointTrajectory
+from ..plant.motor import MotorBank, MotorParams
+from ..sensing.readings import SensorReadings
+from .base import PDGains
 from .pd import PDController
 
 __all__ = ["ComputedTorqueController", "feedforward_torque"]

@@ -6,8 +6,9 @@ import numpy as np
 
 from .. import _validate as v
 from .._jit import kernel
-from ..kinematics import JointTrajectory
-from .base import PDGains, SensorReadings
+from ..plan.kinematics import JointTrajectory
+from ..sensing.readings import SensorReadings
+from .base import PDGains
 
 __all__ = ["PDController", "pd_volts"]
 

@@ -8,7 +8,6 @@ of the default 2.4 s run, float64, keyed "<scenario>/<signal>".
 from pathlib import Path
 
 import numpy as np
-
 from exo_ctrl.simulate import SimConfig, simulate
 
 SCENARIOS = {

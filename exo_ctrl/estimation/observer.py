@@ -9,7 +9,7 @@ them: the observer uses the exoskeleton's *link* model only (no armature),
 
 with τ_s the sensor torque, b and f_c the URDF joint damping and dry
 friction (link side, not seen by the sensor; ε =
-:data:`~exo_ctrl.model.FRICTION_SMOOTHING_RAD_S`), f_c the (x, z) force of
+:data:`~exo_ctrl.model.body.FRICTION_SMOOTHING_RAD_S`), f_c the (x, z) force of
 cuff c on the exoskeleton and J_c the x, z rows of its frame Jacobian.
 
 **Generalised-momentum observer** (De Luca & Mattone 2005; Haddadin, De
@@ -54,7 +54,7 @@ to s = p − r/K_d, which keeps that identity.
 The observer passes encoder-speed noise to r with a gain of about K_O M
 (p = M q̇ enters r multiplied by K_O), and lags the cuff forces by 1/K_O.
 On the default gait (cycle 1.2 s) with the default sensors
-(:mod:`exo_ctrl.sensors`) the worst cuff's RMS error of the normal
+(:mod:`exo_ctrl.sensing.sensors`) the worst cuff's RMS error of the normal
 component is 7.3 % of its peak at K_O = 50 1/s (lag), 4.4 % at 100 and 200,
 and 7.0 % at 400 (speed noise) (tests/test_estimation.py prints this);
 100 1/s is the less noisy end of the flat optimum.  With ideal sensors the
@@ -86,7 +86,7 @@ So
 knee are coaxial with the exoskeleton's (how the device is fitted to a
 patient, and what the computed-torque feedforward assumes) and the cuffs
 are isotropic spring–dampers, the shank cuff κ times as stiff as the thigh
-cuff (κ = 1: equal cuffs, as :class:`~exo_ctrl.cuffs.CuffParams` models
+cuff (κ = 1: equal cuffs, as :class:`~exo_ctrl.plant.cuffs.CuffParams` models
 them).  The cuff forces then come from the relative rotations δφ₁, δφ₂ of
 the patient's thigh and shank about the common axes: to first order in δφ,
 f_t = F₁ a n_t and f_s = κ (F₁ l₁ n_k + F₂ c n_s) (n_k: normal of
@@ -152,12 +152,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from . import _validate as v
-from ._io import atomic_write
-from ._jit import kernel, preload
-from .control.base import SensorReadings
-from .exceptions import InvalidLog, InvalidModel, InvalidParameter
-from .model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, SIDES, BodyModel
+from .. import _validate as v
+from .._io import atomic_write
+from .._jit import kernel, preload
+from ..exceptions import InvalidLog, InvalidModel, InvalidParameter
+from ..model.body import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, SIDES, BodyModel
+from ..sensing.readings import SensorReadings
 
 __all__ = [
     "CSV_DQ_COLUMNS",
@@ -309,7 +309,7 @@ _GEOMETRY_CACHE: dict[int, tuple[BodyModel, CuffGeometry]] = {}
 
 def _geometry(exo: BodyModel | None) -> CuffGeometry:
     if exo is None:
-        from .model import load_exo
+        from ..model.body import load_exo
 
         key = 0
         if key not in _GEOMETRY_CACHE:
@@ -877,7 +877,7 @@ def normal_component_errors(
 
     Row k of the estimate is compared with the normal component of row
     k − ``lag`` of the truth, taken along the normals at q_exo row k.  In
-    :func:`exo_ctrl.simulate.simulate` row k of ``cuff_force`` is the force
+    :func:`exo_ctrl.sim.loop.simulate` row k of ``cuff_force`` is the force
     over [t_k, t_k+1), while the estimate of tick k uses the sensor torque of
     [t_{k-1}, t_k]: pass ``lag=1`` there (as :class:`EstimateErrorStats`
     does).
@@ -916,7 +916,7 @@ def normal_component_errors(
 class EstimateErrorStats:
     """Running errors of a live estimate against the simulated truth, chunk by chunk.
 
-    Fed with the rows :func:`exo_ctrl.simulate.simulate` logs: ``q`` (true
+    Fed with the rows :func:`exo_ctrl.sim.loop.simulate` logs: ``q`` (true
     exoskeleton angles at t_k), ``cuff_force`` (true force over
     [t_k, t_k+1)) and the estimate of tick k.  The estimate of tick k uses
     the torque reading of the step just taken, so it is compared with the

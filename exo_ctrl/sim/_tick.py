@@ -1,6 +1,6 @@
 """The control tick of a PD, CT or QP run in three compiled calls.
 
-:meth:`exo_ctrl.simulate.Runner.tick` composes the stages through their
+:meth:`exo_ctrl.sim.loop.Runner.tick` composes the stages through their
 public methods — sensors, estimator, controller, supervisor, plant, logging
 — about a dozen calls from Python a tick, each a compiled kernel or a
 Pinocchio call with some Python around it.  For the common configuration (a
@@ -12,7 +12,7 @@ compiled calls between the Pinocchio calls:
 - :func:`_front`, after the estimator's (and the QP cuff model's) Pinocchio
   calls: the observer step, the log of the measured state, the PD (+
   feedforward) voltage, the QP up to proxsuite
-  (:func:`~exo_ctrl.control.qp._qp_step`), the supervisor's monitor and the
+  (:func:`~exo_ctrl.control.qp.controller._qp_step`), the supervisor's monitor and the
   plant's first half-step;
 - :func:`_back`, after the plant's ABA: its second half-step and the log of
   what was applied.
@@ -36,18 +36,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from ._jit import address_table, kernel, matrix_at, tensor_at, vector_at
-from .control import ComputedTorqueController, PDController, QPController
-from .control.cuff_prediction import _pair
-from .control.pd import pd_volts
-from .control.qp import _QP_INFO, _qp_step
-from .estimation import _observer_kernel
-from .plant import MAX_JOINT_SPEED_RAD_S, _drift_and_forces, _kick_and_drift
-from .safety import _monitor_kernel
-from .sensors import _read_kernel
+from .._jit import address_table, kernel, matrix_at, tensor_at, vector_at
+from ..control import ComputedTorqueController, PDController, QPController
+from ..control.pd import pd_volts
+from ..control.qp.controller import _QP_INFO, _qp_step
+from ..control.qp.prediction import _pair
+from ..estimation.observer import _observer_kernel
+from ..plant.plant import MAX_JOINT_SPEED_RAD_S, _drift_and_forces, _kick_and_drift
+from ..safety.supervisor import _monitor_kernel
+from ..sensing.sensors import _read_kernel
 
 if TYPE_CHECKING:
-    from .simulate import Runner
+    from .loop import Runner
 
 #: What :func:`_front` returns.
 _DONE, _SUPERVISOR, _ARMATURE = 0, 1, 2
@@ -244,10 +244,10 @@ class FusedTick:
 
 @kernel
 def _sense(t, k):
-    """The sensors' read of tick k (:func:`~exo_ctrl.sensors._read_kernel`, its return).
+    """The sensors' read of tick k (:func:`~exo_ctrl.sensing.sensors._read_kernel`, its return).
 
     For the QP also the readings paired for its cuff model's Pinocchio terms
-    (:meth:`~exo_ctrl.control.cuff_prediction.CuffHorizonModel.terms`).
+    (:meth:`~exo_ctrl.control.qp.prediction.CuffHorizonModel.terms`).
     """
     taken = _read_kernel(
         k, vector_at(t, _Q_TRUE), vector_at(t, _DQ_TRUE), vector_at(t, _TAU_TRUE),
@@ -263,9 +263,9 @@ def _front(t, qp_table, powers, k, row, normal, flags):
     """Observer, log of the measured state, PD voltage, QP, monitor, plant half-step (module doc).
 
     ``t`` is the address table (rows :data:`_ROWS`), ``flags`` the plant's;
-    ``qp_table`` and ``powers`` the QP's (:func:`~exo_ctrl.control.qp._qp_step`);
+    ``qp_table`` and ``powers`` the QP's (:func:`~exo_ctrl.control.qp.controller._qp_step`);
     ``normal``: the supervisor is in its normal state (the e-stop time is
-    checked here, as :meth:`~exo_ctrl.safety.SafetySupervisor.normal_at`).
+    checked here, as :meth:`~exo_ctrl.safety.supervisor.SafetySupervisor.normal_at`).
     Returns the QP's negative code (the plant untouched) when the QP must go
     on in Python; 1 (the plant untouched) when the supervisor must act — not
     in its normal state, or a violation; else 2 if the plant's armature

@@ -7,12 +7,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._jit import kernel, preload
-from .model import CUFF_NAMES, JOINT_NAMES
+from .._jit import kernel, preload
+from ..model.body import CUFF_NAMES, JOINT_NAMES
 
 if TYPE_CHECKING:
-    from .estimation import EstimateErrorStats
-    from .simulate import SimResult
+    from ..estimation.observer import EstimateErrorStats
+    from .loop import SimResult
 
 __all__ = ["RunStats"]
 

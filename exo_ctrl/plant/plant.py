@@ -5,7 +5,7 @@ State: joint angles and speeds of both bodies stacked as
 currents.  Inputs per step: drive voltages [V] and patient joint torques
 [N·m].  Forces on the bodies:
 
-- exoskeleton: drive torque (DC motors, :mod:`exo_ctrl.motor`), cuff forces,
+- exoskeleton: drive torque (DC motors, :mod:`exo_ctrl.plant.motor`), cuff forces,
   viscous damping and smoothed dry friction from the URDF ``<dynamics>``;
   the gearbox reflects the rotor inertia i_G² J_rotor onto each joint;
 - patient: patient joint torques (an input), cuff forces, URDF damping and
@@ -31,7 +31,7 @@ present speed, (M + h D) a = τ(v) - b(q, v) - ..., and M + h D is M with h D
 added to its diagonal, which is exactly what Pinocchio's ``armature`` does: the
 ABA call runs with armature = [i_G² J_rotor + h b + h D_m (exo), h b (patient)].
 The drive current itself is integrated exactly over the step
-(:class:`~exo_ctrl.motor.MotorBank`).
+(:class:`~exo_ctrl.plant.motor.MotorBank`).
 
 Outputs of a step: ``drive_torque`` is the torque the drive applied at the
 joint, τ_m(v) - h D_m a (the mean-current torque with its implicit back-EMF
@@ -47,11 +47,11 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from . import _validate as _v
-from ._jit import kernel
+from .. import _validate as _v
+from .._jit import kernel
+from ..exceptions import InvalidModel, SimulationDiverged
+from ..model.body import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .cuffs import CuffParams, CuffSet, cuff_forces
-from .exceptions import InvalidModel, SimulationDiverged
-from .model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .motor import MotorBank, MotorParams, motor_step
 
 __all__ = ["Plant"]
@@ -99,7 +99,7 @@ class Plant:
                     f"the plant needs exactly the joints {JOINT_NAMES} in that order",
                 )
         if not (math.isfinite(dt) and dt > 0):
-            from .exceptions import InvalidParameter
+            from ..exceptions import InvalidParameter
 
             raise InvalidParameter("dt", dt, "> 0 s")
         self.exo = exo

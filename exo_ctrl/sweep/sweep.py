@@ -1,6 +1,6 @@
 """Parameter sweeps on an Executor (local processes or a Dask cluster).
 
-A sweep runs the closed loop (:func:`exo_ctrl.simulate.simulate`) once per
+A sweep runs the closed loop (:func:`exo_ctrl.sim.loop.simulate`) once per
 point of a parameter set and writes one table of the inputs and the figures
 that size the drives and the cuffs (peak and RMS drive torque, peak power,
 peak current per joint; peak force per cuff; tracking error; status).
@@ -37,7 +37,7 @@ Runs that ended in ``error`` (an unexpected exception) or were interrupted
 are run again.
 
 **Patient.**  The patient parameters change
-:meth:`~exo_ctrl.urdfgen.BodyParams.patient_default`; a changed link length
+:meth:`~exo_ctrl.model.urdfgen.BodyParams.patient_default`; a changed link length
 keeps each cuff at its fraction of the link (0.39/0.52 thigh, 0.45/0.52
 shank).  The ranges accepted are the paper's Table I ranges as read in the
 design notes: link lengths 0.39-0.65 m, thigh mass 7-14 kg, shank and foot
@@ -68,12 +68,12 @@ from typing import Any
 
 import numpy as np
 
-from . import simulate as _simulate_module
-from ._io import atomic_write
-from ._progress import Progress
-from .exceptions import ExoCtrlError, InvalidParameter, MissingDependency, SweepError
-from .model import CUFF_NAMES, JOINT_NAMES
-from .simulate import SimConfig, simulate
+from .._io import atomic_write
+from .._progress import Progress
+from ..exceptions import ExoCtrlError, InvalidParameter, MissingDependency, SweepError
+from ..model.body import CUFF_NAMES, JOINT_NAMES
+from ..sim import loop as _simulate_module
+from ..sim.loop import SimConfig, simulate
 
 __all__ = [
     "OUTPUT_COLUMNS",
@@ -616,14 +616,14 @@ def _flatten(summary: dict[str, Any]) -> dict[str, Any]:
 @functools.cache
 def _default_patient() -> Any:
     """:meth:`BodyParams.patient_default` (urdfgen imports yourdfpy: ~1 s, so lazily)."""
-    from .urdfgen import BodyParams
+    from ..model.urdfgen import BodyParams
 
     return BodyParams.patient_default()
 
 
 def _patient_urdf(body: dict[str, float], cache_dir: str) -> str | None:
     """The patient URDF of ``body`` in the cache (None: the default patient)."""
-    from .urdfgen import BodyParams, urdf_xml, write_urdf
+    from ..model.urdfgen import BodyParams, urdf_xml, write_urdf
 
     default = _default_patient()
     if all(getattr(default, k) == v for k, v in body.items()):

@@ -16,7 +16,7 @@ matrix products.  A link turned by θ about the lateral axis turns its points
 by R(θ) about the joint.  A point on a thigh is p = h + R(α) a, on a shank
 p = h + R(α) a + R(β) b, where h is the hip, a and b link vectors at q = 0 and
 α = s_h q_hip, β = α + s_k q_knee the link rotations (signs and vectors read
-from the Pinocchio model at q = 0; see :mod:`exo_ctrl.model`).  With the
+from the Pinocchio model at q = 0; see :mod:`exo_ctrl.model.body`).  With the
 eight link rotations θ = S q_all and u = (cos θ, sin θ), every point's
 (x, z) is linear in u: p = P u + p₀, with P built once.  Then
 ṗ = P w with w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇), the cuff stretch is
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from . import _validate as v
-from ._jit import kernel
-from .model import CUFF_NAMES, SIDES, BodyModel
+from .. import _validate as v
+from .._jit import kernel
+from ..model.body import CUFF_NAMES, SIDES, BodyModel
 
 __all__ = ["CuffParams", "CuffSet"]
 
@@ -64,7 +64,7 @@ class CuffSet:
     """The four cuffs between an exoskeleton and a patient, computed in one batch.
 
     Joint vectors are stacked as ``q_all = [q_exo (4), q_patient (4)]`` in
-    :data:`~exo_ctrl.model.JOINT_NAMES` order.  Forces are on the
+    :data:`~exo_ctrl.model.body.JOINT_NAMES` order.  Forces are on the
     exoskeleton, laid out as ``(fx of the 4 cuffs, fz of the 4 cuffs)``;
     :attr:`force` is the same as a (4, 2) view.
 

@@ -38,8 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _validate as v
-from .exceptions import InvalidParameter, UnreachableFootTarget
+from .. import _validate as v
+from ..exceptions import InvalidParameter, UnreachableFootTarget
 
 __all__ = ["FootTrajectory", "GaitParams", "GaitPlan"]
 

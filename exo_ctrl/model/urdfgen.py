@@ -47,9 +47,9 @@ from typing import Any
 import numpy as np
 import yourdfpy
 
-from . import _validate as v
-from .exceptions import InvalidParameter
-from .model import DEFAULT_URDF_NAMES
+from .. import _validate as v
+from ..exceptions import InvalidParameter
+from .body import DEFAULT_URDF_NAMES
 
 __all__ = [
     "DEFAULT_URDF_NAMES",

@@ -6,7 +6,7 @@ Each drive carries two sensors on the link side of the gearbox:
   plus white noise, quantised to the encoder's resolution Δq,
   ``q_m = Δq round((q + n_q) / Δq)``;
 - a strain-gauge joint torque sensor between gearbox and link: the reading
-  is the plant's :attr:`~exo_ctrl.plant.Plant.sensor_torque` (drive torque
+  is the plant's :attr:`~exo_ctrl.plant.plant.Plant.sensor_torque` (drive torque
   minus the rotor's reflected inertia times acceleration) plus a constant
   bias β and white noise, quantised to Δτ,
   ``τ_m = Δτ round((τ + β + n_τ) / Δτ)``.
@@ -25,7 +25,7 @@ low-pass filter of cut-off f_v (``velocity_filter_hz``),
 The filter starts at the true speed of the first sample (as if the device
 had been running), so there is no start-up transient.  ``velocity="true"``
 passes the plant's speed through unchanged instead (the ideal sensor).  The
-momentum observer (:mod:`exo_ctrl.estimation`) uses this speed once, in
+momentum observer (:mod:`exo_ctrl.estimation.observer`) uses this speed once, in
 p = M(q) q̇; it never differentiates it again.
 
 **Defaults and where they come from** (override them for a real device):
@@ -55,8 +55,8 @@ p = M(q) q̇; it never differentiates it again.
 - ``torque_bias_Nm = 0``: a zero offset (zero drift of such sensors is of
   the order of 0.1–0.5 % of full scale, 0.4–1.8 N·m for a 360 N·m sensor);
   zero by default, set it to study its effect
-  (:func:`exo_ctrl.estimation.bias_effect_bound`,
-  :func:`exo_ctrl.estimation.estimate_bias`).
+  (:func:`exo_ctrl.estimation.observer.bias_effect_bound`,
+  :func:`exo_ctrl.estimation.observer.estimate_bias`).
 - ``sample_rate_hz = 1000`` Hz: the sensors are read every control tick of
   a 1 kHz (EtherCAT-class) control loop.
 - ``seed = 0``: noise is drawn from ``numpy.random.default_rng(seed)`` so
@@ -73,10 +73,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _validate as v
-from ._jit import kernel
-from .control.base import SensorReadings
-from .exceptions import InvalidParameter
+from .. import _validate as v
+from .._jit import kernel
+from ..exceptions import InvalidParameter
+from .readings import SensorReadings
 
 __all__ = ["SensorParams", "Sensors"]
 
@@ -258,7 +258,7 @@ class Sensors:
         """Draw a block of noise (encoder first, then torque: the stream's order).
 
         A read calls it when the kernel used the last block up (for the
-        callers of the kernel itself, :mod:`exo_ctrl._tick`).
+        callers of the kernel itself, :mod:`exo_ctrl.sim._tick`).
         """
         p = self.params
         if self._noisy_q:

@@ -1,9 +1,9 @@
 """Rerun recordings of simulated runs: written while the run goes, read back exactly.
 
-:class:`RerunRecorder` is a :class:`~exo_ctrl.simulate.SimObserver`.  It writes
+:class:`RerunRecorder` is a :class:`~exo_ctrl.sim.loop.SimObserver`.  It writes
 one ``.rrd`` file per run, viewable offline (``rerun run.rrd``) with a default
 blueprint, and :func:`read_recording` rebuilds the run's
-:class:`~exo_ctrl.simulate.SimResult` from it.
+:class:`~exo_ctrl.sim.loop.SimResult` from it.
 
 Entity hierarchy (the one place it is defined)::
 
@@ -38,8 +38,8 @@ Entity hierarchy (the one place it is defined)::
                                              (status, error, events, ticks, and the other
                                              plain fields of SimResult)
 
-``{joint}`` is one of :data:`~exo_ctrl.model.JOINT_NAMES`, ``{cuff}`` one of
-:data:`~exo_ctrl.model.CUFF_NAMES`.  Time-varying data sits on two timelines:
+``{joint}`` is one of :data:`~exo_ctrl.model.body.JOINT_NAMES`, ``{cuff}`` one of
+:data:`~exo_ctrl.model.body.CUFF_NAMES`.  Time-varying data sits on two timelines:
 ``sim_time`` (a duration, t_k = k Δt, stored in whole nanoseconds) and
 ``tick`` (the sequence k).  Everything under ``signals/`` and ``raw/`` is
 logged at every tick; the 3-D entities every ``decimate_3d_s`` of simulated
@@ -47,7 +47,7 @@ time (ticks k with k mod round(decimate_3d_s / Δt) = 0).
 
 Exactness.  Rerun stores scalars as float64, so ``raw/`` holds every signal
 bit for bit; :func:`read_recording` rebuilds ``t`` as ``k Δt`` from the
-``tick`` timeline (exactly as :func:`~exo_ctrl.simulate.simulate` computes
+``tick`` timeline (exactly as :func:`~exo_ctrl.sim.loop.simulate` computes
 it), not from the nanosecond ``sim_time``.  3-D positions are float32
 (rerun's Vec3D), so they are within about 1e-7 m of Pinocchio's.
 
@@ -99,9 +99,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import ExoCtrlError, InvalidParameter, RecordingError
-from .gait import GaitPlan
-from .model import CUFF_NAMES, JOINT_NAMES, SIDES, BodyModel, load_body, load_patient
+from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
+from ..model.body import CUFF_NAMES, JOINT_NAMES, SIDES, BodyModel, load_body, load_patient
+from ..plan.gait import GaitPlan
 
 try:
     import pyarrow as pa
@@ -115,7 +115,7 @@ except ImportError as _exc:  # pragma: no cover - rerun-sdk is a dependency
     ) from _exc
 
 if TYPE_CHECKING:
-    from .simulate import SimConfig, SimResult
+    from ..sim.loop import SimConfig, SimResult
 
 __all__ = [
     "FORCE_ARROW_M_PER_N",
@@ -751,7 +751,7 @@ def _log_scene(rec: rr.RecordingStream, gait: Any, exo: BodyModel) -> dict[str, 
 
 
 def read_recording(path: str | os.PathLike[str]) -> SimResult:
-    """Rebuild a run's :class:`~exo_ctrl.simulate.SimResult` from its recording.
+    """Rebuild a run's :class:`~exo_ctrl.sim.loop.SimResult` from its recording.
 
     Every signal comes from ``raw/<name>`` bit for bit (float64); ``t`` is
     ``k Δt`` for the ticks k = 0 … N-1 in the file.  Status, error, events,
@@ -759,7 +759,7 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
     ``raw/outcome``; a file without it (the process died before the run
     finished) reads as ``"interrupted"`` with the ticks that reached the disk.
     If a crash cut a chunk between signals, only the ticks present in every
-    signal are kept.  A signal of :data:`~exo_ctrl.simulate.SIGNALS` that the
+    signal are kept.  A signal of :data:`~exo_ctrl.sim.loop.SIGNALS` that the
     file lacks (written before the signal existed) is NaN.  The running
     statistics are rebuilt, so :meth:`SimResult.summary` matches the live run.
 
@@ -768,7 +768,7 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
             :class:`RerunRecorder`, or its data is inconsistent.
 
     """
-    from .simulate import SimResult
+    from ..sim.loop import SimResult
 
     p = Path(path)
     if not p.is_file():
@@ -841,10 +841,10 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
 
 def _run_stats(config: SimConfig, exo_source: str) -> Any:
     """Running statistics as simulate() keeps them, so summary() matches the live run."""
-    from .summary import RunStats
+    from ..sim.summary import RunStats
 
     try:
-        from .estimation import EstimateErrorStats
+        from ..estimation.observer import EstimateErrorStats
 
         return RunStats(EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt))
     except (ExoCtrlError, ImportError, TypeError):  # the model moved, or an older layout
@@ -966,7 +966,7 @@ def _copy_bytes(src: Any, dst: Any, n: int, block: int = 1 << 20) -> None:
 
 
 def _signals() -> dict[str, tuple[tuple[int, ...], str, str]]:
-    from .simulate import SIGNALS
+    from ..sim.loop import SIGNALS
 
     return SIGNALS
 
@@ -1035,7 +1035,7 @@ def _from_dict(cls: type, data: dict[str, Any]) -> Any:
 
 
 def _config_from_dict(path: Path, data: dict[str, Any]) -> SimConfig:
-    from .simulate import SimConfig
+    from ..sim.loop import SimConfig
 
     try:
         return _from_dict(SimConfig, data)
@@ -1084,7 +1084,7 @@ def _params_markdown(result: SimResult, meta: dict[str, Any]) -> str:
     lines += [
         "## Reading back",
         "",
-        "`exo_ctrl.record.read_recording(path)` rebuilds the run (every signal under "
+        "`exo_ctrl.record.recorder.read_recording(path)` rebuilds the run (every signal under "
         "`raw/`, float64, exact).",
         "",
     ]

@@ -80,9 +80,9 @@ from typing import Protocol
 
 import numpy as np
 
-from . import _validate as v
-from .exceptions import InvalidParameter
-from .model import JOINT_NAMES
+from .. import _validate as v
+from ..exceptions import InvalidParameter
+from ..model.body import JOINT_NAMES
 
 __all__ = [
     "PATIENT_TORQUES",

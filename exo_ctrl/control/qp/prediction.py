@@ -52,11 +52,11 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from .._jit import kernel
-from ..cuffs import CuffParams, CuffSet
-from ..exceptions import InvalidParameter
-from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
-from ..motor import MotorParams
+from ..._jit import kernel
+from ...exceptions import InvalidParameter
+from ...model.body import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
+from ...plant.cuffs import CuffParams, CuffSet
+from ...plant.motor import MotorParams
 
 __all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "CuffStateObserver"]
 
@@ -379,7 +379,7 @@ def _gather(mass, nle, q, dq, losses, points, select, mass_e, mass_p, bias_e, bi
     f_p).  The patient's cuff Jacobians, (x, z) rows on their leg's two
     joints, from the cuff points' form p = P (cos θ, sin θ) + p₀ with link
     rotations θ = S q_all (``points`` = P, ``select`` = S of
-    :class:`~exo_ctrl.cuffs.CuffSet`; patient points 4-7, rotations 4-7):
+    :class:`~exo_ctrl.plant.cuffs.CuffSet`; patient points 4-7, rotations 4-7):
     ∂p/∂q = Σ_j (−P_j sin θ_j + P_{8+j} cos θ_j) S_j.
     """
     for i in range(4):
@@ -618,7 +618,7 @@ class CuffStateObserver:
         dt: float = 1e-3,
         disturbance_bandwidth_per_s: float = 30.0,
     ) -> None:
-        from .. import _validate as v
+        from ... import _validate as v
 
         k = v.positive("cuff stiffness", stiffness, "N/m")
         c = v.positive("cuff damping", damping, "N·s/m")

@@ -34,13 +34,13 @@ bound their force — measured with it: spastic patient, 150 N
 bound, real peak 194 N; passive, 80 N, 109 N.  The controller instead
 predicts the elastic cuffs' forces at P horizon points (default 5, 10, 20,
 30, 40 ms) with the drive voltage for τ held
-(:class:`~exo_ctrl.control.cuff_prediction.CuffHorizonModel`: the coupled
+(:class:`~exo_ctrl.control.qp.prediction.CuffHorizonModel`: the coupled
 exo–patient–cuff system linearised at the measured state, back-EMF damping
 included, solved exactly by a matrix exponential), ``f(t_i) = A_i τ + b_i``,
 and bounds every point.  Its initial state — the patient's lag δ behind the
 exoskeleton, δ̇, and the patient's own torque d — comes from the live cuff
 force estimate (``sensors.cuff_force_est``) through
-:class:`~exo_ctrl.control.cuff_prediction.CuffStateObserver` (``C δ̇ = s − K δ``
+:class:`~exo_ctrl.control.qp.prediction.CuffStateObserver` (``C δ̇ = s − K δ``
 is the cuff law itself; d from the patient's equation of motion, filtered at
 30 1/s).  Without an estimate (or ``force_feedback=False``) the cuffs are
 taken as fitted (δ = δ̇ = d = 0).
@@ -67,7 +67,7 @@ Margin, stated in the tests: 10 % at 150 N from the error budget of the
 compliant prediction — the horizon model's own error given the true cuff
 state (≤ 4.6 N ≈ 3 %, test) plus the error of the cuff state reconstructed
 from the force estimate, which lags by the observer's 10 ms (4.5 % RMS of
-the peak, :mod:`exo_ctrl.estimation`), about 7 % at the peak.  At 80 N the
+the peak, :mod:`exo_ctrl.estimation.observer`), about 7 % at the peak.  At 80 N the
 same absolute errors are a larger fraction: 15 % is asserted there.
 
 **Row screening.**  Of the 32 P rows (160 by default) only a few can bind
@@ -109,7 +109,7 @@ last tick that called it.
 **Cost.**  Each tick: CT+PD, the box, the linearisation (one CRBA and one
 nonLinearEffects of a model holding both bodies; the patient's cuff
 Jacobians in closed form from the cuff points of
-:class:`~exo_ctrl.cuffs.CuffSet`), the observer and the horizon prediction
+:class:`~exo_ctrl.plant.cuffs.CuffSet`), the observer and the horizon prediction
 (two compiled kernels: a 9×9 matrix exponential and its powers per leg),
 the octagon rows and the clipped command's check against them.  Only on
 ticks where that check fails: the screening and the QP (8 variables,
@@ -127,16 +127,17 @@ import time
 import numpy as np
 import proxsuite
 
-from .. import _validate as v
-from .._jit import address_table, kernel, matrix_at, tensor_at, vector_at
-from ..cuffs import CuffParams
-from ..exceptions import InvalidModel, InvalidParameter
-from ..kinematics import JointTrajectory
-from ..model import BodyModel
-from ..motor import MotorParams
-from .base import PDGains, SensorReadings
-from .computed_torque import ComputedTorqueController
-from .cuff_prediction import (
+from ... import _validate as v
+from ..._jit import address_table, kernel, matrix_at, tensor_at, vector_at
+from ...exceptions import InvalidModel, InvalidParameter
+from ...model.body import BodyModel
+from ...plan.kinematics import JointTrajectory
+from ...plant.cuffs import CuffParams
+from ...plant.motor import MotorParams
+from ...sensing.readings import SensorReadings
+from ..base import PDGains
+from ..computed_torque import ComputedTorqueController
+from .prediction import (
     DEFAULT_HORIZON_TICKS,
     CuffHorizonModel,
     CuffStateObserver,
@@ -422,7 +423,7 @@ class QPController(ComputedTorqueController):
         exo: the exoskeleton model the controller believes in.
         patient: the patient model the controller believes in (required).
         motor: the drive model (as configured for the exo: see
-            :func:`exo_ctrl.simulate.drive_for`).
+            :func:`exo_ctrl.sim.loop.drive_for`).
         gains: the PD gains.
         cuff_force_limit_N: F_max, bound on each cuff's force magnitude [N].
         torque_weights: diagonal of W, one per joint, > 0 [-].
@@ -432,7 +433,7 @@ class QPController(ComputedTorqueController):
             (``sensors.cuff_force_est``); off, or without an estimate, the
             cuffs are taken as fitted (δ = δ̇ = d = 0).
         cuffs: the cuffs' K and C the controller believes in (default
-            :class:`~exo_ctrl.cuffs.CuffParams`).
+            :class:`~exo_ctrl.plant.cuffs.CuffParams`).
         dt: control period [s].
         horizon_ticks: horizon points of the prediction, in ticks.
         disturbance_bandwidth_per_s: bandwidth of the patient-torque estimate

@@ -26,10 +26,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from . import _validate as v
-from ._progress import Progress
-from ._tick import FusedTick, _log_applied, _log_measured
-from .control import (
+from .. import _validate as v
+from .._progress import Progress
+from ..control import (
     ComputedTorqueController,
     PDController,
     PDGains,
@@ -37,17 +36,18 @@ from .control import (
     SensorReadings,
     feedforward_torque,
 )
-from .cuffs import CuffParams
-from .estimation import DEFAULT_GAIN_PER_S, CuffForceEstimator, EstimateErrorStats
-from .exceptions import InvalidParameter, SimulationDiverged
-from .gait import GaitParams, GaitPlan
-from .kinematics import JointTrajectory, plan_joints
-from .model import BodyModel, load_exo, load_patient
-from .motor import MotorParams
-from .patient import PATIENT_TORQUES, make_patient_torque
-from .plant import Plant
-from .safety import SafetyLimits, SafetySupervisor
-from .sensors import SensorParams, Sensors
+from ..estimation.observer import DEFAULT_GAIN_PER_S, CuffForceEstimator, EstimateErrorStats
+from ..exceptions import InvalidParameter, SimulationDiverged
+from ..model.body import BodyModel, load_exo, load_patient
+from ..plan.gait import GaitParams, GaitPlan
+from ..plan.kinematics import JointTrajectory, plan_joints
+from ..plant.cuffs import CuffParams
+from ..plant.motor import MotorParams
+from ..plant.patient import PATIENT_TORQUES, make_patient_torque
+from ..plant.plant import Plant
+from ..safety.supervisor import SafetyLimits, SafetySupervisor
+from ..sensing.sensors import SensorParams, Sensors
+from ._tick import FusedTick, _log_applied, _log_measured
 from .summary import RunStats
 
 __all__ = [
@@ -102,11 +102,11 @@ class SimConfig:
             (the committed default).
         controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD) or
             ``"qp"`` (CT + PD distributed by a QP under drive limits and
-            cuff-force bounds, :mod:`exo_ctrl.control.qp`).
+            cuff-force bounds, :mod:`exo_ctrl.control.qp.controller`).
         cuff_force_limit_N: the QP's bound on each cuff's PREDICTED force [N].
             Default 120 N: ISO/TS 15066 Annex A's quasi-static limit for the
             lower leg, 130 N, with a margin.  The real elastic cuff force can
-            exceed it (measured in :mod:`exo_ctrl.control.qp`).
+            exceed it (measured in :mod:`exo_ctrl.control.qp.controller`).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
         cuffs: cuff parameters.
@@ -115,14 +115,14 @@ class SimConfig:
         plant_substeps: plant steps per control tick (plant step = Δt / n).
         chunk_ticks: rows per logging chunk.
         sensors: encoder and joint torque sensor models (defaults: real
-            hardware, :mod:`exo_ctrl.sensors`); ``SensorParams.ideal()`` for
+            hardware, :mod:`exo_ctrl.sensing.sensors`); ``SensorParams.ideal()`` for
             perfect readings.
         observer_gain_per_s: bandwidth K_O of the momentum observer [1/s].
         cuff_stiffness_ratio: the estimator's assumption on how the cuffs
-            share load (:mod:`exo_ctrl.estimation`).
+            share load (:mod:`exo_ctrl.estimation.observer`).
         patient_torque: patient joint torques, ``"none"`` (paper §VI) or
-            ``"spastic"`` (:mod:`exo_ctrl.patient`).
-        safety: run the safety supervisor (:mod:`exo_ctrl.safety`).
+            ``"spastic"`` (:mod:`exo_ctrl.plant.patient`).
+        safety: run the safety supervisor (:mod:`exo_ctrl.safety.supervisor`).
         safety_limits: its limits.
         safety_use_estimate: the supervisor watches the estimated cuff
             forces (as a real device must) instead of the simulated ones.
@@ -369,7 +369,7 @@ class Runner:
 
     Args:
         setup: the run's pieces.
-        fused: run PD and CT ticks fused where they can (:mod:`exo_ctrl._tick`,
+        fused: run PD and CT ticks fused where they can (:mod:`exo_ctrl.sim._tick`,
             bit-identical); off: always call the stages one by one.
 
     """
@@ -449,7 +449,7 @@ class Runner:
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into buffer row ``row``.
 
-        PD and CT ticks run fused when they can (:mod:`exo_ctrl._tick`,
+        PD and CT ticks run fused when they can (:mod:`exo_ctrl.sim._tick`,
         bit-identical); otherwise, and for the QP, the stages are composed here.
         """
         if self._fused is not None and self._fused.tick(k, row):
@@ -514,7 +514,7 @@ def simulate(
             statistics and the chunk being written are held, for long
             recorded runs; ``result.t`` is then empty).
         fused: run PD and CT ticks fused where they can
-            (:mod:`exo_ctrl._tick`, bit-identical); off: always composed.
+            (:mod:`exo_ctrl.sim._tick`, bit-identical); off: always composed.
 
     Returns:
         The result; ``status`` says whether it completed.  A divergence or

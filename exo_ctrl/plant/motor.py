@@ -51,9 +51,9 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._jit import kernel
-from ._validate import array, positive
-from .exceptions import InvalidParameter
+from .._jit import kernel
+from .._validate import array, positive
+from ..exceptions import InvalidParameter
 
 __all__ = ["MotorBank", "MotorParams", "motor_step"]
 

@@ -15,15 +15,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from . import _validate as v
-from ._io import atomic_write
-from .control import PDGains
-from .exceptions import ExoCtrlError
-from .gait import GaitParams, GaitPlan
-from .kinematics import plan_joints
-from .model import JOINT_NAMES, load_body, load_exo
-from .patient import PATIENT_TORQUES
-from .simulate import CONTROLLERS, SimConfig, simulate
+from .. import _validate as v
+from .._io import atomic_write
+from ..control import PDGains
+from ..exceptions import ExoCtrlError
+from ..model.body import JOINT_NAMES, load_body, load_exo
+from ..plan.gait import GaitParams, GaitPlan
+from ..plan.kinematics import plan_joints
+from ..plant.patient import PATIENT_TORQUES
+from ..sim.loop import CONTROLLERS, SimConfig, simulate
 
 __all__ = ["GAIT_CSV_HEADER", "main"]
 
@@ -152,7 +152,7 @@ def _cmd_gait(args: argparse.Namespace) -> int:
 
 
 def _cmd_urdf(args: argparse.Namespace) -> int:
-    from .urdfgen import BodyParams, write_urdf
+    from ..model.urdfgen import BodyParams, write_urdf
 
     base = BodyParams.exo_default() if args.kind == "exo" else BodyParams.patient_default()
     changes = {
@@ -218,7 +218,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     config = _sim_config(args)
     observers = []
     if not args.no_record:
-        from .record import RerunRecorder
+        from ..record.recorder import RerunRecorder
 
         observers.append(RerunRecorder(args.out, spawn=args.spawn))
     result = simulate(config, observers=observers, progress=True, keep_history=False)
@@ -268,7 +268,7 @@ def format_summary(summary: dict) -> str:
 
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
-    from .offline import estimate_file, write_estimate_recording
+    from ..estimation.offline import estimate_file, write_estimate_recording
 
     estimate = estimate_file(args.file, exo=args.exo, gain_per_s=args.gain)
     summary = estimate.summary()
@@ -464,7 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--summary", default=None, metavar="PATH.json", help="write the figures as JSON")
     p.set_defaults(func=_cmd_estimate)
 
-    from .sweep import add_sweep_arguments, run_sweep_command
+    from ..sweep.sweep import add_sweep_arguments, run_sweep_command
 
     p = sub.add_parser(
         "sweep",

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import InvalidModel
+from ..exceptions import InvalidModel
 
 __all__ = [
     "CUFF_NAMES",

@@ -64,12 +64,12 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from . import _validate as v
-from ._jit import kernel
-from .control.base import SensorReadings
-from .exceptions import InvalidParameter
-from .model import CUFF_NAMES, JOINT_NAMES, BodyModel
-from .motor import MotorParams
+from .. import _validate as v
+from .._jit import kernel
+from ..exceptions import InvalidParameter
+from ..model.body import CUFF_NAMES, JOINT_NAMES, BodyModel
+from ..plant.motor import MotorParams
+from ..sensing.readings import SensorReadings
 
 __all__ = ["STATES", "SafetyLimits", "SafetySupervisor"]
 

@@ -26,9 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import InvalidParameter, UnreachableFootTarget
+from ..exceptions import InvalidParameter, UnreachableFootTarget
+from ..model.body import JOINT_NAMES, SIDES, BodyModel
 from .gait import GaitPlan
-from .model import JOINT_NAMES, SIDES, BodyModel
 
 __all__ = [
     "JointTrajectory",
@@ -111,7 +111,7 @@ def joint_accelerations(
 class JointTrajectory:
     """Planned joint motion sampled at times ``t``.
 
-    Joint arrays have shape (N, 4), columns in :data:`~exo_ctrl.model.JOINT_NAMES`
+    Joint arrays have shape (N, 4), columns in :data:`~exo_ctrl.model.body.JOINT_NAMES`
     order; ``phi`` has shape (N, 4): left φ1, left φ2, right φ1, right φ2.
 
     Attributes:

@@ -1,0 +1,9 @@
+"""The ``exo-ctrl`` command."""
+
+from .app import (
+    main,
+)
+
+__all__ = [
+    "main",
+]

@@ -1,0 +1,35 @@
+"""The simulated device, the truth: bodies, drives, cuffs, patient torques."""
+
+from .cuffs import (
+    CuffParams,
+    CuffSet,
+)
+from .motor import (
+    MotorBank,
+    MotorParams,
+    motor_step,
+)
+from .patient import (
+    PATIENT_TORQUES,
+    PatientTorque,
+    SpasticParams,
+    SpasticPatient,
+    make_patient_torque,
+)
+from .plant import (
+    Plant,
+)
+
+__all__ = [
+    "PATIENT_TORQUES",
+    "CuffParams",
+    "CuffSet",
+    "MotorBank",
+    "MotorParams",
+    "PatientTorque",
+    "Plant",
+    "SpasticParams",
+    "SpasticPatient",
+    "make_patient_torque",
+    "motor_step",
+]
