@@ -22,7 +22,7 @@ from exo_ctrl.model.urdfgen import (
     write_urdf,
 )
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 G = 9.81
 JOINTS = ["left_hip", "left_knee", "right_hip", "right_knee"]
 
