@@ -145,3 +145,7 @@ class SweepError(ExoCtrlError, RuntimeError):
 
 class MissingDependency(ExoCtrlError, ImportError):
     """An optional dependency is not installed; the message says what to install."""
+
+
+class KernelStatusError(ExoCtrlError, RuntimeError):
+    """A compiled kernel returned a status its caller cannot answer (a programming error)."""

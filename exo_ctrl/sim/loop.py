@@ -27,6 +27,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .. import _validate as v
+from .._jit import kernel
 from .._progress import Progress
 from ..control import (
     ComputedTorqueController,
@@ -47,7 +48,6 @@ from ..plant.patient import PATIENT_TORQUES, make_patient_torque
 from ..plant.plant import Plant
 from ..safety.supervisor import SafetyLimits, SafetySupervisor
 from ..sensing.sensors import SensorParams, Sensors
-from ._tick import FusedTick, _log_applied, _log_measured
 from .summary import RunStats
 
 __all__ = [
@@ -217,7 +217,7 @@ class SimResult:
         wall_time_s: wall-clock time of the loop after its first
             :data:`UNTIMED_TICKS` ticks [s] (they also load the compiled
             kernels, or compile them on the first run after an install: see
-            :mod:`exo_ctrl._jit`; a PD or CT run's fused kernels on its third).
+            :mod:`exo_ctrl._jit`).
         timed_ticks: ticks the wall clock covers (all done but the untimed).
         belt_speed_mps: belt speed v_f [m/s].
         exo_source: the exoskeleton URDF used; patient_source likewise.
@@ -331,9 +331,8 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
 
 
 _WIDTH = 83
-#: Ticks at the start of a run left out of its wall time: the composed start
-#: (the estimator's first two updates) and the first fused tick, which load
-#: (or, after an install, compile) the compiled kernels.
+#: Ticks at the start of a run left out of its wall time: they load (or,
+#: after an install, compile) the compiled kernels.
 UNTIMED_TICKS = 3
 #: Limits that never trip: the supervisor then only serves the e-stop.
 _NO_LIMITS = SafetyLimits(
@@ -369,12 +368,10 @@ class Runner:
 
     Args:
         setup: the run's pieces.
-        fused: run PD and CT ticks fused where they can (:mod:`exo_ctrl.sim._tick`,
-            bit-identical); off: always call the stages one by one.
 
     """
 
-    def __init__(self, setup: Setup, fused: bool = True) -> None:
+    def __init__(self, setup: Setup) -> None:
         self.setup = setup
         config = setup.config
         plant = setup.plant
@@ -444,16 +441,12 @@ class Runner:
                 use_estimate=config.safety_use_estimate,
             )
         start_on_plan(setup)
-        self._fused = FusedTick.of(self) if fused else None
 
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into buffer row ``row``.
 
-        PD and CT ticks run fused when they can (:mod:`exo_ctrl.sim._tick`,
-        bit-identical); otherwise, and for the QP, the stages are composed here.
+        The stages are called through their public methods.
         """
-        if self._fused is not None and self._fused.tick(k, row):
-            return
         plant = self.setup.plant
         wide = self.wide
         sensors = self.sensor_model.read(k, self._q_e, self._v_e, plant.sensor_torque)
@@ -502,7 +495,6 @@ def simulate(
     observers: Sequence[SimObserver] = (),
     progress: bool = False,
     keep_history: bool = True,
-    fused: bool = True,
 ) -> SimResult:
     """Run the closed loop.
 
@@ -513,8 +505,6 @@ def simulate(
         keep_history: keep every signal in the result (off: only the
             statistics and the chunk being written are held, for long
             recorded runs; ``result.t`` is then empty).
-        fused: run PD and CT ticks fused where they can
-            (:mod:`exo_ctrl.sim._tick`, bit-identical); off: always composed.
 
     Returns:
         The result; ``status`` says whether it completed.  A divergence or
@@ -524,7 +514,7 @@ def simulate(
 
     """
     setup = build(config)
-    runner = Runner(setup, fused=fused)
+    runner = Runner(setup)
     n = config.n_ticks
     hist_n = n if keep_history else 0
     history = {name: np.zeros((hist_n, *shape)) for name, (shape, _, _) in SIGNALS.items()}
@@ -615,3 +605,24 @@ def simulate(
     if error is not None:
         raise error
     return result
+
+
+@kernel
+def _log_measured(
+    wide: np.ndarray, row: int, state: np.ndarray, readings: np.ndarray, estimates: np.ndarray
+) -> None:
+    """Columns 0-15 (q, v of both bodies) and 53-80 (readings, estimates) of a log row."""
+    for i in range(16):
+        wide[row, i] = state[i]
+        wide[row, 65 + i] = estimates[i]
+    for i in range(12):
+        wide[row, 53 + i] = readings[i]
+
+
+@kernel
+def _log_applied(wide: np.ndarray, row: int, u_cmd: np.ndarray, outputs: np.ndarray) -> None:
+    """Columns 16-19 (commanded voltage) and 20-43 (the plant's outputs) of a log row."""
+    for i in range(4):
+        wide[row, 16 + i] = u_cmd[i]
+    for i in range(24):
+        wide[row, 20 + i] = outputs[i]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import re
@@ -11,21 +10,18 @@ import numpy as np
 import pytest
 
 from exo_ctrl.control import PDGains
-from exo_ctrl.exceptions import InvalidParameter, SimulationDiverged
+from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model.body import CUFF_NAMES, JOINT_NAMES, BodyModel
 from exo_ctrl.model.urdfgen import BodyParams, write_urdf
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import plan_joints
 from exo_ctrl.plant.motor import MotorParams
-from exo_ctrl.safety.supervisor import SafetyLimits
 from exo_ctrl.sensing.sensors import SensorParams
 from exo_ctrl.sim.loop import (
     SIGNALS,
     UNTIMED_TICKS,
-    Runner,
     SimConfig,
     SimResult,
-    build,
     simulate,
 )
 
@@ -80,50 +76,6 @@ def test_two_runs_are_bit_identical(controller: str, pd_run, ct_run) -> None:
     assert {k: v for k, v in s1.items() if k not in timing} == {
         k: v for k, v in s2.items() if k not in timing
     }
-
-
-FUSED_CASES = {
-    "pd": {},
-    "ct": {},
-    "ct, no supervisor": {"safety": False},
-    "pd, supervisor on the estimate": {"safety_use_estimate": True},
-    "ct, e-stop at 0.5 s": {"estop_at_s": 0.5},
-    "ct, speed limit tripped": {"safety_limits": SafetyLimits(speed_limit_rad_s=2.0)},
-    "qp": {},
-    # The bound binds: proxsuite solves, in Python, on some ticks of the fused path.
-    "qp, 60 N bound, no supervisor": {"cuff_force_limit_N": 60.0, "safety": False},
-    "qp, e-stop at 0.5 s": {"estop_at_s": 0.5},
-}
-
-
-@pytest.mark.parametrize("case", list(FUSED_CASES))
-def test_fused_ticks_equal_the_composed_ones(case: str, pd_run, ct_run) -> None:
-    """exo_ctrl.sim._tick runs the same kernels in three compiled calls: bit-identical runs.
-
-    The supervisor cases leave the fused path mid-run (its stop is composed);
-    a QP tick that calls proxsuite goes on in Python from its solve.
-    """
-    kwargs = FUSED_CASES[case]
-    config = SimConfig(controller=case[:2], **kwargs)
-    fused = {"pd": pd_run, "ct": ct_run}.get(case) or simulate(config)
-    # proxsuite's solves round differently (≈ 1e-11) with where its inputs sit
-    # in memory, and the two paths allocate differently; the loop carries that
-    # to ≈ 3e-8 by the run's end: equal to 1e-5 there.
-    assert_same_run(fused, simulate(config, fused=False), 1e-5 if "bound" in case else 0.0)
-    runner = Runner(build(config))
-    n = config.n_ticks
-    with contextlib.suppress(SimulationDiverged):
-        for k in range(n):
-            runner.tick(k, k % runner.chunk)
-    stopped = [e for e in fused.events if e["kind"] in ("estop", "violation")]
-    print(f"\n{case}: {runner._fused.ticks} of {n} ticks fused, events {len(fused.events)}")
-    assert bool(stopped) == ("e-stop" in case or "tripped" in case)
-    if stopped:
-        assert 100 <= runner._fused.ticks < n - 100  # both paths ran
-    else:  # the estimator starts composed; QP ticks that solve finish in Python
-        solved = getattr(runner.setup.controller, "solver_ticks", 0)
-        assert solved > 0 if "bound" in case else solved == 0
-        assert runner._fused.ticks + solved == n - 2
 
 
 def test_chunking_changes_nothing(ct_run) -> None:

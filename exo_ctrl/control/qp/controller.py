@@ -128,7 +128,7 @@ import numpy as np
 import proxsuite
 
 from ... import _validate as v
-from ..._jit import address_table, kernel, matrix_at, tensor_at, vector_at
+from ..._addresses import address_table, kernel, matrix_at, tensor_at, vector_at
 from ...exceptions import InvalidModel, InvalidParameter
 from ...model.body import BodyModel
 from ...plan.kinematics import JointTrajectory

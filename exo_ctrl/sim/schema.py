@@ -1,0 +1,97 @@
+"""The one declared log schema: every signal a run logs, once.
+
+Each tick writes one row of a structured array whose fields are the
+:data:`SIGNALS` below (:func:`log_dtype`); the summary, the recorder,
+:func:`~exo_ctrl.record.read_recording` and ``exo-ctrl estimate`` all take
+their signals from this table.  Adding a signal is one entry here plus the
+code that computes it (and writes it into the row: the tick writes by name,
+:func:`exo_ctrl.sim.tick.write_row`).
+
+Row k holds the state at t_k and what acted over [t_k, t_k+1): command,
+applied voltage, mean current, drive torque, cuff force (at mid-step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["SIGNALS", "Signal", "log_dtype", "signal", "signal_shapes"]
+
+
+@dataclass(frozen=True)
+class Signal:
+    """One logged signal.
+
+    Attributes:
+        name: field name in the log (and entity name in a recording).
+        shape: shape of one row's value (``()`` for a scalar).
+        unit: SI unit ("" for a count or a code).
+        description: what it is.
+        labels: what the first axis indexes (``"joint"``, ``"cuff"`` or ""),
+            the last axis of a (4, 2) signal being (x, z).
+
+    """
+
+    name: str
+    shape: tuple[int, ...]
+    unit: str
+    description: str
+    labels: str = ""
+
+
+#: Every logged signal, in log order.
+SIGNALS: list[Signal] = [
+    Signal("q_des", (4,), "rad", "planned joint angles", "joint"),
+    Signal("dq_des", (4,), "rad/s", "planned joint speeds", "joint"),
+    Signal("q", (4,), "rad", "exoskeleton joint angles", "joint"),
+    Signal("dq", (4,), "rad/s", "exoskeleton joint speeds", "joint"),
+    Signal("q_patient", (4,), "rad", "patient joint angles", "joint"),
+    Signal("dq_patient", (4,), "rad/s", "patient joint speeds", "joint"),
+    Signal("voltage_cmd", (4,), "V", "controller's drive voltage command", "joint"),
+    Signal("voltage", (4,), "V", "drive voltage applied (after supply saturation)", "joint"),
+    Signal("current", (4,), "A", "mean drive current over the tick", "joint"),
+    Signal("drive_torque", (4,), "N·m", "drive torque at the joint", "joint"),
+    Signal("patient_torque", (4,), "N·m", "patient joint torque", "joint"),
+    Signal("cuff_force", (4, 2), "N", "cuff force on the exoskeleton (x, z)", "cuff"),
+    Signal(
+        "safety_state",
+        (),
+        "",
+        "safety supervisor: 0 normal, 1 stopping, 2 holding, 3 power cut",
+    ),
+    Signal("q_meas", (4,), "rad", "encoder reading", "joint"),
+    Signal("dq_meas", (4,), "rad/s", "joint speed reading (filtered encoder difference)", "joint"),
+    Signal("tau_sensor", (4,), "N·m", "joint torque sensor reading", "joint"),
+    Signal(
+        "tau_ext_est", (4,), "N·m", "external joint torque estimate (momentum observer)", "joint"
+    ),
+    Signal("cuff_normal_est", (4,), "N", "estimated cuff force normal to the link", "cuff"),
+    Signal("cuff_force_est", (4, 2), "N", "estimated cuff force on the exoskeleton (x, z)", "cuff"),
+    Signal("qp_active", (), "", "QP controller: active constraints"),
+    Signal("qp_failures", (), "", "QP controller: fallbacks so far"),
+]
+
+
+def signal(name: str) -> Signal:
+    """The signal called ``name``.
+
+    Raises:
+        KeyError: no such signal.
+
+    """
+    for s in SIGNALS:
+        if s.name == name:
+            return s
+    raise KeyError(name)
+
+
+def signal_shapes() -> dict[str, tuple[int, ...]]:
+    """Name → shape of one row, for every signal, in log order."""
+    return {s.name: s.shape for s in SIGNALS}
+
+
+def log_dtype() -> np.dtype:
+    """The structured dtype of one log row: a float64 field per signal, in log order."""
+    return np.dtype([(s.name, np.float64, s.shape) for s in SIGNALS])

@@ -1,0 +1,62 @@
+"""Runs equal the golden runs of the main before the redesign (tests/data/make_golden.py).
+
+PD and CT runs must equal them to 1e-12 and QP runs to 1e-8 on every signal
+(relative to the signal's largest magnitude, at least 1): the redesign moved
+the arithmetic, it did not change it.  The QP's tolerance is proxsuite's:
+its rounding depends on where its inputs sit in memory (≈ 1e-11 at first,
+growing over a solve-heavy run).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from exo_ctrl.sim.loop import SimConfig, simulate
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "golden_runs.npz"
+
+SCENARIOS = {
+    "pd": ({"controller": "pd"}, 1e-12),
+    "ct": ({"controller": "ct"}, 1e-12),
+    "qp": ({"controller": "qp"}, 1e-8),
+    "qp_spastic": (
+        {
+            "controller": "qp",
+            "patient_torque": "spastic",
+            "cuff_force_limit_N": 150.0,
+            "safety": False,
+        },
+        1e-8,
+    ),
+    "ct_spastic": ({"controller": "ct", "patient_torque": "spastic", "safety": False}, 1e-12),
+    "pd_estop": ({"controller": "pd", "estop_at_s": 1.0}, 1e-12),
+    "ct_estop": ({"controller": "ct", "estop_at_s": 1.0}, 1e-12),
+}
+
+
+@pytest.fixture(scope="module")
+def golden() -> dict[str, np.ndarray]:
+    with np.load(DATA) as data:
+        return {key: data[key] for key in data.files}
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_run_equals_the_golden_run(name: str, golden: dict[str, np.ndarray]) -> None:
+    overrides, tol = SCENARIOS[name]
+    result = simulate(SimConfig(**overrides))
+    assert result.status == "completed"
+    names = sorted(key.split("/", 1)[1] for key in golden if key.startswith(name + "/"))
+    assert names, name
+    worst = {}
+    for signal in names:
+        expected = golden[f"{name}/{signal}"]
+        actual = np.asarray(result.signals[signal])
+        assert actual.shape == expected.shape, signal
+        scale = max(1.0, float(np.max(np.abs(expected))))
+        worst[signal] = float(np.max(np.abs(actual - expected))) / scale
+    bad = {s: e for s, e in worst.items() if not e <= tol}
+    print(name, "worst relative difference", max(worst.values()))
+    assert not bad, f"{name}: signals off by more than {tol:g} (relative): {bad}"
