@@ -34,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as v
-from .._jit import kernel
+from .._jit import kernel, record
 from ..model.body import CUFF_NAMES, SIDES, BodyModel
 
 __all__ = ["CuffParams", "CuffSet"]
@@ -132,33 +132,33 @@ class CuffSet:
         self._sel2 = np.vstack((sel, sel))
         self._k = float(params.stiffness_N_per_m)
         self._c = float(params.damping_N_s_per_m)
-        #: (S | D P | (D P)ᵀ) for :func:`cuff_forces`, (16, 40): S in rows 0-7 of
-        #: columns 0-7, D P in rows 0-7 of columns 8-23, (D P)ᵀ in columns 24-31.
-        self.kernel_matrices = np.zeros((16, 40))
-        self.kernel_matrices[:8, :8] = sel
-        self.kernel_matrices[:8, 8:24] = self._DP
-        self.kernel_matrices[:, 24:32] = self._DPT
-        #: (K, C, K (D p₀ - r₀)) for :func:`cuff_forces`, (10,).
-        self.kernel_params = np.zeros(10)
-        self.kernel_params[:2] = self._k, self._c
+        #: The kernel's matrices, parameters and outputs, one record
+        #: (:data:`CUFF_FIELDS`), the argument of :func:`cuff_forces`.
+        self.record = record(CUFF_FIELDS)
+        c = self.record[0]
+        c["select"] = sel
+        c["dp"] = self._DP
+        c["dpt"] = self._DPT
+        c["k"], c["c"] = self._k, self._c
+        #: S, the rotation selection (8, 8): link rotation j = S[j] @ q_all.
+        self.select = self.record["select"][0]
+        self.kernel_matrices = self.select  # TEMPORARY alias for the QP's cuff model (issue 14)
         # State and work arrays, allocated once.
         #: Strap offsets (exo minus patient, x then z) at which a cuff is slack [m], (8,).
         self.rest_offset = np.zeros(8)
         self._offset = self._Dp0.copy()  # D p0 - r0
-        self._k_offset = self.kernel_params[2:]
+        self._k_offset = self.record["k_offset"][0]
         np.multiply(self._offset, self._k, out=self._k_offset)
         self._theta = np.zeros(16)
         self._cs = np.zeros(16)  # (cos θ, sin θ)
         self._csr = np.zeros(16)  # (-sin θ, cos θ)
-        #: Rows f, τ and work of :func:`cuff_forces`, (5, 16).
-        self.kernel_out = np.zeros((5, 16))
-        self._f = self.kernel_out[0, :8]
+        self._f = self.record["f"][0]
         #: Cuff forces on the exoskeleton of the last :meth:`compute`, (4, 2) view [N].
         self.force = self._f.reshape(2, 4).T
         #: The same forces as (fx of the 4 cuffs, fz of the 4 cuffs), (8,) [N].
         self.force_flat = self._f
         #: Generalised cuff forces on [exo, patient] joints [N·m], (8,).
-        self.joint_torque = self.kernel_out[1, :8]
+        self.joint_torque = self.record["tau"][0]
 
     # ------------------------------------------------------------------ kinematics
 
@@ -205,57 +205,75 @@ class CuffSet:
         -J_patientᵀ f on the patient's).  Returns :attr:`force`, overwritten
         by the next call.
         """
-        cuff_forces(self.kernel_matrices, self.kernel_params, q_all, v_all, self.kernel_out)
+        cuff_forces(self.record, q_all, v_all)
         return self.force
 
 
+#: Fields of the cuffs' record: the rotation selection S (8, 8), D P (8, 16)
+#: and (D P)ᵀ (16, 8) of the module docstring, stiffness ``k`` [N/m] and
+#: damping ``c`` [N·s/m], ``k_offset`` = K (D p₀ - r₀) [N] (8,); outputs:
+#: ``f`` the forces on the exoskeleton (fx of the 4 cuffs, fz of the 4) [N],
+#: ``tau`` the generalised forces on [exo, patient] joints [N·m]; work rows
+#: ``cs`` = (cos θ, sin θ), ``csr`` = (-sin θ, cos θ), ``y`` (16 each).
+CUFF_FIELDS = [
+    ("select", np.float64, (8, 8)),
+    ("dp", np.float64, (8, 16)),
+    ("dpt", np.float64, (16, 8)),
+    ("k", np.float64),
+    ("c", np.float64),
+    ("k_offset", np.float64, (8,)),
+    ("f", np.float64, (8,)),
+    ("tau", np.float64, (8,)),
+    ("cs", np.float64, (16,)),
+    ("csr", np.float64, (16,)),
+    ("y", np.float64, (16,)),
+]
+
+
 @kernel
-def cuff_forces(
-    matrices: np.ndarray, params: np.ndarray, q_all: np.ndarray, v_all: np.ndarray, out: np.ndarray
-) -> None:
+def cuff_forces(cuffs: np.ndarray, q_all: np.ndarray, v_all: np.ndarray) -> None:
     """The module docstring's forces and generalised forces, in place.
 
-    ``matrices`` = (S, D P, (D P)ᵀ) stacked as :attr:`CuffSet.kernel_matrices`
-    (16, 40); ``params`` = (K, C, K (D p₀ - r₀)) as
-    :attr:`CuffSet.kernel_params`; ``out`` rows = (f (8), τ (8), cos θ, sin θ
-    (16), (-sin θ, cos θ) (16), workspace (16)); f and τ use the first 8 columns.
+    ``cuffs``: the record of :data:`CUFF_FIELDS`.
     u = (cos θ, sin θ), w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇); f = D P (-K u - C w) - K (D p₀ - r₀);
     τ = Sᵀ ((Pᵀ Dᵀ f) ⊙ (-sin θ, cos θ)) summed over the two halves.
     """
-    k, c = params[0], params[1]
-    csr, y = out[3], out[4]
+    r = cuffs[0]
+    k, c = r.k, r.c
+    select, dp, dpt, k_offset = r.select, r.dp, r.dpt, r.k_offset
+    f, tau, cs, csr, y = r.f, r.tau, r.cs, r.csr, r.y
     for j in range(8):
         th = 0.0
         dth = 0.0
         for i in range(8):
-            s = matrices[j, i]
+            s = select[j, i]
             if s != 0.0:
                 th += s * q_all[i]
                 dth += s * v_all[i]
         cj, sj = np.cos(th), np.sin(th)
-        out[2, j] = cj
-        out[2, 8 + j] = sj
+        cs[j] = cj
+        cs[8 + j] = sj
         csr[j] = -sj
         csr[8 + j] = cj
         y[j] = -k * cj - c * (-sj * dth)
         y[8 + j] = -k * sj - c * (cj * dth)
-    for r in range(8):
+    for row in range(8):
         acc = 0.0
         for j in range(16):
-            acc += matrices[r, 8 + j] * y[j]
-        out[0, r] = acc - params[2 + r]
+            acc += dp[row, j] * y[j]
+        f[row] = acc - k_offset[row]
     for i in range(8):
-        out[1, i] = 0.0
+        tau[i] = 0.0
     for j in range(16):
         g = 0.0
-        for r in range(8):
-            g += matrices[j, 24 + r] * out[0, r]
+        for row in range(8):
+            g += dpt[j, row] * f[row]
         g *= csr[j]
         jj = j if j < 8 else j - 8
         for i in range(8):
-            s = matrices[jj, i]
+            s = select[jj, i]
             if s != 0.0:
-                out[1, i] += s * g
+                tau[i] += s * g
 
 
 def _xz(p: np.ndarray) -> np.ndarray:

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._jit import kernel
+from .._jit import kernel, record
 from .._validate import array, positive
 from ..exceptions import InvalidParameter
 
@@ -176,18 +176,17 @@ class MotorBank:
         self._kb = p.back_emf_V_per_rad_s
         self._tau_e = p.electrical_time_constant_s
         self._d_coef = self._kt * self._kb / p.resistance_ohm  # i_G k_m (i_G/k_E) / R
-        #: Constants for the kernels (see :func:`motor_step`); the last three
-        #: depend on the step length h and are set by :meth:`_set_dt`.
-        self.kernel_params = np.array(
-            [p.supply_voltage_V, self._kb, 1.0 / p.resistance_ohm, p.current_limit_A, self._kt]
-            + [math.nan] * 3
-        )
-        # Rows: end-of-step current (the state), mean current, applied
-        # voltage, mean torque, saturated (1.0/0.0), back-EMF damping.
-        self.kernel_state = np.zeros((6, n))
-        self._current, self._mean, self._u, self._torque, self._sat, self._damping = (
-            self.kernel_state
-        )
+        #: The drives' parameters and state, one record (:data:`motor_fields`),
+        #: the argument of :func:`motor_step`.  The constants ``eps``, ``phi``
+        #: and ``d_unsat`` depend on the step length h and are set by :meth:`_set_dt`.
+        self.record = record(motor_fields(n))
+        m = self.record[0]
+        m["u_max"], m["kb"], m["inv_r"] = p.supply_voltage_V, self._kb, 1.0 / p.resistance_ohm
+        m["i_max"], m["kt"] = p.current_limit_A, self._kt
+        m["eps"] = m["phi"] = m["d_unsat"] = math.nan
+        r = self.record
+        self._current, self._mean, self._u = r["current"][0], r["mean"][0], r["u"][0]
+        self._torque, self._sat, self._damping = r["torque"][0], r["saturated"][0], r["damping"][0]
         self._dt = math.nan
         self._ro_current = _read_only(self._current)
         self._ro_mean = _read_only(self._mean)
@@ -240,11 +239,10 @@ class MotorBank:
         dt = positive("dt_s", dt_s, "s")
         x = dt / self._tau_e
         em1 = math.expm1(-x)  # e^{-x} - 1, accurate for small x
-        self.kernel_params[5:] = (
-            em1 + 1.0,  # e^{-x}
-            -em1 / x,  # φ
-            self._d_coef * (x + em1) / x,  # D unsaturated; (x + em1)/x = 1 − φ
-        )
+        m = self.record[0]
+        m["eps"] = em1 + 1.0  # e^{-x}
+        m["phi"] = -em1 / x  # φ
+        m["d_unsat"] = self._d_coef * (x + em1) / x  # D unsaturated; (x + em1)/x = 1 − φ
         self._dt = dt
 
     def step(self, voltage_cmd_V: ArrayLike, omega_rad_s: ArrayLike, dt_s: float) -> NDArray:
@@ -274,7 +272,7 @@ class MotorBank:
         self.set_step(dt_s)
         voltage_cmd_V = array("voltage_cmd_V", voltage_cmd_V, self._shape)
         omega_rad_s = array("omega_rad_s", omega_rad_s, self._shape)
-        motor_step(self.kernel_params, self.kernel_state, voltage_cmd_V, omega_rad_s)
+        motor_step(self.record, voltage_cmd_V, omega_rad_s)
         return self._ro_torque
 
     def damping_Nm_s_per_rad(self, dt_s: float) -> NDArray[np.float64]:
@@ -302,7 +300,7 @@ class MotorBank:
 
         """
         self.set_step(dt_s)
-        np.multiply(self._sat == 0.0, self.kernel_params[7], out=self._damping)
+        np.multiply(self._sat == 0.0, self.record[0]["d_unsat"], out=self._damping)
         return self._ro_damping
 
     def reset(self, current_A: ArrayLike = 0.0) -> None:
@@ -381,28 +379,49 @@ class MotorBank:
         return out
 
 
+def motor_fields(n: int) -> list[tuple]:
+    """Fields of a bank of ``n`` drives' record.
+
+    Parameters: ``u_max`` U_max [V], ``kb`` i_G/k_E [V·s/rad], ``inv_r`` 1/R
+    [1/Ω], ``i_max`` I_max [A], ``kt`` i_G k_m [N·m/A], and of the step
+    length h: ``eps`` e^{-h/τ_e}, ``phi`` φ, ``d_unsat`` the unsaturated
+    back-EMF damping D [N·m·s/rad].  State per drive: ``current`` I(h) [A]
+    at the end of the last step, ``mean`` Ī [A], ``u`` the applied voltage
+    [V], ``torque`` i_G k_m Ī [N·m], ``saturated`` (1.0/0.0), ``damping``
+    D of the step's mean torque [N·m·s/rad] (zero where Ī is at the limit).
+    """
+    scalars = ("u_max", "kb", "inv_r", "i_max", "kt", "eps", "phi", "d_unsat")
+    rows = ("current", "mean", "u", "torque", "saturated", "damping")
+    return [(name, np.float64) for name in scalars] + [(name, np.float64, (n,)) for name in rows]
+
+
 @kernel
-def motor_step(
-    params: NDArray, state: NDArray, voltage_cmd_V: NDArray, omega_rad_s: NDArray
-) -> None:
+def motor_step(motors: NDArray, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
     """One exact step of every drive, in place (the module docstring's maths).
 
-    ``params`` = (U_max, i_G/k_E, 1/R, I_max, i_G k_m, e^{-h/τ_e}, φ, D),
-    :attr:`MotorBank.kernel_params`; ``state`` rows = (I(h), Ī, U, τ,
-    saturated, D_step), :attr:`MotorBank.kernel_state`.  D_step is the
-    back-EMF damping of this step's mean torque, zero where Ī is at the limit.
+    ``motors``: the bank's record (:func:`motor_fields`), ``motors[0]``.
     """
-    u_max, kb, inv_r, i_max, kt, eps, phi, d_unsat = params[:8]
-    for j in range(state.shape[1]):
+    m = motors[0]
+    u_max, kb, inv_r, i_max, kt = m.u_max, m.kb, m.inv_r, m.i_max, m.kt
+    eps, phi, d_unsat = m.eps, m.phi, m.d_unsat
+    current, mean_out, u_out, torque, saturated, damping = (
+        m.current,
+        m.mean,
+        m.u,
+        m.torque,
+        m.saturated,
+        m.damping,
+    )
+    for j in range(current.shape[0]):
         u = min(max(voltage_cmd_V[j], -u_max), u_max)
         i_inf = (u - kb * omega_rad_s[j]) * inv_r
-        d0 = state[0, j] - i_inf
+        d0 = current[j] - i_inf
         mean = d0 * phi + i_inf
         sat = abs(mean) > i_max
-        state[0, j] = min(max(d0 * eps + i_inf, -i_max), i_max)
+        current[j] = min(max(d0 * eps + i_inf, -i_max), i_max)
         mean = min(max(mean, -i_max), i_max)
-        state[1, j] = mean
-        state[2, j] = u
-        state[3, j] = mean * kt
-        state[4, j] = 1.0 if sat else 0.0
-        state[5, j] = 0.0 if sat else d_unsat
+        mean_out[j] = mean
+        u_out[j] = u
+        torque[j] = mean * kt
+        saturated[j] = 1.0 if sat else 0.0
+        damping[j] = 0.0 if sat else d_unsat

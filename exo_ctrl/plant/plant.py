@@ -48,11 +48,11 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as _v
-from .._jit import kernel
-from ..exceptions import InvalidModel, SimulationDiverged
+from .._jit import Status, check, kernel, record
+from ..exceptions import InvalidModel
 from ..model.body import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .cuffs import CuffParams, CuffSet, cuff_forces
-from .motor import MotorBank, MotorParams, motor_step
+from .motor import MotorBank, MotorParams, motor_fields, motor_step
 
 __all__ = ["Plant"]
 
@@ -120,27 +120,29 @@ class Plant:
         self.patient_offset_xz = (hip_e[0] - hip_p[0], hip_e[1] - hip_p[1])
         self.cuff_params = cuffs or CuffParams()
         self.cuffs = CuffSet(exo, patient, self.cuff_params, self.patient_offset_xz)
-        # State and work arrays (allocated once), as rows of two buffers the
-        # step kernels fill in place.
-        self._s8 = np.zeros((7, 8))
-        self.q, self.v, self._acc, self._q_mid, self._v_mid, self._tau, self._arm = self._s8
-        self._s4 = np.zeros((6, 4))
-        (
-            self.drive_torque,
-            #: Joint torque sensor reading at each drive output (gearbox to link) [N·m].
-            self.sensor_torque,
-            self.patient_torque,
-            self._damping_m,  # h D_m of the drives [kg·m²]
-            self._arm_base,
-            self._arm_const,
-        ) = self._s4
+        # State, parameters and outputs in one record (PLANT_FIELDS), filled
+        # in place by the step kernels; the public arrays are views of it.
+        self.record = record(PLANT_FIELDS)
+        r = self.record
+        self._p = r[0]
+        self.q, self.v, self._acc = r["q"][0], r["v"][0], r["acc"][0]
+        self._q_mid, self._v_mid, self._tau, self._arm = (
+            r["q_mid"][0], r["v_mid"][0], r["tau"][0], r["armature"][0]
+        )  # fmt: skip
+        #: Drive torque applied at each joint over the last step [N·m].
+        self.drive_torque = r["drive_torque"][0]
+        #: Joint torque sensor reading at each drive output (gearbox to link) [N·m].
+        self.sensor_torque = r["sensor_torque"][0]
+        #: Patient joint torque over the last step [N·m].
+        self.patient_torque = r["patient_torque"][0]
+        self._arm_base, self._arm_const = r["arm_base"][0], r["arm_const"][0]
+        self._changed = r["armature_changed"]
         self._arm_base[:] = rotor
-        #: q and v stacked, (16,) view of the state [rad, rad/s].
-        self.state = self._s8[:2].reshape(16)
-        #: The last step's applied drive voltage [V], mean drive current [A],
-        #: drive torque and patient torque [N·m] (4 each) and cuff forces on
-        #: the exoskeleton (fx of the 4 cuffs, fz of the 4 cuffs) [N]: (24,).
-        self.outputs = np.zeros(24)
+        r["b"][0] = self._b
+        r["friction"][0] = self._fr
+        self._p["h"] = self.dt
+        self._p["has_friction"] = self._has_friction
+        self._p["has_motors"] = self.motors is not None
         # The combined model's armature: exo = rotor inertia + h b (implicit
         # joint damping, constant) + h D_m (implicit back-EMF damping, per
         # step); patient = h b.
@@ -148,21 +150,13 @@ class Plant:
         self._arm[:4] = self._arm_const
         self._arm[4:] = self.dt * self._b[4:]
         self._model.armature = self._arm
-        self._losses = np.stack((self._b, self._fr))
-        self._flags = np.array([self._has_friction, self.motors is not None, False], dtype=np.bool_)
         self.t = 0.0
-        # The arguments of every step's calls, gathered once (views stay valid:
-        # the buffers are never reallocated).
         if self.motors is not None:
             self.motors.set_step(self.dt)
-            motor_args = (self.motors.kernel_params, self.motors.kernel_state)
+            self._motors = self.motors.record
         else:
-            motor_args = (np.zeros(8), np.zeros((6, 4)))
-        c = self.cuffs
-        self._pre_args = (self.dt, self._s8, self._s4, self._losses, self._flags)
-        self._pre_more = (c.kernel_matrices, c.kernel_params, c.kernel_out, *motor_args)
-        self._post_more = (motor_args[1], c.kernel_out, self.outputs)
-        self._aba = (self._model, self._data, self._q_mid, self._v_mid, self._tau)
+            self._motors = record(motor_fields(4))  # unused: has_motors is off
+        self._cuffs = self.cuffs.record
 
     # ------------------------------------------------------------------ state
 
@@ -221,27 +215,25 @@ class Plant:
             InvalidParameter: an input that is not 4 numbers (or one).
 
         """
-        flags = self._flags
-        if patient_torque_Nm is None:
-            flags[2] = False
+        given = patient_torque_Nm is not None
+        if not given:
             patient_torque_Nm = self.patient_torque
-        else:
-            flags[2] = True
         if not (type(voltage_V) is type(patient_torque_Nm) is np.ndarray):
             voltage_V, patient_torque_Nm = _v.arrays(
                 (4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm
             )
-        changed = _drift_and_forces(*self._pre_args, voltage_V, patient_torque_Nm, *self._pre_more)
-        if changed < 0:
-            _v.refuse_shapes((4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
-        if changed:
+        status = _drift_and_forces(
+            self.record, voltage_V, patient_torque_Nm, given, self._cuffs, self._motors
+        )
+        if status:
+            check(status, "Plant.step", voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
+        if self._changed[0]:
             self._model.armature = self._arm
         # Kick: accelerations of both bodies at mid-step, damping implicit
         # through the armature.
-        acc = pin.aba(*self._aba)
+        acc = pin.aba(self._model, self._data, self._q_mid, self._v_mid, self._tau)
         self.t += self.dt
-        speed2 = _kick_and_drift(self.dt, self._s8, self._s4, acc, flags, *self._post_more)
-        if not speed2 < MAX_JOINT_SPEED_RAD_S**2:
+        if _kick_and_drift(self.record, acc, self._motors, self._cuffs):
             self._diverged()
 
     @property
@@ -255,8 +247,13 @@ class Plant:
         ]
         bad = np.where(np.isfinite(self.v), np.abs(self.v), np.inf)
         i = int(np.argmax(bad))
-        raise SimulationDiverged(
-            self.t, names[i] + " [rad/s]", float(self.v[i]), MAX_JOINT_SPEED_RAD_S
+        check(
+            Status.DIVERGED,
+            "Plant.step",
+            self.t,
+            quantity=names[i] + " [rad/s]",
+            value=float(self.v[i]),
+            limit=MAX_JOINT_SPEED_RAD_S,
         )
 
     # ------------------------------------------------------------------ diagnostics
@@ -282,99 +279,129 @@ class Plant:
         return energy
 
 
+#: Fields of the plant's record.  State and work per joint of [exo, patient]
+#: (8 each): ``q``, ``v`` [rad, rad/s], ``acc`` the last step's acceleration
+#: [rad/s²], ``q_mid``, ``v_mid`` the mid-step state, ``tau`` the joint
+#: torques at mid-step [N·m], ``armature`` the combined model's armature
+#: [kg·m²].  Per drive (4 each): ``drive_torque`` applied at the joint,
+#: ``sensor_torque`` read by the joint torque sensor, ``patient_torque``
+#: [N·m]; ``damping_m`` = h D_m of the drives, ``arm_base`` = i_G² J_rotor,
+#: ``arm_const`` = i_G² J_rotor + h b [kg·m²]; the last step's applied
+#: ``voltage`` [V] and mean ``current`` [A]; ``cuff_force`` on the
+#: exoskeleton, (x, z) per cuff [N].  Parameters: ``b`` joint damping
+#: [N·m·s/rad] and ``friction`` dry friction [N·m] (8 each), the step ``h``
+#: [s], ``has_friction``, ``has_motors``; ``armature_changed``: the last
+#: first half-step changed the exo armature (D_m changes only when a drive's
+#: current enters or leaves its limit).
+PLANT_FIELDS = [
+    *((name, np.float64, (8,)) for name in ("q", "v", "acc", "q_mid", "v_mid", "tau", "armature")),
+    *(
+        (name, np.float64, (4,))
+        for name in (
+            "drive_torque",
+            "sensor_torque",
+            "patient_torque",
+            "damping_m",
+            "arm_base",
+            "arm_const",
+            "voltage",
+            "current",
+        )
+    ),
+    ("cuff_force", np.float64, (4, 2)),
+    ("b", np.float64, (8,)),
+    ("friction", np.float64, (8,)),
+    ("h", np.float64),
+    ("has_friction", np.bool_),
+    ("has_motors", np.bool_),
+    ("armature_changed", np.bool_),
+]
+
+
 @kernel
 def _drift_and_forces(
-    h: float,
-    s8: np.ndarray,
-    s4: np.ndarray,
-    losses: np.ndarray,
-    flags: np.ndarray,
+    plant: np.ndarray,
     voltage_V: np.ndarray,
     patient_torque_Nm: np.ndarray,
-    cuff_matrices: np.ndarray,
-    cuff_params: np.ndarray,
-    cuff_out: np.ndarray,
-    motor_params: np.ndarray,
-    motor_state: np.ndarray,
+    given: bool,
+    cuffs: np.ndarray,
+    motors: np.ndarray,
 ) -> int:
     """First half of :meth:`Plant.step`: drift to mid-step and every force there.
 
     q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
-    (+ patient torque) (+ drive torque of the exact motor step); the exo
-    armature i_G² J_rotor + h b + h D_m.  Rows of ``s8``: q, v, a, q½, v½, τ,
-    armature (exo, patient); of ``s4``: drive torque, sensor torque, patient
-    torque, h D_m, i_G² J_rotor, i_G² J_rotor + h b.  ``flags``: friction,
-    motors, patient torque given.  Returns 1 if the exo armature changed (D_m
-    changes only when a drive's current enters or leaves its limit), else 0;
-    -1 (and nothing done) when the voltages or patient torques are not 4.
+    (+ patient torque, if ``given``) (+ drive torque of the exact motor
+    step); the exo armature i_G² J_rotor + h b + h D_m (fields: PLANT_FIELDS).
+    Returns ``Status.WRONG_LENGTH`` (nothing done) when the voltages or
+    patient torques are not 4, else ``Status.OK``.
     """
     if voltage_V.shape[0] != 4 or patient_torque_Nm.shape[0] != 4:
-        return -1
-    q, v, acc, qm, vm, tau = s8[0], s8[1], s8[2], s8[3], s8[4], s8[5]
+        return Status.WRONG_LENGTH
+    p = plant[0]
+    q, v, acc, qm, vm, tau = p.q, p.v, p.acc, p.q_mid, p.v_mid, p.tau
+    h = p.h
     half = 0.5 * h
     for i in range(8):
         qm[i] = q[i] + v[i] * half
         vm[i] = v[i] + acc[i] * half
-    cuff_forces(cuff_matrices, cuff_params, qm, vm, cuff_out)
+    cuff_forces(cuffs, qm, vm)
+    c = cuffs[0]
     for i in range(8):
-        t = cuff_out[1, i] - losses[0, i] * v[i]
-        if flags[0]:
-            t -= np.tanh(v[i] / FRICTION_SMOOTHING_RAD_S) * losses[1, i]
+        t = c.tau[i] - p.b[i] * v[i]
+        if p.has_friction:
+            t -= np.tanh(v[i] / FRICTION_SMOOTHING_RAD_S) * p.friction[i]
         tau[i] = t
-    if flags[2]:
+    if given:
         for j in range(4):
-            s4[2, j] = patient_torque_Nm[j]
-            tau[4 + j] += s4[2, j]
+            p.patient_torque[j] = patient_torque_Nm[j]
+            tau[4 + j] += p.patient_torque[j]
     changed = False
-    if flags[1]:
-        motor_step(motor_params, motor_state, voltage_V, v[:4])
+    if p.has_motors:
+        motor_step(motors, voltage_V, v[:4])
+        m = motors[0]
         for j in range(4):
-            torque = motor_state[3, j]
-            s4[0, j] = torque
+            torque = m.torque[j]
+            p.drive_torque[j] = torque
             tau[j] += torque
-            s4[3, j] = motor_state[5, j] * h
-            arm = s4[3, j] + s4[5, j]
-            changed = changed or arm != s8[6, j]
-            s8[6, j] = arm
-    return 1 if changed else 0
+            p.damping_m[j] = m.damping[j] * h
+            arm = p.damping_m[j] + p.arm_const[j]
+            changed = changed or arm != p.armature[j]
+            p.armature[j] = arm
+    p.armature_changed = changed
+    return Status.OK
 
 
 @kernel
 def _kick_and_drift(
-    h: float,
-    s8: np.ndarray,
-    s4: np.ndarray,
-    acc_all: np.ndarray,
-    flags: np.ndarray,
-    motor_state: np.ndarray,
-    cuff_out: np.ndarray,
-    outputs: np.ndarray,
-) -> float:
-    """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺; returns |v⁺|².
+    plant: np.ndarray, acc_all: np.ndarray, motors: np.ndarray, cuffs: np.ndarray
+) -> bool:
+    """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺.
 
     ``acc_all``: the ABA accelerations of both bodies, (8,) in q_all order.
     With drives, the applied torque τ_m - h D_m a and the sensor torque
-    τ_m - h D_m a - i_G² J_rotor a (rows of ``s4`` as in :func:`_drift_and_forces`).
-    Fills :attr:`Plant.outputs`.
+    τ_m - h D_m a - i_G² J_rotor a; the step's applied voltage, mean current
+    and cuff forces.  Returns True when a joint speed is not below
+    :data:`MAX_JOINT_SPEED_RAD_S` (NaN included): the run diverged.
     """
-    q, v, acc, qm = s8[0], s8[1], s8[2], s8[3]
+    p = plant[0]
+    q, v, acc, qm = p.q, p.v, p.acc, p.q_mid
     for i in range(8):
         acc[i] = acc_all[i]
-    if flags[1]:
+    if p.has_motors:
         for j in range(4):
-            s4[0, j] = s4[0, j] - s4[3, j] * acc[j]
-            s4[1, j] = s4[0, j] - s4[4, j] * acc[j]
+            p.drive_torque[j] = p.drive_torque[j] - p.damping_m[j] * acc[j]
+            p.sensor_torque[j] = p.drive_torque[j] - p.arm_base[j] * acc[j]
+    m = motors[0]
+    f = cuffs[0].f
     for j in range(4):
-        outputs[j] = motor_state[2, j]
-        outputs[4 + j] = motor_state[1, j]
-        outputs[8 + j] = s4[0, j]
-        outputs[12 + j] = s4[2, j]
-    for i in range(8):
-        outputs[16 + i] = cuff_out[0, i]
-    half = 0.5 * h
+        p.voltage[j] = m.u[j]
+        p.current[j] = m.mean[j]
+        p.cuff_force[j, 0] = f[j]
+        p.cuff_force[j, 1] = f[4 + j]
+    half = 0.5 * p.h
     speed2 = 0.0
     for i in range(8):
-        v[i] = v[i] + acc[i] * h
+        v[i] = v[i] + acc[i] * p.h
         q[i] = qm[i] + v[i] * half
         speed2 += v[i] * v[i]
-    return speed2
+    return not speed2 < MAX_JOINT_SPEED_RAD_S**2

@@ -74,7 +74,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _validate as v
-from .._jit import kernel
+from .._jit import Status, check, kernel, record
 from ..exceptions import InvalidParameter
 from .readings import SensorReadings
 
@@ -194,33 +194,36 @@ class Sensors:
         self._bias = p.bias
         self._has_bias = bool(np.any(self._bias != 0))
         self._true_speed = p.velocity == "true"
-        # Noise blocks: [0] encoder, [1] torque sensor, each (NOISE_BLOCK, 4).
-        self._noise = np.zeros((2, NOISE_BLOCK, 4))
-        # The kernel's readings, parameters and state in one buffer (layout:
-        # the _W_* indices); the readings' arrays are views of it.
-        w = self._work = np.zeros(_W_SIZE)
-        w[_W_BIAS : _W_BIAS + 4] = self._bias
-        w[_W_DT] = self.dt
-        w[_W_PERIOD] = self._period
-        w[_W_RES_Q] = p.encoder_resolution_rad
-        w[_W_FILTER_HZ] = p.velocity_filter_hz
-        w[_W_RES_TAU] = p.torque_resolution_Nm
-        w[_W_NOISY_Q] = self._noisy_q
-        w[_W_NOISY_TAU] = self._noisy_tau
-        w[_W_HAS_BIAS] = self._has_bias
-        w[_W_TRUE_SPEED] = self._true_speed
-        out = w[_W_Q : _W_Q + 12].reshape(3, 4)
-        self.readings = SensorReadings(q=out[0], dq=out[1], tau=out[2])
-        #: The readings' (q, dq, tau) as one contiguous (12,) view, for logging.
-        self.readings_flat = w[_W_Q : _W_Q + 12]
+        # Parameters, state, readings and noise blocks in one record
+        # (SENSOR_FIELDS); the readings' arrays are views of it.
+        self.record = record(SENSOR_FIELDS)
+        r = self.record
+        s = r[0]
+        #: Noise blocks: [0] encoder, [1] torque sensor, each (NOISE_BLOCK, 4).
+        self._noise = r["noise"][0]
+        r["bias"][0] = self._bias
+        s["dt"] = self.dt
+        s["period"] = self._period
+        s["res_q"] = p.encoder_resolution_rad
+        s["filter_hz"] = p.velocity_filter_hz
+        s["res_tau"] = p.torque_resolution_Nm
+        s["noisy_q"] = self._noisy_q
+        s["noisy_tau"] = self._noisy_tau
+        s["has_bias"] = self._has_bias
+        s["true_speed"] = self._true_speed
+        self._depleted = r["depleted"]
+        self._row = r["row"]
+        self._samples = r["samples"]
+        self.readings = SensorReadings(q=r["q"][0], dq=r["dq"][0], tau=r["tau"][0])
         self.reset()
 
     def reset(self) -> None:
         """Restart: reseed the noise and forget the held sample and speed filter."""
         self._rng = np.random.default_rng(self.params.seed)
-        self._work[_W_STARTED] = 0.0
-        self._work[_W_NEXT_T] = -math.inf
-        self._work[_W_SAMPLES] = 0.0
+        s = self.record[0]
+        s["started"] = False
+        s["next_t"] = -math.inf
+        s["samples"] = 0
         self.draw()
 
     def read(
@@ -242,23 +245,22 @@ class Sensors:
             q_true, dq_true, tau_true = v.arrays(
                 (4,), q_true=q_true, dq_true=dq_true, tau_true=tau_true
             )
-        taken = _read_kernel(k, q_true, dq_true, tau_true, self._noise, self._work)
-        if taken < 0:
-            v.refuse_shapes((4,), q_true=q_true, dq_true=dq_true, tau_true=tau_true)
-        if taken == 2:
+        status = _read_kernel(k, q_true, dq_true, tau_true, self.record)
+        if status:
+            check(status, "Sensors.read", q_true=q_true, dq_true=dq_true, tau_true=tau_true)
+        if self._depleted[0]:
             self.draw()
         return self.readings
 
     @property
     def samples(self) -> int:
         """Number of samples taken since construction or :meth:`reset`."""
-        return int(self._work[_W_SAMPLES])
+        return int(self._samples[0])
 
     def draw(self) -> None:
         """Draw a block of noise (encoder first, then torque: the stream's order).
 
-        A read calls it when the kernel used the last block up (for the
-        callers of the kernel itself, :mod:`exo_ctrl.sim._tick`).
+        A read calls it when the kernel used the last block up.
         """
         p = self.params
         if self._noisy_q:
@@ -267,19 +269,40 @@ class Sensors:
         if self._noisy_tau:
             self._rng.standard_normal(out=self._noise[1])
             np.multiply(self._noise[1], p.torque_noise_std_Nm, out=self._noise[1])
-        self._work[_W_ROW] = 0.0
+        self._row[0] = 0
+        self._depleted[0] = False
 
 
-# Layout of the read kernel's buffer: the readings q, dq, tau and the bias β
-# (4 each); parameters Δt, T_s (0: every tick), Δq, f_v, Δτ and the flags
-# noisy q, noisy τ, biased, true speed (0/1); state: started (0/1), time of
-# the last sample [s], time of the next sample [s], row of the noise block
-# for the next sample, samples taken.
-_W_Q, _W_DQ, _W_TAU, _W_BIAS = 0, 4, 8, 12
-_W_DT, _W_PERIOD, _W_RES_Q, _W_FILTER_HZ, _W_RES_TAU = 16, 17, 18, 19, 20
-_W_NOISY_Q, _W_NOISY_TAU, _W_HAS_BIAS, _W_TRUE_SPEED = 21, 22, 23, 24
-_W_STARTED, _W_LAST_T, _W_NEXT_T, _W_ROW, _W_SAMPLES = 25, 26, 27, 28, 29
-_W_SIZE = 30
+#: Fields of the sensors' record.  Readings: ``q`` [rad], ``dq`` [rad/s],
+#: ``tau`` [N·m] (4 each); ``bias`` β [N·m] (4); parameters ``dt`` Δt [s],
+#: ``period`` T_s [s] (0: every tick), ``res_q`` Δq [rad], ``filter_hz`` f_v
+#: [Hz], ``res_tau`` Δτ [N·m] and the flags ``noisy_q``, ``noisy_tau``,
+#: ``has_bias``, ``true_speed``; state: ``started``, ``last_t`` the time of
+#: the last sample [s], ``next_t`` that of the next [s], ``row`` of the noise
+#: block for the next sample, ``samples`` taken, ``depleted`` (the last read
+#: used the block up: draw the next); ``noise``, the blocks (encoder, torque).
+SENSOR_FIELDS = [
+    ("q", np.float64, (4,)),
+    ("dq", np.float64, (4,)),
+    ("tau", np.float64, (4,)),
+    ("bias", np.float64, (4,)),
+    ("dt", np.float64),
+    ("period", np.float64),
+    ("res_q", np.float64),
+    ("filter_hz", np.float64),
+    ("res_tau", np.float64),
+    ("last_t", np.float64),
+    ("next_t", np.float64),
+    ("row", np.int64),
+    ("samples", np.int64),
+    ("noisy_q", np.bool_),
+    ("noisy_tau", np.bool_),
+    ("has_bias", np.bool_),
+    ("true_speed", np.bool_),
+    ("started", np.bool_),
+    ("depleted", np.bool_),
+    ("noise", np.float64, (2, NOISE_BLOCK, 4)),
+]
 
 
 @kernel
@@ -291,56 +314,60 @@ def _quantise(x: float, step: float) -> float:
 
 
 @kernel
-def _read_kernel(k, q_true, dq_true, tau_true, noise, w):
-    """One read at tick k: hold, or take a sample into w's readings (module docstring).
+def _read_kernel(k, q_true, dq_true, tau_true, sensors):
+    """One read at tick k: hold, or take a sample into the readings (module docstring).
 
-    Returns 0 when the last sample is held, 1 when a sample was taken, 2 when
-    it used the last row of the noise block (the caller draws the next block),
-    -1 (and nothing done) when an input is not of length 4.
+    ``sensors``: the record of :data:`SENSOR_FIELDS`.  Returns
+    ``Status.WRONG_LENGTH`` (nothing done) when an input is not of length 4,
+    else ``Status.OK``; ``depleted`` is set when the sample used the last row
+    of the noise block (the caller draws the next block).
     """
     if q_true.shape[0] != 4 or dq_true.shape[0] != 4 or tau_true.shape[0] != 4:
-        return -1
-    dt = w[_W_DT]
+        return Status.WRONG_LENGTH
+    s = sensors[0]
+    dt = s.dt
     t = k * dt
-    started = w[_W_STARTED] != 0.0
-    if started and t < w[_W_NEXT_T] - 1e-9 * dt:
-        return 0  # hold the last sample
-    i = int(w[_W_ROW])
-    res_q = w[_W_RES_Q]
-    res_tau = w[_W_RES_TAU]
-    noisy_q = w[_W_NOISY_Q] != 0.0
-    noisy_tau = w[_W_NOISY_TAU] != 0.0
-    has_bias = w[_W_HAS_BIAS] != 0.0
-    differentiate = w[_W_TRUE_SPEED] == 0.0 and started
+    started = s.started
+    if started and t < s.next_t - 1e-9 * dt:
+        return Status.OK  # hold the last sample
+    noise = s.noise
+    i = s.row
+    res_q = s.res_q
+    res_tau = s.res_tau
+    noisy_q = s.noisy_q
+    noisy_tau = s.noisy_tau
+    has_bias = s.has_bias
+    differentiate = not s.true_speed and started
     period = alpha = 0.0
     if differentiate:
-        period = t - w[_W_LAST_T]
-        alpha = 1.0 - math.exp(-2.0 * math.pi * w[_W_FILTER_HZ] * period)
+        period = t - s.last_t
+        alpha = 1.0 - math.exp(-2.0 * math.pi * s.filter_hz * period)
     for j in range(4):
         # Encoder: q_m = Δq round((q + n_q) / Δq).
-        q_prev = w[_W_Q + j]
+        q_prev = s.q[j]
         q = q_true[j] + noise[0, i, j] if noisy_q else q_true[j]
         q = _quantise(q, res_q)
-        w[_W_Q + j] = q
+        s.q[j] = q
         # Speed: v += α ((q_m - q_m,prev) / T_s - v), or the true speed.
         if differentiate:
-            dq = w[_W_DQ + j]
-            w[_W_DQ + j] = dq + ((q - q_prev) / period - dq) * alpha
+            dq = s.dq[j]
+            s.dq[j] = dq + ((q - q_prev) / period - dq) * alpha
         else:
-            w[_W_DQ + j] = dq_true[j]
+            s.dq[j] = dq_true[j]
         # Torque sensor: τ_m = Δτ round((τ + β + n_τ) / Δτ).
         tau = tau_true[j]
         if has_bias:
-            tau = tau + w[_W_BIAS + j]
+            tau = tau + s.bias[j]
         if noisy_tau:
             tau = tau + noise[1, i, j]
-        w[_W_TAU + j] = _quantise(tau, res_tau)
+        s.tau[j] = _quantise(tau, res_tau)
     # Samples on the grid t_0 + n T_s set by the first sample.
-    period_s = w[_W_PERIOD]
-    nxt = w[_W_NEXT_T] + period_s if started else t + period_s
-    w[_W_NEXT_T] = nxt if nxt > t else t + period_s
-    w[_W_LAST_T] = t
-    w[_W_STARTED] = 1.0
-    w[_W_ROW] = i + 1
-    w[_W_SAMPLES] += 1.0
-    return 2 if i + 1 == noise.shape[1] else 1
+    period_s = s.period
+    nxt = s.next_t + period_s if started else t + period_s
+    s.next_t = nxt if nxt > t else t + period_s
+    s.last_t = t
+    s.started = True
+    s.row = i + 1
+    s.samples += 1
+    s.depleted = i + 1 == noise.shape[1]
+    return Status.OK

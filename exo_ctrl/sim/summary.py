@@ -11,8 +11,8 @@ from .._jit import kernel, preload
 from ..model.body import CUFF_NAMES, JOINT_NAMES
 
 if TYPE_CHECKING:
-    from ..estimation.observer import EstimateErrorStats
-    from .loop import SimResult
+    from ..estimation import EstimateErrorStats
+    from .result import SimResult
 
 __all__ = ["RunStats"]
 

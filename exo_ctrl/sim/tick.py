@@ -1,0 +1,224 @@
+"""The control tick: sensors → estimator → controller → supervisor → plant → log.
+
+One control tick k at t_k = k Δt: the sensors read the plant, the estimator
+updates the cuff-force estimate, the controller turns the plan's row k and
+the readings into drive voltages, the safety supervisor passes or replaces
+them, and the plant advances by Δt (in ``plant_substeps`` equal steps) with
+the voltages held.  Each stage is called through its public per-tick
+method, a compiled kernel or a Pinocchio call with little Python around it;
+the rare branches (the supervisor stopping, a QP tick that calls proxsuite)
+are ordinary branches inside those methods.
+
+The tick writes row ``row`` of a structured log array whose fields are the
+declared signals (:mod:`exo_ctrl.sim.schema`), by name, from the stages'
+records, in two compiled calls: :func:`write_measured` (the state at t_k and
+what the device measured and estimated) before the command, and
+:func:`write_applied` (the command and what acted over [t_k, t_k+1)) after
+the plant step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import kernel, record
+from ..estimation import CuffForceEstimator
+from ..plant import make_patient_torque
+from ..safety import SafetyLimits, SafetySupervisor
+from ..sensing import Sensors
+from .schema import log_dtype
+from .setup import Setup, start_on_plan
+
+__all__ = ["UNTIMED_TICKS", "Runner", "write_applied", "write_measured"]
+
+#: Ticks at the start of a run left out of its wall time: they load (or,
+#: after an install, compile) the compiled kernels.
+UNTIMED_TICKS = 3
+
+#: Limits that never trip: the supervisor then only serves the e-stop.
+_NO_LIMITS = SafetyLimits(
+    cuff_force_N=(1e12,) * 4,
+    position_lower_rad=(-1e12,) * 4,
+    position_upper_rad=(1e12,) * 4,
+    speed_limit_rad_s=(1e12,) * 4,
+    current_limit_A=1e12,
+)
+
+#: The record of an absent supervisor: state 0 (normal) throughout.
+_NO_SUPERVISOR = [("state", np.float64)]
+
+
+class Runner:
+    """Runs the ticks of a :class:`~exo_ctrl.sim.setup.Setup` into a chunk of log rows.
+
+    :meth:`tick` is the whole per-tick work of a run (sensors, estimator,
+    controller, safety supervisor, patient torque, plant steps, logging);
+    ``tools/bench.py`` times exactly it.
+
+    Attributes:
+        log: the chunk, a structured array of :func:`~exo_ctrl.sim.schema.log_dtype`
+            with ``chunk`` rows.
+        buf: signal name → view of its field in :attr:`log`.
+
+    Args:
+        setup: the run's pieces.
+
+    """
+
+    def __init__(self, setup: Setup) -> None:
+        self.setup = setup
+        config = setup.config
+        plant = setup.plant
+        self.chunk = min(config.chunk_ticks, max(config.n_ticks, 1))
+        self.log = np.zeros(self.chunk, dtype=log_dtype())
+        self.buf = {name: self.log[name] for name in self.log.dtype.names}
+        self.sensor_model = Sensors(config.sensors, config.dt)
+        self.estimator = CuffForceEstimator(
+            setup.exo,
+            config.dt,
+            config.observer_gain_per_s,
+            stiffness_ratio=config.cuff_stiffness_ratio,
+        )
+        self.sensors = self.sensor_model.readings
+        self.sensors.cuff_force_est = self.estimator.force  # filled in place
+        self._substeps = config.plant_substeps
+        self._dt = config.dt
+        self.patient_model = make_patient_torque(config.patient_torque)
+        self._tau_p = np.zeros(4)
+        self._q_p, self._v_p = plant.q[4:], plant.v[4:]
+        self._q_e, self._v_e = plant.q[:4], plant.v[:4]
+        self._mean_current = plant.motors.mean_current_A
+        self.supervisor: SafetySupervisor | None = None
+        if config.safety or config.estop_at_s is not None:
+            limits = config.safety_limits if config.safety else _NO_LIMITS
+            self.supervisor = SafetySupervisor(
+                limits,
+                setup.exo,
+                setup.patient,
+                plant.motor_params,
+                config.dt,
+                estop_at_s=config.estop_at_s,
+                use_estimate=config.safety_use_estimate,
+            )
+        sup = self.supervisor
+        self._sup_force = None
+        if sup is not None:
+            self._sup_force = self.sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
+        self._records = (
+            plant.record,
+            self.sensor_model.record,
+            _record_of_estimator(self.estimator),
+            _record_of_controller(setup.controller),
+            sup.record if sup is not None and hasattr(sup, "record") else record(_NO_SUPERVISOR),
+        )
+        start_on_plan(setup)
+
+    def tick(self, k: int, row: int) -> None:
+        """Run control tick ``k``, logging into row ``row`` of :attr:`log`."""
+        plant = self.setup.plant
+        plant_rec, sensor_rec, est_rec, ctrl_rec, sup_rec = self._records
+        readings = self.sensor_model.read(k, self._q_e, self._v_e, plant.sensor_torque)
+        self.estimator.update(readings)
+        write_measured(self.log, row, plant_rec, sensor_rec, est_rec)
+        u = self.setup.controller.command(k, readings)
+        sup = self.supervisor
+        if sup is not None:
+            u = sup.step(k, k * self._dt, readings, self._sup_force, self._mean_current, u)
+        if self.patient_model is None and self._substeps == 1:
+            plant.step(u)
+        else:
+            for _ in range(self._substeps):
+                tau_p = None
+                if self.patient_model is not None:
+                    tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
+                plant.step(u, tau_p)
+        ctrl = self.setup.controller
+        if not hasattr(ctrl, "record"):  # TEMPORARY until every controller has its record
+            c = ctrl_rec[0]
+            c["u_cmd"] = ctrl._out if hasattr(ctrl, "_out") else ctrl._u
+            c["active_constraints"] = getattr(ctrl, "active_constraints", 0)
+            c["failures"] = getattr(ctrl, "failures", 0)
+        if sup is not None and not hasattr(sup, "record"):  # TEMPORARY
+            sup_rec[0]["state"] = sup.state_code
+        write_applied(self.log, row, ctrl_rec, sup_rec, plant_rec)
+
+    def fill_plan(self, start: int, rows: int) -> None:
+        """Copy the planned rows ``start:start+rows`` into the log."""
+        plan = self.setup.plan
+        index = np.arange(start, start + rows)
+        if plan.period_ticks:
+            index %= plan.period_ticks
+        self.buf["q_des"][:rows] = plan.q[index]
+        self.buf["dq_des"][:rows] = plan.dq[index]
+
+
+@kernel
+def write_measured(log, row, plant, readings, estimate):
+    """The state at t_k and what the device measured and estimated, into log row ``row``.
+
+    ``plant``, ``readings``, ``estimate``: the records of the plant, the
+    sensors and the estimator (fields ``q``, ``v`` (8: exo, patient);
+    ``q``, ``dq``, ``tau``; ``tau_ext``, ``cuff_normal``, ``cuff_force``).
+    """
+    r = log[row]
+    p = plant[0]
+    s = readings[0]
+    e = estimate[0]
+    for j in range(4):
+        r.q[j] = p.q[j]
+        r.q_patient[j] = p.q[4 + j]
+        r.dq[j] = p.v[j]
+        r.dq_patient[j] = p.v[4 + j]
+        r.q_meas[j] = s.q[j]
+        r.dq_meas[j] = s.dq[j]
+        r.tau_sensor[j] = s.tau[j]
+        r.tau_ext_est[j] = e.tau_ext[j]
+        r.cuff_normal_est[j] = e.cuff_normal[j]
+        r.cuff_force_est[j, 0] = e.cuff_force[j, 0]
+        r.cuff_force_est[j, 1] = e.cuff_force[j, 1]
+
+
+@kernel
+def write_applied(log, row, controller, supervisor, plant):
+    """The command and what acted over [t_k, t_k+1), into log row ``row``.
+
+    ``controller``: its record (``u_cmd``, ``active_constraints``,
+    ``failures``); ``supervisor``: its record (``state``); ``plant``: its
+    record (``voltage``, ``current``, ``drive_torque``, ``patient_torque``,
+    ``cuff_force``).
+    """
+    r = log[row]
+    c = controller[0]
+    p = plant[0]
+    r.safety_state = supervisor[0].state
+    r.qp_active = c.active_constraints
+    r.qp_failures = c.failures
+    for j in range(4):
+        r.voltage_cmd[j] = c.u_cmd[j]
+        r.voltage[j] = p.voltage[j]
+        r.current[j] = p.current[j]
+        r.drive_torque[j] = p.drive_torque[j]
+        r.patient_torque[j] = p.patient_torque[j]
+        r.cuff_force[j, 0] = p.cuff_force[j, 0]
+        r.cuff_force[j, 1] = p.cuff_force[j, 1]
+
+
+def _record_of_estimator(est):  # TEMPORARY until the estimator has its record
+    if hasattr(est, "record"):
+        return est.record
+    dtype = np.dtype(
+        [
+            ("tau_ext", np.float64, (4,)),
+            ("cuff_normal", np.float64, (4,)),
+            ("cuff_force", np.float64, (4, 2)),
+        ]
+    )
+    return np.ndarray((1,), dtype=dtype, buffer=est.outputs_flat)
+
+
+def _record_of_controller(ctrl):  # TEMPORARY until every controller has its record
+    if hasattr(ctrl, "record"):
+        return ctrl.record
+    return record(
+        [("u_cmd", np.float64, (4,)), ("active_constraints", np.float64), ("failures", np.float64)]
+    )
