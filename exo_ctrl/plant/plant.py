@@ -49,7 +49,7 @@ import pinocchio as pin
 
 from .. import _validate as _v
 from .._jit import Status, check, kernel, record
-from ..exceptions import InvalidModel
+from ..exceptions import InvalidModel, InvalidParameter
 from ..model.body import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .cuffs import CuffParams, CuffSet, cuff_forces
 from .motor import MotorBank, MotorParams, motor_fields, motor_step
@@ -99,15 +99,13 @@ class Plant:
                     f"the plant needs exactly the joints {JOINT_NAMES} in that order",
                 )
         if not (math.isfinite(dt) and dt > 0):
-            from ..exceptions import InvalidParameter
-
             raise InvalidParameter("dt", dt, "> 0 s")
         self.exo = exo
         self.patient = patient
         self.dt = float(dt)
-        # Both bodies in one model: one ABA call per step.
-        self._model = combined_model(exo, patient)
-        self._data = self._model.createData()
+        #: Both bodies in one Pinocchio model (one ABA call per step), and its data.
+        self.model = combined_model(exo, patient)
+        self.data = self.model.createData()
         self.motor_params = motors
         self.motors = MotorBank(4, motors) if motors is not None else None
         rotor = motors.reflected_inertia_kgm2 if motors is not None else 0.0
@@ -149,7 +147,7 @@ class Plant:
         self._arm_const[:] = self._arm_base + self.dt * self._b[:4]
         self._arm[:4] = self._arm_const
         self._arm[4:] = self.dt * self._b[4:]
-        self._model.armature = self._arm
+        self.model.armature = self._arm
         self.t = 0.0
         if self.motors is not None:
             self.motors.set_step(self.dt)
@@ -228,10 +226,10 @@ class Plant:
         if status:
             check(status, "Plant.step", voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
         if self._changed[0]:
-            self._model.armature = self._arm
+            self.model.armature = self._arm
         # Kick: accelerations of both bodies at mid-step, damping implicit
         # through the armature.
-        acc = pin.aba(self._model, self._data, self._q_mid, self._v_mid, self._tau)
+        acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
         self.t += self.dt
         if _kick_and_drift(self.record, acc, self._motors, self._cuffs):
             self._diverged()

@@ -68,6 +68,9 @@ def simulate(
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)
+    bar.notice_after(
+        1.0, "compiling the kernels (the first run after an install only, about 10-30 s) ..."
+    )
     chunk = runner.chunk
     chunk_start = 0
     row = 0
@@ -103,6 +106,7 @@ def simulate(
             runner.tick(k, row)
             if k == UNTIMED_TICKS - 1:
                 start_wall = time.perf_counter()
+                bar.restart(UNTIMED_TICKS)
             row += 1
             if row == chunk:
                 start, row = chunk_start, 0

@@ -418,8 +418,8 @@ def test_combined_aba_is_the_two_bodies_apart(request, exo, patient, which) -> N
     expected_arm = np.concatenate(
         (params.reflected_inertia_kgm2 + h * exo.damping, h * body.damping)
     )
-    np.testing.assert_allclose(plant._model.armature, expected_arm, rtol=1e-15)
-    model = pin.Model(plant._model)
+    np.testing.assert_allclose(plant.model.armature, expected_arm, rtol=1e-15)
+    model = pin.Model(plant.model)
     data = model.createData()
     me, mp = pin.Model(exo.model), pin.Model(body.model)
     de, dp = me.createData(), mp.createData()
