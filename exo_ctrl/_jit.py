@@ -22,8 +22,10 @@ fields by name, so a layout is declared once, as a dtype, and numba checks
 every field's type and shape.  A call costs about 0.2 µs for one record
 against 0.12 µs per plain array argument.
 
-**Status.**  A kernel that can refuse its input returns a :class:`Status`;
-:func:`check` turns a status into the matching exception, in this one place.
+**Status.**  A kernel that can refuse its input returns a :class:`Status`
+as its integer value (``return Status.OK.value``: returning the enum member
+itself boxes an ``IntEnum`` on every call, about 0.5 µs); :func:`check`
+turns a status into the matching exception, in this one place.
 """
 
 from __future__ import annotations

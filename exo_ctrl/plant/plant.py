@@ -334,7 +334,7 @@ def _drift_and_forces(
     patient torques are not 4, else ``Status.OK``.
     """
     if voltage_V.shape[0] != 4 or patient_torque_Nm.shape[0] != 4:
-        return Status.WRONG_LENGTH
+        return Status.WRONG_LENGTH.value
     p = plant[0]
     q, v, acc, qm, vm, tau = p.q, p.v, p.acc, p.q_mid, p.v_mid, p.tau
     h = p.h
@@ -366,7 +366,7 @@ def _drift_and_forces(
             changed = changed or arm != p.armature[j]
             p.armature[j] = arm
     p.armature_changed = changed
-    return Status.OK
+    return Status.OK.value
 
 
 @kernel

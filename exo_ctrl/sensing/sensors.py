@@ -323,13 +323,13 @@ def _read_kernel(k, q_true, dq_true, tau_true, sensors):
     of the noise block (the caller draws the next block).
     """
     if q_true.shape[0] != 4 or dq_true.shape[0] != 4 or tau_true.shape[0] != 4:
-        return Status.WRONG_LENGTH
+        return Status.WRONG_LENGTH.value
     s = sensors[0]
     dt = s.dt
     t = k * dt
     started = s.started
     if started and t < s.next_t - 1e-9 * dt:
-        return Status.OK  # hold the last sample
+        return Status.OK.value  # hold the last sample
     noise = s.noise
     i = s.row
     res_q = s.res_q
@@ -370,4 +370,4 @@ def _read_kernel(k, q_true, dq_true, tau_true, sensors):
     s.row = i + 1
     s.samples += 1
     s.depleted = i + 1 == noise.shape[1]
-    return Status.OK
+    return Status.OK.value
