@@ -80,13 +80,20 @@ class Status(enum.IntEnum):
     DIVERGED = 3
 
 
-def check(status: int, where: str, t: float = float("nan"), **inputs: object) -> None:
+def check(
+    status: int,
+    where: str,
+    t: float = float("nan"),
+    shapes: dict[str, tuple[int, ...]] | None = None,
+    **inputs: object,
+) -> None:
     """Raise the exception that matches kernel ``status`` (nothing for ``Status.OK``).
 
     Args:
         status: what the kernel returned.
         where: the component and call, for the message.
         t: simulated time [s], for a divergence.
+        shapes: the shape each input must have, by name (default (4,)).
         inputs: the call's inputs by name: for WRONG_LENGTH and NOT_FINITE
             the first one that is wrong is named; for DIVERGED, the
             ``quantity``, ``value`` and ``limit``.
@@ -100,11 +107,12 @@ def check(status: int, where: str, t: float = float("nan"), **inputs: object) ->
     if status == Status.OK:
         return
     if status == Status.WRONG_LENGTH:
+        shapes = shapes or {}
         for name, value in inputs.items():
-            shape = np.shape(value)
-            if len(shape) != 1 or shape[0] != 4:
-                raise InvalidParameter(name, value, "an array of shape (4,)")
-        raise InvalidParameter(where, tuple(inputs), "arrays of shape (4,)")
+            shape = shapes.get(name, (4,))
+            if np.shape(value) != shape:
+                raise InvalidParameter(name, value, f"an array of shape {shape}")
+        raise InvalidParameter(where, tuple(inputs), "arrays of the shapes it needs")
     if status == Status.NOT_FINITE:
         for name, value in inputs.items():
             if not np.all(np.isfinite(np.asarray(value, dtype=float))):

@@ -3,9 +3,11 @@ r"""Safety supervisor: limit monitors and a controlled stop.
 The supervisor sits between the controller and the drives.  Every control
 tick it checks what the device can measure — joint angles, speeds and torques
 from the sensors, cuff forces (measured, or estimated from the joint torques),
-drive currents — and the controller's command against :class:`SafetyLimits`.
-While nothing is wrong it returns the controller's command unchanged (and
-allocates nothing).
+drive currents — and the controller's command against :class:`SafetyLimits`
+(:mod:`exo_ctrl.safety.limits`), in one call of the compiled monitor
+(:mod:`exo_ctrl.safety.monitor`).  While nothing is wrong it returns the
+controller's command unchanged (and allocates no array).  Its state is one
+record, :attr:`SafetySupervisor.record`, whose ``state`` field the log reads.
 
 **Controlled stop.**  On the first violation, on a non-finite reading or at
 the emergency-stop time, it stops the gait:
@@ -58,128 +60,20 @@ stay non-finite the PD acts only on the joints whose readings are finite
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from .. import _validate as v
-from .._jit import kernel
-from ..exceptions import InvalidParameter
-from ..model.body import CUFF_NAMES, JOINT_NAMES, BodyModel
-from ..plant.motor import MotorParams
-from ..sensing.readings import SensorReadings
+from .._jit import Status, check
+from ..model import JOINT_NAMES, BodyModel
+from ..plant import MotorParams
+from ..sensing import SensorReadings
+from .limits import STATES, SafetyLimits, resolve_limits
+from .monitor import channels, monitor, monitor_record
 
-__all__ = ["STATES", "SafetyLimits", "SafetySupervisor"]
-
-#: Supervisor states; the index is :attr:`SafetySupervisor.state_code`.
-STATES = ("normal", "stopping", "holding", "power_cut")
-
-#: ISO/TS 15066:2016 Annex A, Table A.2, maximum permissible quasi-static
-#: contact force for the body regions "thighs and knees" (220 N) and "lower
-#: legs" (130 N), per cuff in CUFF_NAMES order [N].
-ISO_TS_15066_CUFF_FORCE_N = (220.0, 130.0, 220.0, 130.0)
-
-#: Default current monitor threshold as a multiple of the driver's current limit.
-CURRENT_LIMIT_FACTOR = 1.1
-
-
-@dataclass(frozen=True)
-class SafetyLimits:
-    """What the supervisor allows.  Every field has a default with its source.
-
-    Attributes:
-        cuff_force_N: maximum permissible force per cuff (magnitude of the
-            sagittal force), CUFF_NAMES order (thigh, shank, thigh, shank)
-            [N].  Default: ISO/TS 15066:2016 Annex A, Table A.2, quasi-static
-            contact, "thighs and knees" 220 N, "lower legs" 130 N.
-        cuff_force_factor: derating applied to ``cuff_force_N`` [-], in
-            (0, 1].  Default 1.0 (not derated), a choice: the ISO values are
-            pain-onset thresholds for clamping by a small contact surface,
-            whereas a cuff spreads its load over a strap of ~100 cm², so the
-            pressure, the other half of the ISO criterion, stays far below its
-            limit; and the default passive run already needs 107 N on the
-            shank cuffs (CT; 97 N with PD), so the ×0.5 often used for
-            continuous contact (65 N) would stop every default run.  At ×1.0
-            the passive runs keep a 20 % margin and the default spastic
-            patient (≈ 180 N) is stopped.  Lower it for a stricter policy.
-        rom_margin_rad: the joint range allowed is the intersection of the
-            exoskeleton's and the patient's URDF ``<limit lower upper>``,
-            shrunk by this margin at both ends [rad].  Default 0.05 (≈ 3°),
-            a choice: room to stop before the mechanical end stop.
-        position_lower_rad: explicit lower joint limits, JOINT_NAMES order
-            [rad] (None: from the URDFs as above).
-        position_upper_rad: explicit upper joint limits [rad] (None: URDFs).
-        speed_limit_rad_s: joint speed limit [rad/s], a number or 4 (None:
-            the smaller of the exoskeleton's and the patient's URDF
-            ``<limit velocity>``, 6 rad/s with the default URDFs).
-        current_limit_A: drive current monitor threshold [A] (None:
-            ``CURRENT_LIMIT_FACTOR`` = 1.1 × the driver's current limit
-            ``MotorParams.current_limit_A``).  The driver clips the current
-            at its limit, so in simulation this monitor trips only when set
-            below that limit (e.g. a motor's thermal rating); on hardware it
-            catches a failed current loop (the 10 % allows the overshoot of a
-            healthy current loop).
-
-    Non-finite readings are always a violation (no setting).
-
-    Raises:
-        InvalidParameter: a value is not finite, not positive where a limit
-            must be, has the wrong length, or a lower limit is not below the
-            upper one.
-
-    """
-
-    cuff_force_N: tuple[float, ...] | float = ISO_TS_15066_CUFF_FORCE_N
-    cuff_force_factor: float = 1.0
-    rom_margin_rad: float = 0.05
-    position_lower_rad: tuple[float, ...] | None = None
-    position_upper_rad: tuple[float, ...] | None = None
-    speed_limit_rad_s: tuple[float, ...] | float | None = None
-    current_limit_A: float | None = None
-
-    def __post_init__(self) -> None:
-        force = v.per_item("cuff_force_N", self.cuff_force_N, "N", CUFF_NAMES, what="cuff")
-        for cuff, f in zip(CUFF_NAMES, force, strict=True):
-            v.positive(f"cuff_force_N[{cuff}]", f, "N")
-        object.__setattr__(self, "cuff_force_N", force)
-        factor = v.positive("cuff_force_factor", self.cuff_force_factor)
-        if factor > 1.0:
-            raise InvalidParameter("cuff_force_factor", self.cuff_force_factor, "in (0, 1]")
-        v.non_negative("rom_margin_rad", self.rom_margin_rad, "rad")
-        for name in ("position_lower_rad", "position_upper_rad"):
-            value = getattr(self, name)
-            if value is not None:
-                object.__setattr__(self, name, v.per_item(name, value, "rad", JOINT_NAMES))
-        lo, hi = self.position_lower_rad, self.position_upper_rad
-        if lo is not None and hi is not None:
-            for joint, a, b in zip(JOINT_NAMES, lo, hi, strict=True):
-                if not a < b:
-                    raise InvalidParameter(
-                        f"position_upper_rad[{joint}]", b, f"> position_lower_rad ({a:g} rad)"
-                    )
-        if self.speed_limit_rad_s is not None:
-            speed = v.per_item("speed_limit_rad_s", self.speed_limit_rad_s, "rad/s", JOINT_NAMES)
-            for joint, s in zip(JOINT_NAMES, speed, strict=True):
-                v.positive(f"speed_limit_rad_s[{joint}]", s, "rad/s")
-            object.__setattr__(self, "speed_limit_rad_s", speed)
-        if self.current_limit_A is not None:
-            v.positive("current_limit_A", self.current_limit_A, "A")
-
-    @property
-    def cuff_limit_N(self) -> np.ndarray:
-        """Effective cuff force limits ``cuff_force_N × cuff_force_factor`` [N], (4,)."""
-        return np.array(self.cuff_force_N) * self.cuff_force_factor
-
-
-# Channels of the per-tick excess vector (value - limit; > 0 or NaN is a violation).
-# Groups of 4: cuff force, upper angle, lower angle, speed, current, torque
-# sensor, voltage command.
-_N_CHANNELS = 28
-# The monitor kernel's buffer: the excess of the channels, then the last
-# normal tick's posture and command, then the channels' limits.
-_W_Q_LAST, _W_U_LAST, _W_LIMIT = 28, 32, 36
+__all__ = ["SafetySupervisor"]
 
 
 class SafetySupervisor:
@@ -205,6 +99,10 @@ class SafetySupervisor:
     Attributes:
         state: ``"normal"``, ``"stopping"``, ``"holding"`` or ``"power_cut"``.
         state_code: 0, 1, 2, 3 (same order), for logging.
+        record: the supervisor's record, a structured array of one element
+            (:data:`exo_ctrl.safety.monitor.MONITOR_FIELDS`): the monitor's
+            limits and last excesses, and the field ``state`` (float, equal
+            to ``state_code``) for the log.
         events: the event dicts, in time order.
         stop_time_s: time of the stop [s] (None while normal).
         hold_posture_rad: the posture held, (4,) [rad] (NaN while normal).
@@ -245,29 +143,15 @@ class SafetySupervisor:
         self.use_estimate = bool(use_estimate)
         self._motor = motor
         self._bodies = [(pin.Model(b.model), b) for b in (exo, patient) if b is not None]
-        self._resolve_limits(limits, exo, patient, motor)
+        resolved = resolve_limits(limits, exo, patient, motor)
+        self.q_lower, self.q_upper = resolved.q_lower, resolved.q_upper
+        self.speed_limit = resolved.speed_limit
+        self.current_limit = resolved.current_limit
+        self.cuff_limit = resolved.cuff_limit
+        self._channels = channels(resolved, self.use_estimate)
         self._estop = math.inf if self.estop_at_s is None else self.estop_at_s
-        # The monitor kernel's buffer: the excess of every channel over its
-        # limit, the last normal tick's posture and command, and the limit of
-        # every channel as the kernel subtracts it (lower - q = (-q) - (-lower)).
-        self._work = np.zeros(_W_LIMIT + _N_CHANNELS)
-        self._excess = self._work[:_N_CHANNELS]
-        self._q_last = self._work[_W_Q_LAST : _W_Q_LAST + 4]
-        self._u_last = self._work[_W_U_LAST : _W_U_LAST + 4]
-        self._q_last[:] = np.nan
-        big = np.finfo(float).max
-        self._limit = self._work[_W_LIMIT:]
-        self._limit[:] = np.concatenate(
-            (
-                self._cuff_limit_sq,
-                self.q_upper,
-                -self.q_lower,
-                self.speed_limit,
-                self.current_limit,
-                np.full(4, big),
-                np.full(4, big),
-            )
-        )
+        self.record = monitor_record(resolved, self._estop)
+        self._passed = self.record["passed"]  # read once per tick
         self._u_start = np.zeros(4)
         self._u = np.zeros(4)
         self._e = np.zeros(4)
@@ -279,57 +163,6 @@ class SafetySupervisor:
         self.state = "normal"
         self.state_code = 0
         self.events: list[dict[str, Any]] = []
-
-    # ------------------------------------------------------------------ set-up
-
-    def _resolve_limits(
-        self, limits: SafetyLimits, exo: BodyModel, patient: BodyModel | None, motor: MotorParams
-    ) -> None:
-        bodies = [b for b in (exo, patient) if b is not None]
-        lo = np.max([b.position_limits[0] for b in bodies], axis=0) + limits.rom_margin_rad
-        hi = np.min([b.position_limits[1] for b in bodies], axis=0) - limits.rom_margin_rad
-        if limits.position_lower_rad is not None:
-            lo = np.array(limits.position_lower_rad)
-        if limits.position_upper_rad is not None:
-            hi = np.array(limits.position_upper_rad)
-        for joint, a, b in zip(JOINT_NAMES, lo, hi, strict=True):
-            if not a < b:
-                if limits.position_upper_rad is not None:
-                    name, value = "position_upper_rad", limits.position_upper_rad
-                elif limits.position_lower_rad is not None:
-                    name, value = "position_lower_rad", limits.position_lower_rad
-                else:
-                    name, value = "rom_margin_rad", limits.rom_margin_rad
-                raise InvalidParameter(
-                    name,
-                    value,
-                    f"such that {joint} keeps a range (lower {a:g} rad, upper {b:g} rad)",
-                )
-        self.q_lower, self.q_upper = lo, hi
-        if limits.speed_limit_rad_s is None:
-            self.speed_limit = np.min([b.velocity_limit for b in bodies], axis=0)
-        else:
-            self.speed_limit = np.array(limits.speed_limit_rad_s)
-        i_lim = limits.current_limit_A
-        if i_lim is None:
-            i_lim = CURRENT_LIMIT_FACTOR * motor.current_limit_A
-        self.current_limit = np.full(4, float(i_lim))
-        self.cuff_limit = limits.cuff_limit_N
-        self._cuff_limit_sq = self.cuff_limit**2
-        force = "estimated cuff force" if self.use_estimate else "cuff force"
-        self._channels: list[tuple[str, str, np.ndarray]] = []  # (quantity, unit, limits)
-        for group, unit, lim in (
-            (force, "N", self.cuff_limit),
-            ("angle", "rad", self.q_upper),
-            ("angle", "rad", self.q_lower),
-            ("speed", "rad/s", self.speed_limit),
-            ("current", "A", self.current_limit),
-            ("torque sensor", "N·m", np.zeros(4)),
-            ("voltage command", "V", np.zeros(4)),
-        ):
-            names = CUFF_NAMES if group == force else JOINT_NAMES
-            for i, name in enumerate(names):
-                self._channels.append((f"{group} {name}", unit, lim[i : i + 1]))
 
     # ------------------------------------------------------------------ per tick
 
@@ -348,6 +181,9 @@ class SafetySupervisor:
     ) -> np.ndarray:
         """Check the tick's readings; return the voltages to apply [V], (4,).
 
+        One call of the monitor kernel; the rest only when the tick did not
+        pass (the stop).
+
         Args:
             k: control tick index.
             t: time of the tick [s].
@@ -361,9 +197,11 @@ class SafetySupervisor:
             ``u_cmd`` itself while normal; otherwise the supervisor's own
             buffer (the stop command), overwritten by the next call.
 
+        Raises:
+            InvalidParameter: an input of the wrong shape (named).
+
         """
         del k
-        normal = self.normal_at(t)
         q, dq, tau = sensors.q, sensors.dq, sensors.tau
         f, current, u = cuff_force, current_A, u_cmd
         if not (
@@ -373,19 +211,26 @@ class SafetySupervisor:
                 (4,), sensors_q=q, sensors_dq=dq, sensors_tau=tau, current_A=current, u_cmd=u
             )
             f = v.array("cuff_force", f, (4, 2))
-        worst = _monitor_kernel(f, q, dq, tau, current, u, normal, self._work)
-        if worst < 0.0:
-            v.refuse_shapes(
-                (4,), sensors_q=q, sensors_dq=dq, sensors_tau=tau, current_A=current, u_cmd=u
-            )
-            v.refuse_shapes((4, 2), cuff_force=f)
-        if normal and worst <= 0.0:
+        status = monitor(f, q, dq, tau, current, u, t, self.record)
+        if status:
+            self._refuse(status, f, q, dq, tau, current, u)
+        if self._passed[0]:
             return u_cmd
+        worst = float(self.record["worst"][0])
         if self.state_code == 0:
             self._start_stop(t, sensors, u_cmd, worst)
         elif not worst <= 0.0:
             self._log_violations(t)
         return self._stop_command(t, sensors, clean=worst == worst)
+
+    @staticmethod
+    def _refuse(status: int, f: object, *vectors: object) -> None:
+        """Raise for the monitor's ``status``, naming the input at fault."""
+        names = ("sensors_q", "sensors_dq", "sensors_tau", "current_A", "u_cmd")
+        inputs = dict(zip(names, vectors, strict=True))
+        if status == Status.WRONG_LENGTH and all(np.shape(x) == (4,) for x in vectors):
+            v.refuse_shapes((4, 2), cuff_force=f)
+        check(status, "SafetySupervisor.step", **inputs)
 
     # ------------------------------------------------------------------ stop
 
@@ -406,9 +251,9 @@ class SafetySupervisor:
         self.stop_time_s = float(t)
         q = np.asarray(sensors.q, dtype=float)
         finite = np.isfinite(q)
-        self.hold_posture_rad = np.where(finite, q, self._q_last)
+        self.hold_posture_rad = np.where(finite, q, self.record["q_last"][0])
         u = np.asarray(u_cmd, dtype=float)
-        self._u_start[:] = np.where(np.isfinite(u), u, self._u_last)
+        self._u_start[:] = np.where(np.isfinite(u), u, self.record["u_last"][0])
         if not np.all(np.isfinite(self.hold_posture_rad)):
             self._set_state(t, "power_cut", "no finite posture reading to hold")
             return
@@ -493,43 +338,32 @@ class SafetySupervisor:
 
         Rate-limited per quantity (a non-finite angle violates both its bounds).
         """
+        excess = self.record["excess"][0].ravel()
         logged: list[dict[str, Any]] = []
-        for c in np.flatnonzero(~(self._excess <= 0.0)):
-            quantity = self._channels[c][0]
+        for c in np.flatnonzero(~(excess <= 0.0)):
+            quantity = self._channels[c].quantity
             last = self._last_logged.get(quantity, -math.inf)
             if last == t or (self.state_code != 0 and t - last < self.event_interval_s):
                 continue
             self._last_logged[quantity] = t
-            logged.append(self._violation_event(t, int(c)))
+            logged.append(self._violation_event(t, int(c), float(excess[c])))
         return logged
 
-    def _violation_event(self, t: float, c: int) -> dict[str, Any]:
-        quantity, unit, lim = self._channels[c]
-        limit = float(lim[0])
-        excess = float(self._excess[c])
-        group = c // 4
-        if group >= 5 or not math.isfinite(excess):  # 5, 6: finiteness channels
+    def _violation_event(self, t: float, c: int, excess: float) -> dict[str, Any]:
+        channel = self._channels[c]
+        if channel.finite_only(excess):
             return self._event(
                 t,
                 "violation",
-                quantity,
+                channel.quantity,
                 None,
                 None,
-                f"{quantity} is not finite at t = {t:.4f} s",
+                f"{channel.quantity} is not finite at t = {t:.4f} s",
             )
-        if group == 0:  # cuff: excess is |f|² - limit²
-            value = math.sqrt(excess + limit * limit)
-            text = f"{quantity} {value:.4g} {unit} > limit {limit:.4g} {unit}"
-        elif group == 1:
-            value = excess + limit
-            text = f"{quantity} {value:.4g} {unit} > upper limit {limit:.4g} {unit}"
-        elif group == 2:
-            value = limit - excess
-            text = f"{quantity} {value:.4g} {unit} < lower limit {limit:.4g} {unit}"
-        else:
-            value = excess + limit
-            text = f"|{quantity}| {value:.4g} {unit} > limit {limit:.4g} {unit}"
-        return self._event(t, "violation", quantity, value, limit, f"{text} at t = {t:.4f} s")
+        value, text = channel.describe(excess)
+        return self._event(
+            t, "violation", channel.quantity, value, channel.limit, f"{text} at t = {t:.4f} s"
+        )
 
     def _event(
         self,
@@ -555,48 +389,5 @@ class SafetySupervisor:
         old = self.state
         self.state = state
         self.state_code = STATES.index(state)
+        self.record["state"] = self.state_code
         self._event(t, "state", "state", state, None, f"safety state {old} -> {state}: {why}")
-
-
-@kernel
-def _monitor_kernel(cuff_force, q, dq, tau, current_A, u_cmd, normal, w):
-    """Excess of every channel over its limit into w[:28]; the sum of the positive ones.
-
-    Channels (groups of 4): cuff |f|² - limit², q - upper, lower - q, |q̇| -
-    limit, |i| - limit, and the finiteness channels |τ| - DBL_MAX, |U| -
-    DBL_MAX (<= 0, or +inf / NaN for an infinity / a NaN).  The sum is 0 when
-    all is well, > 0 or NaN if not.  When it is 0 and ``normal``, the posture
-    and command are kept in w (the last good tick's).  The limits are read
-    from w (lower angle limits negated).  Returns -1 (and nothing done) when
-    an input is not of length 4 (the cuff forces: not (4, 2)).
-    """
-    if (
-        q.shape[0] != 4
-        or dq.shape[0] != 4
-        or tau.shape[0] != 4
-        or current_A.shape[0] != 4
-        or u_cmd.shape[0] != 4
-        or cuff_force.shape[0] != 4
-        or cuff_force.shape[1] != 2
-    ):
-        return -1.0
-    for i in range(4):
-        fx = cuff_force[i, 0]
-        fz = cuff_force[i, 1]
-        w[i] = fx * fx + fz * fz - w[_W_LIMIT + i]
-        w[4 + i] = q[i] - w[_W_LIMIT + 4 + i]
-        w[8 + i] = -q[i] - w[_W_LIMIT + 8 + i]
-        w[12 + i] = abs(dq[i]) - w[_W_LIMIT + 12 + i]
-        w[16 + i] = abs(current_A[i]) - w[_W_LIMIT + 16 + i]
-        w[20 + i] = abs(tau[i]) - w[_W_LIMIT + 20 + i]
-        w[24 + i] = abs(u_cmd[i]) - w[_W_LIMIT + 24 + i]
-    worst = 0.0
-    for c in range(28):
-        e = w[c]
-        if not e <= 0.0:
-            worst += e  # a NaN stays NaN
-    if normal and worst <= 0.0:
-        for i in range(4):
-            w[_W_Q_LAST + i] = q[i]
-            w[_W_U_LAST + i] = u_cmd[i]
-    return worst

@@ -109,7 +109,7 @@ class Runner:
             self.sensor_model.record,
             _record_of_estimator(self.estimator),
             _record_of_controller(setup.controller),
-            sup.record if sup is not None and hasattr(sup, "record") else record(_NO_SUPERVISOR),
+            sup.record if sup is not None else record(_NO_SUPERVISOR),
         )
         start_on_plan(setup)
 
@@ -138,8 +138,6 @@ class Runner:
             c["u_cmd"] = ctrl._out if hasattr(ctrl, "_out") else ctrl._u
             c["active_constraints"] = getattr(ctrl, "active_constraints", 0)
             c["failures"] = getattr(ctrl, "failures", 0)
-        if sup is not None and not hasattr(sup, "record"):  # TEMPORARY
-            sup_rec[0]["state"] = sup.state_code
         write_applied(self.log, row, ctrl_rec, sup_rec, plant_rec)
 
     def fill_plan(self, start: int, rows: int) -> None:
