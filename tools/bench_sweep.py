@@ -4,7 +4,7 @@
 
 The same grid (``--runs`` step lengths from 0.30 to 0.37 m, the default
 scenario otherwise, ``--duration`` simulated seconds each) runs on a local
-spawn process pool of each size, through :func:`exo_ctrl.sweep.sweep.run_sweep`
+spawn process pool of each size, through :func:`exo_ctrl.sweep.run_sweep`
 (journal, table and all, into a fresh folder each time: no resume).
 
 - warm: the pool is started and every worker has run a short simulation
@@ -38,7 +38,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from exo_ctrl.sweep.sweep import SweepSpec, run_point, run_sweep
+from exo_ctrl.sweep import SweepSpec, run_point, run_sweep
 
 
 def _cpu_timed(fn, *args, **kwargs):

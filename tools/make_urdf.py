@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:  # runnable from a checkout without installing the package
     sys.path.insert(0, str(REPO))
 
-from exo_ctrl.model.urdfgen import DEFAULT_URDF_NAMES, BodyParams, urdf_xml, write_urdf  # noqa: E402
+from exo_ctrl.model import DEFAULT_URDF_NAMES, BodyParams, urdf_xml, write_urdf  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,225 @@
+"""The sweepable parameters: names, units, accepted ranges, and the ``--param`` syntax.
+
+``--param NAME=V1,V2,...`` lists values, ``NAME=LO:HI:N`` gives N evenly
+spaced values from LO to HI inclusive (rounded to 12 significant digits, so
+``0.3:0.5:3`` gives 0.4, not 0.39999999999999997); ``controller`` takes
+controller names.  Duplicates are dropped, the order given is kept.
+
+**Patient.**  The patient parameters change
+:meth:`~exo_ctrl.model.BodyParams.patient_default`; a changed link length
+keeps each cuff at its fraction of the link (0.39/0.52 thigh, 0.45/0.52
+shank).  The ranges accepted are the paper's Table I ranges as read in the
+design notes: link lengths 0.39-0.65 m, thigh mass 7-14 kg, shank and foot
+mass 3-6 kg.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import InvalidParameter
+from ..model import BodyParams
+from ..sim import CONTROLLERS
+
+__all__ = [
+    "PARAMETERS",
+    "ParamInfo",
+    "check_controller",
+    "check_value",
+    "default_patient",
+    "parameter_names",
+    "parse_param",
+    "point_label",
+    "round_12",
+    "unique",
+    "unit_suffix",
+]
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    """A sweepable numeric parameter.
+
+    Attributes:
+        name: name as given to ``--param``.
+        group: ``"gait"``, ``"patient"`` or ``"device"``.
+        attribute: the field it sets (of GaitParams, BodyParams, CuffParams or MotorParams).
+        unit: SI unit ("" for none).
+        lo: lower bound of the accepted values.
+        hi: upper bound.
+        lo_open: lo itself is excluded.
+        hi_open: hi itself is excluded.
+
+    """
+
+    name: str
+    group: str
+    attribute: str
+    unit: str
+    lo: float
+    hi: float
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def interval(self) -> str:
+        """The accepted values in words, e.g. ``in (0, 2] m``."""
+        left = "(" if self.lo_open else "["
+        right = ")" if self.hi_open else "]"
+        unit = f" {self.unit}" if self.unit else ""
+        return f"in {left}{self.lo:g}, {self.hi:g}{right}{unit}"
+
+    def accepts(self, x: float) -> bool:
+        """Whether ``x`` lies in the accepted interval."""
+        above = x > self.lo if self.lo_open else x >= self.lo
+        below = x < self.hi if self.hi_open else x <= self.hi
+        return above and below
+
+
+def _p(name: str, group: str, fld: str, unit: str, lo: float, hi: float, **kw: bool) -> ParamInfo:
+    return ParamInfo(name, group, fld, unit, lo, hi, **kw)
+
+
+#: Numeric sweep parameters.  Gait bounds are wide sanity bounds (the reach
+#: and the other limits are checked per run, and a run that violates them is
+#: recorded as ``failed``); patient bounds are the paper's Table I ranges;
+#: device bounds span plausible hardware (paper: 8 N/mm cuffs).
+PARAMETERS: dict[str, ParamInfo] = {
+    p.name: p
+    for p in (
+        _p("step_length", "gait", "step_length", "m", 0.0, 2.0, lo_open=True),
+        _p("lift_height", "gait", "lift_height", "m", 0.0, 0.5, lo_open=True),
+        _p("hip_height", "gait", "hip_height", "m", 0.0, 2.0, lo_open=True),
+        _p("shape_coeff", "gait", "shape_coeff", "", 0.0, 10.0, lo_open=True),
+        _p("period", "gait", "period", "s", 0.0, 10.0, lo_open=True),
+        _p("duty_factor", "gait", "duty_factor", "", 0.5, 1.0, hi_open=True),
+        _p("patient_thigh_mass", "patient", "thigh_mass", "kg", 7.0, 14.0),
+        _p("patient_shank_mass", "patient", "shank_mass", "kg", 3.0, 6.0),
+        _p("patient_thigh_length", "patient", "thigh_length", "m", 0.39, 0.65),
+        _p("patient_shank_length", "patient", "shank_length", "m", 0.39, 0.65),
+        _p("cuff_stiffness", "device", "stiffness_N_per_m", "N/m", 1e3, 1e5),
+        _p("cuff_damping", "device", "damping_N_s_per_m", "N·s/m", 0.0, 1e3),
+        _p("gear_ratio", "device", "gear_ratio", "", 1.0, 500.0),
+    )
+}
+
+
+def parameter_names() -> tuple[str, ...]:
+    """Every sweepable parameter name: the numeric ones, then ``controller``."""
+    return (*PARAMETERS, "controller")
+
+
+@functools.cache
+def default_patient() -> BodyParams:
+    """The patient the patient parameters change: :meth:`BodyParams.patient_default`."""
+    return BodyParams.patient_default()
+
+
+def unit_suffix(unit: str) -> str:
+    """`` [unit]`` for a message, or "" without a unit."""
+    return f" [{unit}]" if unit else ""
+
+
+def _number(info: ParamInfo, text: str) -> float:
+    """Parse and check one value of a numeric parameter."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not math.isfinite(x):
+        raise InvalidParameter(info.name, text, f"a finite number{unit_suffix(info.unit)}")
+    return check_value(info, x)
+
+
+def check_value(info: ParamInfo, value: Any) -> float:
+    """Check a numeric value (already parsed) against ``info``; returns it as float.
+
+    Raises:
+        InvalidParameter: not a finite real number (bool excluded), or outside
+            the accepted interval.
+
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise InvalidParameter(info.name, value, f"a finite number{unit_suffix(info.unit)}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise InvalidParameter(info.name, value, f"a finite number{unit_suffix(info.unit)}")
+    if not info.accepts(x):
+        raise InvalidParameter(info.name, x, info.interval())
+    return x
+
+
+def check_controller(value: Any) -> str:
+    """Check a controller name against those :class:`~exo_ctrl.sim.SimConfig` accepts."""
+    if value not in CONTROLLERS:
+        raise InvalidParameter("controller", value, f"one of {', '.join(CONTROLLERS)}")
+    return str(value)
+
+
+def round_12(x: float) -> float:
+    """``x`` to 12 significant digits (so 0.3:0.5:3 gives 0.4, not 0.39999999999999997)."""
+    return float(f"{x:.12g}")
+
+
+def unique(values: Sequence[Any]) -> tuple[Any, ...]:
+    """``values`` without duplicates, first occurrences in order."""
+    return tuple(dict.fromkeys(values))
+
+
+def point_label(point: dict[str, Any]) -> str:
+    """A point in words, e.g. ``step_length=0.4 m, controller=ct``."""
+    parts = []
+    for name, value in point.items():
+        if name == "controller":
+            parts.append(f"{name}={value}")
+        else:
+            unit = PARAMETERS[name].unit
+            parts.append(f"{name}={value:.10g}" + (f" {unit}" if unit else ""))
+    return ", ".join(parts)
+
+
+def parse_param(text: str) -> tuple[str, tuple[float | str, ...]]:
+    """Parse one ``--param`` argument.
+
+    Args:
+        text: ``NAME=V1,V2,...`` (a list) or ``NAME=LO:HI:N`` (N evenly spaced
+            values, LO and HI included, LO < HI, N >= 2); ``controller``
+            takes names (``controller=pd,ct``).
+
+    Returns:
+        The name and its values (floats, or controller names), duplicates
+        dropped, in the order given.
+
+    Raises:
+        InvalidParameter: malformed text, an unknown name (the message lists
+            the allowed ones), a value that is not a finite number or lies
+            outside the parameter's range.
+
+    """
+    name, sep, rhs = (part.strip() for part in text.partition("="))
+    if not sep or not name or not rhs:
+        raise InvalidParameter("--param", text, "NAME=V1,V2,... or NAME=LO:HI:N")
+    if name not in parameter_names():
+        raise InvalidParameter("sweep parameter", name, f"one of {', '.join(parameter_names())}")
+    if name == "controller":
+        return name, unique([check_controller(v.strip()) for v in rhs.split(",")])
+    info = PARAMETERS[name]
+    if ":" not in rhs:
+        return name, unique([_number(info, v.strip()) for v in rhs.split(",")])
+    parts = [p.strip() for p in rhs.split(":")]
+    syntax = "V1,V2,... or LO:HI:N with LO < HI and an integer N >= 2"
+    if len(parts) != 3:
+        raise InvalidParameter(name, rhs, syntax)
+    lo, hi = _number(info, parts[0]), _number(info, parts[1])
+    try:
+        n = int(parts[2])
+    except ValueError:
+        raise InvalidParameter(name, rhs, syntax) from None
+    if n < 2 or not lo < hi:
+        raise InvalidParameter(name, rhs, syntax)
+    return name, unique([round_12(x) for x in np.linspace(lo, hi, n)])

@@ -1,0 +1,195 @@
+"""The sweep's table (Parquet and CSV), its text report and its load diagrams.
+
+The table has one row per run in run order: ``run_index``, ``run_id``, the
+swept parameters, then :data:`~exo_ctrl.sweep.outputs.OUTPUT_COLUMNS`; its
+schema metadata holds the spec under the key ``exo_ctrl.sweep``.  pyarrow
+(the table) and matplotlib (the plots) are optional: each is imported when
+needed, with an install hint when missing.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._io import atomic_write
+from ..exceptions import MissingDependency
+from ..model import CUFF_NAMES, JOINT_NAMES
+from .outputs import OUTPUT_COLUMNS, SweepPaths
+from .parameters import PARAMETERS, point_label
+from .spec import SweepSpec, SweepTask
+
+__all__ = [
+    "PLOTS_HINT",
+    "build_table",
+    "pyarrow",
+    "require",
+    "write_plots",
+    "write_report",
+    "write_table",
+]
+
+PLOTS_HINT = 'pip install "exo-ctrl[plots]"'
+
+
+def require(module: str, message: str) -> Any:
+    """Import an optional module, or raise :class:`MissingDependency` with ``message``."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise MissingDependency(message) from None
+
+
+def pyarrow() -> Any:
+    """The pyarrow module (the sweep table needs it)."""
+    return require("pyarrow", "the sweep table needs pyarrow: pip install pyarrow")
+
+
+def build_table(spec: SweepSpec, tasks: list[SweepTask], results: dict[str, dict[str, Any]]) -> Any:
+    """The table (pyarrow.Table) of the runs of ``tasks`` that have a result, in run order."""
+    pa = pyarrow()
+    rows = [(t, results[t.run_id]) for t in tasks if t.run_id in results]
+    types = {"float64": pa.float64(), "int64": pa.int64(), "string": pa.string()}
+    columns: dict[str, Any] = {
+        "run_index": pa.array([t.index for t, _ in rows], pa.int64()),
+        "run_id": pa.array([t.run_id for t, _ in rows], pa.string()),
+    }
+    for name in spec.names:
+        kind = pa.string() if name == "controller" else pa.float64()
+        columns[name] = pa.array([t.point[name] for t, _ in rows], kind)
+    for name, kind in OUTPUT_COLUMNS.items():
+        columns[name] = pa.array([r[name] for _, r in rows], types[kind])
+    meta = {"exo_ctrl.sweep": json.dumps(spec.describe())}
+    return pa.table(columns).replace_schema_metadata(meta)
+
+
+def write_table(table: Any, paths: SweepPaths) -> None:
+    """Write ``table`` as Parquet and CSV, each atomically."""
+    import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
+
+    with atomic_write(paths.table, "wb") as handle:
+        pq.write_table(table, handle)
+    with atomic_write(paths.csv, "wb") as handle:
+        pcsv.write_csv(table, handle)
+
+
+def _columns(table: Any) -> dict[str, np.ndarray]:
+    return {name: np.asarray(table.column(name).to_pylist()) for name in table.column_names}
+
+
+def _worst(cols: dict[str, np.ndarray], key: str, names: Sequence[str], ok: np.ndarray) -> Any:
+    """(row, name, value, ties) of the largest ``key_<name>`` over completed rows."""
+    values = np.column_stack([cols[f"{key}_{n}"].astype(float) for n in names])
+    per_row = np.where(ok, np.nanmax(np.where(np.isnan(values), -np.inf, values), axis=1), -np.inf)
+    row = int(np.argmax(per_row))
+    col = int(np.argmax(values[row]))
+    return row, names[col], float(values[row, col]), int(np.sum(per_row == per_row[row]))
+
+
+def write_report(table: Any, spec: SweepSpec, path: str | os.PathLike[str]) -> Path:
+    """Write the text report: worst cases with their parameters, maxima, failures.
+
+    The worst case of a figure is the completed run with its largest value
+    over the joints (cuffs); ties go to the first in run order.
+    """
+    cols = _columns(table)
+    status = cols["status"].astype(str) if len(table) else np.array([], dtype=str)
+    ok = status == "completed"
+    lines = [
+        f"exo-ctrl sweep: {len(table)} runs, {int(ok.sum())} completed, "
+        f"{int((~ok).sum())} not completed",
+        "swept: "
+        + ", ".join(f"{n} ({len(v)} values)" for n, v in spec.params)
+        + (f"; {spec.samples} random samples, seed {spec.seed}" if spec.samples else "; grid"),
+    ]
+
+    def point(row: int) -> str:
+        return point_label({n: cols[n][row].item() for n in spec.names})
+
+    if ok.any():
+        for title, key, names, unit in (
+            ("peak drive torque", "peak_drive_torque_Nm", JOINT_NAMES, "N·m"),
+            ("peak cuff force", "peak_cuff_force_N", CUFF_NAMES, "N"),
+        ):
+            row, name, value, ties = _worst(cols, key, names, ok)
+            lines.append(
+                f"worst {title}: {value:.6g} {unit} at {name}, run {int(cols['run_index'][row])} "
+                f"({cols['run_id'][row]}): {point(row)}"
+            )
+            if ties > 1:
+                lines.append(f"  ({ties} completed runs reach the same value)")
+        lines.append("maxima over completed runs:")
+        lines.append(f"  {'joint':<12}{'torque [N·m]':>14}{'power [W]':>12}{'current [A]':>13}")
+        for j in JOINT_NAMES:
+            tau, pw, cur = (
+                float(np.nanmax(cols[f"{k}_{j}"][ok].astype(float)))
+                for k in ("peak_drive_torque_Nm", "peak_mechanical_power_W", "peak_motor_current_A")
+            )
+            lines.append(f"  {j:<12}{tau:>14.4g}{pw:>12.4g}{cur:>13.4g}")
+        flagged = int((cols["safety_events"][ok].astype(int) > 0).sum())
+        lines.append(f"completed runs with safety events: {flagged}")
+    else:
+        lines.append("no run completed: no worst case")
+    failed = np.flatnonzero(~ok)
+    lines.append(f"failures ({len(failed)}):")
+    for row in failed:
+        lines.append(
+            f"  run {int(cols['run_index'][row])} ({cols['run_id'][row]}): "
+            f"{cols['status'][row]}: {cols['error'][row]}"
+        )
+    with atomic_write(path) as handle:
+        handle.write("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def write_plots(table: Any, spec: SweepSpec, paths: SweepPaths) -> list[Path]:
+    """Write one load diagram per swept numeric parameter; returns the files.
+
+    Each figure has peak drive torque [N·m] (top) and peak mechanical power
+    [W] (bottom) of the four joints against the parameter, one point per
+    completed run; with several runs per value (other parameters swept too)
+    a line joins the largest value at each, the envelope to size against.
+    """
+    require("matplotlib", f"the load plots need matplotlib: {PLOTS_HINT}")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    cols = _columns(table)
+    ok = cols["status"].astype(str) == "completed" if len(table) else np.zeros(0, bool)
+    written = []
+    for name in spec.names:
+        if name == "controller" or not ok.any():
+            continue
+        x = cols[name][ok].astype(float)
+        fig = Figure(figsize=(8.0, 6.5), layout="constrained")
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(2, 1, sharex=True)
+        for ax, key, ylabel in (
+            (axes[0], "peak_drive_torque_Nm", "peak drive torque [N·m]"),
+            (axes[1], "peak_mechanical_power_W", "peak mechanical power [W]"),
+        ):
+            for joint, marker in zip(JOINT_NAMES, "os^v", strict=True):
+                y = cols[f"{key}_{joint}"][ok].astype(float)
+                dots = ax.plot(x, y, marker, ms=5, mfc="none", label=joint)[0]
+                xs = np.unique(x)
+                if len(xs) < len(x):
+                    env = [np.nanmax(y[x == v]) for v in xs]
+                    ax.plot(xs, env, "-", color=dots.get_color(), alpha=0.6)
+            ax.set_ylabel(ylabel)
+            ax.grid(True, alpha=0.3)
+        axes[0].legend(fontsize="small", ncols=2)
+        unit = PARAMETERS[name].unit
+        axes[1].set_xlabel(name + (f" [{unit}]" if unit else ""))
+        fig.suptitle(f"drive loads against {name} ({int(ok.sum())} completed runs)")
+        target = paths.plot(name)
+        with atomic_write(target, "wb") as handle:
+            fig.savefig(handle, format="png", dpi=100)
+        written.append(target)
+    return written
