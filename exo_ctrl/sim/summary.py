@@ -3,18 +3,30 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from .._jit import kernel, preload
-from ..model.body import CUFF_NAMES, JOINT_NAMES
+from ..estimation import EstimateErrorStats
+from ..model import CUFF_NAMES, JOINT_NAMES
+from .config import SimConfig
 
-if TYPE_CHECKING:
-    from ..estimation import EstimateErrorStats
-    from .result import SimResult
+__all__ = ["RunOutcome", "RunStats"]
 
-__all__ = ["RunStats"]
+
+class RunOutcome(Protocol):
+    """What a summary reads of a run besides its statistics (a :class:`~exo_ctrl.sim.SimResult`)."""
+
+    config: SimConfig
+    status: str
+    error: str
+    belt_speed_mps: float
+    qp_failures: int
+    safety_state: str
+    events: list[dict[str, Any]]
+    wall_time_s: float
+    timed_ticks: int
 
 
 def _keyed(values: np.ndarray, names: tuple[str, ...]) -> dict[str, float]:
@@ -52,7 +64,7 @@ class RunStats:
         names = ("q", "q_des", "drive_torque", "current", "voltage", "dq", "cuff_force")
         return (*(rows[name] for name in names), self._sums, self._peaks)
 
-    def summary(self, result: SimResult) -> dict[str, Any]:
+    def summary(self, result: RunOutcome) -> dict[str, Any]:
         """The JSON summary of a run.
 
         Keys: ``controller``, ``status``, ``error``, ``duration_s``, ``ticks``,
