@@ -16,7 +16,7 @@ from .exceptions import (
     SweepError,
     UnreachableFootTarget,
 )
-from .model.body import (
+from .model import (
     CUFF_NAMES,
     JOINT_NAMES,
     BodyModel,

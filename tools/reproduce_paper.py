@@ -25,10 +25,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from exo_ctrl.model.body import CUFF_NAMES, JOINT_NAMES
+from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import inverse_kinematics
-from exo_ctrl.sim.loop import SimConfig, simulate
+from exo_ctrl.sim import SimConfig, simulate
 
 PAPER_PEAK_TORQUE_NM = 100.0
 PAPER_PEAK_CUFF_FORCE_N = 200.0

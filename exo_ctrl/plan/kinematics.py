@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InvalidParameter, UnreachableFootTarget
-from ..model.body import JOINT_NAMES, SIDES, BodyModel
+from ..model import JOINT_NAMES, SIDES, BodyModel
 from .gait import GaitPlan
 
 __all__ = [

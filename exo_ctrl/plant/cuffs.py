@@ -35,7 +35,7 @@ import pinocchio as pin
 
 from .. import _validate as v
 from .._jit import kernel, record
-from ..model.body import CUFF_NAMES, SIDES, BodyModel
+from ..model import CUFF_NAMES, SIDES, BodyModel
 
 __all__ = ["CuffParams", "CuffSet"]
 

@@ -82,7 +82,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..exceptions import InvalidParameter
-from ..model.body import JOINT_NAMES
+from ..model import JOINT_NAMES
 
 __all__ = [
     "PATIENT_TORQUES",

@@ -50,7 +50,7 @@ import pinocchio as pin
 from .. import _validate as _v
 from .._jit import Status, check, kernel, record
 from ..exceptions import InvalidModel, InvalidParameter
-from ..model.body import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
+from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .cuffs import CuffParams, CuffSet, cuff_forces
 from .motor import MotorBank, MotorParams, motor_fields, motor_step
 

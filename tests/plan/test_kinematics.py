@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter, UnreachableFootTarget
-from exo_ctrl.model.body import SIDES, BodyModel
+from exo_ctrl.model import SIDES, BodyModel
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import (
     forward_kinematics,

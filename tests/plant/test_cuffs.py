@@ -14,7 +14,7 @@ import pinocchio as pin
 import pytest
 
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model.body import BodyModel, default_urdf_path, load_body
+from exo_ctrl.model import BodyModel, default_urdf_path, load_body
 from exo_ctrl.plant.cuffs import CuffParams, CuffSet
 from exo_ctrl.plant.plant import Plant
 

@@ -15,14 +15,14 @@ import pytest
 
 from exo_ctrl.control import SensorReadings
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model.body import JOINT_NAMES
+from exo_ctrl.model import JOINT_NAMES
 from exo_ctrl.plant.patient import (
     PATIENT_TORQUES,
     SpasticParams,
     SpasticPatient,
     make_patient_torque,
 )
-from exo_ctrl.sim.loop import SimConfig, build, start_on_plan
+from exo_ctrl.sim import SimConfig, build, start_on_plan
 
 Q = np.array([0.5, 1.2, 0.4, 1.0])  # a posture inside the gait's range [rad]
 H = 1e-6  # finite-difference step [rad, rad/s]

@@ -36,7 +36,7 @@ import pinocchio as pin
 import pytest
 
 from exo_ctrl.exceptions import InvalidModel, InvalidParameter, SimulationDiverged
-from exo_ctrl.model.body import BodyModel, default_urdf_path, load_body
+from exo_ctrl.model import BodyModel, default_urdf_path, load_body
 from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.plant.motor import MotorParams
 from exo_ctrl.plant.plant import Plant

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_ctrl.sim.loop import SimConfig, simulate
+from exo_ctrl.sim import SimConfig, simulate
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "golden_runs.npz"
 

@@ -11,17 +11,16 @@ import pytest
 
 from exo_ctrl.control import PDGains
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model.body import CUFF_NAMES, JOINT_NAMES, BodyModel
-from exo_ctrl.model.urdfgen import BodyParams, write_urdf
+from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES, BodyModel, BodyParams, write_urdf
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import plan_joints
 from exo_ctrl.plant.motor import MotorParams
 from exo_ctrl.sensing.sensors import SensorParams
-from exo_ctrl.sim.loop import (
-    SIGNALS,
+from exo_ctrl.sim import (
     UNTIMED_TICKS,
     SimConfig,
     SimResult,
+    signal_shapes,
     simulate,
 )
 
@@ -46,8 +45,8 @@ def ct_run() -> SimResult:
 def assert_same_run(a: SimResult, b: SimResult, rtol: float = 0.0) -> None:
     assert a.status == b.status and a.error == b.error
     np.testing.assert_array_equal(a.t, b.t)
-    assert a.signals.keys() == b.signals.keys() == SIGNALS.keys()
-    for name in SIGNALS:
+    assert a.signals.keys() == b.signals.keys() == signal_shapes().keys()
+    for name in signal_shapes():
         if rtol:
             np.testing.assert_allclose(a.signals[name], b.signals[name], rtol=rtol, atol=rtol)
         else:

@@ -10,9 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from exo_ctrl.record import RerunRecorder, read_recording
-from exo_ctrl.sim import schema
+from exo_ctrl.sim import schema, simulate
 from exo_ctrl.sim.config import SimConfig
-from exo_ctrl.sim.loop import simulate
 from exo_ctrl.sim.setup import build
 from exo_ctrl.sim.tick import Runner
 
