@@ -3,12 +3,16 @@
 A controller is built with the plan (joint targets sampled at the control
 rate) and, per tick, gets the tick index and the sensor readings; it returns
 the four drive voltages [V] in JOINT_NAMES order.  It never reads the plant.
+
+Each controller keeps what a tick produced in :attr:`Controller.record`, a
+structured array of one element (:func:`exo_ctrl._jit.record`) whose fields
+start with :data:`COMMAND_FIELDS`; the loop logs them by name.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -16,13 +20,26 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter
 from ..sensing.readings import SensorReadings
 
-__all__ = ["Controller", "PDGains"]
+__all__ = ["COMMAND_FIELDS", "Controller", "PDGains"]
+
+#: The fields every controller's record has (numpy dtype syntax):
+#:
+#: - ``u_cmd`` [V], (4,): the voltages :meth:`Controller.command` returned last;
+#: - ``active_constraints``: the QP's active bounds in the last tick (0 for PD/CT);
+#: - ``failures``: the QP's fallbacks so far (0 for PD/CT).
+COMMAND_FIELDS: list[tuple[Any, ...]] = [
+    ("u_cmd", np.float64, (4,)),
+    ("active_constraints", np.float64),
+    ("failures", np.float64),
+]
 
 
 class Controller(Protocol):
     """Plan and sensors in, drive voltages out."""
 
     name: str
+    #: One element with at least the :data:`COMMAND_FIELDS`.
+    record: np.ndarray
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """Drive voltages [V], (4,), for control tick ``k`` (a buffer the caller may not keep)."""

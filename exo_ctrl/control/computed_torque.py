@@ -15,7 +15,8 @@ voltage through the steady-state motor model, U_ff = R τ_ff / (i_G k_m) +
 i_G q̇* / k_E (the back-EMF at the planned speed is the larger part), and is
 added to the PD voltage.  As U_ff depends on the plan only, it is tabulated
 for every plan row (one gait period for a periodic plan) when the controller
-is built; a tick looks its row up.
+is built; a tick looks its row up, in the PD's kernel
+(:func:`~exo_ctrl.control.pd.pd_law`): one compiled call per tick.
 """
 
 from __future__ import annotations
@@ -23,10 +24,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..model.body import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..plan.kinematics import JointTrajectory
 from ..plant.motor import MotorBank, MotorParams
-from ..sensing.readings import SensorReadings
 from .base import PDGains
 from .pd import PDController
 
@@ -35,6 +35,9 @@ __all__ = ["ComputedTorqueController", "feedforward_torque"]
 
 class ComputedTorqueController(PDController):
     """PD plus model-based feedforward voltage.
+
+    :meth:`command` is the PD's, with the feedforward voltage of the plan
+    row added (the same kernel, given the table of U_ff per plan row).
 
     Args:
         plan: joint targets at the control ticks.
@@ -60,17 +63,12 @@ class ComputedTorqueController(PDController):
         # (one gait period for a periodic plan), looked up per tick.
         self._motor = MotorBank(4, motor)
         self._torque_ff = feedforward_torque(plan, exo, patient, motor)
-        self._u_ff = self._motor.voltage_for(self._torque_ff, plan.dq)
+        self._u_ff = np.ascontiguousarray(self._motor.voltage_for(self._torque_ff, plan.dq))
 
     @property
     def torque_ff(self) -> np.ndarray:
         """Feedforward torque of the last tick [N·m], (4,)."""
         return self._torque_ff[self.last_row]
-
-    def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
-        """PD + feedforward voltages [V] for tick k."""
-        row = self.plan_row(k)
-        return self._pd(row, sensors, self._u_ff[row])
 
 
 class _Feedforward:

@@ -2,15 +2,28 @@
 
 from __future__ import annotations
 
+from typing import Any, NoReturn
+
 import numpy as np
 
 from .. import _validate as v
-from .._jit import kernel
+from .._jit import Status, check, kernel, record
+from ..exceptions import InvalidParameter
 from ..plan.kinematics import JointTrajectory
 from ..sensing.readings import SensorReadings
-from .base import PDGains
+from .base import COMMAND_FIELDS, PDGains
 
-__all__ = ["PDController", "pd_volts"]
+__all__ = ["PD_FIELDS", "PDController", "pd_command", "pd_law"]
+
+#: The PD law's part of a controller's record (after :data:`~exo_ctrl.control.base.COMMAND_FIELDS`):
+#: the gains k_p [V/rad] and k_d [V·s/rad]; the plan's period in rows (0: row k
+#: is tick k); the plan row of the last tick.
+PD_FIELDS: list[tuple[Any, ...]] = [
+    ("kp", np.float64, (4,)),
+    ("kd", np.float64, (4,)),
+    ("period", np.int64),
+    ("row", np.int64),
+]
 
 
 class PDController:
@@ -21,61 +34,118 @@ class PDController:
             k mod ``plan.period_ticks`` for a plan holding one period.
         gains: the PD gains.
 
+    Attributes:
+        record: the controller's state (:data:`~exo_ctrl.control.base.COMMAND_FIELDS`
+            and :data:`PD_FIELDS`); ``u_cmd`` is the last command.
+
     """
 
     name = "pd"
 
     def __init__(self, plan: JointTrajectory, gains: PDGains | None = None) -> None:
         self.plan = plan
-        self._period = plan.period_ticks
+        self._period = plan.period_ticks or 0
         self.gains = gains or PDGains()
-        self._gains = np.array([self.gains.kp, self.gains.kd])
-        self._u = np.zeros(4)
-        self._no_ff = np.zeros(4)
-        self._last_row = np.zeros(1)  # where a compiled tick writes it too
+        self.record = record(self._fields())
+        s = self.record[0]
+        s["kp"] = self.gains.kp
+        s["kd"] = self.gains.kd
+        s["period"] = self._period
+        self._q_des, self._dq_des = plan.q, plan.dq
+        #: The feedforward voltage per plan row [V]: one zero row for the plain PD.
+        self._u_ff = np.zeros((1, 4))
+        self._u = self.record["u_cmd"][0]
+
+    def _fields(self) -> list[tuple[Any, ...]]:
+        """The dtype fields of :attr:`record` (a subclass adds its own)."""
+        return COMMAND_FIELDS + PD_FIELDS
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
-        """PD voltages [V] for tick k."""
-        return self._pd(self.plan_row(k), sensors, self._no_ff)
+        """PD (+ feedforward) voltages [V] for tick k: a view of ``record["u_cmd"]``.
 
-    def plan_row(self, k: int) -> int:
-        """The plan row of tick k, kept as :attr:`last_row`."""
+        Raises:
+            InvalidParameter: readings not of 4 joint values, or a tick beyond
+                the plan.
+
+        """
+        q, dq = sensors.q, sensors.dq
+        if not (type(q) is type(dq) is np.ndarray):
+            q, dq = v.arrays((4,), sensors_q=q, sensors_dq=dq)
+        status = pd_command(self.record, self._q_des, self._dq_des, self._u_ff, k, q, dq)
+        if status:
+            self._refuse(status, k, q, dq)
+        return self._u
+
+    def _refuse(self, status: int, k: int, q: np.ndarray, dq: np.ndarray) -> NoReturn:
+        """Raise for a tick :func:`pd_law` refused (its docstring)."""
+        rows = self._q_des.shape[0]
         row = k % self._period if self._period else k
-        self._last_row[0] = row
-        return row
+        if not 0 <= row < rows:
+            raise InvalidParameter("k", k, f"a control tick on the plan's {rows} rows")
+        check(status, f"{type(self).__name__}.command", sensors_q=q, sensors_dq=dq)
+        raise AssertionError(f"unreachable: status {status!r}")  # pragma: no cover
 
     @property
     def last_row(self) -> int:
         """The plan row of the last tick."""
-        return int(self._last_row[0])
+        return int(self.record["row"][0])
 
-    def _pd(self, row: int, sensors: SensorReadings, u_ff: np.ndarray) -> np.ndarray:
-        """PD voltages plus ``u_ff`` [V] towards plan row ``row``."""
-        plan = self.plan
-        q, dq = sensors.q, sensors.dq
-        if not (type(q) is type(dq) is np.ndarray):
-            q, dq = v.arrays((4,), sensors_q=q, sensors_dq=dq)
-        if pd_volts(self._u, self._gains, plan.q, plan.dq, row, q, dq, u_ff) < 0:
-            v.refuse_shapes((4,), sensors_q=q, sensors_dq=dq)
-        return self._u
+    @property
+    def active_constraints(self) -> int:
+        """Active QP bounds in the last tick (0: no QP)."""
+        return int(self.record["active_constraints"][0])
+
+    @property
+    def failures(self) -> int:
+        """QP fallbacks so far (0: no QP)."""
+        return int(self.record["failures"][0])
 
 
 @kernel
-def pd_volts(
-    out: np.ndarray,
-    gains: np.ndarray,
+def pd_law(
+    kp: np.ndarray,
+    kd: np.ndarray,
+    period: int,
     q_des: np.ndarray,
     dq_des: np.ndarray,
-    row: int,
+    u_ff: np.ndarray,
+    k: int,
     q: np.ndarray,
     dq: np.ndarray,
-    u_ff: np.ndarray,
-) -> int:
-    """Write k_p (q*[row] - q) + k_d (q̇*[row] - q̇) + u_ff [V] to ``out`` (gains: k_p; k_d)."""
+    out: np.ndarray,
+) -> tuple[int, int]:  # pragma: no cover - compiled
+    """Write k_p (q*[r] - q) + k_d (q̇*[r] - q̇) + U_ff[r] [V] to ``out``, r: tick k's plan row.
+
+    r = k mod ``period`` (or k for a period of 0).  ``u_ff``: the
+    feedforward voltage per plan row, or one row for every tick (row r mod
+    its length).  Returns (status, r), the status a
+    :class:`~exo_ctrl._jit.Status` value: WRONG_LENGTH (nothing written)
+    unless q and q̇ have 4 entries and r is a row of the plan.
+    """
     if q.shape[0] != 4 or dq.shape[0] != 4:
-        return -1  # nothing written
+        return Status.WRONG_LENGTH.value, 0
+    row = k % period if period > 0 else k
+    if row < 0 or row >= q_des.shape[0]:
+        return Status.WRONG_LENGTH.value, 0
+    ff = u_ff[row % u_ff.shape[0]]
     for j in range(4):
-        out[j] = (
-            gains[0, j] * (q_des[row, j] - q[j]) + gains[1, j] * (dq_des[row, j] - dq[j])
-        ) + u_ff[j]
-    return 0
+        out[j] = (kp[j] * (q_des[row, j] - q[j]) + kd[j] * (dq_des[row, j] - dq[j])) + ff[j]
+    return Status.OK.value, row
+
+
+@kernel
+def pd_command(
+    state: np.ndarray,
+    q_des: np.ndarray,
+    dq_des: np.ndarray,
+    u_ff: np.ndarray,
+    k: int,
+    q: np.ndarray,
+    dq: np.ndarray,
+) -> int:  # pragma: no cover - compiled
+    """A PD or CT tick: :func:`pd_law` into ``state[0].u_cmd``, its row; returns its status."""
+    s = state[0]
+    status, row = pd_law(s.kp, s.kd, s.period, q_des, dq_des, u_ff, k, q, dq, s.u_cmd)
+    if status == Status.OK.value:
+        s.row = row
+    return status

@@ -1,32 +1,28 @@
-"""Cuff-force estimation from the joint torque sensors, live and offline."""
+"""Cuff-force estimation from the joint torque sensors, live and along logged series.
 
-from .observer import (
-    CSV_DQ_COLUMNS,
-    CSV_REQUIRED_COLUMNS,
-    DEFAULT_GAIN_PER_S,
-    BiasEstimate,
-    CuffForceEstimator,
+Modules, in the order they build on each other:
+
+- :mod:`.cuff_geometry`: cuff lever arms and directions, the components of a
+  cuff force, the map between external joint torques and cuff forces;
+- :mod:`.errors`: errors of an estimate against the simulated truth;
+- :mod:`.observer`: :class:`CuffForceEstimator`, the live momentum observer;
+- :mod:`.series`: the observer along a logged series;
+- :mod:`.bias`: torque-sensor bias, its effect and its measurement;
+- :mod:`.csvlog`: sensor logs as CSV files.
+"""
+
+from ..exceptions import InvalidLog
+from .bias import BiasEstimate, bias_effect_bound, estimate_bias
+from .csvlog import CSV_DQ_COLUMNS, CSV_REQUIRED_COLUMNS, read_csv_log, write_csv_log
+from .cuff_geometry import (
     CuffGeometry,
-    EstimateErrors,
-    EstimateErrorStats,
-    EstimateSeries,
-    InvalidLog,
-    bias_effect_bound,
     cuff_components,
     cuff_forces_from_torque,
     cuff_normal_components,
-    estimate_bias,
-    estimate_series,
-    first_order_filter,
-    normal_component_errors,
-    read_csv_log,
-    write_csv_log,
 )
-from .offline import (
-    OfflineEstimate,
-    estimate_file,
-    write_estimate_recording,
-)
+from .errors import EstimateErrors, EstimateErrorStats, normal_component_errors
+from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
+from .series import EstimateSeries, estimate_series, first_order_filter
 
 __all__ = [
     "CSV_DQ_COLUMNS",
@@ -39,17 +35,14 @@ __all__ = [
     "EstimateErrors",
     "EstimateSeries",
     "InvalidLog",
-    "OfflineEstimate",
     "bias_effect_bound",
     "cuff_components",
     "cuff_forces_from_torque",
     "cuff_normal_components",
     "estimate_bias",
-    "estimate_file",
     "estimate_series",
     "first_order_filter",
     "normal_component_errors",
     "read_csv_log",
     "write_csv_log",
-    "write_estimate_recording",
 ]

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._jit import shared_dtype
+
 __all__ = ["SIGNALS", "Signal", "log_dtype", "signal", "signal_shapes"]
 
 
@@ -93,5 +95,8 @@ def signal_shapes() -> dict[str, tuple[int, ...]]:
 
 
 def log_dtype() -> np.dtype:
-    """The structured dtype of one log row: a float64 field per signal, in log order."""
-    return np.dtype([(s.name, np.float64, s.shape) for s in SIGNALS])
+    """The structured dtype of one log row: a float64 field per signal, in log order.
+
+    The same object for the same signals (:func:`~exo_ctrl._jit.shared_dtype`).
+    """
+    return shared_dtype([(s.name, np.float64, s.shape) for s in SIGNALS])

@@ -107,8 +107,8 @@ class Runner:
         self._records = (
             plant.record,
             self.sensor_model.record,
-            _record_of_estimator(self.estimator),
-            _record_of_controller(setup.controller),
+            self.estimator.record,
+            setup.controller.record,
             sup.record if sup is not None else record(_NO_SUPERVISOR),
         )
         start_on_plan(setup)
@@ -132,12 +132,6 @@ class Runner:
                 if self.patient_model is not None:
                     tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
                 plant.step(u, tau_p)
-        ctrl = self.setup.controller
-        if not hasattr(ctrl, "record"):  # TEMPORARY until every controller has its record
-            c = ctrl_rec[0]
-            c["u_cmd"] = ctrl._out if hasattr(ctrl, "_out") else ctrl._u
-            c["active_constraints"] = getattr(ctrl, "active_constraints", 0)
-            c["failures"] = getattr(ctrl, "failures", 0)
         write_applied(self.log, row, ctrl_rec, sup_rec, plant_rec)
 
     def fill_plan(self, start: int, rows: int) -> None:
@@ -199,24 +193,3 @@ def write_applied(log, row, controller, supervisor, plant):
         r.patient_torque[j] = p.patient_torque[j]
         r.cuff_force[j, 0] = p.cuff_force[j, 0]
         r.cuff_force[j, 1] = p.cuff_force[j, 1]
-
-
-def _record_of_estimator(est):  # TEMPORARY until the estimator has its record
-    if hasattr(est, "record"):
-        return est.record
-    dtype = np.dtype(
-        [
-            ("tau_ext", np.float64, (4,)),
-            ("cuff_normal", np.float64, (4,)),
-            ("cuff_force", np.float64, (4, 2)),
-        ]
-    )
-    return np.ndarray((1,), dtype=dtype, buffer=est.outputs_flat)
-
-
-def _record_of_controller(ctrl):  # TEMPORARY until every controller has its record
-    if hasattr(ctrl, "record"):
-        return ctrl.record
-    return record(
-        [("u_cmd", np.float64, (4,)), ("active_constraints", np.float64), ("failures", np.float64)]
-    )

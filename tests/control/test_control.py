@@ -235,3 +235,39 @@ def test_readings_of_the_wrong_length_are_refused_by_name(plan) -> None:
         pd.command(0, bad)
     good = SensorReadings(q=plan.q[0].copy(), dq=plan.dq[0].copy(), tau=np.zeros(4))
     np.testing.assert_array_equal(pd.command(0, good), np.zeros(4))  # on the plan: 0 V
+
+
+def test_a_tick_beyond_the_plan_is_refused_by_name(exo, patient, plan) -> None:
+    # A plan without a period covers ticks 0 .. N-1: tick N is a programming error.
+    good = SensorReadings(q=plan.q[0].copy(), dq=plan.dq[0].copy(), tau=np.zeros(4))
+    rows = plan.q.shape[0]
+    for ctrl in (PDController(plan), ComputedTorqueController(plan, exo, patient, MotorParams())):
+        message = rf"^k must be a control tick on the plan's {rows} rows; got {rows}$"
+        with pytest.raises(InvalidParameter, match=message):
+            ctrl.command(rows, good)
+        np.testing.assert_array_equal(ctrl.command(rows - 1, good), ctrl.record["u_cmd"][0])
+        assert ctrl.last_row == rows - 1
+
+
+def test_the_record_holds_the_command_and_is_shared_by_controllers_alike(
+    exo, patient, plan
+) -> None:
+    """``u_cmd`` is what command returned; no QP: no active bounds, no fallbacks.
+
+    Controllers of the same kind share one record dtype object (numba types
+    a record argument by its dtype's identity: an equal copy costs a
+    re-typing per call).
+    """
+    motor = MotorParams()
+    rng = np.random.default_rng(4)
+    for make in (
+        lambda: PDController(plan),
+        lambda: ComputedTorqueController(plan, exo, patient, motor),
+    ):
+        first, second = make(), make()
+        assert first.record.dtype is second.record.dtype
+        for k in (0, 321):
+            u = first.command(k, readings(rng))
+            np.testing.assert_array_equal(first.record["u_cmd"][0], u)
+        assert first.record["active_constraints"][0] == first.record["failures"][0] == 0.0
+        assert first.active_constraints == first.failures == 0

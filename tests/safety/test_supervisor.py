@@ -412,7 +412,9 @@ def test_normal_step_returns_the_command_and_allocates_nothing() -> None:
         return u
 
     def allocating(k, t, sensors, force, current, u):
-        return u + 0.0
+        extra = u + 0.0  # an array alive across the compiled call
+        nothing(k, t, sensors, force, current, u)
+        return extra
 
     def peak(fn) -> int:
         for _ in range(10):

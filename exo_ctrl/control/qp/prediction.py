@@ -25,191 +25,175 @@ the measured (q, ω₀), with u_e = q̇_e − ω₀, u_p = q̇_p − ω₀:
 
 M_e' = M_e + i_G² J_rotor, h the Coriolis, gravity, damping and friction
 torques at the measured state, b the URDF joint damping, d the patient's own
-joint torque (held; estimated by :class:`CuffStateObserver`).  With
+joint torque (held; estimated by
+:class:`~exo_ctrl.control.qp.observer.CuffStateObserver`).  With
 z = (δ, u_e, u_p, τ, 1) this is ż = F z (9×9 per leg), so z(t) = e^{Ft} z(0),
 z(0) = (δ̂, 0, −δ̂̇, τ, 1), and s(t_i) — hence f(t_i) = A_i τ + b_i — is
-affine in τ.  F's rows 6–8 are zero (τ and 1 are held), so e^{Ft} =
-[[E₁₁, E₁₂], [0, I]], as is every product of such matrices: only their rows
-0–5 are formed.  e^{FΔ} (Δ = gcd of the horizon points) is computed by
-scaling and squaring a degree-10 Taylor polynomial (evaluated
-Paterson–Stockmeyer: X, X², X³, then Horner in X³), and squared on to
-e^{FΔ 2^k}; the point nΔ (default 5, 10, 20, 30, 40 ms: half the slowest
-cuff period; n = 1, 2, 4, 6, 8) needs only the two rows S of s = S z, which
-are S e^{FΔ 2^{k₀}} times the squares of n's other binary digits.  All in
-one compiled kernel (:func:`exo_ctrl._jit.kernel`).
+affine in τ.  e^{FΔ} (Δ = gcd of the horizon points) is computed by
+:func:`~exo_ctrl.control.qp.expm.expm_top` (only rows 0–5 of these block
+matrices are formed), and squared on to e^{FΔ 2^k}; the point nΔ (default
+5, 10, 20, 30, 40 ms: half the slowest cuff period; n = 1, 2, 4, 6, 8) needs
+only the two rows S of s = S z, which are S e^{FΔ 2^{k₀}} times the squares
+of n's other binary digits.  All in compiled kernels
+(:func:`exo_ctrl._jit.kernel`) on the model's record (:func:`horizon_fields`).
 
-Accuracy (tests/test_qp.py): against the plant (nonlinear, elastic cuffs,
-drive current dynamics) stepped 40 ms with the voltage held, given the true
-δ, δ̇: ≤ 4.6 N on forces up to 155 N.  Neglected: the drive's electrical
-time constant (0.7 ms), the change of M, h, J over 40 ms, the speed
-dependence of the Coriolis and friction torques, the cuff's nonlinearity in δ.
+Accuracy (tests/control/qp/test_prediction.py): against the plant
+(nonlinear, elastic cuffs, drive current dynamics) stepped 40 ms with the
+voltage held, given the true δ, δ̇: ≤ 4.6 N on forces up to 155 N.
+Neglected: the drive's electrical time constant (0.7 ms), the change of M,
+h, J over 40 ms, the speed dependence of the Coriolis and friction torques,
+the cuff's nonlinearity in δ.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from ..._jit import kernel
+from ..._jit import Status, kernel, record
 from ...exceptions import InvalidParameter
-from ...model.body import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
+from ...model import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
 from ...plant.cuffs import CuffParams, CuffSet
 from ...plant.motor import MotorParams
+from .expm import NM, NZ, PS_BLOCK, copy_top, expm_top, mul_top
 
-__all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "CuffStateObserver"]
+__all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "horizon_fields"]
 
 #: Default horizon points, in control ticks after the present one.
 DEFAULT_HORIZON_TICKS = (5, 10, 20, 30, 40)
-_TAYLOR_ORDER = 10
-#: The Taylor polynomial is evaluated Paterson–Stockmeyer in blocks of this
-#: many terms: X, X², X³ formed, then Horner in X³ (5 products for degree 10,
-#: against 9 for Horner in X).
-_PS_BLOCK = 3
-#: z = (δ, u_e, u_p, τ, 1) has _NZ entries of which the first _NM move (τ and
-#: 1 are held): F's rows 6–8 are zero, e^{Ft}'s are [0 | I], and the kernels
-#: store and compute only rows 0–5 of every matrix.
-_NZ = 9
-_NM = 6
-#: Slots of :func:`_predict`'s scratch array, (_W_SQUARES + bits of the largest
-#: power, 6, 9): F Δ; the generalised forces per column of z (rows 0–1 exo,
-#: 2–3 patient); the s rows of a power (rows 0–1, rows 2–3 scratch);
-#: :func:`_expm`'s scratch; e^{FΔ 2^k}, k = 0, 1, ...
-_W_F = 0
-_W_G = 1
-_W_S = 2
-_W_EXPM = 3
-_W_SQUARES = _W_EXPM + _PS_BLOCK + 1
 
 
-@kernel
-def _mul_top(a, b, beta, out):  # pragma: no cover - compiled
-    """Write the first rows of a b to ``out`` (as many as it has); b's rows 6–8 are β [0 | I].
+def horizon_fields(n_points: int, n_squares: int) -> list[tuple[Any, ...]]:
+    """The fields of a :class:`CuffHorizonModel`'s record (numpy dtype syntax).
 
-    a: rows of 9 columns (rows 0–5 of a 9×9 matrix of the block form, or
-    combinations of them); b: rows 0–5 of a 9×9 matrix; out must overlap
-    neither.  out = a[:, :6] b[:6] + β a[:, 6:] (added to columns 6–8), each
-    entry summed over k in order; the six a[i, k] are held in registers and
-    the loop over j is independent (it vectorises).
+    Parameters: ``losses`` (rows b_e, f_e, b_p, f_p: URDF damping [N·m·s/rad]
+    and friction [N·m] per joint), the cuff points' ``points`` P and
+    ``select`` S (:class:`~exo_ctrl.plant.cuffs.CuffSet`; P: rows x then z of
+    its 8 points, columns cos θ then sin θ), ``damp_e`` D + b_e
+    and ``damp_p`` b_p [N·m·s/rad], ``stiffness`` K [N/m], ``damping`` C
+    [N·s/m], ``block`` Δ [s] and ``powers`` n_i = t_i/Δ.  The linearisation:
+    ``q_all``, ``v_all`` (the state both bodies are evaluated at), the mass
+    matrices, bias torques and cuff Jacobians.  The prediction ``A``, ``b``;
+    then the scratch of :func:`predict`: ``f`` (rows 0–5 of F Δ), ``ge``,
+    ``gp`` (the generalised forces on the exoskeleton and the patient per
+    column of z), ``sv``, ``sv_tmp`` (the s rows of a power of e^{FΔ}),
+    ``x_powers``, ``tmp`` (:func:`~exo_ctrl.control.qp.expm.expm_top`'s),
+    ``squares`` (e^{FΔ 2^k}, k < ``n_squares``).
     """
-    for i in range(out.shape[0]):
-        a0, a1, a2, a3, a4, a5 = a[i, 0], a[i, 1], a[i, 2], a[i, 3], a[i, 4], a[i, 5]
-        for j in range(_NM):
-            out[i, j] = (
-                a0 * b[0, j] + a1 * b[1, j] + a2 * b[2, j] + a3 * b[3, j] + a4 * b[4, j]
-            ) + a5 * b[5, j]
-        for j in range(_NM, _NZ):
-            out[i, j] = (
-                (a0 * b[0, j] + a1 * b[1, j] + a2 * b[2, j] + a3 * b[3, j] + a4 * b[4, j])
-                + a5 * b[5, j]
-            ) + beta * a[i, j]
+    f8 = np.float64
+    return [
+        ("losses", f8, (4, 4)),
+        ("points", f8, (16, 16)),
+        ("select", f8, (8, 8)),
+        ("damp_e", f8, (4,)),
+        ("damp_p", f8, (4,)),
+        ("stiffness", f8),
+        ("damping", f8),
+        ("block", f8),
+        ("powers", np.int64, (n_points,)),
+        ("q_all", f8, (8,)),
+        ("v_all", f8, (8,)),
+        ("mass_exo", f8, (4, 4)),
+        ("mass_patient", f8, (4, 4)),
+        ("bias_exo", f8, (4,)),
+        ("bias_patient", f8, (4,)),
+        ("jac", f8, (2, 4, 2)),
+        ("A", f8, (8 * n_points, 4)),
+        ("b", f8, (8 * n_points,)),
+        ("f", f8, (NM, NZ)),
+        ("ge", f8, (2, NZ)),
+        ("gp", f8, (2, NZ)),
+        ("sv", f8, (2, NZ)),
+        ("sv_tmp", f8, (2, NZ)),
+        ("x_powers", f8, (PS_BLOCK, NM, NZ)),
+        ("tmp", f8, (NM, NZ)),
+        ("squares", f8, (n_squares, NM, NZ)),
+    ]
 
 
 @kernel
-def _copy(src, dst):  # pragma: no cover - compiled
-    for i in range(src.shape[0]):
-        for j in range(src.shape[1]):
-            dst[i, j] = src[i, j]
+def pair(m: np.void, q: np.ndarray, dq: np.ndarray) -> int:  # pragma: no cover - compiled
+    """q_all = [q, q], v_all = [q̇, q̇] in record ``m``: the patient taken in the exoskeleton's state.
 
-
-@kernel
-def _expm(f, out, work):  # pragma: no cover - compiled
-    """exp(F) by scaling and squaring a degree-10 Taylor polynomial (F small after scaling).
-
-    F is 9×9 with rows 6–8 zero: ``f`` holds its rows 0–5, (6, 9), and
-    ``out`` gets those of exp(F), whose rows 6–8 are [0 | I].  With
-    X = F/2^s, ‖X‖∞ ≤ 1/4, T(X) = Σ_{k≤10} X^k/k! = B_0 + X³ (B_1 + X³ (B_2 +
-    X³ B_3)), B_j = Σ_{i<3} X^i/(3j+i)!; then squared s times.
-    ``work``: (_PS_BLOCK + 1, 6, 9) scratch.
+    Returns a :class:`~exo_ctrl._jit.Status` value: WRONG_LENGTH (nothing
+    written) unless q and q̇ have 4 entries.
     """
-    norm = 0.0
-    for i in range(_NM):
-        row = 0.0
-        for j in range(_NZ):
-            row += abs(f[i, j])
-        norm = max(norm, row)
-    s = 0
-    while norm > 0.25 and s < 40:
-        norm *= 0.5
-        s += 1
-    scale = 0.5**s
-    q = _PS_BLOCK
-    tmp = work[q]
-    # work[k] = X^(k+1) (rows 6-8 zero: the product's β is 0)
-    for i in range(_NM):
-        for j in range(_NZ):
-            work[0, i, j] = scale * f[i, j]
-    for k in range(1, q):
-        _mul_top(work[0], work[k - 1], 0.0, work[k])
-    top = _TAYLOR_ORDER // q
-    # Horner in X^q over the blocks B_j, top one first; the running
-    # polynomial's rows 6-8 are beta [0 | I] (beta = 1/(jq)!).
-    beta = 0.0
-    for jb in range(top, -1, -1):
-        c = 1.0
-        for k in range(2, jb * q + 1):
-            c /= k
-        if jb == top:
-            for i in range(_NM):
-                for j in range(_NZ):
-                    out[i, j] = 0.0
-        else:
-            _mul_top(work[q - 1], out, beta, tmp)
-            _copy(tmp, out)
-        beta = c
-        for i in range(_NM):
-            out[i, i] += c
-        for k in range(1, q):
-            if jb * q + k > _TAYLOR_ORDER:
-                break
-            c /= jb * q + k
-            xk = work[k - 1]
-            for i in range(_NM):
-                for j in range(_NZ):
-                    out[i, j] += c * xk[i, j]
-    for _ in range(s):
-        _mul_top(out, out, 1.0, tmp)
-        _copy(tmp, out)
+    if q.shape[0] != 4 or dq.shape[0] != 4:
+        return Status.WRONG_LENGTH.value
+    q_all, v_all = m.q_all, m.v_all
+    for i in range(4):
+        q_all[i] = q_all[4 + i] = q[i]
+        v_all[i] = v_all[4 + i] = dq[i]
+    return Status.OK.value
 
 
 @kernel
-def _predict(
-    me,
-    mp,
-    jac,
-    he,
-    hp,
-    damp_e,
-    damp_p,
-    stiff,
-    damp_c,
-    dt_block,
-    powers,
-    delta,
-    ddelta,
-    dist,
-    a_out,
-    b_out,
-    work,
-):  # pragma: no cover - compiled
-    """Fill a_out (P*8, 4) and b_out (P*8) -- see module docstring.
+def gather(
+    m: np.void, mass: np.ndarray, nle: np.ndarray, q: np.ndarray, dq: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Fill record ``m``'s linearisation from the Pinocchio results ``mass`` and ``nle``.
 
-    ``work``: (_W_SQUARES + bit length of powers[-1], 6, 9) scratch.
+    ``q``, ``dq``: the measured state (the patient's taken equal).  ``mass``
+    and ``nle``: CRBA (symmetric) and nonLinearEffects of the model of both
+    bodies at (q_all, v_all); the mass matrices are its diagonal blocks;
+    bias = nle + b q̇ + f_c tanh(q̇/ε) per body.  The patient's cuff
+    Jacobians, (x, z) rows on their leg's two joints, from the cuff points'
+    form p = P (cos θ, sin θ) + p₀ with link rotations θ = S q_all (patient
+    points 4-7, rotations 4-7): ∂p/∂q = Σ_j (−P_j sin θ_j + P_{8+j} cos θ_j) S_j.
     """
+    losses, points, select = m.losses, m.points, m.select
+    mass_e, mass_p, jac = m.mass_exo, m.mass_patient, m.jac
+    bias_e, bias_p = m.bias_exo, m.bias_patient
+    for i in range(4):
+        for j in range(4):
+            mass_e[i, j] = mass[i, j]
+            mass_p[i, j] = mass[4 + i, 4 + j]
+        sgn = np.tanh(dq[i] / FRICTION_SMOOTHING_RAD_S)
+        bias_e[i] = nle[i] + losses[0, i] * dq[i] + losses[1, i] * sgn
+        bias_p[i] = nle[4 + i] + losses[2, i] * dq[i] + losses[3, i] * sgn
+    for c in range(4):  # cuff c = 2 leg + k, k: thigh 0, shank 1
+        leg, k = c // 2, c % 2
+        for col in range(2):
+            joint = 4 + 2 * leg + col  # q_all index of the patient joint
+            for axis in range(2):  # x, z
+                row = 4 + c + 8 * axis  # row of P
+                acc = 0.0
+                for j in range(4, 8):
+                    s = select[j, joint]
+                    if s != 0.0:
+                        theta = 0.0
+                        for n in range(4):
+                            theta += select[j, 4 + n] * q[n]
+                        cos_t, sin_t = math.cos(theta), math.sin(theta)
+                        acc += s * (points[row, 8 + j] * cos_t - points[row, j] * sin_t)
+                jac[leg, 2 * k + axis, col] = acc
+
+
+@kernel
+def predict(
+    m: np.void, delta: np.ndarray, ddelta: np.ndarray, dist: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Fill ``m.A`` (8 P, 4) and ``m.b`` (8 P) from record ``m``'s linearisation (module docstring).
+
+    ``delta`` δ [rad], ``ddelta`` δ̇ [rad/s], ``dist`` d [N·m]: the initial
+    cuff state and the patient's held torque, (4,) each.
+    """
+    powers, a_out, b_out = m.powers, m.A, m.b
+    me, mp, jac, he, hp = m.mass_exo, m.mass_patient, m.jac, m.bias_exo, m.bias_patient
+    damp_e, damp_p = m.damp_e, m.damp_p
+    stiff, damp_c, dt_block = m.stiffness, m.damping, m.block
+    # As plain C arrays (``[:]``), the type of a slice of ``squares``: one
+    # compiled version of mul_top and copy_top for every call.
+    f, ge, gp, sv, sv_tmp, squares = m.f[:], m.ge[:], m.gp[:], m.sv[:], m.sv_tmp[:], m.squares
     n_pts = powers.shape[0]
-    n_sq = 0  # squares e^{FΔ 2^k}, k < n_sq, needed for the largest power
-    while powers[n_pts - 1] >> n_sq > 0:
-        n_sq += 1
+    n_sq = squares.shape[0]  # squares e^{FΔ 2^k}, k < n_sq: the bit length of the largest power
     for r in range(a_out.shape[0]):
         b_out[r] = 0.0
         for c in range(4):
             a_out[r, c] = 0.0
-    f = work[_W_F]
-    ge = work[_W_G, 0:2]
-    gp = work[_W_G, 2:4]
-    sv = work[_W_S, 0:2]
-    sv_tmp = work[_W_S, 2:4]
     for leg in range(2):
         i0 = 2 * leg
         # 2x2 blocks: exo mass (with armature), patient mass, G = J^T J.
@@ -228,7 +212,7 @@ def _predict(
         # exo: tau - he - D u_e - G K delta - G C (u_e - u_p)
         # patient: -hp + d - Dp u_p + G K delta + G C (u_e - u_p)
         for r in range(2):
-            for c in range(_NZ):
+            for c in range(NZ):
                 ge[r, c] = 0.0
                 gp[r, c] = 0.0
         gm = ((g11, g12), (g12, g22))
@@ -248,7 +232,7 @@ def _predict(
             ge[r, 8] = -he[i0 + r]
             gp[r, 8] = -hp[i0 + r] + dist[i0 + r]
         # Rows 0-5 of F Δ (rows 6-8 are zero).
-        for c in range(_NZ):
+        for c in range(NZ):
             f[0, c] = 0.0
             f[1, c] = 0.0
             f[2, c] = (ie11 * ge[0, c] + ie12 * ge[1, c]) * dt_block
@@ -257,10 +241,9 @@ def _predict(
             f[5, c] = (ip12 * gp[0, c] + ip22 * gp[1, c]) * dt_block
         f[0, 2] = f[1, 3] = dt_block
         f[0, 4] = f[1, 5] = -dt_block
-        _expm(f, work[_W_SQUARES], work[_W_EXPM:_W_SQUARES])
+        expm_top(f, squares[0], m.x_powers[:], m.tmp[:])
         for k in range(1, n_sq):
-            sq = work[_W_SQUARES + k - 1]
-            _mul_top(sq, sq, 1.0, work[_W_SQUARES + k])
+            mul_top(squares[k - 1], squares[k - 1], 1.0, squares[k])
         # z0 = (delta, 0, -ddelta, tau, 1)
         for p in range(n_pts):
             # The s rows (s = K delta + C (u_e - u_p)) of e^{F Δ n}, n = Σ_k 2^k
@@ -269,15 +252,15 @@ def _predict(
             k = 0
             while (n >> k) & 1 == 0:
                 k += 1
-            sq = work[_W_SQUARES + k]
+            sq = squares[k]
             for r in range(2):
-                for c in range(_NZ):
+                for c in range(NZ):
                     sv[r, c] = stiff * sq[r, c] + damp_c * (sq[2 + r, c] - sq[4 + r, c])
             k += 1
             while n >> k > 0:
                 if (n >> k) & 1 == 1:
-                    _mul_top(sv, work[_W_SQUARES + k], 1.0, sv_tmp)
-                    _copy(sv_tmp, sv)
+                    mul_top(sv, squares[k], 1.0, sv_tmp)
+                    copy_top(sv_tmp, sv)
                 k += 1
             for r in range(2):
                 s_t0 = sv[r, 6]
@@ -295,116 +278,22 @@ def _predict(
 
 
 @kernel
-def _observe(
-    mp,
-    hp,
-    jac,
-    force,
-    omega,
-    stiff,
-    damp_c,
-    a_delta,
-    a_dist,
-    h,
-    delta,
-    ddelta,
-    vp_prev,
-    dist,
-    first,
-):  # pragma: no cover - compiled
-    """One observer tick per leg (CuffStateObserver docstring).
-
-    ``first``: (1,), 1 before the first tick, set to 0 by it.  Returns False
-    (and nothing done) if an entry of ``force`` is not finite.
-    """
-    for c in range(4):
-        if not (math.isfinite(force[c, 0]) and math.isfinite(force[c, 1])):
-            return False
-    for leg in range(2):
-        i0 = 2 * leg
-        g11 = g12 = g22 = 0.0
-        r1 = r2 = 0.0
-        for r in range(4):
-            j0, j1 = jac[leg, r, 0], jac[leg, r, 1]
-            g11 += j0 * j0
-            g12 += j0 * j1
-            g22 += j1 * j1
-            fr = force[2 * leg + r // 2, r % 2]
-            r1 += j0 * fr
-            r2 += j1 * fr
-        dg = g11 * g22 - g12 * g12
-        # s = -G⁻¹ Jᵀ f̂
-        s1 = -(g22 * r1 - g12 * r2) / dg
-        s2 = -(g11 * r2 - g12 * r1) / dg
-        delta[i0] += a_delta * (s1 / stiff - delta[i0])
-        delta[i0 + 1] += a_delta * (s2 / stiff - delta[i0 + 1])
-        dd1 = (s1 - stiff * delta[i0]) / damp_c
-        dd2 = (s2 - stiff * delta[i0 + 1]) / damp_c
-        ddelta[i0], ddelta[i0 + 1] = dd1, dd2
-        vp1, vp2 = omega[i0] - dd1, omega[i0 + 1] - dd2
-        if first[0] == 0.0:
-            a1 = (vp1 - vp_prev[i0]) / h
-            a2 = (vp2 - vp_prev[i0 + 1]) / h
-            e1 = mp[i0, i0] * a1 + mp[i0, i0 + 1] * a2 + hp[i0] - (g11 * s1 + g12 * s2)
-            e2 = mp[i0, i0 + 1] * a1 + mp[i0 + 1, i0 + 1] * a2 + hp[i0 + 1] - (g12 * s1 + g22 * s2)
-            dist[i0] += a_dist * (e1 - dist[i0])
-            dist[i0 + 1] += a_dist * (e2 - dist[i0 + 1])
-        vp_prev[i0], vp_prev[i0 + 1] = vp1, vp2
-    first[0] = 0.0
-    return True
+def _pair(state: np.ndarray, q: np.ndarray, dq: np.ndarray) -> int:  # pragma: no cover - compiled
+    return pair(state[0], q, dq)
 
 
 @kernel
-def _pair(q, dq, q_all, v_all):  # pragma: no cover - compiled
-    """q_all = [q, q], v_all = [q̇, q̇]: the patient taken in the exoskeleton's state.
-
-    Returns False (nothing written) unless q and q̇ have 4 entries.
-    """
-    if q.shape[0] != 4 or dq.shape[0] != 4:
-        return False
-    for i in range(4):
-        q_all[i] = q_all[4 + i] = q[i]
-        v_all[i] = v_all[4 + i] = dq[i]
-    return True
+def _gather(
+    state: np.ndarray, mass: np.ndarray, nle: np.ndarray, q: np.ndarray, dq: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    gather(state[0], mass, nle, q, dq)
 
 
 @kernel
-def _gather(mass, nle, q, dq, losses, points, select, mass_e, mass_p, bias_e, bias_p, jac):
-    """Fill what :meth:`CuffHorizonModel.linearise` keeps from the Pinocchio calls.
-
-    ``q``, ``dq``: the measured state (the patient's taken equal).  ``mass``
-    and ``nle``: CRBA and nonLinearEffects of the model of both bodies
-    (q_all = [q, q]); the mass matrices are its diagonal blocks; bias
-    = nle + b q̇ + f_c tanh(q̇/ε) per body (``losses`` rows b_e, f_e, b_p,
-    f_p).  The patient's cuff Jacobians, (x, z) rows on their leg's two
-    joints, from the cuff points' form p = P (cos θ, sin θ) + p₀ with link
-    rotations θ = S q_all (``points`` = P, ``select`` = S of
-    :class:`~exo_ctrl.plant.cuffs.CuffSet`; patient points 4-7, rotations 4-7):
-    ∂p/∂q = Σ_j (−P_j sin θ_j + P_{8+j} cos θ_j) S_j.
-    """
-    for i in range(4):
-        for j in range(4):
-            mass_e[i, j] = mass[i, j]
-            mass_p[i, j] = mass[4 + i, 4 + j]
-        sgn = np.tanh(dq[i] / FRICTION_SMOOTHING_RAD_S)
-        bias_e[i] = nle[i] + losses[0, i] * dq[i] + losses[1, i] * sgn
-        bias_p[i] = nle[4 + i] + losses[2, i] * dq[i] + losses[3, i] * sgn
-    for c in range(4):  # cuff c = 2 leg + k, k: thigh 0, shank 1
-        leg, k = c // 2, c % 2
-        for col in range(2):
-            joint = 4 + 2 * leg + col  # q_all index of the patient joint
-            for axis in range(2):  # x, z
-                row = 4 + c + 8 * axis  # row of P
-                acc = 0.0
-                for j in range(4, 8):
-                    s = select[j, joint]
-                    if s != 0.0:
-                        theta = 0.0
-                        for m in range(4):
-                            theta += select[j, 4 + m] * q[m]
-                        cos_t, sin_t = math.cos(theta), math.sin(theta)
-                        acc += s * (points[row, 8 + j] * cos_t - points[row, j] * sin_t)
-                jac[leg, 2 * k + axis, col] = acc
+def _predict(
+    state: np.ndarray, delta: np.ndarray, ddelta: np.ndarray, dist: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    predict(state[0], delta, ddelta, dist)
 
 
 class CuffHorizonModel:
@@ -420,12 +309,21 @@ class CuffHorizonModel:
             [1, 1000].
 
     Attributes:
+        record: the kernels' parameters, state and scratch (:func:`horizon_fields`);
+            the arrays below are views of its fields.
+        model: the Pinocchio model of both bodies (exo joints 0-3 with the
+            rotors' reflected inertia, patient 4-7).
+        data: its Pinocchio data.
+        q_all: the joint angles of both bodies of the last :meth:`terms` [rad], (8,).
+        v_all: their speeds [rad/s], (8,).
         A: ∂f/∂τ, (8 P, 4) [1/m]; row 8 p + 2 c + i is component i (x, z)
             of cuff c at horizon point p.
         b: forces at τ = 0, (8 P,) [N].
         jac: patient cuff Jacobians per leg, (2, 4, 2): rows thigh x, thigh z,
             shank x, shank z; columns hip, knee [m/rad].
-        mass_patient: patient mass matrix (upper triangle valid), (4, 4).
+        mass_exo: exoskeleton mass matrix with the rotors, (4, 4) [kg·m²].
+        mass_patient: patient mass matrix, (4, 4) [kg·m²].
+        bias_exo: h_e, exoskeleton bias torques at the measured state [N·m].
         bias_patient: h_p, patient bias torques at the measured state [N·m].
 
     Raises:
@@ -456,40 +354,56 @@ class CuffHorizonModel:
         block = math.gcd(*ticks)
         self.horizon_ticks = ticks
         self.horizon_s = tuple(t * dt for t in ticks)
-        self._powers = np.array([t // block for t in ticks], dtype=np.int64)
-        self._block = block * dt
         self.dt = float(dt)
+        powers = [t // block for t in ticks]
         # Both bodies in one model (exo joints 0-3 with the rotors' reflected
         # inertia, patient 4-7); the patient's cuff points as in the plant.
-        self._model = combined_model(exo, patient)
+        self.model = combined_model(exo, patient)
         rotor = np.full(4, motor.reflected_inertia_kgm2)
-        self._model.armature = np.concatenate((rotor, np.zeros(4)))
-        self._data = self._model.createData()
-        self._q_all = np.zeros(8)
-        self._v_all = np.zeros(8)
+        self.model.armature = np.concatenate((rotor, np.zeros(4)))
+        self.data = self.model.createData()
         cuff_set = CuffSet(exo, patient, cuffs)
-        self._points = np.ascontiguousarray(cuff_set.kernel_points)
-        self._select = np.ascontiguousarray(cuff_set.kernel_matrices[:8, :8])
         kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
         #: Back-EMF damping of a drive held at constant voltage, i_G k_m (i_G/k_E)/R [N·m·s/rad].
         self.back_emf_damping = kt * kb / r
-        self._damp_e = self.back_emf_damping + exo.damping
-        self._damp_p = patient.damping.copy()
-        self._b_e, self._f_e = exo.damping.copy(), exo.friction.copy()
-        self._b_p, self._f_p = patient.damping.copy(), patient.friction.copy()
-        self._losses = np.stack((self._b_e, self._f_e, self._b_p, self._f_p))
         self.stiffness = float(cuffs.stiffness_N_per_m)
         self.damping = float(cuffs.damping_N_s_per_m)
-        n = len(ticks)
-        self.A = np.zeros((8 * n, 4))
-        self.b = np.zeros(8 * n)
-        self.jac = np.zeros((2, 4, 2))
-        self.mass_exo = np.zeros((4, 4))
-        self.mass_patient = np.zeros((4, 4))
-        self.bias_exo = np.zeros(4)
-        self.bias_patient = np.zeros(4)
-        n_squares = int(self._powers[-1]).bit_length()
-        self._work = np.zeros((_W_SQUARES + n_squares, _NM, _NZ))
+        self.record = record(horizon_fields(len(ticks), powers[-1].bit_length()))
+        m = self.record[0]
+        m["losses"] = np.stack((exo.damping, exo.friction, patient.damping, patient.friction))
+        m["points"] = cuff_set.kernel_points
+        m["select"] = cuff_set.select
+        m["damp_e"] = self.back_emf_damping + exo.damping
+        m["damp_p"] = patient.damping
+        m["stiffness"], m["damping"], m["block"] = self.stiffness, self.damping, block * dt
+        m["powers"] = powers
+        view = self._view
+        self.q_all, self.v_all = view("q_all"), view("v_all")
+        self.A, self.b, self.jac = view("A"), view("b"), view("jac")
+        self.mass_exo, self.mass_patient = view("mass_exo"), view("mass_patient")
+        self.bias_exo, self.bias_patient = view("bias_exo"), view("bias_patient")
+
+    def _view(self, name: str) -> np.ndarray:
+        return self.record[name][0]
+
+    def terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """M and C q̇ + g of both bodies at (q, q, q̇, q̇): Pinocchio's CRBA and nonLinearEffects.
+
+        The arrays Pinocchio returns (M symmetric), for :meth:`linearise`.
+
+        Raises:
+            InvalidParameter: q or dq without 4 entries.
+
+        """
+        q = np.asarray(q, dtype=float)
+        dq = np.asarray(dq, dtype=float)
+        if q.ndim != 1 or dq.ndim != 1 or _pair(self.record, q, dq):
+            shapes = f"shapes {np.shape(q)} and {np.shape(dq)}"
+            raise InvalidParameter("q and dq", shapes, "arrays of 4 joint values each")
+        model, data = self.model, self.data
+        return pin.crba(model, data, self.q_all), pin.nonLinearEffects(
+            model, data, self.q_all, self.v_all
+        )
 
     def linearise(self, q: np.ndarray, dq: np.ndarray) -> None:
         """Mass matrices, bias torques and cuff Jacobians at the measured state.
@@ -503,42 +417,7 @@ class CuffHorizonModel:
 
         """
         mass, nle = self.terms(q, dq)
-        _gather(
-            mass,
-            nle,
-            q,
-            dq,
-            self._losses,
-            self._points,
-            self._select,
-            self.mass_exo,
-            self.mass_patient,
-            self.bias_exo,
-            self.bias_patient,
-            self.jac,
-        )
-
-    def terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The Pinocchio part of :meth:`linearise`: M and C q̇ + g of both bodies at (q, q, q̇, q̇).
-
-        Arrays of Pinocchio's data (:attr:`data_terms` views the same
-        memory), overwritten by the next call.
-
-        Raises:
-            InvalidParameter: q or dq without 4 entries.
-
-        """
-        q_all, v_all = self._q_all, self._v_all
-        if not _pair(q, dq, q_all, v_all):
-            shapes = f"shapes {np.shape(q)} and {np.shape(dq)}"
-            raise InvalidParameter("q and dq", shapes, "arrays of 4 joint values each")
-        model, data = self._model, self._data
-        return pin.crba(model, data, q_all), pin.nonLinearEffects(model, data, q_all, v_all)
-
-    @property
-    def data_terms(self) -> tuple[np.ndarray, np.ndarray]:
-        """Views of where :meth:`terms` leaves M (C-ordered: M is symmetric) and C q̇ + g."""
-        return self._data.M.T, self._data.nle
+        _gather(self.record, mass, nle, self.q_all[:4], self.v_all[:4])
 
     def predict(self, delta: np.ndarray, ddelta: np.ndarray, disturbance: np.ndarray) -> None:
         """Fill :attr:`A` and :attr:`b` from the state of the last :meth:`linearise`.
@@ -549,25 +428,7 @@ class CuffHorizonModel:
             disturbance: patient joint torque d, held over the horizon [N·m], (4,).
 
         """
-        _predict(
-            self.mass_exo,
-            self.mass_patient,
-            self.jac,
-            self.bias_exo,
-            self.bias_patient,
-            self._damp_e,
-            self._damp_p,
-            self.stiffness,
-            self.damping,
-            self._block,
-            self._powers,
-            delta,
-            ddelta,
-            disturbance,
-            self.A,
-            self.b,
-            self._work,
-        )
+        _predict(self.record, *_fours(delta=delta, ddelta=ddelta, disturbance=disturbance))
 
     def update(
         self,
@@ -586,80 +447,12 @@ class CuffHorizonModel:
         return (self.A @ np.asarray(tau, dtype=float) + self.b).reshape(-1, 4, 2)
 
 
-class CuffStateObserver:
-    """Cuff deflection δ, its rate δ̇ and the patient's torque d from the force estimate.
-
-    Per leg, with s = −G⁻¹ Jᵀ f̂ the joint-space cuff load (module docstring):
-    the deflection obeys C δ̇ = s − K δ exactly (isotropic spring–damper), so
-
-    - δ̂ is s/K through a first-order filter of time constant C/K (12.5 ms
-      with the defaults), discretised exactly (zero-order hold of s);
-    - δ̇̂ = (s − K δ̂)/C, and the patient's joint speed v̂_p = q̇ − δ̇̂;
-    - d̂, the patient's own joint torque, from the patient's equation
-      M_p v̇_p + h_p = G s + d: the residual M_p Δv̂_p/Δt + h_p − G s through
-      a first-order filter of bandwidth ``disturbance_bandwidth_per_s``.
-
-    Args:
-        stiffness: K [N/m].
-        damping: C [N·s/m], > 0.
-        dt: control period [s].
-        disturbance_bandwidth_per_s: bandwidth of the d̂ filter [1/s], ≥ 0
-            (0: d̂ = 0).
-
-    Raises:
-        InvalidParameter: a value outside its range.
-
-    """
-
-    def __init__(
-        self,
-        stiffness: float,
-        damping: float,
-        dt: float = 1e-3,
-        disturbance_bandwidth_per_s: float = 30.0,
-    ) -> None:
-        from ... import _validate as v
-
-        k = v.positive("cuff stiffness", stiffness, "N/m")
-        c = v.positive("cuff damping", damping, "N·s/m")
-        h = v.positive("dt", dt, "s")
-        bw = v.non_negative("disturbance_bandwidth", disturbance_bandwidth_per_s, "1/s")
-        self.stiffness, self.damping, self.dt = k, c, h
-        self._a_delta = -math.expm1(-h * k / c)
-        self._a_dist = -math.expm1(-h * bw)
-        self.delta = np.zeros(4)
-        self.ddelta = np.zeros(4)
-        self.disturbance = np.zeros(4)
-        self._vp = np.zeros(4)
-        #: 1 until the first update (no speed difference yet), then 0.
-        self.first = np.ones(1)
-
-    def reset(self) -> None:
-        """Forget the state (cuffs taken as just fitted: δ = 0, d = 0)."""
-        self.delta.fill(0.0)
-        self.ddelta.fill(0.0)
-        self.disturbance.fill(0.0)
-        self.first[0] = 1.0
-
-    def update(self, model: CuffHorizonModel, force_est: np.ndarray, omega: np.ndarray) -> bool:
-        """One tick: f̂ (4, 2) [N] and q̇ [rad/s], with ``model`` linearised at this tick.
-
-        Returns False, and leaves the observer as it was, if f̂ is not finite.
-        """
-        return _observe(
-            model.mass_patient,
-            model.bias_patient,
-            model.jac,
-            force_est,
-            omega,
-            self.stiffness,
-            self.damping,
-            self._a_delta,
-            self._a_dist,
-            self.dt,
-            self.delta,
-            self.ddelta,
-            self._vp,
-            self.disturbance,
-            self.first,
-        )
+def _fours(**values: object) -> list[np.ndarray]:
+    """Each value as a float64 array of 4 entries (InvalidParameter naming one that is not)."""
+    out = []
+    for name, value in values.items():
+        a = np.asarray(value, dtype=float)
+        if a.shape != (4,):
+            raise InvalidParameter(name, value, "an array of shape (4,)")
+        out.append(a)
+    return out

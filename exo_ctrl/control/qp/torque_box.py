@@ -1,0 +1,88 @@
+r"""The drive torques reachable at the present speed, and the voltage-torque map of a drive.
+
+In steady state (the drive's electrical time constant, 0.7 ms, neglected) a
+drive at joint speed ω with voltage U gives the joint torque
+
+.. math::
+
+    τ = c_2 U - c_1 ω, \qquad c_2 = \frac{i_G k_m}{R} \;[\text{N·m/V}], \quad
+    c_1 = \frac{i_G k_m \, i_G / k_E}{R} \;[\text{N·m·s/rad}],
+
+so a voltage command U_cmd is the torque command τ_cmd = c₂ U_cmd − c₁ ω,
+and a torque τ the voltage U = (τ + c₁ ω)/c₂.  The torque box is the
+intersection of the URDF effort limit |τ| ≤ τ_eff, the driver's current
+limit |I| ≤ I_max (τ = i_G k_m I) and the supply |U| ≤ U_max:
+
+.. math::
+
+    τ_{hi} = \min(\mathrm{cap}, c_0 - c_1 ω), \quad
+    τ_{lo} = \max(-\mathrm{cap}, -c_0 - c_1 ω), \qquad
+    \mathrm{cap} = \min(τ_{eff}, i_G k_m I_{max}), \; c_0 = c_2 U_{max}.
+
+It is empty (τ_lo > τ_hi) above ω = (U_max + R I_max) k_E / i_G.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..._jit import kernel
+from ...plant.motor import MotorParams
+
+__all__ = ["TORQUE_BOX_FIELDS", "box_constants", "torque_box", "voltage"]
+
+#: Fields of a record holding the box: c₀ [N·m], c₁ [N·m·s/rad], c₂ [N·m/V],
+#: cap [N·m] per joint; the last τ_cmd, τ_lo and τ_hi [N·m].
+TORQUE_BOX_FIELDS: list[tuple[Any, ...]] = [
+    ("c0", np.float64),
+    ("c1", np.float64, (4,)),
+    ("c2", np.float64, (4,)),
+    ("cap", np.float64, (4,)),
+    ("torque_cmd", np.float64, (4,)),
+    ("torque_lo", np.float64, (4,)),
+    ("torque_hi", np.float64, (4,)),
+]
+
+
+def box_constants(motor: MotorParams, effort_Nm: np.ndarray) -> dict[str, Any]:
+    """c₀, c₁, c₂ and cap of the module docstring for a drive and the URDF effort limits."""
+    kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
+    return {
+        "c0": kt * motor.supply_voltage_V / r,
+        "c1": np.full(4, kt * kb / r),
+        "c2": np.full(4, kt / r),
+        "cap": np.minimum(effort_Nm, kt * motor.current_limit_A),
+    }
+
+
+@kernel
+def torque_box(
+    s: np.void, u_cmd: np.ndarray, omega: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """τ_cmd = c₂ U_cmd − c₁ ω and the box at ω into record ``s`` (module docstring).
+
+    A NaN speed gives a NaN box.  ``u_cmd`` and ``omega``: (4,) (checked by
+    the caller).
+    """
+    c1, c2, cap, c0 = s.c1, s.c2, s.cap, s.c0
+    target, lo, hi = s.torque_cmd, s.torque_lo, s.torque_hi
+    for j in range(4):
+        t = c1[j] * omega[j]
+        target[j] = c2[j] * u_cmd[j] - t
+        if t != t:
+            hi[j] = lo[j] = t
+        else:
+            hi[j] = min(c0 - t, cap[j])
+            lo[j] = max(-c0 - t, -cap[j])
+
+
+@kernel
+def voltage(
+    s: np.void, torque: np.ndarray, omega: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """Write U = (τ + c₁ ω) / c₂ to ``out``: the voltage giving ``torque`` at speed ω [V]."""
+    c1, c2 = s.c1, s.c2
+    for j in range(4):
+        out[j] = (torque[j] + c1[j] * omega[j]) / c2[j]

@@ -1,0 +1,164 @@
+r"""Sensor logs as CSV files: the format, a reader that names every error, a writer.
+
+A log is a CSV file whose first line is a header naming the columns (in any
+order; extra columns are ignored)::
+
+    t,left_hip_q,left_knee_q,right_hip_q,right_knee_q,left_hip_tau,left_knee_tau,right_hip_tau,right_knee_tau
+
+and optionally ``left_hip_dq,left_knee_dq,right_hip_dq,right_knee_dq``
+(t [s], q [rad], dq [rad/s], tau: joint torque sensor readings [N·m]), one
+row per sample.  :func:`~exo_ctrl.estimation.series.estimate_series` runs
+the observer along what :func:`read_csv_log` returns.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .._io import atomic_write
+from ..exceptions import InvalidLog
+from ..model import JOINT_NAMES
+from .series import _check_series
+
+__all__ = ["CSV_DQ_COLUMNS", "CSV_REQUIRED_COLUMNS", "read_csv_log", "write_csv_log"]
+
+#: Columns a CSV log must have, in any order (extra columns are ignored).
+CSV_REQUIRED_COLUMNS = (
+    "t",
+    *(f"{j}_q" for j in JOINT_NAMES),
+    *(f"{j}_tau" for j in JOINT_NAMES),
+)
+#: Optional joint-speed columns (all four or none).
+CSV_DQ_COLUMNS = tuple(f"{j}_dq" for j in JOINT_NAMES)
+
+
+def read_csv_log(
+    path: str | os.PathLike[str],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """Read a sensor log written as CSV.
+
+    The first line is a header naming the columns, comma-separated, in any
+    order; extra columns are ignored.  Required::
+
+        t,left_hip_q,left_knee_q,right_hip_q,right_knee_q,
+        left_hip_tau,left_knee_tau,right_hip_tau,right_knee_tau
+
+    (one line), optional: ``left_hip_dq,left_knee_dq,right_hip_dq,right_knee_dq``
+    (all four or none).  Units: t [s], *_q [rad], *_dq [rad/s], *_tau [N·m]
+    (joint torque sensor readings); joints positive in flexion.
+
+    Args:
+        path: the CSV file.
+
+    Returns:
+        (t (N,), q (N, 4), dq (N, 4) or None, tau (N, 4)).
+
+    Raises:
+        InvalidLog: the file is missing or empty, a column is missing, a value
+            is not a finite number, fewer than 2 rows, or t is not strictly
+            increasing; the message names the line and column.
+
+    """
+    src = str(path)
+    p = Path(path)
+    if not p.is_file():
+        raise InvalidLog(src, "file not found")
+    with p.open(newline="", encoding="utf-8") as handle:
+        reader = csv.reader(handle)
+        header = next(reader, None)
+        if header is None:
+            raise InvalidLog(src, "the file is empty; expected a header line")
+        header = [h.strip() for h in header]
+        missing = [c for c in CSV_REQUIRED_COLUMNS if c not in header]
+        if missing:
+            raise InvalidLog(
+                src,
+                f"missing column(s) {', '.join(missing)}; the header must name "
+                f"{','.join(CSV_REQUIRED_COLUMNS)} (and optionally {','.join(CSV_DQ_COLUMNS)})",
+                line=1,
+            )
+        have_dq = [c for c in CSV_DQ_COLUMNS if c in header]
+        if have_dq and len(have_dq) != 4:
+            lacking = [c for c in CSV_DQ_COLUMNS if c not in header]
+            raise InvalidLog(
+                src, f"has {have_dq[0]} but not {lacking[0]}: give all four *_dq or none", line=1
+            )
+        wanted = list(CSV_REQUIRED_COLUMNS) + (list(CSV_DQ_COLUMNS) if have_dq else [])
+        cols = [header.index(c) for c in wanted]
+        rows = []
+        for line_no, row in enumerate(reader, start=2):
+            if not row or all(not x.strip() for x in row):
+                continue
+            if len(row) < len(header):
+                raise InvalidLog(
+                    src, f"{len(row)} fields, the header has {len(header)}", line=line_no
+                )
+            values = []
+            for name, col in zip(wanted, cols, strict=True):
+                text = row[col].strip()
+                try:
+                    x = float(text)
+                except ValueError:
+                    raise InvalidLog(
+                        src, f"not a number: {text!r}", line=line_no, column=name
+                    ) from None
+                if not math.isfinite(x):
+                    raise InvalidLog(
+                        src, f"not a finite number: {text!r}", line=line_no, column=name
+                    )
+                values.append(x)
+            rows.append((line_no, values))
+    if len(rows) < 2:
+        raise InvalidLog(src, f"needs at least 2 data rows; got {len(rows)}")
+    data = np.array([vals for _, vals in rows])
+    t = data[:, 0]
+    steps = np.diff(t)
+    if not np.all(steps > 0):
+        i = int(np.flatnonzero(~(steps > 0))[0])
+        raise InvalidLog(
+            src,
+            f"t must be strictly increasing; t = {float(t[i + 1])!r} s follows "
+            f"t = {float(t[i])!r} s",
+            line=rows[i + 1][0],
+            column="t",
+        )
+    q = data[:, 1:5]
+    tau = data[:, 5:9]
+    dq = data[:, 9:13] if have_dq else None
+    return t, q, dq, tau
+
+
+def write_csv_log(
+    path: str | os.PathLike[str],
+    t: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray | None,
+    tau: np.ndarray,
+) -> Path:
+    """Write a sensor log in the format :func:`read_csv_log` reads (values round-trip exactly).
+
+    Args:
+        path: the CSV file to write (replaced atomically).
+        t: times [s], (N,).
+        q: joint angles [rad], (N, 4).
+        dq: joint speeds [rad/s], (N, 4), or None (no *_dq columns).
+        tau: joint torque sensor readings [N·m], (N, 4).
+
+    Raises:
+        InvalidLog: a shape differs, a value is not finite, or t does not increase.
+
+    """
+    t, q, dq, tau = _check_series(t, q, dq, tau)
+    header = list(CSV_REQUIRED_COLUMNS) + (list(CSV_DQ_COLUMNS) if dq is not None else [])
+    parts = [t[:, None], q, tau] + ([dq] if dq is not None else [])
+    data = np.hstack(parts)
+    with atomic_write(path) as handle:
+        handle.write(",".join(header) + "\n")
+        for row in data:
+            handle.write(",".join(repr(float(x)) for x in row) + "\n")
+    return Path(path)
