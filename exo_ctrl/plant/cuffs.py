@@ -29,6 +29,7 @@ kinematics.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -74,6 +75,8 @@ class CuffSet:
         params: spring and damper.
         patient_offset_xz: where the patient's world origin sits in the
             exoskeleton's world (x, z) [m] (aligns the hips).
+        into: a record of :data:`CUFF_FIELDS` to hold the cuffs' state (a
+            field of its owner's record); default a record of its own.
 
     """
 
@@ -83,6 +86,7 @@ class CuffSet:
         patient: BodyModel,
         params: CuffParams,
         patient_offset_xz: tuple[float, float] = (0.0, 0.0),
+        into: np.ndarray | None = None,
     ) -> None:
         self.params = params
         # 8 points (rows 0-3 exo cuffs, 4-7 patient cuffs), 8 link rotations
@@ -134,7 +138,7 @@ class CuffSet:
         self._c = float(params.damping_N_s_per_m)
         #: The kernel's matrices, parameters and outputs, one record
         #: (:data:`CUFF_FIELDS`), the argument of :func:`cuff_forces`.
-        self.record = record(CUFF_FIELDS)
+        self.record = record(CUFF_FIELDS) if into is None else into
         c = self.record[0]
         c["select"] = sel
         c["dp"] = self._DP
@@ -234,11 +238,16 @@ CUFF_FIELDS = [
 def cuff_forces(cuffs: np.ndarray, q_all: np.ndarray, v_all: np.ndarray) -> None:
     """The module docstring's forces and generalised forces, in place.
 
-    ``cuffs``: the record of :data:`CUFF_FIELDS`.
+    ``cuffs``: the record array of :data:`CUFF_FIELDS`.
     u = (cos θ, sin θ), w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇); f = D P (-K u - C w) - K (D p₀ - r₀);
     τ = Sᵀ ((Pᵀ Dᵀ f) ⊙ (-sin θ, cos θ)) summed over the two halves.
     """
-    r = cuffs[0]
+    forces_of(cuffs[0], q_all, v_all)
+
+
+@kernel
+def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
+    """:func:`cuff_forces` on the record ``r`` itself (also a field of another record)."""
     k, c = r.k, r.c
     select, dp, dpt, k_offset = r.select, r.dp, r.dpt, r.k_offset
     f, tau, cs, csr, y = r.f, r.tau, r.cs, r.csr, r.y

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -156,13 +157,17 @@ class MotorBank:
         n_drives: number of drives n (>= 1).
         params: motor and gearbox parameters (defaults: paper Table I plus
             the choices documented on :class:`MotorParams`).
+        into: a record of :func:`motor_fields` to hold the bank's state (a
+            field of its owner's record); default a record of its own.
 
     Raises:
         InvalidParameter: ``n_drives`` is not an integer >= 1.
 
     """
 
-    def __init__(self, n_drives: int, params: MotorParams | None = None) -> None:
+    def __init__(
+        self, n_drives: int, params: MotorParams | None = None, into: np.ndarray | None = None
+    ) -> None:
         if isinstance(n_drives, bool) or not isinstance(n_drives, (int, np.integer)):
             raise InvalidParameter("n_drives", n_drives, "an integer >= 1")
         if n_drives < 1:
@@ -179,7 +184,7 @@ class MotorBank:
         #: The drives' parameters and state, one record (:data:`motor_fields`),
         #: the argument of :func:`motor_step`.  The constants ``eps``, ``phi``
         #: and ``d_unsat`` depend on the step length h and are set by :meth:`_set_dt`.
-        self.record = record(motor_fields(n))
+        self.record = record(motor_fields(n)) if into is None else into
         m = self.record[0]
         m["u_max"], m["kb"], m["inv_r"] = p.supply_voltage_V, self._kb, 1.0 / p.resistance_ohm
         m["i_max"], m["kt"] = p.current_limit_A, self._kt
@@ -399,9 +404,14 @@ def motor_fields(n: int) -> list[tuple]:
 def motor_step(motors: NDArray, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
     """One exact step of every drive, in place (the module docstring's maths).
 
-    ``motors``: the bank's record (:func:`motor_fields`), ``motors[0]``.
+    ``motors``: the bank's record array (:func:`motor_fields`).
     """
-    m = motors[0]
+    step_drives(motors[0], voltage_cmd_V, omega_rad_s)
+
+
+@kernel
+def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
+    """:func:`motor_step` on the record ``m`` itself (also a field of another record)."""
     u_max, kb, inv_r, i_max, kt = m.u_max, m.kb, m.inv_r, m.i_max, m.kt
     eps, phi, d_unsat = m.eps, m.phi, m.d_unsat
     current, mean_out, u_out, torque, saturated, damping = (

@@ -48,11 +48,11 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as _v
-from .._jit import Status, check, kernel, record
+from .._jit import Status, check, kernel, record, shared_dtype
 from ..exceptions import InvalidModel, InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
-from .cuffs import CuffParams, CuffSet, cuff_forces
-from .motor import MotorBank, MotorParams, motor_fields, motor_step
+from .cuffs import CUFF_FIELDS, CuffParams, CuffSet, forces_of
+from .motor import MotorBank, MotorParams, motor_fields, step_drives
 
 __all__ = ["Plant"]
 
@@ -107,7 +107,12 @@ class Plant:
         self.model = combined_model(exo, patient)
         self.data = self.model.createData()
         self.motor_params = motors
-        self.motors = MotorBank(4, motors) if motors is not None else None
+        # State, parameters and outputs in one record (plant_fields), filled in
+        # place by the step kernels, the drives' and the cuffs' records among
+        # its fields; the public arrays are views of it.
+        self.record = record(plant_fields())
+        r = self.record
+        self.motors = MotorBank(4, motors, into=r["motors"]) if motors is not None else None
         rotor = motors.reflected_inertia_kgm2 if motors is not None else 0.0
         losses = 1.0 if joint_losses else 0.0
         self._b = losses * np.concatenate((exo.damping, patient.damping))
@@ -117,11 +122,9 @@ class Plant:
         hip_p = patient.legs["left"].hip_xz
         self.patient_offset_xz = (hip_e[0] - hip_p[0], hip_e[1] - hip_p[1])
         self.cuff_params = cuffs or CuffParams()
-        self.cuffs = CuffSet(exo, patient, self.cuff_params, self.patient_offset_xz)
-        # State, parameters and outputs in one record (PLANT_FIELDS), filled
-        # in place by the step kernels; the public arrays are views of it.
-        self.record = record(PLANT_FIELDS)
-        r = self.record
+        self.cuffs = CuffSet(
+            exo, patient, self.cuff_params, self.patient_offset_xz, into=r["cuffs"]
+        )
         self._p = r[0]
         self.q, self.v, self._acc = r["q"][0], r["v"][0], r["acc"][0]
         self._q_mid, self._v_mid, self._tau, self._arm = (
@@ -151,10 +154,6 @@ class Plant:
         self.t = 0.0
         if self.motors is not None:
             self.motors.set_step(self.dt)
-            self._motors = self.motors.record
-        else:
-            self._motors = record(motor_fields(4))  # unused: has_motors is off
-        self._cuffs = self.cuffs.record
 
     # ------------------------------------------------------------------ state
 
@@ -220,9 +219,7 @@ class Plant:
             voltage_V, patient_torque_Nm = _v.arrays(
                 (4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm
             )
-        status = _drift_and_forces(
-            self.record, voltage_V, patient_torque_Nm, given, self._cuffs, self._motors
-        )
+        status = _drift_and_forces(self.record, voltage_V, patient_torque_Nm, given)
         if status:
             check(status, "Plant.step", voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
         if self._changed[0]:
@@ -231,7 +228,7 @@ class Plant:
         # through the armature.
         acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
         self.t += self.dt
-        if _kick_and_drift(self.record, acc, self._motors, self._cuffs):
+        if _kick_and_drift(self.record, acc):
             self._diverged()
 
     @property
@@ -290,7 +287,17 @@ class Plant:
 #: [N·m·s/rad] and ``friction`` dry friction [N·m] (8 each), the step ``h``
 #: [s], ``has_friction``, ``has_motors``; ``armature_changed``: the last
 #: first half-step changed the exo armature (D_m changes only when a drive's
-#: current enters or leaves its limit).
+#: current enters or leaves its limit).  :func:`plant_fields` adds the
+#: drives' record ``motors`` and the cuffs' record ``cuffs``.
+def plant_fields() -> list[tuple]:
+    """The fields of the plant's record (:data:`PLANT_FIELDS`, the drives' and cuffs' records)."""
+    return [
+        *PLANT_FIELDS,
+        ("motors", shared_dtype(motor_fields(4), align=True)),
+        ("cuffs", shared_dtype(CUFF_FIELDS, align=True)),
+    ]
+
+
 PLANT_FIELDS = [
     *((name, np.float64, (8,)) for name in ("q", "v", "acc", "q_mid", "v_mid", "tau", "armature")),
     *(
@@ -322,8 +329,6 @@ def _drift_and_forces(
     voltage_V: np.ndarray,
     patient_torque_Nm: np.ndarray,
     given: bool,
-    cuffs: np.ndarray,
-    motors: np.ndarray,
 ) -> int:
     """First half of :meth:`Plant.step`: drift to mid-step and every force there.
 
@@ -342,8 +347,8 @@ def _drift_and_forces(
     for i in range(8):
         qm[i] = q[i] + v[i] * half
         vm[i] = v[i] + acc[i] * half
-    cuff_forces(cuffs, qm, vm)
-    c = cuffs[0]
+    c = p.cuffs
+    forces_of(c, qm, vm)
     for i in range(8):
         t = c.tau[i] - p.b[i] * v[i]
         if p.has_friction:
@@ -355,8 +360,8 @@ def _drift_and_forces(
             tau[4 + j] += p.patient_torque[j]
     changed = False
     if p.has_motors:
-        motor_step(motors, voltage_V, v[:4])
-        m = motors[0]
+        m = p.motors
+        step_drives(m, voltage_V, v[:4])
         for j in range(4):
             torque = m.torque[j]
             p.drive_torque[j] = torque
@@ -370,9 +375,7 @@ def _drift_and_forces(
 
 
 @kernel
-def _kick_and_drift(
-    plant: np.ndarray, acc_all: np.ndarray, motors: np.ndarray, cuffs: np.ndarray
-) -> bool:
+def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> bool:
     """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺.
 
     ``acc_all``: the ABA accelerations of both bodies, (8,) in q_all order.
@@ -389,8 +392,8 @@ def _kick_and_drift(
         for j in range(4):
             p.drive_torque[j] = p.drive_torque[j] - p.damping_m[j] * acc[j]
             p.sensor_torque[j] = p.drive_torque[j] - p.arm_base[j] * acc[j]
-    m = motors[0]
-    f = cuffs[0].f
+    m = p.motors
+    f = p.cuffs.f
     for j in range(4):
         p.voltage[j] = m.u[j]
         p.current[j] = m.mean[j]

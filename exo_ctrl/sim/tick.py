@@ -112,27 +112,40 @@ class Runner:
             sup.record if sup is not None else record(_NO_SUPERVISOR),
         )
         start_on_plan(setup)
+        # The stages' per-tick methods and arguments, looked up once.
+        self._stages = (
+            self.sensor_model.read,
+            (self._q_e, self._v_e, plant.sensor_torque),
+            self.estimator.update,
+            setup.controller.command,
+            sup.step if sup is not None else None,
+            plant.step if self.patient_model is None and self._substeps == 1 else None,
+        )
 
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into row ``row`` of :attr:`log`."""
-        plant = self.setup.plant
+        read, truth, estimate, command, supervise, step = self._stages
         plant_rec, sensor_rec, est_rec, ctrl_rec, sup_rec = self._records
-        readings = self.sensor_model.read(k, self._q_e, self._v_e, plant.sensor_torque)
-        self.estimator.update(readings)
+        readings = read(k, *truth)
+        estimate(readings)
         write_measured(self.log, row, plant_rec, sensor_rec, est_rec)
-        u = self.setup.controller.command(k, readings)
-        sup = self.supervisor
-        if sup is not None:
-            u = sup.step(k, k * self._dt, readings, self._sup_force, self._mean_current, u)
-        if self.patient_model is None and self._substeps == 1:
-            plant.step(u)
+        u = command(k, readings)
+        if supervise is not None:
+            u = supervise(k, k * self._dt, readings, self._sup_force, self._mean_current, u)
+        if step is not None:
+            step(u)
         else:
-            for _ in range(self._substeps):
-                tau_p = None
-                if self.patient_model is not None:
-                    tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
-                plant.step(u, tau_p)
+            self._substep(u)
         write_applied(self.log, row, ctrl_rec, sup_rec, plant_rec)
+
+    def _substep(self, u: np.ndarray) -> None:
+        """The plant's steps of a tick with substeps or a patient-torque model."""
+        plant = self.setup.plant
+        for _ in range(self._substeps):
+            tau_p = None
+            if self.patient_model is not None:
+                tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
+            plant.step(u, tau_p)
 
     def fill_plan(self, start: int, rows: int) -> None:
         """Copy the planned rows ``start:start+rows`` into the log."""
