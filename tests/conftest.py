@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_ctrl.model.body import BodyModel, default_urdf_path, load_body, load_human_patient
+from exo_ctrl.model import BodyModel, default_urdf_path, load_body, load_human_patient
 from exo_ctrl.model.urdfgen import BodyParams, write_urdf
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import JointTrajectory, plan_joints
 from exo_ctrl.plant.motor import MotorParams
-from exo_ctrl.sim.loop import drive_for
+from exo_ctrl.sim import drive_for
 
 #: Thigh and shank of the "other lengths" exoskeleton [m].
 SHORT_THIGH = 0.45

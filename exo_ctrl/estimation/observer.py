@@ -9,7 +9,7 @@ them: the observer uses the exoskeleton's *link* model only (no armature),
 
 with τ_s the sensor torque, b and f_c the URDF joint damping and dry
 friction (link side, not seen by the sensor; ε =
-:data:`~exo_ctrl.model.body.FRICTION_SMOOTHING_RAD_S`), f_c the (x, z) force of
+:data:`~exo_ctrl.model.FRICTION_SMOOTHING_RAD_S`), f_c the (x, z) force of
 cuff c on the exoskeleton and J_c the x, z rows of its frame Jacobian.
 
 **Generalised-momentum observer** (De Luca & Mattone 2005; Haddadin, De

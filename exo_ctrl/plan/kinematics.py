@@ -111,7 +111,7 @@ def joint_accelerations(
 class JointTrajectory:
     """Planned joint motion sampled at times ``t``.
 
-    Joint arrays have shape (N, 4), columns in :data:`~exo_ctrl.model.body.JOINT_NAMES`
+    Joint arrays have shape (N, 4), columns in :data:`~exo_ctrl.model.JOINT_NAMES`
     order; ``phi`` has shape (N, 4): left φ1, left φ2, right φ1, right φ2.
 
     Attributes:

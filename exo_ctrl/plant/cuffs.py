@@ -16,7 +16,7 @@ matrix products.  A link turned by θ about the lateral axis turns its points
 by R(θ) about the joint.  A point on a thigh is p = h + R(α) a, on a shank
 p = h + R(α) a + R(β) b, where h is the hip, a and b link vectors at q = 0 and
 α = s_h q_hip, β = α + s_k q_knee the link rotations (signs and vectors read
-from the Pinocchio model at q = 0; see :mod:`exo_ctrl.model.body`).  With the
+from the Pinocchio model at q = 0; see :mod:`exo_ctrl.model.geometry`).  With the
 eight link rotations θ = S q_all and u = (cos θ, sin θ), every point's
 (x, z) is linear in u: p = P u + p₀, with P built once.  Then
 ṗ = P w with w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇), the cuff stretch is
@@ -65,7 +65,7 @@ class CuffSet:
     """The four cuffs between an exoskeleton and a patient, computed in one batch.
 
     Joint vectors are stacked as ``q_all = [q_exo (4), q_patient (4)]`` in
-    :data:`~exo_ctrl.model.body.JOINT_NAMES` order.  Forces are on the
+    :data:`~exo_ctrl.model.JOINT_NAMES` order.  Forces are on the
     exoskeleton, laid out as ``(fx of the 4 cuffs, fz of the 4 cuffs)``;
     :attr:`force` is the same as a (4, 2) view.
 
@@ -123,7 +123,7 @@ class CuffSet:
         self._P = np.block([[ax, -az], [az, ax]])
         #: P of the module docstring, (16, 16): rows x then z of the 8 points
         #: (exo cuffs 0-3, patient cuffs 4-7), columns cos θ then sin θ.
-        self.kernel_points = self._P
+        self.points = self._P
         self._p0 = np.concatenate((base[:, 0], base[:, 1]))
         diff = np.zeros((8, 16))  # exo minus patient, rows: 4 x then 4 z
         for c in range(4):
@@ -146,7 +146,6 @@ class CuffSet:
         c["k"], c["c"] = self._k, self._c
         #: S, the rotation selection (8, 8): link rotation j = S[j] @ q_all.
         self.select = self.record["select"][0]
-        self.kernel_matrices = self.select  # TEMPORARY alias for the QP's cuff model (issue 14)
         # State and work arrays, allocated once.
         #: Strap offsets (exo minus patient, x then z) at which a cuff is slack [m], (8,).
         self.rest_offset = np.zeros(8)

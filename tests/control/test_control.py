@@ -23,7 +23,7 @@ from exo_ctrl.control import (
     feedforward_torque,
 )
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.model.body import (
+from exo_ctrl.model import (
     FRICTION_SMOOTHING_RAD_S,
     JOINT_NAMES,
     BodyModel,
@@ -33,7 +33,7 @@ from exo_ctrl.model.body import (
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import plan_joints
 from exo_ctrl.plant.motor import MotorParams
-from exo_ctrl.sim.loop import SimConfig, simulate
+from exo_ctrl.sim import SimConfig, simulate
 
 
 @pytest.fixture(scope="module")

@@ -43,7 +43,7 @@ from exo_ctrl.estimation import (
 from exo_ctrl.model import CUFF_NAMES, BodyModel
 from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.sensing.sensors import SensorParams, Sensors
-from exo_ctrl.sim.loop import SimConfig, build, start_on_plan
+from exo_ctrl.sim import SimConfig, build, start_on_plan
 
 DT = 1e-3
 SKIP_S = 0.05

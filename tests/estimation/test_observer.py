@@ -34,7 +34,7 @@ from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.plant.plant import Plant
 from exo_ctrl.sensing.readings import SensorReadings
 from exo_ctrl.sensing.sensors import SensorParams, Sensors
-from exo_ctrl.sim.loop import SimConfig, build
+from exo_ctrl.sim import SimConfig, build
 
 DT = 1e-3
 SKIP_S = 0.05

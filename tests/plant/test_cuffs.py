@@ -4,7 +4,7 @@ Independent references used here: Pinocchio's frame placements and frame
 Jacobians (``LOCAL_WORLD_ALIGNED``, rows x and z), finite differences of the
 frame positions, and the spring energy V = ½ K Σ |Δp − r₀|² computed from
 Pinocchio's positions.  Forces on the exoskeleton are laid out (4 cuffs, x z)
-in :data:`~exo_ctrl.model.body.CUFF_NAMES` order.
+in :data:`~exo_ctrl.model.CUFF_NAMES` order.
 """
 
 from __future__ import annotations

@@ -371,7 +371,7 @@ class CuffHorizonModel:
         self.record = record(horizon_fields(len(ticks), powers[-1].bit_length()))
         m = self.record[0]
         m["losses"] = np.stack((exo.damping, exo.friction, patient.damping, patient.friction))
-        m["points"] = cuff_set.kernel_points
+        m["points"] = cuff_set.points
         m["select"] = cuff_set.select
         m["damp_e"] = self.back_emf_damping + exo.damping
         m["damp_p"] = patient.damping

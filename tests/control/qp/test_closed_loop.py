@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_ctrl.sim.loop import SimConfig, SimResult, simulate
+from exo_ctrl.sim import SimConfig, SimResult, simulate
 
 #: The QP may track worse than CT by at most this, per joint (brief: 5 %).
 RMS_TOLERANCE = 0.05

@@ -18,7 +18,7 @@ from exo_ctrl.control.qp.expm import PS_BLOCK, expm_top
 from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
-from exo_ctrl.sim.loop import Runner, SimConfig, build
+from exo_ctrl.sim import Runner, SimConfig, build
 
 
 def kernel_expm(f: np.ndarray) -> np.ndarray:
