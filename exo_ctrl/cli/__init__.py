@@ -1,9 +1,15 @@
-"""The ``exo-ctrl`` command."""
+"""The ``exo-ctrl`` command, one module per subcommand.
 
-from .app import (
-    main,
-)
+- :mod:`~exo_ctrl.cli.app`: the parser and :func:`main` (the entry point).
+- :mod:`~exo_ctrl.cli.common`: the shared gait options, the summary as text,
+  the parser class.
+- :mod:`~exo_ctrl.cli.gait`, :mod:`~exo_ctrl.cli.urdf`,
+  :mod:`~exo_ctrl.cli.simulate`, :mod:`~exo_ctrl.cli.estimate`,
+  :mod:`~exo_ctrl.cli.sweep`: the subcommands.
+"""
 
-__all__ = [
-    "main",
-]
+from .app import build_parser, main
+from .common import format_summary
+from .gait import GAIT_CSV_HEADER
+
+__all__ = ["GAIT_CSV_HEADER", "build_parser", "format_summary", "main"]

@@ -1,19 +1,36 @@
-"""Rerun recordings of runs: blueprint, writer, reader."""
+"""Rerun recordings of runs: the layout, the default blueprint, the writer, the reader.
 
-from .recorder import (
-    FORCE_ARROW_M_PER_N,
-    RECORDING_FORMAT,
-    RerunRecorder,
-    blueprint_views,
-    make_blueprint,
-    read_recording,
-)
+- :mod:`.format`: the entity hierarchy, the timelines and the
+  series derived from the log schema (:mod:`exo_ctrl.sim.schema`).
+- :mod:`.blueprint`: the viewer's default layout.
+- :mod:`.scene`: the 3-D scene (both bodies' legs, cuff
+  forces, belt, planned foot paths).
+- :mod:`.writer`: :class:`RerunRecorder`, the observer that
+  writes a run as it goes.
+- :mod:`.reader`: :func:`read_recording`, the run back from a file.
+- :mod:`.estimate`: cuff-force estimation along a recording
+  or a CSV log (``exo-ctrl estimate``).
+
+Nothing in the library below imports this package; the public face
+(:mod:`exo_ctrl`), the command line and the tools do.
+"""
+
+from .blueprint import blueprint_views, make_blueprint
+from .estimate import OfflineEstimate, estimate_file, write_estimate_recording
+from .format import FORCE_ARROW_M_PER_N, FORMAT_VERSION, RECORDING_FORMAT
+from .reader import read_recording
+from .writer import DEFAULT_SCENE_RATE_HZ, RerunRecorder
 
 __all__ = [
+    "DEFAULT_SCENE_RATE_HZ",
     "FORCE_ARROW_M_PER_N",
+    "FORMAT_VERSION",
     "RECORDING_FORMAT",
+    "OfflineEstimate",
     "RerunRecorder",
     "blueprint_views",
+    "estimate_file",
     "make_blueprint",
     "read_recording",
+    "write_estimate_recording",
 ]

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_ctrl.cli import app as cli
+from exo_ctrl import cli
 from exo_ctrl.model.body import load_body
 
 HEADER = [

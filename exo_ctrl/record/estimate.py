@@ -1,7 +1,9 @@
 """Cuff-force estimation after the fact, from a recording or a user's CSV log.
 
-:func:`estimate_file` runs the same momentum observer as the live loop
-(:mod:`exo_ctrl.estimation.observer`) along logged sensor readings:
+This module reads and writes files; the estimation itself is
+:func:`exo_ctrl.estimation.estimate_series`.  :func:`estimate_file` runs the
+same momentum observer as the live loop
+(:class:`exo_ctrl.estimation.CuffForceEstimator`) along logged sensor readings:
 
 - an ``.rrd`` written by exo_ctrl: the encoder angles ``q_meas``, speeds
   ``dq_meas`` and torque-sensor readings ``tau_sensor`` of every tick, with
@@ -9,7 +11,7 @@
   equals the live estimate; where the recording holds the simulated cuff
   forces, the error of the estimate is reported;
 - a ``.csv`` log with the header documented in
-  :func:`exo_ctrl.estimation.observer.read_csv_log` (``t`` and, per joint, the angle
+  :func:`exo_ctrl.estimation.read_csv_log` (``t`` and, per joint, the angle
   and the torque-sensor reading, speeds optional).
 
 :func:`write_estimate_recording` writes the estimate as a rerun recording
@@ -25,16 +27,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import rerun as rr
 
-from ..exceptions import InvalidParameter, RecordingError
-from ..model.body import CUFF_NAMES, JOINT_NAMES, load_exo
-from .observer import (
+from ..estimation import (
     DEFAULT_GAIN_PER_S,
     EstimateSeries,
     estimate_series,
     normal_component_errors,
     read_csv_log,
 )
+from ..exceptions import InvalidParameter, RecordingError
+from ..model import CUFF_NAMES, JOINT_NAMES, load_exo
+from .format import TIME
+from .reader import read_recording
 
 __all__ = ["OfflineEstimate", "estimate_file", "write_estimate_recording"]
 
@@ -85,7 +90,7 @@ def estimate_file(
         exo: exoskeleton URDF (default: the recording's own, or the committed
             default for a CSV log).
         gain_per_s: observer gain K_O [1/s] (default: the recording's, or
-            :data:`~exo_ctrl.estimation.observer.DEFAULT_GAIN_PER_S`).
+            :data:`~exo_ctrl.estimation.DEFAULT_GAIN_PER_S`).
 
     Raises:
         RecordingError: an unreadable recording.
@@ -109,8 +114,6 @@ def estimate_file(
 def _from_recording(
     path: Path, exo: str | os.PathLike[str] | None, gain_per_s: float | None
 ) -> OfflineEstimate:
-    from ..record.recorder import read_recording
-
     result = read_recording(path)
     s = result.signals
     for name in ("q_meas", "dq_meas", "tau_sensor"):
@@ -139,15 +142,18 @@ def _from_recording(
 
 
 def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[str]) -> Path:
-    """Write an estimate as a rerun recording (entities in the module docstring)."""
-    import rerun as rr
+    """Write an estimate as a rerun recording (entities in the module docstring).
 
+    Raises:
+        RecordingError: the file could not be written.
+
+    """
     out = Path(path)
     s = estimate.series
     rec = rr.RecordingStream("exo_ctrl_estimate")
     try:
         rec.save(str(out))
-        times = rr.TimeColumn("sim_time", duration=s.t)
+        times = rr.TimeColumn(TIME, duration=s.t)
         for i, cuff in enumerate(CUFF_NAMES):
             rec.send_columns(
                 f"estimate/cuff_normal/{cuff}",

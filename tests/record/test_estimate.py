@@ -1,4 +1,7 @@
-"""Offline cuff-force estimation: from a recording, from a CSV log, and the CLI."""
+"""Tests of exo_ctrl.record.estimate: cuff forces estimated from a recording or a CSV log.
+
+Also through the CLI (``exo-ctrl estimate``).
+"""
 
 from __future__ import annotations
 
@@ -8,12 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_ctrl.cli import app as cli
-from exo_ctrl.estimation.observer import write_csv_log
-from exo_ctrl.estimation.offline import estimate_file, write_estimate_recording
-from exo_ctrl.model.body import CUFF_NAMES
-from exo_ctrl.record.recorder import RerunRecorder
-from exo_ctrl.sim.loop import SimConfig, simulate
+from exo_ctrl.cli import main as cli_main
+from exo_ctrl.estimation import write_csv_log
+from exo_ctrl.model import CUFF_NAMES
+from exo_ctrl.record import RerunRecorder, estimate_file, write_estimate_recording
+from exo_ctrl.sim import SimConfig, simulate
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +78,7 @@ def test_estimate_recording_holds_the_estimate(recorded, tmp_path: Path) -> None
 def test_cli_estimate_reports_the_errors(recorded, tmp_path: Path, capsys) -> None:
     path, result = recorded
     summary_path = tmp_path / "e.json"
-    code = cli.main(["estimate", str(path), "--summary", str(summary_path)])
+    code = cli_main(["estimate", str(path), "--summary", str(summary_path)])
     out = capsys.readouterr().out
     assert code == 0
     data = json.loads(summary_path.read_text())
@@ -99,7 +101,7 @@ def test_cli_estimate_bad_files(
 ) -> None:
     bad = tmp_path / name
     bad.write_text(content)
-    code = cli.main(["estimate", str(bad), "--summary", str(tmp_path / "s.json")])
+    code = cli_main(["estimate", str(bad), "--summary", str(tmp_path / "s.json")])
     err = capsys.readouterr().err
     assert code == 2
     assert message in err

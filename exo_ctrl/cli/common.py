@@ -1,0 +1,127 @@
+"""What the subcommands share: the gait options, the run summary as text, the parser class."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from typing import Any
+
+from .._io import atomic_write
+from ..model import JOINT_NAMES
+from ..plan import GaitParams
+
+__all__ = [
+    "Parser",
+    "add_gait_options",
+    "format_summary",
+    "gait_params_from",
+    "write_json",
+]
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with exit code 2 and a one-line message on bad usage."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        """Print ``prog: error: message`` on one line and exit with code 2."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def add_gait_options(parser: argparse.ArgumentParser) -> None:
+    """The gait parameter options shared by the subcommands (defaults: GaitParams)."""
+    d = GaitParams()
+    g = parser.add_argument_group("gait (paper §III)")
+    g.add_argument(
+        "--step-length",
+        type=float,
+        default=d.step_length,
+        metavar="S",
+        help=f"step length s [m] (default {d.step_length})",
+    )
+    g.add_argument(
+        "--lift-height",
+        type=float,
+        default=d.lift_height,
+        metavar="H",
+        help=f"foot lift h_s [m] (default {d.lift_height})",
+    )
+    g.add_argument(
+        "--hip-height",
+        type=float,
+        default=d.hip_height,
+        metavar="HS",
+        help=f"hip height above the belt H_s [m] (default {d.hip_height})",
+    )
+    g.add_argument(
+        "--shape-coeff",
+        type=float,
+        default=d.shape_coeff,
+        metavar="KV",
+        help=f"shape coefficient k_v = v_f / v_b (default {d.shape_coeff})",
+    )
+    g.add_argument(
+        "--period",
+        type=float,
+        default=d.period,
+        metavar="T",
+        help=f"gait period T_s [s] (default {d.period})",
+    )
+    g.add_argument(
+        "--duty-factor",
+        type=float,
+        default=d.duty_factor,
+        metavar="B",
+        help=f"stance fraction β of the period (default {d.duty_factor})",
+    )
+    g.add_argument(
+        "--exo",
+        default=None,
+        metavar="URDF",
+        help="exoskeleton URDF (default: urdf/exoskeleton.urdf)",
+    )
+
+
+def gait_params_from(args: argparse.Namespace) -> GaitParams:
+    """GaitParams from the parsed gait options."""
+    return GaitParams(
+        step_length=args.step_length,
+        lift_height=args.lift_height,
+        hip_height=args.hip_height,
+        shape_coeff=args.shape_coeff,
+        period=args.period,
+        duty_factor=args.duty_factor,
+    )
+
+
+def write_json(path: str | os.PathLike[str], data: dict[str, Any]) -> None:
+    """Write ``data`` as indented JSON, atomically (a failure leaves no file)."""
+    with atomic_write(path) as handle:
+        json.dump(data, handle, indent=2)
+        handle.write("\n")
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """A run's summary (:meth:`exo_ctrl.sim.SimResult.summary`) as a plain-text table."""
+    lines = [
+        f"controller {summary['controller']}, {summary['status']}: "
+        f"{summary['duration_s']:.3f} s simulated in {summary['wall_time_s']:.2f} s "
+        f"(real-time factor {summary['real_time_factor']:.1f}), "
+        f"belt speed {summary['belt_speed_mps']:.3f} m/s",
+        f"{'joint':<12}{'rms err [mrad]':>15}{'max err [mrad]':>15}{'peak τ [N·m]':>13}"
+        f"{'peak I [A]':>11}{'peak U [V]':>11}",
+    ]
+    for j in JOINT_NAMES:
+        lines.append(
+            f"{j:<12}{1e3 * summary['rms_tracking_error_rad'][j]:>15.3f}"
+            f"{1e3 * summary['max_tracking_error_rad'][j]:>15.3f}"
+            f"{summary['peak_drive_torque_Nm'][j]:>13.1f}"
+            f"{summary['peak_motor_current_A'][j]:>11.2f}{summary['peak_motor_voltage_V'][j]:>11.2f}"
+        )
+    cuffs = ", ".join(f"{c} {f:.1f}" for c, f in summary["peak_cuff_force_N"].items())
+    lines.append(f"peak cuff force [N]: {cuffs}")
+    for event in summary["safety_events"][:5]:
+        lines.append(f"safety: {event['message']}")
+    if summary["safety_state"] != "normal":
+        lines.append(f"safety supervisor ended in state {summary['safety_state']!r}")
+    return "\n".join(lines)

@@ -1,0 +1,168 @@
+"""``exo-ctrl simulate``: run the closed loop and write a rerun recording."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .. import _validate as v
+from ..control import PDGains
+from ..plant import PATIENT_TORQUES
+from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
+from ..sim import CONTROLLERS, SimConfig, simulate
+from .common import add_gait_options, format_summary, gait_params_from, write_json
+
+__all__ = ["register", "run", "sim_config"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``simulate`` subcommand."""
+    p = sub.add_parser("simulate", help="run the closed loop and write a rerun recording")
+    add_gait_options(p)
+    p.add_argument(
+        "--patient",
+        default=None,
+        metavar="URDF|human",
+        help="patient URDF, or 'human' for example-robot-data's model (default: urdf/patient.urdf)",
+    )
+    p.add_argument(
+        "--controller",
+        choices=CONTROLLERS,
+        default="pd",
+        help="pd (paper), ct (computed torque + PD) or qp (CT + PD through a QP under drive "
+        "limits and cuff-force bounds) (default pd)",
+    )
+    span = p.add_mutually_exclusive_group()
+    span.add_argument(
+        "--cycles",
+        type=float,
+        default=None,
+        metavar="N",
+        help="gait cycles to run; 0.5 = one step (default 2)",
+    )
+    span.add_argument(
+        "--duration", type=float, default=None, metavar="SEC", help="simulated time [s]"
+    )
+    p.add_argument(
+        "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
+    )
+    p.add_argument(
+        "--substeps",
+        type=int,
+        default=1,
+        metavar="N",
+        help="plant steps per control tick (default 1)",
+    )
+    p.add_argument(
+        "--kp",
+        type=float,
+        default=None,
+        metavar="V/RAD",
+        help=f"PD proportional gain, all joints (default {PDGains().kp[0]:g})",
+    )
+    p.add_argument(
+        "--kd",
+        type=float,
+        default=None,
+        metavar="V.S/RAD",
+        help=f"PD derivative gain, all joints (default {PDGains().kd[0]:g})",
+    )
+    p.add_argument(
+        "--cuff-force-limit",
+        type=float,
+        default=SimConfig().cuff_force_limit_N,
+        metavar="N",
+        help="the qp controller's bound on each cuff's predicted force [N] (default "
+        f"{SimConfig().cuff_force_limit_N:g}: ISO/TS 15066 lower leg 130 N with a margin)",
+    )
+    p.add_argument(
+        "--patient-torque",
+        choices=PATIENT_TORQUES,
+        default="none",
+        help="patient joint torques: none (paper §VI) or spastic (default none)",
+    )
+    p.add_argument(
+        "--no-safety",
+        action="store_true",
+        help="run without the safety supervisor (an --estop-at still acts)",
+    )
+    p.add_argument(
+        "--safety-estimate",
+        action="store_true",
+        help="the supervisor watches the estimated cuff forces, as on the device",
+    )
+    p.add_argument(
+        "--estop-at",
+        type=float,
+        default=None,
+        metavar="SEC",
+        help="emergency stop at this time [s]",
+    )
+    p.add_argument("--summary", default=None, metavar="PATH.json", help="write the summary as JSON")
+    p.add_argument(
+        "--out",
+        default="exo_run.rrd",
+        metavar="PATH.rrd",
+        help="rerun recording (default exo_run.rrd)",
+    )
+    p.add_argument(
+        "--scene-rate",
+        type=float,
+        default=DEFAULT_SCENE_RATE_HZ,
+        metavar="HZ",
+        help="rate of the recording's 3-D scene [Hz]; the time series keep every tick "
+        f"(default {DEFAULT_SCENE_RATE_HZ:g})",
+    )
+    p.add_argument("--no-record", action="store_true", help="do not write a recording")
+    p.add_argument("--spawn", action="store_true", help="also open a rerun viewer if one can start")
+    p.set_defaults(func=run)
+
+
+def sim_config(args: argparse.Namespace) -> SimConfig:
+    """The run's SimConfig from the parsed options (default duration: two gait cycles)."""
+    gait = gait_params_from(args)
+    if args.cycles is not None:
+        duration = v.positive("cycles", args.cycles) * gait.period
+    else:
+        duration = args.duration if args.duration is not None else 2 * gait.period
+    gains = PDGains(
+        kp=args.kp if args.kp is not None else PDGains().kp,
+        kd=args.kd if args.kd is not None else PDGains().kd,
+    )
+    return SimConfig(
+        gait=gait,
+        exo=args.exo,
+        patient=args.patient,
+        controller=args.controller,
+        gains=gains,
+        duration_s=duration,
+        control_rate_hz=args.rate,
+        plant_substeps=args.substeps,
+        patient_torque=args.patient_torque,
+        safety=not args.no_safety,
+        safety_use_estimate=args.safety_estimate,
+        estop_at_s=args.estop_at,
+        cuff_force_limit_N=args.cuff_force_limit,
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run, record, print the summary; 0 completed, 1 diverged or failed, 130 interrupted."""
+    config = sim_config(args)
+    observers = []
+    if not args.no_record:
+        recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=args.scene_rate)
+        observers.append(recorder)
+    result = simulate(config, observers=observers, progress=True, keep_history=False)
+    summary = result.summary()
+    if args.summary:
+        write_json(args.summary, summary)
+    print(format_summary(summary))
+    if not args.no_record:
+        print(f"recording: {args.out} (view offline: rerun {args.out})")
+    if result.status == "interrupted":
+        return 130
+    if result.status != "completed":
+        print(f"exo-ctrl simulate: error: {result.error}", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,283 @@
+"""The layout of a recording: entities, timelines, and the series derived from the log schema.
+
+Entity hierarchy (the one place it is defined)::
+
+    params                                   TextDocument, static: the run's parameters (markdown)
+    events                                   TextLog: run events and the final status
+    world/belt                               Boxes3D, static: treadmill belt; its top is the
+                                             stance-foot height (exo hip z - hip_height)
+    world/belt/stripes                       LineStrips3D: belt markings moving at belt speed
+    world/plan/foot_path/{left,right}        LineStrips3D, static: planned foot path over one
+                                             gait period (path relative to the hip + hip)
+    world/{exo,patient}/{left,right}/leg     LineStrips3D: hip → knee → foot
+    world/{exo,patient}/{left,right}/joints  Points3D: hip, knee, foot
+    world/{exo,patient}/{left,right}/cuffs   Points3D: thigh cuff, shank cuff
+    world/cuff_force/{cuff}                  Arrows3D: cuff force on the exoskeleton, drawn at
+                                             the exo cuff, FORCE_ARROW_M_PER_N metres per newton
+    signals/joint_angle/{joint}              Scalars (desired, actual, patient) [rad]
+    signals/joint_speed/{joint}              Scalars (desired, actual, patient) [rad/s]
+    signals/drive_torque/{joint}             Scalars [N·m]
+    signals/patient_torque/{joint}           Scalars [N·m]
+    signals/current/{joint}                  Scalars [A] (mean over the tick)
+    signals/voltage/{joint}                  Scalars (command, applied) [V]
+    signals/{name}/{cuff}                    Scalars (x, z, magnitude) [N]: a (4, 2) signal
+                                             labelled by cuff, e.g. cuff_force, cuff_force_est
+    signals/{name}                           Scalars: any other signal, its components
+                                             flattened row-major (named by joint or cuff
+                                             for a (4,) signal labelled so)
+    raw/{signal}                             Scalars: one row per tick holding the signal's
+                                             whole row (row-major), for every signal
+    raw/meta                                 TextDocument, static: JSON (format marker, config,
+                                             model sources, Δt, signal layout)
+    raw/outcome                              TextDocument, static: JSON written at the end
+                                             (status, error, events, ticks, and the other
+                                             plain fields of SimResult)
+
+``{joint}`` is one of :data:`~exo_ctrl.model.JOINT_NAMES`, ``{cuff}`` one of
+:data:`~exo_ctrl.model.CUFF_NAMES`; "every signal" is every entry of the log
+schema :data:`exo_ctrl.sim.schema.SIGNALS`, read when a recording starts, so
+a signal added there is recorded and read back with no change here.
+Time-varying data sits on two timelines: ``sim_time`` (a duration,
+t_k = k Δt, stored in whole nanoseconds) and ``tick`` (the sequence k).
+Everything under ``signals/`` and ``raw/`` is logged at every tick; the 3-D
+entities at the scene rate (ticks k with k mod round(f_ctrl / f_scene) = 0).
+
+Exactness.  Rerun stores scalars as float64, so ``raw/`` holds every signal
+bit for bit, and the ``signals/`` series hold copies of the same values
+(the magnitudes are ``hypot(x, z)``).  3-D positions are float32 (rerun's
+Vec3D), so they are within about 1e-7 m of Pinocchio's.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..model import CUFF_NAMES, JOINT_NAMES
+from ..sim import SimResult, schema
+
+__all__ = [
+    "FORCE_ARROW_M_PER_N",
+    "FORMAT_VERSION",
+    "RECORDING_FORMAT",
+    "TICK",
+    "TIME",
+    "Layout",
+    "Series",
+    "dumps",
+    "layout",
+    "params_markdown",
+    "schema_shapes",
+]
+
+#: Marker stored in ``raw/meta``; :func:`~.reader.read_recording` refuses files without it.
+RECORDING_FORMAT = "exo_ctrl.recording"
+#: Version of the layout described in the module docstring.
+FORMAT_VERSION = 1
+#: Length of a cuff-force arrow per newton of force [m/N] (1 mm per N).
+FORCE_ARROW_M_PER_N = 1e-3
+#: The timelines: simulated time (a duration) and the tick number.
+TIME = "sim_time"
+TICK = "tick"
+
+#: Colours (RGBA) of the scene and of the joint series' components.
+COLORS = {
+    "exo": (70, 130, 220, 255),
+    "patient": (235, 150, 80, 150),
+    "cuff": (30, 30, 30, 255),
+    "force": (220, 40, 40, 255),
+    "plan": (60, 180, 75, 255),
+    "belt": (60, 60, 64, 255),
+    "stripe": (200, 200, 200, 255),
+    "series_desired": (60, 180, 75, 255),
+    "series_actual": (70, 130, 220, 255),
+    "series_patient": (235, 150, 80, 255),
+}
+#: Human-friendly series of the per-joint signals: one entity per quantity and
+#: joint, signals/{quantity}/{joint}, whose components are these signals.
+JOINT_GROUPS = {
+    "joint_angle": (("q_des", "desired"), ("q", "actual"), ("q_patient", "patient")),
+    "joint_speed": (("dq_des", "desired"), ("dq", "actual"), ("dq_patient", "patient")),
+    "drive_torque": (("drive_torque", ""),),
+    "patient_torque": (("patient_torque", ""),),
+    "current": (("current", ""),),
+    "voltage": (("voltage_cmd", "command"), ("voltage", "applied")),
+}
+#: The estimated cuff forces, shown beside the simulated ones.
+EST_ENTITY = "signals/cuff_force_est"
+#: SimResult fields not stored in raw/outcome (they have their own entities).
+NOT_IN_OUTCOME = ("config", "t", "signals", "stats")
+
+
+def schema_shapes() -> dict[str, tuple[int, ...]]:
+    """Name → row shape of every signal of the log schema as it is now, in log order."""
+    return {s.name: tuple(s.shape) for s in schema.SIGNALS}
+
+
+@dataclass(frozen=True)
+class Series:
+    """One human-friendly time-series entity.
+
+    Attributes:
+        entity: entity path.
+        names: legend of each component.
+        colors: RGBA per component, or None for rerun's defaults.
+        columns: per component, the column of the chunk's extended row
+            (:class:`Layout`) it shows.
+
+    """
+
+    entity: str
+    names: list[str]
+    colors: list[tuple[int, int, int, int]] | None
+    columns: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each signal sits in a chunk's flat rows, and the series built from them.
+
+    A chunk of n ticks is packed as one float64 vector: signal s, flattened to
+    w_s values per row, occupies the (n, w_s) row-major block starting at
+    ``n * offsets[s]``.  The series read an *extended row* of ``width +
+    len(magnitudes)`` columns: columns ``offsets[s] … offsets[s] + w_s - 1``
+    are signal s, and column ``width + m`` is the magnitude
+    hypot(x, z) of the column pair ``magnitudes[m]``.
+
+    Attributes:
+        shapes: name → row shape, in log order.
+        offsets: name → first column of the signal.
+        width: columns of all signals, Σ w_s.
+        magnitudes: (x column, z column) of each magnitude.
+        series: the entities under ``signals/``.
+
+    """
+
+    shapes: dict[str, tuple[int, ...]]
+    offsets: dict[str, int]
+    width: int
+    magnitudes: tuple[tuple[int, int], ...]
+    series: tuple[Series, ...]
+
+    def gather_index(self, n: int) -> np.ndarray:
+        """Index into ``[packed signals (n·width), magnitudes (n, m) row-major]`` of the series.
+
+        ``source[gather_index(n)]`` is every series' (n, c) block, row-major,
+        one after the other in :attr:`series` order.
+        """
+        extra = len(self.magnitudes)
+        base = np.empty(self.width + extra, dtype=np.int64)
+        stride = np.empty(self.width + extra, dtype=np.int64)
+        for name, shape in self.shapes.items():
+            w, off = math.prod(shape), self.offsets[name]
+            base[off : off + w] = n * off + np.arange(w)
+            stride[off : off + w] = w
+        base[self.width :] = n * self.width + np.arange(extra)
+        stride[self.width :] = extra
+        rows = np.arange(n, dtype=np.int64)[:, None]
+        blocks = [base[list(s.columns)] + rows * stride[list(s.columns)] for s in self.series]
+        return np.concatenate([b.ravel() for b in blocks]) if blocks else np.zeros(0, np.int64)
+
+
+def layout(shapes: dict[str, tuple[int, ...]] | None = None) -> Layout:
+    """The layout of the signals ``shapes`` (default: the log schema as it is now).
+
+    The per-joint quantities of :data:`JOINT_GROUPS` give one entity per
+    joint.  Any other signal: a (4, 2) signal labelled by cuff gives one
+    entity per cuff with (x, z, magnitude), a (4,) signal labelled by joint
+    or cuff one entity named so; any other signal (one this layout does not
+    know) one plain entity of its components flattened row-major, named
+    ``name[i]…``.
+    """
+    if shapes is None:
+        shapes = schema_shapes()
+    labels = {s.name: s.labels for s in schema.SIGNALS}
+    offsets, width = {}, 0
+    for name, shape in shapes.items():
+        offsets[name] = width
+        width += math.prod(shape)
+    magnitudes: list[tuple[int, int]] = []
+    out: list[Series] = []
+    used: set[str] = set()
+    for quantity, parts in JOINT_GROUPS.items():
+        present = [(sig, label) for sig, label in parts if shapes.get(sig) == (4,)]
+        used.update(sig for sig, _ in present)
+        keys = [f"series_{label}" for _, label in present]
+        colors = [COLORS[k] for k in keys] if all(k in COLORS for k in keys) else None
+        for j, joint in enumerate(JOINT_NAMES if present else ()):
+            names = [f"{joint} {label}".rstrip() for _, label in present]
+            columns = tuple(offsets[sig] + j for sig, _ in present)
+            out.append(Series(f"signals/{quantity}/{joint}", names, colors, columns))
+    for name, shape in shapes.items():
+        if name in used:
+            continue
+        off, label = offsets[name], labels.get(name, "")
+        if shape == (4, 2) and label == "cuff":
+            for c, cuff in enumerate(CUFF_NAMES):
+                tag = "" if name == "cuff_force" else f" ({name})"
+                names = [f"{cuff} {part}{tag}" for part in ("x", "z", "magnitude")]
+                x, z = off + 2 * c, off + 2 * c + 1
+                columns = (x, z, width + len(magnitudes))
+                magnitudes.append((x, z))
+                out.append(Series(f"signals/{name}/{cuff}", names, None, columns))
+        elif shape == (4,) and label in ("joint", "cuff"):
+            items = CUFF_NAMES if label == "cuff" else JOINT_NAMES
+            names = [f"{name} {item}" for item in items]
+            out.append(Series(f"signals/{name}", names, None, tuple(range(off, off + 4))))
+        else:  # a plain per-component series
+            idx = list(np.ndindex(*shape))
+            names = [name + "".join(f"[{i}]" for i in ix) for ix in idx]
+            out.append(Series(f"signals/{name}", names, None, tuple(range(off, off + len(idx)))))
+    return Layout(dict(shapes), offsets, width, tuple(magnitudes), tuple(out))
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return str(value)
+
+
+def dumps(data: dict[str, Any]) -> str:
+    """JSON of ``data`` (numpy values as plain numbers, NaN allowed)."""
+    return json.dumps(data, indent=1, default=_jsonable, allow_nan=True)
+
+
+def params_markdown(result: SimResult, meta: dict[str, Any]) -> str:
+    """The ``params`` document: the run's settings (``meta`` of ``raw/meta``) as markdown."""
+    config = result.config
+    lines = [
+        "# exo_ctrl run",
+        "",
+        "| | |",
+        "|---|---|",
+        f"| controller | `{config.controller}` |",
+        f"| duration | {config.duration_s:g} s ({config.n_ticks} ticks) |",
+        f"| control rate | {config.control_rate_hz:g} Hz (Δt = {config.dt:g} s), "
+        f"{config.plant_substeps} plant substep(s) |",
+        f"| belt speed | {result.belt_speed_mps:.4g} m/s |",
+        f"| exoskeleton | `{result.exo_source}` |",
+        f"| patient | `{result.patient_source}` |",
+        f"| 3-D scene | every {meta['decimate_3d_ticks']} ticks "
+        f"({config.control_rate_hz / meta['decimate_3d_ticks']:.4g} Hz) |",
+        f"| cuff-force arrows | {FORCE_ARROW_M_PER_N * 1e3:g} mm per N, force on the exo |",
+        "",
+    ]
+    for key, value in meta["config"].items():
+        if isinstance(value, dict):
+            lines += [f"## {key}", "", "| parameter | value |", "|---|---|"]
+            lines += [f"| {k} | {v} |" for k, v in value.items()]
+            lines.append("")
+    lines += [
+        "## Reading back",
+        "",
+        "`exo_ctrl.read_recording(path)` rebuilds the run (every signal under `raw/`, "
+        "float64, exact).",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,288 @@
+"""Reading a recording back: :func:`read_recording` rebuilds the run from its file.
+
+The file's layout is that of :mod:`.format`.  Every signal comes
+from its ``raw/<name>`` entity, bit for bit; ``t`` is rebuilt as k Δt from
+the ``tick`` timeline (exactly as :func:`~exo_ctrl.sim.simulate` computes
+it), not from the nanosecond ``sim_time``.  A file cut short by a crash is
+read up to what reached the disk (see :func:`read_recording`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import math
+import os
+import struct
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+from rerun.chunk import RrdReader
+
+from ..estimation import EstimateErrorStats
+from ..exceptions import ExoCtrlError, RecordingError
+from ..model import load_body
+from ..sim import RunStats, SimConfig, SimResult
+from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
+
+__all__ = ["read_recording"]
+
+#: RRD stream framing (rerun 0.2x-0.41): a 12-byte file header starting with
+#: b"RRF2", then messages of a 16-byte header (kind, payload length; both
+#: little-endian u64) and the payload.  Kind 0 ends the stream.
+_RRD_MAGIC = b"RRF2"
+_RRD_FILE_HEADER = 12
+_RRD_MSG_HEADER = struct.Struct("<QQ")
+
+
+def read_recording(path: str | os.PathLike[str]) -> SimResult:
+    """Rebuild a run's :class:`~exo_ctrl.sim.SimResult` from its recording.
+
+    Every signal comes from ``raw/<name>`` bit for bit (float64); ``t`` is
+    ``k Δt`` for the ticks k = 0 … N-1 in the file.  Status, error, events,
+    wall time and the other plain fields of the result come from
+    ``raw/outcome``; a file without it (the process died before the run
+    finished) reads as ``"interrupted"`` with the ticks that reached the disk.
+    If a crash cut a chunk between signals, only the ticks present in every
+    signal are kept.  Every signal of the log schema
+    (:data:`exo_ctrl.sim.schema.SIGNALS`, as it is when this is called) is
+    in the result: one the file lacks (written before the signal existed) is
+    NaN.  The running statistics are rebuilt, so :meth:`SimResult.summary`
+    matches the live run.
+
+    Raises:
+        RecordingError: the file is missing or unreadable, was not written by
+            :class:`~.writer.RerunRecorder`, or its data is inconsistent.
+
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise RecordingError(f"cannot read recording {p}: file not found")
+    chunks, note = _read_chunks(p)
+
+    texts: dict[str, str] = {}
+    raw: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for chunk in chunks:
+        entity = chunk.entity_path.lstrip("/")
+        if not entity.startswith("raw/"):
+            continue
+        batch = chunk.to_record_batch()
+        if entity in ("raw/meta", "raw/outcome"):
+            if "TextDocument:text" in batch.schema.names:
+                values = batch.column("TextDocument:text").to_pylist()
+                if values and values[-1]:
+                    texts[entity] = values[-1][-1]
+            continue
+        if "Scalars:scalars" in batch.schema.names and TICK in batch.schema.names:
+            raw.setdefault(entity[4:], []).append(_scalar_rows(p, entity, batch))
+
+    if "raw/meta" not in texts:
+        raise RecordingError(f"cannot read recording {p}: not written by exo_ctrl (no raw/meta)")
+    try:
+        meta = json.loads(texts["raw/meta"])
+    except json.JSONDecodeError as exc:
+        raise RecordingError(f"cannot read recording {p}: raw/meta is not JSON ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != RECORDING_FORMAT:
+        raise RecordingError(f"cannot read recording {p}: not an {RECORDING_FORMAT} file")
+    config = _config_from_dict(p, meta.get("config", {}))
+    shapes = schema_shapes()
+    stored = meta.get("signals") or shapes
+    signals = _assemble(p, {k: tuple(int(x) for x in v) for k, v in stored.items()}, raw)
+    n = next(iter(signals.values())).shape[0] if signals else 0
+
+    outcome: dict[str, Any]
+    if "raw/outcome" in texts:
+        try:
+            outcome = json.loads(texts["raw/outcome"])
+        except json.JSONDecodeError as exc:
+            raise RecordingError(
+                f"cannot read recording {p}: raw/outcome is not JSON ({exc})"
+            ) from None
+    else:
+        message = (
+            f"the recording ends at t = {n * config.dt:.4f} s without an end record "
+            f"(the process stopped before the run finished{note})"
+        )
+        outcome = {
+            "status": "interrupted",
+            "error": message,
+            "events": [{"t": n * config.dt, "kind": "interrupted", "message": message}],
+        }
+    fields = {f.name for f in dataclasses.fields(SimResult)} - set(NOT_IN_OUTCOME)
+    plain = {
+        "belt_speed_mps": float(meta.get("belt_speed_mps", config.gait.belt_speed)),
+        "exo_source": str(meta.get("exo_source", "")),
+        "patient_source": str(meta.get("patient_source", "")),
+    }
+    plain.update({key: value for key, value in outcome.items() if key in fields})
+    # Every signal of the schema, in log order; one the file lacks is NaN.
+    ordered = {name: signals.pop(name, None) for name in shapes}
+    for name, shape in shapes.items():
+        if ordered[name] is None:
+            ordered[name] = np.full((n, *shape), np.nan)
+    ordered.update(signals)  # and what the file holds beyond the schema
+    result = SimResult(config=config, t=np.arange(n) * config.dt, signals=ordered, **plain)
+    result.stats = _run_stats(config, plain["exo_source"])
+    step = min(config.chunk_ticks, max(config.n_ticks, 1))  # the loop's chunks: same sums
+    for start in range(0, n, step):
+        result.stats.update({name: arr[start : start + step] for name, arr in ordered.items()})
+    return result
+
+
+def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
+    """Running statistics as simulate() keeps them, so summary() matches the live run."""
+    try:
+        return RunStats(EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt))
+    except (ExoCtrlError, TypeError):  # the model moved, or an older layout
+        return RunStats()
+
+
+def _load_chunks(path: Path) -> list:
+    with warnings.catch_warnings():
+        # A file without footer (the writer died) is still readable by stream().
+        warnings.filterwarnings("ignore", message=".*no footer.*")
+        return RrdReader(path).stream().to_chunks()
+
+
+def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, str]:
+    """All chunks of the file's recording, and a note if the file had to be salvaged.
+
+    A writer stopped in the middle of a message (disk full) leaves a last
+    message cut short, and rerun then refuses the whole file.  In that case
+    the complete messages are copied to a temporary file and read from there.
+    A file still being written (rerun's threads append to it while the run
+    goes) can look cut and be whole a moment later: then it is read again.
+    """
+    error: Exception | None = None
+    for _ in range(attempts):
+        try:
+            return _load_chunks(path), ""
+        except (ValueError, RuntimeError, OSError) as exc:
+            error = exc
+        end = _complete_prefix(path)
+        if end is None:
+            continue  # no message is cut (any more): read the file again
+        with tempfile.TemporaryDirectory() as tmp:
+            copy = Path(tmp) / path.name
+            with path.open("rb") as src, copy.open("wb") as dst:
+                _copy_bytes(src, dst, end)
+            with contextlib.suppress(ValueError, RuntimeError, OSError):
+                chunks = _load_chunks(copy)
+                size = path.stat().st_size
+                return chunks, f"; the file was cut at byte {end} of {size}"
+    raise RecordingError(f"cannot read recording {path}: {error}") from None
+
+
+def _complete_prefix(path: Path) -> int | None:
+    """Length of the file's complete messages if the last one is cut short, else None."""
+    size = path.stat().st_size
+    with path.open("rb") as f:
+        if f.read(len(_RRD_MAGIC)) != _RRD_MAGIC:
+            return None
+        offset = _RRD_FILE_HEADER
+        while offset + _RRD_MSG_HEADER.size <= size:
+            f.seek(offset)
+            kind, length = _RRD_MSG_HEADER.unpack(f.read(_RRD_MSG_HEADER.size))
+            if kind == 0:
+                return None  # the stream ended properly: the problem is elsewhere
+            if offset + _RRD_MSG_HEADER.size + length > size:
+                return offset
+            offset += _RRD_MSG_HEADER.size + length
+    return offset if offset < size else None
+
+
+def _copy_bytes(src: Any, dst: Any, n: int, block: int = 1 << 20) -> None:
+    while n > 0:
+        data = src.read(min(block, n))
+        if not data:
+            break
+        dst.write(data)
+        n -= len(data)
+
+
+def _scalar_rows(path: Path, entity: str, batch: pa.RecordBatch) -> tuple[np.ndarray, np.ndarray]:
+    """(ticks (n,), values (n, width)) of one chunk of a multi-component Scalars entity."""
+    ticks = batch.column(TICK).to_numpy(zero_copy_only=False).astype(np.int64)
+    column = batch.column("Scalars:scalars")
+    lengths = pc.list_value_length(column).to_numpy(zero_copy_only=False)
+    n = ticks.shape[0]
+    if n == 0:
+        return ticks, np.zeros((0, 0))
+    width = int(lengths[0])
+    if column.null_count or np.any(lengths != width):
+        raise RecordingError(f"cannot read recording {path}: {entity} has rows of unequal width")
+    values = column.flatten().to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
+    return ticks, values.reshape(n, width)
+
+
+def _assemble(
+    path: Path,
+    layout: dict[str, tuple[int, ...]],
+    raw: dict[str, list[tuple[np.ndarray, np.ndarray]]],
+) -> dict[str, np.ndarray]:
+    """Signal arrays (name → (N, *shape)) over the ticks 0 … N-1 present in every signal."""
+    per_signal: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for name, shape in layout.items():
+        width = math.prod(shape)
+        parts = raw.get(name, [])
+        if parts:
+            ticks = np.concatenate([t for t, _ in parts])
+            values = np.concatenate([v.reshape(-1, width) for _, v in parts if v.size], axis=0)
+        else:
+            ticks, values = np.zeros(0, dtype=np.int64), np.zeros((0, width))
+        if values.shape[0] != ticks.shape[0]:
+            raise RecordingError(f"cannot read recording {path}: raw/{name} has a bad row width")
+        ticks, first = np.unique(ticks, return_index=True)  # sorted; duplicates dropped
+        values = values[first]
+        n = ticks.shape[0]
+        if n and (ticks[0] != 0 or ticks[-1] != n - 1):
+            missing = np.setdiff1d(np.arange(ticks[-1] + 1), ticks)
+            raise RecordingError(
+                f"cannot read recording {path}: raw/{name} misses {missing.size} ticks "
+                f"(first {int(missing[0])})"
+            )
+        per_signal[name] = (ticks, values.reshape(n, *shape))
+    n_common = min((t.shape[0] for t, _ in per_signal.values()), default=0)
+    return {name: values[:n_common].copy() for name, (_, values) in per_signal.items()}
+
+
+def _nested_type(f: dataclasses.Field) -> type | None:
+    """The dataclass a field holds, judged from its default (factory or value)."""
+    factory = f.default_factory
+    if isinstance(factory, type) and dataclasses.is_dataclass(factory):
+        return factory
+    if dataclasses.is_dataclass(f.default) and not isinstance(f.default, type):
+        return type(f.default)
+    return None
+
+
+def _from_dict(cls: type, data: dict[str, Any]) -> Any:
+    """Build a (nested) dataclass from its ``asdict`` form; unknown keys are ignored."""
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in data:
+            continue
+        value = data[f.name]
+        nested = _nested_type(f)
+        if nested is not None:
+            if isinstance(value, dict):
+                value = _from_dict(nested, value)
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[f.name] = value
+    return cls(**kwargs)
+
+
+def _config_from_dict(path: Path, data: dict[str, Any]) -> SimConfig:
+    try:
+        return _from_dict(SimConfig, data)
+    except (ExoCtrlError, TypeError, ValueError) as exc:
+        raise RecordingError(
+            f"cannot read recording {path}: its config is invalid ({exc})"
+        ) from None

@@ -1,0 +1,84 @@
+"""Tests of exo_ctrl.record.reader: real simulations written to real .rrd files and read back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rerun as rr
+from rerun.chunk import RrdReader
+
+from exo_ctrl.exceptions import RecordingError
+from exo_ctrl.plan import GaitParams
+from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.record import RerunRecorder, read_recording
+from exo_ctrl.sim import SimConfig, simulate
+
+
+def test_readback_equals_simulation_exactly(short_run, short_config, assert_same_run):
+    result, path = short_run
+    back = read_recording(path)
+    assert back.n_ticks == result.n_ticks == short_config.n_ticks == 300
+    assert_same_run(back, result)
+    assert back.status == "completed" and back.error == "" and back.events == []
+    assert back.config == short_config
+    assert back.exo_source == result.exo_source
+    assert back.patient_source == result.patient_source
+    assert back.belt_speed_mps == result.belt_speed_mps
+    assert back.summary() == result.summary()
+
+
+def test_readback_of_a_non_default_config(tmp_path, assert_same_run, entity_columns):
+    config = SimConfig(
+        duration_s=0.05,
+        chunk_ticks=16,
+        controller="ct",
+        gait=GaitParams(step_length=0.3, period=1.4),
+        cuffs=CuffParams(stiffness_N_per_m=6000.0, damping_N_s_per_m=80.0),
+        control_rate_hz=800.0,
+        patient_torque="spastic",
+        estop_at_s=0.02,
+    )
+    path = tmp_path / "ct.rrd"
+    result = simulate(config, observers=[RerunRecorder(path)])
+    assert [e["kind"] for e in result.events] == ["estop", "state"]  # precondition
+    back = read_recording(path)
+    assert back.config == config
+    assert_same_run(back, result)
+    assert back.events == result.events
+    assert back.safety_state == result.safety_state == "stopping"
+    _, logs = entity_columns(path, "events", "TextLog:text")
+    assert any("emergency stop" in text[0] for text in logs)
+    ticks, _ = entity_columns(path, "raw/q", "Scalars:scalars")
+    times, _ = entity_columns(path, "signals/joint_angle/left_hip", "Scalars:scalars")
+    assert ticks.tolist() == list(range(40)) and times.tolist() == list(range(40))
+
+
+def test_sim_time_timeline_is_tick_times_dt(short_run):
+    _, path = short_run
+    chunks = [
+        c for c in RrdReader(path).stream().to_chunks() if c.entity_path == "/raw/drive_torque"
+    ]
+    ns = np.concatenate(
+        [c.to_record_batch().column("sim_time").cast("int64").to_numpy() for c in chunks]
+    )
+    assert np.array_equal(np.sort(ns), np.round(np.arange(300) * 1e-3 * 1e9).astype(np.int64))
+
+
+def test_read_refuses_missing_foreign_and_junk_files(tmp_path):
+    with pytest.raises(RecordingError, match="file not found"):
+        read_recording(tmp_path / "nope.rrd")
+    junk = tmp_path / "junk.rrd"
+    junk.write_text("not a recording")
+    with pytest.raises(RecordingError, match=r"junk\.rrd"):
+        read_recording(junk)
+    foreign = tmp_path / "foreign.rrd"
+    rec = rr.RecordingStream("someone_else")
+    rec.save(foreign)
+    rec.send_columns(
+        "raw/q",
+        indexes=[rr.TimeColumn("tick", sequence=np.arange(3))],
+        columns=rr.Scalars.columns(scalars=np.zeros((3, 4))),
+    )
+    rec.disconnect()
+    with pytest.raises(RecordingError, match="not written by exo_ctrl"):
+        read_recording(foreign)
