@@ -76,10 +76,6 @@ from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel
 from ..sensing.readings import SensorReadings
 from .cuff_geometry import GEOMETRY_FIELDS, CuffGeometry, _cuff_directions
 
-# Transitional: exo_ctrl.sim.loop, exo_ctrl.sim.summary and exo_ctrl.record
-# still import EstimateErrorStats from here; it lives in .errors.
-from .errors import EstimateErrorStats  # noqa: F401
-
 __all__ = ["DEFAULT_GAIN_PER_S", "CuffForceEstimator"]
 
 #: Default observer gain K_O [1/s] (bandwidth K_O / 2π ≈ 16 Hz).

@@ -146,13 +146,3 @@ def simulate(
     if error is not None:
         raise error
     return result
-
-
-# TEMPORARY (issue 14 integration): the names other packages imported from this
-# module before the sim package was split; they now live in its modules.
-from .config import CONTROLLERS  # noqa: E402
-from .schema import SIGNALS as _SCHEMA  # noqa: E402
-from .setup import Setup, drive_for, plan_rows, start_on_plan  # noqa: E402
-
-SIGNALS = {s.name: (s.shape, s.unit, s.description) for s in _SCHEMA}
-_COMPAT = (CONTROLLERS, Setup, drive_for, plan_rows, start_on_plan, SimObserver, Runner, build)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from exo_ctrl import cli
-from exo_ctrl.model.body import load_body
+from exo_ctrl.model import load_body
 
 HEADER = [
     "t",
