@@ -1,6 +1,6 @@
 """Benchmark of sweep throughput: simulations per second with 1 and 2 local workers.
 
-    python tools/bench_sweep.py [--runs 8] [--duration 2.4] [--repeats 3] [--workers 1,2]
+    .venv/bin/python tools/bench_sweep.py [--runs 8] [--duration 2.4] [--repeats 3] [--workers 1,2]
 
 The same grid (``--runs`` step lengths from 0.30 to 0.37 m, the default
 scenario otherwise, ``--duration`` simulated seconds each) runs on a local

@@ -1,6 +1,6 @@
 """Regenerate the committed URDFs (urdf/exoskeleton.urdf, urdf/patient.urdf) from the defaults.
 
-Usage: python tools/make_urdf.py [--check] [--out-dir DIR]
+Usage: .venv/bin/python tools/make_urdf.py [--check] [--out-dir DIR]
 
 --check writes nothing and exits 1 if a committed file differs from what the
 generator produces (for CI).

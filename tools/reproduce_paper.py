@@ -1,6 +1,6 @@
 """Reproduce the paper's figures and its §VI numbers.
 
-    python tools/reproduce_paper.py [--out DIR] [--controller pd|ct]
+    .venv/bin/python tools/reproduce_paper.py [--out DIR] [--controller pd|ct]
 
 Writes PNG plots in the manner of the paper's Figs. 3, 5, 6 and 8 into DIR
 (default ``paper_figures/``) and prints the peak drive torques and cuff forces
@@ -44,7 +44,7 @@ def _plt():
         import matplotlib.pyplot as plt
     except ImportError:
         raise SystemExit(
-            'matplotlib is needed for the plots: pip install "exo-ctrl[plots]"'
+            'matplotlib is needed for the plots: .venv/bin/pip install -e ".[plots]"'
         ) from None
     return plt
 

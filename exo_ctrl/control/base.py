@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..exceptions import InvalidParameter
+from ..model import JOINT_NAMES
 from ..sensing.readings import SensorReadings
 
 __all__ = ["COMMAND_FIELDS", "Controller", "PDGains"]
@@ -59,16 +60,59 @@ class PDGains:
         kp: proportional gain per joint [V/rad], (4,) or scalar.
         kd: derivative gain per joint [V·s/rad], (4,) or scalar.
 
+    Both are stored as 4 floats, in JOINT_NAMES order.
+
+    Raises:
+        InvalidParameter: a gain that is not one number or four, an item
+            that is text, a bool or not finite, kp <= 0 or kd < 0.
+
     """
 
     kp: tuple[float, ...] | float = 100.0
     kd: tuple[float, ...] | float = 2.0
 
     def __post_init__(self) -> None:
-        for name in ("kp", "kd"):
-            arr = np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (4,))
-            for value in arr.tolist():
-                v.non_negative(name, value, "V/rad" if name == "kp" else "V·s/rad")
-            if name == "kp" and not np.all(arr > 0):
-                raise InvalidParameter("kp", getattr(self, name), "> 0 V/rad for every joint")
-            object.__setattr__(self, name, tuple(float(x) for x in arr))
+        for name, unit in (("kp", "V/rad"), ("kd", "V·s/rad")):
+            given = getattr(self, name)
+            gains = tuple(
+                v.non_negative(name, _number(name, x, unit), unit) for x in _items(name, given)
+            )
+            if name == "kp" and not all(x > 0 for x in gains):
+                raise InvalidParameter("kp", given, "> 0 V/rad for every joint")
+            object.__setattr__(self, name, gains)
+
+
+def _items(name: str, value: object) -> list[object]:
+    """A gain's per-joint items: one number for every joint, or one each.
+
+    Raises:
+        InvalidParameter: neither a single item nor one per joint.
+
+    """
+    try:
+        arr = np.asarray(value, dtype=object)
+    except ValueError:  # e.g. nested sequences of different lengths
+        arr = None
+    if arr is not None and arr.ndim == 0:
+        return [arr.item()] * len(JOINT_NAMES)
+    if arr is not None and arr.shape == (len(JOINT_NAMES),):
+        return arr.tolist()
+    raise InvalidParameter(
+        name,
+        value,
+        f"a number or {len(JOINT_NAMES)} numbers (one per joint: {', '.join(JOINT_NAMES)})",
+    )
+
+
+def _number(name: str, value: object, unit: str) -> object:
+    """``value`` unchanged unless it is text or a truth value, which are refused.
+
+    ``float("0.3")`` and ``float(True)`` would pass them on as numbers.
+
+    Raises:
+        InvalidParameter: ``value`` is a str, bytes or bool (also numpy's).
+
+    """
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise InvalidParameter(name, value, f"a finite number{f' [{unit}]' if unit else ''}")
+    return value

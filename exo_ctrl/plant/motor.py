@@ -89,7 +89,8 @@ class MotorParams:
         rotor_inertia_kgm2: rotor inertia J_rotor, at the motor shaft [kg·m²].
 
     Raises:
-        InvalidParameter: a field is not a finite number > 0.
+        InvalidParameter: a field is not a finite number > 0 (text and
+            bools are refused, not converted).
 
     """
 
@@ -104,7 +105,8 @@ class MotorParams:
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            value = positive(f.name, getattr(self, f.name), f.metadata["unit"])
+            unit = f.metadata["unit"]
+            value = positive(f.name, _number(f.name, getattr(self, f.name), unit), unit)
             object.__setattr__(self, f.name, value)
 
     @property
@@ -131,6 +133,20 @@ class MotorParams:
     def peak_torque_Nm(self) -> float:
         """Joint torque at the current limit ``i_G k_m I_max`` [N·m]."""
         return self.torque_per_amp_Nm_per_A * self.current_limit_A
+
+
+def _number(name: str, value: object, unit: str) -> object:
+    """``value`` unchanged unless it is text or a truth value, which are refused.
+
+    ``float("0.3")`` and ``float(True)`` would pass them on as numbers.
+
+    Raises:
+        InvalidParameter: ``value`` is a str, bytes or bool (also numpy's).
+
+    """
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise InvalidParameter(name, value, f"a finite number{f' [{unit}]' if unit else ''}")
+    return value
 
 
 def _read_only(a: NDArray) -> NDArray:

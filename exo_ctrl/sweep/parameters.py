@@ -11,6 +11,15 @@ keeps each cuff at its fraction of the link (0.39/0.52 thigh, 0.45/0.52
 shank).  The ranges accepted are the paper's Table I ranges as read in the
 design notes: link lengths 0.39-0.65 m, thigh mass 7-14 kg, shank and foot
 mass 3-6 kg.
+
+**Units.**  Every value is in SI units, as everywhere in the package: the
+cuff stiffness in N/m (the paper's 8 N/mm is 8000 N/m), the PD gains in
+V/rad and V·s/rad.  :func:`parameter_listing` gives each name with its
+unit, accepted range and default (``exo-ctrl sweep --help``).
+
+**Gains.**  ``kp`` and ``kd`` set the same gain on all four joints
+(:class:`~exo_ctrl.control.PDGains`; a base with per-joint gains keeps them
+while the gain is not swept).
 """
 
 from __future__ import annotations
@@ -25,7 +34,7 @@ import numpy as np
 
 from ..exceptions import InvalidParameter
 from ..model import BodyParams
-from ..sim import CONTROLLERS
+from ..sim import CONTROLLERS, SimConfig
 
 __all__ = [
     "PARAMETERS",
@@ -33,12 +42,14 @@ __all__ = [
     "check_controller",
     "check_value",
     "default_patient",
+    "parameter_listing",
     "parameter_names",
     "parse_param",
     "point_label",
     "round_12",
     "unique",
     "unit_suffix",
+    "value_in",
 ]
 
 
@@ -48,13 +59,18 @@ class ParamInfo:
 
     Attributes:
         name: name as given to ``--param``.
-        group: ``"gait"``, ``"patient"`` or ``"device"``.
-        attribute: the field it sets (of GaitParams, BodyParams, CuffParams or MotorParams).
+        group: ``"gait"``, ``"patient"``, ``"device"`` or ``"control"``.
+        attribute: the field it sets (of GaitParams, BodyParams, CuffParams,
+            MotorParams or PDGains).
         unit: SI unit ("" for none).
         lo: lower bound of the accepted values.
         hi: upper bound.
         lo_open: lo itself is excluded.
         hi_open: hi itself is excluded.
+        target: what the field belongs to: the :class:`~exo_ctrl.sim.SimConfig`
+            field (``"gait"``, ``"motor"``, ``"cuffs"``, ``"gains"``) or
+            ``"patient"`` (the generated patient's BodyParams).
+        text: what it is, in words, for :func:`parameter_listing`.
 
     """
 
@@ -66,6 +82,8 @@ class ParamInfo:
     hi: float
     lo_open: bool = False
     hi_open: bool = False
+    target: str = ""
+    text: str = ""
 
     def interval(self) -> str:
         """The accepted values in words, e.g. ``in (0, 2] m``."""
@@ -81,30 +99,44 @@ class ParamInfo:
         return above and below
 
 
-def _p(name: str, group: str, fld: str, unit: str, lo: float, hi: float, **kw: bool) -> ParamInfo:
-    return ParamInfo(name, group, fld, unit, lo, hi, **kw)
+def _p(
+    name: str, target: str, fld: str, unit: str, lo: float, hi: float, text: str, **kw: bool
+) -> ParamInfo:
+    group = {"motor": "device", "cuffs": "device", "gains": "control"}.get(target, target)
+    return ParamInfo(name, group, fld, unit, lo, hi, target=target, text=text, **kw)
 
 
 #: Numeric sweep parameters.  Gait bounds are wide sanity bounds (the reach
 #: and the other limits are checked per run, and a run that violates them is
 #: recorded as ``failed``); patient bounds are the paper's Table I ranges;
-#: device bounds span plausible hardware (paper: 8 N/mm cuffs).
+#: device bounds span plausible hardware (paper: 8 N/mm = 8000 N/m cuffs);
+#: gain bounds span 0-10x the defaults (100 V/rad, 2 V·s/rad).
 PARAMETERS: dict[str, ParamInfo] = {
     p.name: p
     for p in (
-        _p("step_length", "gait", "step_length", "m", 0.0, 2.0, lo_open=True),
-        _p("lift_height", "gait", "lift_height", "m", 0.0, 0.5, lo_open=True),
-        _p("hip_height", "gait", "hip_height", "m", 0.0, 2.0, lo_open=True),
-        _p("shape_coeff", "gait", "shape_coeff", "", 0.0, 10.0, lo_open=True),
-        _p("period", "gait", "period", "s", 0.0, 10.0, lo_open=True),
-        _p("duty_factor", "gait", "duty_factor", "", 0.5, 1.0, hi_open=True),
-        _p("patient_thigh_mass", "patient", "thigh_mass", "kg", 7.0, 14.0),
-        _p("patient_shank_mass", "patient", "shank_mass", "kg", 3.0, 6.0),
-        _p("patient_thigh_length", "patient", "thigh_length", "m", 0.39, 0.65),
-        _p("patient_shank_length", "patient", "shank_length", "m", 0.39, 0.65),
-        _p("cuff_stiffness", "device", "stiffness_N_per_m", "N/m", 1e3, 1e5),
-        _p("cuff_damping", "device", "damping_N_s_per_m", "N·s/m", 0.0, 1e3),
-        _p("gear_ratio", "device", "gear_ratio", "", 1.0, 500.0),
+        _p("step_length", "gait", "step_length", "m", 0.0, 2.0, "step length s", lo_open=True),
+        _p("lift_height", "gait", "lift_height", "m", 0.0, 0.5, "top of swing", lo_open=True),
+        _p("hip_height", "gait", "hip_height", "m", 0.0, 2.0, "hip above belt", lo_open=True),
+        _p("shape_coeff", "gait", "shape_coeff", "", 0.0, 10.0, "k_v = v_f / v_b", lo_open=True),
+        _p("period", "gait", "period", "s", 0.0, 10.0, "gait cycle T_s", lo_open=True),
+        _p("duty_factor", "gait", "duty_factor", "", 0.5, 1.0, "stance fraction β", hi_open=True),
+        _p("patient_thigh_mass", "patient", "thigh_mass", "kg", 7.0, 14.0, "Table I range"),
+        _p("patient_shank_mass", "patient", "shank_mass", "kg", 3.0, 6.0, "with the foot"),
+        _p("patient_thigh_length", "patient", "thigh_length", "m", 0.39, 0.65, "hip to knee"),
+        _p("patient_shank_length", "patient", "shank_length", "m", 0.39, 0.65, "knee to foot"),
+        _p(
+            "cuff_stiffness",
+            "cuffs",
+            "stiffness_N_per_m",
+            "N/m",
+            1e3,
+            1e5,
+            "8000 N/m = the paper's 8 N/mm",
+        ),
+        _p("cuff_damping", "cuffs", "damping_N_s_per_m", "N·s/m", 0.0, 1e3, "all four cuffs"),
+        _p("gear_ratio", "motor", "gear_ratio", "", 1.0, 500.0, "motor / joint speed"),
+        _p("kp", "gains", "kp", "V/rad", 0.0, 1e3, "PD gain, all joints", lo_open=True),
+        _p("kd", "gains", "kd", "V·s/rad", 0.0, 20.0, "PD gain, all joints"),
     )
 }
 
@@ -112,6 +144,47 @@ PARAMETERS: dict[str, ParamInfo] = {
 def parameter_names() -> tuple[str, ...]:
     """Every sweepable parameter name: the numeric ones, then ``controller``."""
     return (*PARAMETERS, "controller")
+
+
+def parameter_listing(base: SimConfig | None = None) -> str:
+    """Every sweepable parameter with its unit, accepted values and default, one a line.
+
+    Args:
+        base: the run the defaults are read from (default: ``SimConfig()``).
+
+    Returns:
+        Lines ``NAME  [UNIT]  ACCEPTED  default VALUE  (WHAT)`` under a
+        heading, for ``exo-ctrl sweep --help`` (a pre-formatted epilog).
+
+    """
+    base = base if base is not None else SimConfig()
+    rows = []
+    for info in PARAMETERS.values():
+        accepted = info.interval().removeprefix("in ").removesuffix(f" {info.unit}")
+        default = value_in(info, base)
+        items = set(np.ravel(default).tolist()) if default is not None else set()
+        shown = f"{items.pop():g}" if len(items) == 1 else "per joint" if items else "URDF"
+        rows.append((info.name, f"[{info.unit or '-'}]", accepted, shown, info.text))
+    rows.append(("controller", "", ", ".join(CONTROLLERS), base.controller, "names"))
+    widths = [max(len(row[i]) for row in rows) for i in range(4)]
+    lines = ["sweep parameters (name, unit, accepted values, default):"]
+    for row in rows:
+        cells = [cell.ljust(width) for cell, width in zip(row[:4], widths, strict=True)]
+        lines.append(f"  {'  '.join(cells)}  {row[4]}".rstrip())
+    return "\n".join(lines)
+
+
+def value_in(info: ParamInfo, base: SimConfig) -> Any:
+    """The value ``base`` gives the parameter ``info``.
+
+    Returns:
+        The field's value (a PD gain as its per-joint tuple), or None for a
+        patient parameter when ``base`` names a patient URDF.
+
+    """
+    if info.target == "patient":
+        return getattr(default_patient(), info.attribute) if base.patient is None else None
+    return getattr(getattr(base, info.target), info.attribute)
 
 
 @functools.cache

@@ -30,18 +30,19 @@ from typing import Any
 import numpy as np
 
 from ..exceptions import InvalidParameter
+from ..model import JOINT_NAMES
 from ..sim import SimConfig
 from .parameters import (
     PARAMETERS,
     check_controller,
     check_value,
-    default_patient,
     parameter_names,
     parse_param,
     point_label,
     round_12,
     unique,
     unit_suffix,
+    value_in,
 )
 
 __all__ = [
@@ -66,7 +67,7 @@ class SweepTask:
         run_id: stable hash of the resolved run (see the module docstring).
         point: the swept parameters' values of this run.
         values: every sweepable parameter's value for this run (swept or
-            from the base), plus ``duration_s`` [s] (input of
+            from the base; PD gains only when swept), plus ``duration_s`` [s] (input of
             :func:`~exo_ctrl.sweep.run.run_point`).
         run: the resolved run as plain data: the base :class:`SimConfig` as a
             dict with ``values`` applied, plus ``patient_body`` (what the id hashes).
@@ -151,7 +152,7 @@ class SweepSpec:
                 isinstance(value, (int, float)) and math.isfinite(value) and value > 0
             ):
                 raise InvalidParameter(name, value, f"a finite number > 0{unit_suffix(unit)}")
-        patient = sorted(n for n in names if n in PARAMETERS and PARAMETERS[n].group == "patient")
+        patient = sorted(n for n in names if n in PARAMETERS and PARAMETERS[n].target == "patient")
         if patient and self.base.patient is not None:
             raise InvalidParameter(
                 patient[0],
@@ -231,7 +232,8 @@ class SweepSpec:
         Returns:
             name → value for every parameter of
             :func:`~exo_ctrl.sweep.parameters.parameter_names` (the patient
-            ones only when ``base.patient`` is None), plus ``duration_s`` [s]
+            ones only when ``base.patient`` is None, the PD gains only when
+            swept), plus ``duration_s`` [s]
             (``cycles`` × the run's period, rounded to 12 significant digits,
             when no duration is given).  Values are not cross-checked here
             (e.g. lift vs hip height): the worker builds the run and records a
@@ -260,18 +262,17 @@ class SweepSpec:
 
 
 def base_values(base: SimConfig) -> dict[str, Any]:
-    """The value of every sweepable parameter in ``base`` (patient: the generated default)."""
+    """The value of every sweepable parameter in ``base`` (patient: the generated default).
+
+    Left out: the patient parameters when ``base`` names a patient URDF, and
+    the PD gains (the base's gains, per joint, are in the run as they are;
+    a swept gain comes with the point).
+    """
     values: dict[str, Any] = {}
     for name, info in PARAMETERS.items():
-        if info.group == "gait":
-            values[name] = getattr(base.gait, info.attribute)
-        elif info.group == "patient":
-            if base.patient is None:
-                values[name] = getattr(default_patient(), info.attribute)
-        elif hasattr(base.motor, info.attribute):
-            values[name] = getattr(base.motor, info.attribute)
-        else:
-            values[name] = getattr(base.cuffs, info.attribute)
+        value = value_in(info, base)
+        if value is not None and info.target != "gains":
+            values[name] = value
     values["controller"] = base.controller
     return values
 
@@ -281,7 +282,9 @@ def resolved_run(base: SimConfig, values: dict[str, Any]) -> dict[str, Any]:
 
     The patient parameters, when swept, appear as ``patient_body`` (the
     generated URDF's path depends on where the sweep writes; its content
-    does not).
+    does not).  A swept PD gain is stored per joint, as
+    :class:`~exo_ctrl.control.PDGains` holds it, so sweeping the base's
+    value is the same run as not sweeping it.
     """
     run = base.to_dict()
     run["patient_body"] = None
@@ -289,13 +292,14 @@ def resolved_run(base: SimConfig, values: dict[str, Any]) -> dict[str, Any]:
         info = PARAMETERS.get(name)
         if info is None:  # controller, duration_s
             run[name] = value
-        elif info.group == "patient":
+        elif info.target == "patient":
             run["patient_body"] = run["patient_body"] or {}
             run["patient_body"][info.attribute] = value
-        elif info.group == "gait":
-            run["gait"][info.attribute] = value
+        elif info.target == "gains":
+            per_joint = value if isinstance(value, tuple) else (float(value),) * len(JOINT_NAMES)
+            run["gains"][info.attribute] = per_joint
         else:
-            run["motor" if info.attribute in run["motor"] else "cuffs"][info.attribute] = value
+            run[info.target][info.attribute] = value
     return run
 
 

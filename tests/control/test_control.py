@@ -109,6 +109,41 @@ def test_bad_pd_gain_values_name_the_plain_number(kwargs: dict, message: str) ->
     assert str(info.value) == message
 
 
+JOINTS = "left_hip, left_knee, right_hip, right_knee"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"kp": "100"}, "kp must be a finite number [V/rad]; got '100'"),
+        ({"kd": "2"}, "kd must be a finite number [V·s/rad]; got '2'"),
+        ({"kp": (100, "90", 80, 70)}, "kp must be a finite number [V/rad]; got '90'"),
+        ({"kp": np.array(["1", "2", "3", "4"])}, "kp must be a finite number [V/rad]; got '1'"),
+        ({"kp": b"100"}, "kp must be a finite number [V/rad]; got b'100'"),
+        ({"kp": True}, "kp must be a finite number [V/rad]; got True"),
+        ({"kd": (2, 2, False, 2)}, "kd must be a finite number [V·s/rad]; got False"),
+        ({"kd": np.bool_(True)}, "kd must be a finite number [V·s/rad]; got np.True_"),
+        ({"kp": None}, "kp must be a finite number [V/rad]; got None"),
+        ({"kp": (1, 2)}, f"kp must be a number or 4 numbers (one per joint: {JOINTS}); got (1, 2)"),
+        (
+            {"kd": [[1, 2], [3, 4]]},
+            f"kd must be a number or 4 numbers (one per joint: {JOINTS}); got [[1, 2], [3, 4]]",
+        ),
+    ],
+)
+def test_pd_gains_refuse_text_bools_and_wrong_lengths(kwargs: dict, message: str) -> None:
+    with pytest.raises(InvalidParameter) as info:
+        PDGains(**kwargs)
+    assert str(info.value) == message
+    assert info.value.name == next(iter(kwargs))
+
+
+def test_pd_gains_take_numpy_numbers() -> None:
+    gains = PDGains(kp=np.arange(1.0, 5.0), kd=np.float64(3.0))
+    assert gains.kp == (1.0, 2.0, 3.0, 4.0) and gains.kd == (3.0,) * 4
+    assert all(type(x) is float for x in gains.kp + gains.kd)
+
+
 # --------------------------------------------------------------------------- feedforward
 
 

@@ -282,3 +282,29 @@ def test_bad_cuff_parameters_exact_messages(kwargs: dict, message: str) -> None:
 
 def test_zero_damping_is_allowed() -> None:
     assert CuffParams(damping_N_s_per_m=0.0).damping_N_s_per_m == 0.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"stiffness_N_per_m": "8000"}, "cuff stiffness must be a finite number [N/m]; got '8000'"),
+        ({"stiffness_N_per_m": b"8e3"}, "cuff stiffness must be a finite number [N/m]; got b'8e3'"),
+        ({"stiffness_N_per_m": True}, "cuff stiffness must be a finite number [N/m]; got True"),
+        ({"damping_N_s_per_m": "100"}, "cuff damping must be a finite number [N·s/m]; got '100'"),
+        ({"damping_N_s_per_m": False}, "cuff damping must be a finite number [N·s/m]; got False"),
+        (
+            {"damping_N_s_per_m": np.bool_(False)},
+            "cuff damping must be a finite number [N·s/m]; got np.False_",
+        ),
+    ],
+)
+def test_cuff_parameters_refuse_text_and_bools(kwargs: dict, message: str) -> None:
+    with pytest.raises(InvalidParameter) as info:
+        CuffParams(**kwargs)
+    assert str(info.value) == message
+
+
+def test_cuff_parameters_are_stored_as_floats() -> None:
+    params = CuffParams(stiffness_N_per_m=8000, damping_N_s_per_m=np.float32(50.0))
+    assert params == CuffParams(8000.0, 50.0)
+    assert type(params.stiffness_N_per_m) is float and type(params.damping_N_s_per_m) is float

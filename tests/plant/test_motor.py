@@ -94,6 +94,11 @@ def test_params_are_frozen_and_stored_as_float():
         ({"gear_ratio": 0.0}, "gear_ratio must be > 0; got 0.0"),
         ({"current_limit_A": math.inf}, "current_limit_A must be a finite number [A]; got inf"),
         ({"supply_voltage_V": "24 V"}, "supply_voltage_V must be a finite number [V]; got '24 V'"),
+        ({"supply_voltage_V": "24"}, "supply_voltage_V must be a finite number [V]; got '24'"),
+        ({"gear_ratio": "50"}, "gear_ratio must be a finite number; got '50'"),
+        ({"resistance_ohm": b"0.1"}, "resistance_ohm must be a finite number [Ω]; got b'0.1'"),
+        ({"current_limit_A": True}, "current_limit_A must be a finite number [A]; got True"),
+        ({"gear_ratio": np.True_}, "gear_ratio must be a finite number; got np.True_"),
         (
             {"speed_constant_rad_per_Vs": -25.9},
             "speed_constant_rad_per_Vs must be > 0 rad/(V·s); got -25.9",
