@@ -2,6 +2,13 @@
 
 Each raises :class:`~exo_ctrl.exceptions.InvalidParameter` naming the
 parameter, its value and what is allowed.
+
+Memory cap: no command allocates arrays whose size a user's number sets
+beyond :data:`MAX_ALLOCATION_BYTES` (1 GiB) for one purpose (a plan, a log
+chunk, a run's history).  Each such allocation is checked up front by
+:func:`allocation`, given the element count and the bytes per element, so a
+bad number is refused with the size it would need instead of ending in a
+``MemoryError``.
 """
 
 from __future__ import annotations
@@ -15,7 +22,9 @@ from .exceptions import InvalidParameter
 
 
 def finite(name: str, value: float, unit: str = "") -> float:
-    """Return ``value`` as float if it is a finite real number."""
+    """Return ``value`` as float if it is a finite real number (not a string or a bool)."""
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise InvalidParameter(name, value, f"a finite number{_in(unit)}")
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -58,6 +67,69 @@ def refuse_shapes(shape: tuple[int, ...], **values: object) -> None:
     for name, value in values.items():
         if np.shape(value) != shape:
             raise InvalidParameter(name, value, f"an array of shape {shape}")
+
+
+#: The largest allocation [bytes] a user's number may set: 1 GiB (:func:`allocation`).
+MAX_ALLOCATION_BYTES = 1 << 30
+
+
+def format_bytes(n: float) -> str:
+    """A size [bytes] in binary units: ``480 B``, ``1 GiB``, ``44.7 GiB``."""
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if abs(n) < 1024.0:
+            return f"{n:.4g} {unit}" if unit != "B" else f"{n:.0f} B"
+        n /= 1024.0
+    return f"{n:.4g} TiB"
+
+
+def max_items(item_bytes: int) -> int:
+    """How many elements of ``item_bytes`` bytes fit in :data:`MAX_ALLOCATION_BYTES`."""
+    return MAX_ALLOCATION_BYTES // max(int(item_bytes), 1)
+
+
+def allocation(
+    name: str,
+    value: object,
+    count: int,
+    item_bytes: int,
+    *,
+    what: str = "samples",
+    limit: str = "",
+    note: str = "",
+) -> int:
+    """Return ``count`` if ``count`` elements of ``item_bytes`` bytes fit in the memory cap.
+
+    Args:
+        name: the parameter that sets the count (as the user spells it).
+        value: its value.
+        count: the number of elements the caller is about to allocate.
+        item_bytes: bytes per element, every array that grows with the count
+            included [bytes].
+        what: what the elements are, plural ("samples", "plan rows").
+        limit: the largest allowed ``value`` in words ("at most 1.2e+04 s"),
+            worked out by the caller from :func:`max_items`; "" for "smaller".
+        note: added to the size in the message (why the count is what it is).
+
+    Raises:
+        InvalidParameter: ``count × item_bytes`` > :data:`MAX_ALLOCATION_BYTES`,
+            naming the parameter, the size it would need and the limit.
+
+    """
+    need = int(count) * int(item_bytes)
+    if need <= MAX_ALLOCATION_BYTES:
+        return int(count)
+    cap = format_bytes(MAX_ALLOCATION_BYTES)
+    size = format_bytes(need)
+    if size == cap:  # just over: rounding would hide it
+        size = f"{need:,} B"
+    detail = f"{int(count):,} {what} would need {size}"
+    raise InvalidParameter(
+        name,
+        value,
+        f"{limit or 'smaller'} so that the {what} fit in the {cap} memory cap "
+        f"(at most {max_items(item_bytes):,} of {int(item_bytes)} B each)",
+        f"{detail}{'; ' + note if note else ''}",
+    )
 
 
 def positive(name: str, value: float, unit: str = "") -> float:

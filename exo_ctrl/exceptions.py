@@ -8,12 +8,19 @@ subclass carries the data that explains it as attributes.
 
 from __future__ import annotations
 
+import os
+
 __all__ = [
     "ExoCtrlError",
+    "InvalidLog",
     "InvalidModel",
     "InvalidParameter",
+    "KernelStatusError",
+    "MissingDependency",
+    "OutputError",
     "RecordingError",
     "SimulationDiverged",
+    "SweepError",
     "UnreachableFootTarget",
 ]
 
@@ -149,3 +156,18 @@ class MissingDependency(ExoCtrlError, ImportError):
 
 class KernelStatusError(ExoCtrlError, RuntimeError):
     """A compiled kernel returned a status its caller cannot answer (a programming error)."""
+
+
+class OutputError(ExoCtrlError, OSError):
+    """Writing an output file failed (disk full, device error, permission).
+
+    Attributes:
+        path: the output path as the user gave it.
+        reason: the operating system's reason (``"No space left on device"``).
+
+    """
+
+    def __init__(self, path: str | os.PathLike[str], reason: str) -> None:
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"cannot write {self.path}: {reason}")

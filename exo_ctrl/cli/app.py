@@ -1,44 +1,83 @@
 """The ``exo-ctrl`` command.
 
-Every subcommand validates its input through the library; an
+Every subcommand validates its input through the library and checks its
+output paths before it starts work; an
 :class:`~exo_ctrl.exceptions.ExoCtrlError` becomes a one-line message on
-stderr and exit code 2, never a traceback.  Files are written atomically.
+stderr and exit code 2, never a traceback.  A file that cannot be written
+once the work is done (:class:`~exo_ctrl._io.OutputError`, e.g. a full
+disk) is exit code 1, with the same one-line message.  Files are written
+whole or not at all (:mod:`exo_ctrl._io`); warnings are printed as one line
+each, ``exo-ctrl CMD: warning: ...``.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
+from typing import TextIO
 
-from ..exceptions import ExoCtrlError
+from ..exceptions import ExoCtrlError, OutputError
 from . import estimate, gait, simulate, sweep, urdf
 from .common import Parser
 
-__all__ = ["build_parser", "main"]
+__all__ = ["DESCRIPTION", "build_parser", "main"]
+
+#: What ``exo-ctrl --help`` says first.
+DESCRIPTION = (
+    "Plan, simulate and estimate a lower-limb exoskeleton walking a patient on a treadmill. "
+    "SI units throughout; 'exo-ctrl CMD --help' lists each option with its unit and default."
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``exo-ctrl``: one subcommand per module of this package."""
-    parser = Parser(prog="exo-ctrl", description=__doc__.splitlines()[0])
+    parser = Parser(prog="exo-ctrl", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for command in (gait, urdf, simulate, estimate, sweep):
         command.register(sub)
     return parser
 
 
+def _one_line_warnings(command: str) -> Callable[..., None]:
+    """A ``warnings.showwarning`` that prints ``exo-ctrl CMD: warning: message`` only."""
+
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        text = " ".join(str(message).split())
+        print(f"exo-ctrl {command}: warning: {text}", file=file or sys.stderr)
+
+    return show
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``exo-ctrl``; returns the exit code (0 success, 2 bad input, 130 interrupted)."""
+    """Run ``exo-ctrl``; returns the exit code.
+
+    0 success, 1 the work failed or its output could not be written, 2 bad
+    input, 130 interrupted.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args))
-    except ExoCtrlError as exc:
-        print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"exo-ctrl {args.command}: interrupted", file=sys.stderr)
-        return 130
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warnings(args.command)
+        try:
+            return int(args.func(args))
+        except OutputError as exc:
+            print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
+            return 1
+        except ExoCtrlError as exc:
+            print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except OSError as exc:
+            print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"exo-ctrl {args.command}: interrupted", file=sys.stderr)
+            return 130

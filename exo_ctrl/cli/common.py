@@ -7,13 +7,14 @@ import json
 import os
 from typing import Any
 
-from .._io import atomic_write
+from .._io import atomic_write, check_output
 from ..model import JOINT_NAMES
 from ..plan import GaitParams
 
 __all__ = [
     "Parser",
     "add_gait_options",
+    "check_outputs",
     "format_summary",
     "gait_params_from",
     "write_json",
@@ -58,7 +59,7 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=d.shape_coeff,
         metavar="KV",
-        help=f"shape coefficient k_v = v_f / v_b (default {d.shape_coeff})",
+        help=f"shape coefficient k_v = v_f / v_b, no unit (default {d.shape_coeff})",
     )
     g.add_argument(
         "--period",
@@ -72,13 +73,13 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=d.duty_factor,
         metavar="B",
-        help=f"stance fraction β of the period (default {d.duty_factor})",
+        help=f"stance fraction β of the period, no unit (default {d.duty_factor})",
     )
     g.add_argument(
         "--exo",
         default=None,
         metavar="URDF",
-        help="exoskeleton URDF (default: urdf/exoskeleton.urdf)",
+        help="exoskeleton URDF file (default: urdf/exoskeleton.urdf)",
     )
 
 
@@ -94,8 +95,31 @@ def gait_params_from(args: argparse.Namespace) -> GaitParams:
     )
 
 
+def check_outputs(args: argparse.Namespace, **options: str) -> None:
+    """Check the output paths given in ``args`` before any work starts.
+
+    Args:
+        args: the parsed options.
+        options: attribute of ``args`` → the option's name (``summary="--summary"``);
+            an attribute that is None (not given) is skipped.
+
+    Raises:
+        InvalidParameter: a path cannot be written (:func:`exo_ctrl._io.check_output`).
+
+    """
+    for attribute, option in options.items():
+        path = getattr(args, attribute)
+        if path is not None:
+            check_output(path, option)
+
+
 def write_json(path: str | os.PathLike[str], data: dict[str, Any]) -> None:
-    """Write ``data`` as indented JSON, atomically (a failure leaves no file)."""
+    """Write ``data`` as indented JSON, atomically (a failure leaves no file).
+
+    Raises:
+        OutputError: the file could not be written (e.g. the disk is full).
+
+    """
     with atomic_write(path) as handle:
         json.dump(data, handle, indent=2)
         handle.write("\n")

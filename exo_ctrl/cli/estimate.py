@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..record import estimate_file, write_estimate_recording
-from .common import write_json
+from .common import check_outputs, write_json
 
 __all__ = ["register", "run"]
 
@@ -15,7 +15,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "estimate", help="estimate cuff forces from a recording's or a CSV log's sensor readings"
     )
-    p.add_argument("file", metavar="RUN.rrd|LOG.csv", help="an exo_ctrl recording or a CSV log")
+    p.add_argument(
+        "file",
+        metavar="RUN.rrd|LOG.csv",
+        help="an exo_ctrl recording (.rrd) or a CSV log (.csv) file",
+    )
     p.add_argument(
         "--exo",
         default=None,
@@ -30,15 +34,35 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="observer gain K_O [1/s] (default: the recording's, or 100)",
     )
     p.add_argument(
-        "--out", default=None, metavar="EST.rrd", help="write the estimate as a recording"
+        "--allow-other-exo",
+        action="store_true",
+        help="estimate a recording with an --exo other than the one it was recorded with "
+        "(default: refused)",
     )
-    p.add_argument("--summary", default=None, metavar="PATH.json", help="write the figures as JSON")
+    p.add_argument(
+        "--out",
+        default=None,
+        metavar="EST.rrd",
+        help="write the estimate to this rerun recording file (default: none)",
+    )
+    p.add_argument(
+        "--summary",
+        default=None,
+        metavar="PATH.json",
+        help="write the figures to this JSON file (default: none)",
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Estimate, write what was asked for, print peaks (and errors where the truth is known)."""
-    estimate = estimate_file(args.file, exo=args.exo, gain_per_s=args.gain)
+    """Estimate, write what was asked for, print peaks (and errors where the truth is known).
+
+    The output paths are checked before the input is read.
+    """
+    check_outputs(args, out="--out", summary="--summary")
+    estimate = estimate_file(
+        args.file, exo=args.exo, gain_per_s=args.gain, allow_other_exo=args.allow_other_exo
+    )
     summary = estimate.summary()
     if args.out:
         write_estimate_recording(estimate, args.out)
@@ -48,17 +72,7 @@ def run(args: argparse.Namespace) -> int:
         f"estimated {summary['samples']} samples of {args.file} "
         f"(observer gain {summary['observer_gain_per_s']:g} 1/s)"
     )
-    errors = summary.get("cuff_force_estimate_rms_error_N", {})
-    rel = summary.get("cuff_force_estimate_rms_error_rel", {})
-    print(
-        f"{'cuff':<13}{'peak normal est [N]':>20}"
-        + (f"{'rms err [N]':>13}{'rel':>8}" if errors else "")
-    )
-    for cuff, peak in summary["peak_cuff_normal_est_N"].items():
-        line = f"{cuff:<13}{peak:>20.1f}"
-        if errors:
-            line += f"{errors[cuff]:>13.2f}{100 * rel[cuff]:>7.2f}%"
-        print(line)
+    print(estimate.table())
     if args.out:
         print(f"estimate recording: {args.out}")
     return 0

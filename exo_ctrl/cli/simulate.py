@@ -7,10 +7,17 @@ import sys
 
 from .. import _validate as v
 from ..control import PDGains
+from ..plan import GaitParams
 from ..plant import PATIENT_TORQUES
 from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
 from ..sim import CONTROLLERS, SimConfig, simulate
-from .common import add_gait_options, format_summary, gait_params_from, write_json
+from .common import (
+    add_gait_options,
+    check_outputs,
+    format_summary,
+    gait_params_from,
+    write_json,
+)
 
 __all__ = ["register", "run", "sim_config"]
 
@@ -23,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--patient",
         default=None,
         metavar="URDF|human",
-        help="patient URDF, or 'human' for example-robot-data's model (default: urdf/patient.urdf)",
+        help="patient URDF file, or 'human' for example-robot-data's model "
+        "(default: urdf/patient.urdf)",
     )
     p.add_argument(
         "--controller",
@@ -38,10 +46,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="N",
-        help="gait cycles to run; 0.5 = one step (default 2)",
+        help="gait cycles to run [cycles]; 0.5 = one step (default 2)",
     )
     span.add_argument(
-        "--duration", type=float, default=None, metavar="SEC", help="simulated time [s]"
+        "--duration",
+        type=float,
+        default=None,
+        metavar="SEC",
+        help="simulated time [s] (default: 2 gait cycles, "
+        f"{2 * GaitParams().period:g} s at the default period)",
     )
     p.add_argument(
         "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
@@ -51,21 +64,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=1,
         metavar="N",
-        help="plant steps per control tick (default 1)",
+        help="plant steps per control tick, no unit (default 1)",
     )
     p.add_argument(
         "--kp",
         type=float,
         default=None,
         metavar="V/RAD",
-        help=f"PD proportional gain, all joints (default {PDGains().kp[0]:g})",
+        help=f"PD proportional gain [V/rad], all joints (default {PDGains().kp[0]:g})",
     )
     p.add_argument(
         "--kd",
         type=float,
         default=None,
         metavar="V.S/RAD",
-        help=f"PD derivative gain, all joints (default {PDGains().kd[0]:g})",
+        help=f"PD derivative gain [V·s/rad], all joints (default {PDGains().kd[0]:g})",
     )
     p.add_argument(
         "--cuff-force-limit",
@@ -96,14 +109,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="SEC",
-        help="emergency stop at this time [s]",
+        help="emergency stop at this time [s] (default: none)",
     )
-    p.add_argument("--summary", default=None, metavar="PATH.json", help="write the summary as JSON")
+    p.add_argument(
+        "--summary",
+        default=None,
+        metavar="PATH.json",
+        help="write the summary to this JSON file (default: none)",
+    )
     p.add_argument(
         "--out",
         default="exo_run.rrd",
         metavar="PATH.rrd",
-        help="rerun recording (default exo_run.rrd)",
+        help="rerun recording file (default exo_run.rrd)",
     )
     p.add_argument(
         "--scene-rate",
@@ -114,7 +132,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         f"(default {DEFAULT_SCENE_RATE_HZ:g})",
     )
     p.add_argument("--no-record", action="store_true", help="do not write a recording")
-    p.add_argument("--spawn", action="store_true", help="also open a rerun viewer if one can start")
+    p.add_argument(
+        "--spawn",
+        action="store_true",
+        help="also stream to a rerun viewer (the rerun executable of this Python environment)",
+    )
     p.set_defaults(func=run)
 
 
@@ -147,7 +169,12 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run, record, print the summary; 0 completed, 1 diverged or failed, 130 interrupted."""
+    """Run, record, print the summary; 0 completed, 1 diverged or failed, 130 interrupted.
+
+    The output paths are checked before anything else; the summary is written
+    after the run.
+    """
+    check_outputs(args, summary="--summary", **({} if args.no_record else {"out": "--out"}))
     config = sim_config(args)
     observers = []
     if not args.no_record:

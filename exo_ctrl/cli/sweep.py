@@ -1,4 +1,9 @@
-"""``exo-ctrl sweep``: parameter sweeps (the options and the runner are :mod:`exo_ctrl.sweep`'s)."""
+"""``exo-ctrl sweep``: parameter sweeps (the options and the runner are :mod:`exo_ctrl.sweep`'s).
+
+Before the first run starts, every file the sweep writes beside ``--out``
+(the table, its CSV, the journal and the report; the load diagrams go into
+the same directory) is checked (:func:`exo_ctrl.sweep.command.check_sweep_outputs`).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +11,7 @@ import argparse
 
 from ..sweep import add_sweep_arguments, run_sweep_command
 
-__all__ = ["register"]
+__all__ = ["register", "run"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -16,4 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="sweep gait, patient and device parameters: Parquet/CSV table, load plots, report",
     )
     add_sweep_arguments(p)
-    p.set_defaults(func=run_sweep_command)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep (:func:`~exo_ctrl.sweep.run_sweep_command`: outputs checked first)."""
+    return run_sweep_command(args)

@@ -74,9 +74,7 @@ class PDGains:
     def __post_init__(self) -> None:
         for name, unit in (("kp", "V/rad"), ("kd", "V·s/rad")):
             given = getattr(self, name)
-            gains = tuple(
-                v.non_negative(name, _number(name, x, unit), unit) for x in _items(name, given)
-            )
+            gains = tuple(v.non_negative(name, x, unit) for x in _items(name, given))
             if name == "kp" and not all(x > 0 for x in gains):
                 raise InvalidParameter("kp", given, "> 0 V/rad for every joint")
             object.__setattr__(self, name, gains)
@@ -102,17 +100,3 @@ def _items(name: str, value: object) -> list[object]:
         value,
         f"a number or {len(JOINT_NAMES)} numbers (one per joint: {', '.join(JOINT_NAMES)})",
     )
-
-
-def _number(name: str, value: object, unit: str) -> object:
-    """``value`` unchanged unless it is text or a truth value, which are refused.
-
-    ``float("0.3")`` and ``float(True)`` would pass them on as numbers.
-
-    Raises:
-        InvalidParameter: ``value`` is a str, bytes or bool (also numpy's).
-
-    """
-    if isinstance(value, (str, bytes, bool, np.bool_)):
-        raise InvalidParameter(name, value, f"a finite number{f' [{unit}]' if unit else ''}")
-    return value

@@ -6,6 +6,11 @@ component n(q) · f of the true force on the exoskeleton (n of
 
     e = f̂⊥ − n(q) · f,   RMS = √(mean e²),   relative = RMS / max |n(q) · f|.
 
+The relative figure is given only where its denominator means something: a
+cuff whose true normal force never reaches :data:`REL_FLOOR_N` (1 N, below
+the torque sensors' noise seen through the lever arms) gets NaN, written as
+``null`` in JSON summaries.
+
 :func:`normal_component_errors` compares whole series; :class:`EstimateErrorStats`
 keeps the same sums chunk by chunk while :func:`exo_ctrl.sim.loop.simulate`
 runs.
@@ -24,7 +29,15 @@ from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, BodyModel
 from .cuff_geometry import GEOMETRY_FIELDS, _cuff_directions, _geometry, cuff_normal_components
 
-__all__ = ["EstimateErrorStats", "EstimateErrors", "normal_component_errors"]
+__all__ = ["REL_FLOOR_N", "EstimateErrorStats", "EstimateErrors", "normal_component_errors"]
+
+#: Smallest peak true normal force [N] a relative error is given for (else NaN).
+REL_FLOOR_N = 1.0
+
+
+def _relative(rms: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    """The RMS over the peak per cuff, NaN where peak < :data:`REL_FLOOR_N`."""
+    return np.divide(rms, peak, out=np.full(rms.shape, np.nan), where=peak >= REL_FLOOR_N)
 
 
 @dataclass
@@ -35,8 +48,11 @@ class EstimateErrors:
         rms_error_N: RMS of (estimate − true normal component) [N], (4,).
         max_error_N: largest |estimate − true| [N], (4,).
         peak_true_N: peak |true normal component| [N], (4,).
-        rms_error_rel: rms_error_N / peak_true_N [-], (4,).
+        rms_error_rel: rms_error_N / peak_true_N [-], (4,); NaN where
+            peak_true_N < :data:`REL_FLOOR_N`.
         rows: number of rows compared.
+        rms_true_N: RMS of the true normal component [N], (4,), or None
+            where it is not kept (:class:`EstimateErrorStats`).
 
     """
 
@@ -45,12 +61,16 @@ class EstimateErrors:
     peak_true_N: np.ndarray
     rms_error_rel: np.ndarray
     rows: int
+    rms_true_N: np.ndarray | None = None
 
-    def summary(self) -> dict[str, dict[str, float]]:
-        """``cuff_force_estimate_rms_error_N`` and ``…_rel``, keyed by cuff."""
+    def summary(self) -> dict[str, dict[str, float | None]]:
+        """``cuff_force_estimate_rms_error_N`` and ``…_rel``, keyed by cuff (NaN as None)."""
 
-        def keyed(x: np.ndarray) -> dict[str, float]:
-            return {c: float(val) for c, val in zip(CUFF_NAMES, x, strict=True)}
+        def keyed(x: np.ndarray) -> dict[str, float | None]:
+            return {
+                c: float(val) if math.isfinite(val) else None
+                for c, val in zip(CUFF_NAMES, x, strict=True)
+            }
 
         return {
             "cuff_force_estimate_rms_error_N": keyed(self.rms_error_N),
@@ -99,13 +119,13 @@ def normal_component_errors(
     err = est[start:n] - truth
     rms = np.sqrt(np.mean(err**2, axis=0))
     peak = np.max(np.abs(truth), axis=0)
-    rel = np.divide(rms, peak, out=np.full(4, np.inf), where=peak > 0)
     return EstimateErrors(
         rms_error_N=rms,
         max_error_N=np.max(np.abs(err), axis=0),
         peak_true_N=peak,
-        rms_error_rel=rel,
+        rms_error_rel=_relative(rms, peak),
         rows=int(err.shape[0]),
+        rms_true_N=np.sqrt(np.mean(truth**2, axis=0)),
     )
 
 
@@ -171,21 +191,20 @@ class EstimateErrorStats:
         preload(_error_sums, self.record, q, cuff_force, normal_est, 0)
 
     def result(self) -> EstimateErrors:
-        """The errors so far (zeros before any compared row)."""
+        """The errors so far (zeros before any compared row, relative NaN then)."""
         sums = self.record[0]
         rms = np.sqrt(sums["sq_error_sum"] / max(self._n, 1))
         peak = sums["peak_true"]
-        rel = np.divide(rms, peak, out=np.zeros(4), where=peak > 0)
         return EstimateErrors(
             rms_error_N=rms,
             max_error_N=sums["max_error"].copy(),
             peak_true_N=peak.copy(),
-            rms_error_rel=rel,
+            rms_error_rel=_relative(rms, peak),
             rows=self._n,
         )
 
-    def summary(self) -> dict[str, dict[str, float]]:
-        """``cuff_force_estimate_rms_error_N`` and ``…_rel`` keyed by cuff."""
+    def summary(self) -> dict[str, dict[str, float | None]]:
+        """``cuff_force_estimate_rms_error_N`` and ``…_rel`` keyed by cuff (NaN as None)."""
         return self.result().summary()
 
 

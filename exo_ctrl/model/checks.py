@@ -93,15 +93,29 @@ def _check_link_inertial(src: str, link: ET.Element) -> None:
     )
     if not np.all(np.isfinite(inertia)):
         raise InvalidModel(src, lname, "inertia has a non-finite entry")
-    if not _pseudo_inertia_pd(pin.Inertia(mass, np.zeros(3), inertia)):
-        eig = np.linalg.eigvalsh(inertia)
-        raise InvalidModel(
-            src,
-            lname,
-            "inertia is not physically valid: the principal moments "
-            f"{', '.join(f'{e:.4g}' for e in eig)} kg·m² must be > 0 and each smaller than "
-            "the sum of the other two",
-        )
+    reason = _inertia_fault(inertia)
+    if reason:
+        raise InvalidModel(src, lname, f"inertia is not physically valid: {reason}")
+
+
+def _inertia_fault(inertia: np.ndarray) -> str:
+    """Why a rotational inertia about the COM [kg·m²] is not physical ("" if it is).
+
+    The test is the module docstring's, in plain numpy (Pinocchio's own
+    ``Inertia`` constructor throws a bare ``RuntimeError`` on a negative
+    diagonal entry): each diagonal entry > 0, then the principal moments
+    λ_i > 0 with λ_i < λ_j + λ_k, i.e. Σ = ½ tr(I) 1 - I positive definite.
+    """
+    for axis, name in enumerate(("ixx", "iyy", "izz")):
+        if not inertia[axis, axis] > 0.0:
+            return f"{name} = {inertia[axis, axis]:.4g} kg·m² must be > 0"
+    eig = np.linalg.eigvalsh(inertia)
+    if eig[0] > 0.0 and np.sum(eig) - 2.0 * eig[-1] > 0.0:
+        return ""
+    return (
+        f"the principal moments {', '.join(f'{e:.4g}' for e in eig)} kg·m² must be > 0 "
+        "and each smaller than the sum of the other two"
+    )
 
 
 def _pseudo_inertia_pd(inertia: pin.Inertia) -> bool:

@@ -31,12 +31,12 @@ from __future__ import annotations
 
 import io
 import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._io import atomic_write
 from .body_params import BodyParams, segment_inertia
 from .names import DEFAULT_URDF_NAMES, SIDES
 
@@ -94,10 +94,12 @@ def urdf_xml(params: BodyParams) -> str:
 
 
 def write_urdf(params: BodyParams, path: str | os.PathLike[str]) -> Path:
-    """Write the URDF of ``params`` atomically.
+    """Write the URDF of ``params`` atomically (:func:`exo_ctrl._io.atomic_write`).
 
     The text goes to a temporary file in the target directory, which then
-    replaces ``path`` in one step, so a failure never leaves a partial file.
+    replaces ``path`` in one step, so a failure never leaves a partial file;
+    the file's mode follows the umask; an existing special file (a FIFO, a
+    device) is written to directly.
 
     Args:
         params: body parameters.
@@ -112,17 +114,8 @@ def write_urdf(params: BodyParams, path: str | os.PathLike[str]) -> Path:
     if target.is_dir():
         target = target / DEFAULT_URDF_NAMES[params.kind]
     data = urdf_xml(params).encode("utf-8")
-    fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as tmp:
-            tmp.write(data)
-            tmp.flush()
-            os.fsync(tmp.fileno())
-        os.chmod(tmp_name, 0o644)
-        os.replace(tmp_name, target)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+    with atomic_write(target, "wb") as handle:
+        handle.write(data)
     return target
 
 

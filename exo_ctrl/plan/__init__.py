@@ -6,6 +6,7 @@ from .gait import (
     GaitPlan,
 )
 from .kinematics import (
+    PLAN_BYTES_PER_SAMPLE,
     JointTrajectory,
     forward_kinematics,
     inverse_kinematics,
@@ -15,6 +16,7 @@ from .kinematics import (
 )
 
 __all__ = [
+    "PLAN_BYTES_PER_SAMPLE",
     "FootTrajectory",
     "GaitParams",
     "GaitPlan",

@@ -26,11 +26,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _validate as v
 from ..exceptions import InvalidParameter, UnreachableFootTarget
 from ..model import JOINT_NAMES, SIDES, BodyModel
 from .gait import GaitPlan
 
 __all__ = [
+    "PLAN_BYTES_PER_SAMPLE",
     "JointTrajectory",
     "forward_kinematics",
     "inverse_kinematics",
@@ -107,6 +109,14 @@ def joint_accelerations(
     return joint_rates(phi1, phi2, l1, l2, ddx - jdx, ddz - jdz)
 
 
+#: Memory :func:`plan_joints` takes per sample time at its peak [bytes], the
+#: time array itself not counted: the result (q, q̇, q̈, φ: 16 numbers; foot
+#: position and velocity: 8) and the temporaries of the foot paths and the
+#: inverse kinematics.  Measured 370-380 B (tests/plan/test_kinematics.py
+#: checks the bound).
+PLAN_BYTES_PER_SAMPLE = 400
+
+
 @dataclass(frozen=True)
 class JointTrajectory:
     """Planned joint motion sampled at times ``t``.
@@ -146,12 +156,23 @@ def plan_joints(plan: GaitPlan, body: BodyModel, t: np.ndarray) -> JointTrajecto
 
     Raises:
         UnreachableFootTarget: the path leaves a leg's workspace.
-        InvalidParameter: a planned joint angle leaves its range of motion.
+        InvalidParameter: a planned joint angle leaves its range of motion,
+            or ``t`` so long that the plan would take more than
+            :data:`~exo_ctrl._validate.MAX_ALLOCATION_BYTES`
+            (:data:`PLAN_BYTES_PER_SAMPLE` per sample).
 
     """
     t = np.asarray(t, dtype=float)
-    feet = plan.feet(t)
     n = t.shape[0]
+    v.allocation(
+        "t",
+        t.shape,
+        n,
+        PLAN_BYTES_PER_SAMPLE,
+        what="plan samples",
+        limit="shorter",
+    )
+    feet = plan.feet(t)
     q = np.empty((n, 4))
     dq = np.empty((n, 4))
     ddq = np.empty((n, 4))

@@ -36,7 +36,6 @@ import pinocchio as pin
 
 from .. import _validate as v
 from .._jit import kernel, record
-from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, SIDES, BodyModel
 
 __all__ = ["CuffParams", "CuffSet"]
@@ -64,24 +63,10 @@ class CuffParams:
     damping_N_s_per_m: float = 100.0
 
     def __post_init__(self) -> None:
-        k = _number("cuff stiffness", self.stiffness_N_per_m, "N/m")
-        c = _number("cuff damping", self.damping_N_s_per_m, "N·s/m")
-        object.__setattr__(self, "stiffness_N_per_m", v.positive("cuff stiffness", k, "N/m"))
-        object.__setattr__(self, "damping_N_s_per_m", v.non_negative("cuff damping", c, "N·s/m"))
-
-
-def _number(name: str, value: object, unit: str) -> object:
-    """``value`` unchanged unless it is text or a truth value, which are refused.
-
-    ``float("0.3")`` and ``float(True)`` would pass them on as numbers.
-
-    Raises:
-        InvalidParameter: ``value`` is a str, bytes or bool (also numpy's).
-
-    """
-    if isinstance(value, (str, bytes, bool, np.bool_)):
-        raise InvalidParameter(name, value, f"a finite number{f' [{unit}]' if unit else ''}")
-    return value
+        k = v.positive("cuff stiffness", self.stiffness_N_per_m, "N/m")
+        c = v.non_negative("cuff damping", self.damping_N_s_per_m, "N·s/m")
+        object.__setattr__(self, "stiffness_N_per_m", k)
+        object.__setattr__(self, "damping_N_s_per_m", c)
 
 
 class CuffSet:

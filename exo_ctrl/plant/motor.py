@@ -106,7 +106,7 @@ class MotorParams:
     def __post_init__(self) -> None:
         for f in fields(self):
             unit = f.metadata["unit"]
-            value = positive(f.name, _number(f.name, getattr(self, f.name), unit), unit)
+            value = positive(f.name, getattr(self, f.name), unit)
             object.__setattr__(self, f.name, value)
 
     @property
@@ -133,20 +133,6 @@ class MotorParams:
     def peak_torque_Nm(self) -> float:
         """Joint torque at the current limit ``i_G k_m I_max`` [N·m]."""
         return self.torque_per_amp_Nm_per_A * self.current_limit_A
-
-
-def _number(name: str, value: object, unit: str) -> object:
-    """``value`` unchanged unless it is text or a truth value, which are refused.
-
-    ``float("0.3")`` and ``float(True)`` would pass them on as numbers.
-
-    Raises:
-        InvalidParameter: ``value`` is a str, bytes or bool (also numpy's).
-
-    """
-    if isinstance(value, (str, bytes, bool, np.bool_)):
-        raise InvalidParameter(name, value, f"a finite number{f' [{unit}]' if unit else ''}")
-    return value
 
 
 def _read_only(a: NDArray) -> NDArray:

@@ -9,7 +9,8 @@ same momentum observer as the live loop
   ``dq_meas`` and torque-sensor readings ``tau_sensor`` of every tick, with
   the run's own control period, observer gain and assumption, so the answer
   equals the live estimate; where the recording holds the simulated cuff
-  forces, the error of the estimate is reported;
+  forces, the error of the estimate is reported (after the checks of
+  :func:`estimate_file`: integrity, length, model, plausibility);
 - a ``.csv`` log with the header documented in
   :func:`exo_ctrl.estimation.read_csv_log` (``t`` and, per joint, the angle
   and the torque-sensor reading, speeds optional).
@@ -22,6 +23,7 @@ and ``estimate/tau_ext/{joint}``, on the ``sim_time`` timeline).
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +31,7 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
+from .. import _validate as v
 from ..estimation import (
     DEFAULT_GAIN_PER_S,
     EstimateSeries,
@@ -38,13 +41,21 @@ from ..estimation import (
 )
 from ..exceptions import InvalidParameter, RecordingError
 from ..model import CUFF_NAMES, JOINT_NAMES, load_exo
+from ..plant import CuffParams
+from .estimate_checks import (
+    STARTUP_TIME_CONSTANTS,
+    beyond_cuff_stretch,
+    recorded_exo,
+    startup_ticks,
+    worse_than_none,
+)
 from .format import TIME
-from .reader import read_recording
+from .reader import RecordingIntegrity, read_recording_integrity
 
 __all__ = ["OfflineEstimate", "estimate_file", "write_estimate_recording"]
 
-#: Observer start-up left out of the error figures: five time constants 5 / K_O [s].
-STARTUP_TIME_CONSTANTS = 5.0
+#: What the text table shows for a figure that is not given (None in JSON).
+NOT_GIVEN = "\u2014"
 
 
 @dataclass
@@ -55,35 +66,94 @@ class OfflineEstimate:
         source: the file estimated from.
         series: the estimate (normal components, forces, external torques).
         errors: ``cuff_force_estimate_rms_error_N`` and ``…_rel`` keyed by
-            cuff, when the log holds the simulated cuff forces (else empty).
+            cuff, when the log holds the simulated cuff forces and outlasts
+            the observer's start-up (else empty); a relative figure whose
+            denominator is below :data:`~exo_ctrl.estimation.errors.REL_FLOOR_N`
+            is None.
+        integrity: how whole the recording was (None for a CSV log).
+        warnings: one-line warnings: an incomplete recording, a run too
+            short for error figures, another model than the recorded one, an
+            estimate the model cannot explain (:mod:`.estimate_checks`).
 
     """
 
     source: str
     series: EstimateSeries
-    errors: dict[str, dict[str, float]] = field(default_factory=dict)
+    errors: dict[str, dict[str, float | None]] = field(default_factory=dict)
+    integrity: RecordingIntegrity | None = None
+    warnings: list[str] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
-        """JSON-able figures: source, samples, gain, peaks and errors."""
+        """JSON-able figures: source, samples, gain, completeness, peaks, errors, warnings."""
         s = self.series
+        whole = self.integrity
         return {
             "source": self.source,
             "samples": int(s.t.shape[0]),
             "observer_gain_per_s": float(s.gain_per_s),
-            "peak_cuff_normal_est_N": {
-                c: float(np.max(np.abs(s.normal[:, i]))) if s.t.size else 0.0
-                for i, c in enumerate(CUFF_NAMES)
-            },
+            "complete": True if whole is None else whole.complete,
+            "ticks_recovered": None if whole is None else whole.ticks_recovered,
+            "ticks_planned": None if whole is None else whole.ticks_planned,
+            "peak_cuff_normal_est_N": dict(zip(CUFF_NAMES, _peaks(s).tolist(), strict=True)),
             **self.errors,
+            "warnings": list(self.warnings),
         }
+
+    def table(self) -> str:
+        """The figures as a text table: peak estimate per cuff, and the errors where known.
+
+        A figure not given (a relative error below its floor) shows as "—".
+        """
+        summary = self.summary()
+        errors = summary.get("cuff_force_estimate_rms_error_N", {})
+        rel = summary.get("cuff_force_estimate_rms_error_rel", {})
+        lines = [
+            f"{'cuff':<13}{'peak normal est [N]':>20}"
+            + (f"{'rms err [N]':>13}{'rel':>9}" if errors else "")
+        ]
+        for cuff, peak in summary["peak_cuff_normal_est_N"].items():
+            line = f"{cuff:<13}{peak:>20.1f}"
+            if errors:
+                line += _cell(errors.get(cuff), 13, "{:.2f}")
+                line += _cell(None if rel.get(cuff) is None else 100 * rel[cuff], 9, "{:.2f}%")
+            lines.append(line)
+        return "\n".join(lines)
+
+
+def _peaks(series: EstimateSeries) -> np.ndarray:
+    """Peak |estimated normal component| per cuff [N] (zeros for an empty series)."""
+    if not series.t.size:
+        return np.zeros(len(CUFF_NAMES))
+    return np.max(np.abs(series.normal), axis=0)
+
+
+def _cell(value: float | None, width: int, fmt: str) -> str:
+    return f"{NOT_GIVEN if value is None else fmt.format(value):>{width}}"
 
 
 def estimate_file(
     path: str | os.PathLike[str],
     exo: str | os.PathLike[str] | None = None,
     gain_per_s: float | None = None,
+    allow_other_exo: bool = False,
 ) -> OfflineEstimate:
     """Estimate the cuff forces along a recording (``.rrd``) or a CSV log.
+
+    A recording is checked before and after (:mod:`.estimate_checks`):
+
+    - an incomplete one (cut short, or without its end record: the run or
+      its writer stopped early) is estimated over the ticks recovered, with a
+      warning saying how many of how many (``complete`` false in the summary);
+    - one of fewer than 2 ticks is refused; one not longer than the
+      observer's start-up (5 / K_O) gets no error figures, with a warning;
+    - an ``exo`` that differs from the recorded exoskeleton is refused
+      unless ``allow_other_exo``;
+    - an estimate worse than none against the recorded forces, or beyond
+      what the cuffs can carry, is flagged with a warning.
+
+    Each warning is in :attr:`OfflineEstimate.warnings` (and the summary's
+    ``warnings``) and is also issued as a one-line ``RuntimeWarning``
+    (``exo-ctrl estimate: warning: …`` on the command line).
 
     Args:
         path: the file.
@@ -91,36 +161,66 @@ def estimate_file(
             default for a CSV log).
         gain_per_s: observer gain K_O [1/s] (default: the recording's, or
             :data:`~exo_ctrl.estimation.DEFAULT_GAIN_PER_S`).
+        allow_other_exo: estimate a recording with an ``exo`` other than the
+            one it was recorded with.
 
     Raises:
-        RecordingError: an unreadable recording.
+        RecordingError: an unreadable recording, one without sensor readings
+            or of fewer than 2 ticks.
         InvalidLog: a bad CSV log.
-        InvalidParameter: an unknown file type.
+        InvalidParameter: an unknown file type, a bad gain, or an ``exo``
+            other than the recorded one.
 
     """
     p = Path(path)
     suffix = p.suffix.lower()
+    if gain_per_s is not None:
+        v.positive("gain", gain_per_s, "1/s")
     if suffix == ".rrd":
-        return _from_recording(p, exo, gain_per_s)
+        return _warn(_from_recording(p, exo, gain_per_s, allow_other_exo))
     if suffix == ".csv":
         body = load_exo(exo)
         t, q, dq, tau = read_csv_log(p)
         gain = DEFAULT_GAIN_PER_S if gain_per_s is None else gain_per_s
         series = estimate_series(t, q, dq, tau, body, gain_per_s=gain)
-        return OfflineEstimate(str(p), series)
+        stiffness = CuffParams().stiffness_N_per_m
+        notes = beyond_cuff_stretch(p, _peaks(series), stiffness, body)
+        return _warn(OfflineEstimate(str(p), series, warnings=notes))
     raise InvalidParameter("file", str(p), "a .rrd recording or a .csv log")
 
 
+def _warn(estimate: OfflineEstimate) -> OfflineEstimate:
+    """Issue each of the estimate's warnings as a RuntimeWarning (one line each), and return it."""
+    for text in estimate.warnings:
+        warnings.warn(text, RuntimeWarning, stacklevel=3)
+    return estimate
+
+
 def _from_recording(
-    path: Path, exo: str | os.PathLike[str] | None, gain_per_s: float | None
+    path: Path,
+    exo: str | os.PathLike[str] | None,
+    gain_per_s: float | None,
+    allow_other_exo: bool,
 ) -> OfflineEstimate:
-    result = read_recording(path)
+    result, integrity = read_recording_integrity(path)
     s = result.signals
     for name in ("q_meas", "dq_meas", "tau_sensor"):
         if name not in s:
             raise RecordingError(f"{path}: no {name!r} in the recording (not a sensor log)")
+    notes = []
+    if not integrity.complete:
+        notes.append(f"{path}: {integrity.describe()}; the estimate covers those")
+    n = result.t.size
+    if n < 2:
+        raise RecordingError(
+            f"cannot estimate from {path}: it holds {n} tick{'s' * (n != 1)}; "
+            "the observer needs at least 2"
+        )
     config = result.config
-    body = load_exo(exo or result.exo_source or config.exo)
+    body, model_notes = recorded_exo(
+        path, result.exo_source or config.exo or "", exo, allow_other_exo
+    )
+    notes += model_notes
     gain = config.observer_gain_per_s if gain_per_s is None else gain_per_s
     series = estimate_series(
         result.t,
@@ -132,13 +232,21 @@ def _from_recording(
         dt=config.dt,
         stiffness_ratio=config.cuff_stiffness_ratio,
     )
-    errors: dict[str, dict[str, float]] = {}
-    if "cuff_force" in s and result.t.size:
-        skip = round(STARTUP_TIME_CONSTANTS / gain / config.dt)
-        errors = normal_component_errors(
-            s["q"], s["cuff_force"], series.normal, body, skip=skip, lag=1
-        ).summary()
-    return OfflineEstimate(str(path), series, errors)
+    errors: dict[str, dict[str, float | None]] = {}
+    skip = startup_ticks(gain, config.dt)
+    truth = s.get("cuff_force")
+    if truth is not None and np.all(np.isfinite(truth)) and np.all(np.isfinite(s["q"])):
+        if n <= max(skip, 1):
+            notes.append(
+                f"{path}: {n} ticks, not more than the observer's start-up of {skip} ticks "
+                f"(5 / K_O = {STARTUP_TIME_CONSTANTS / gain:.4g} s): no error figures"
+            )
+        else:
+            found = normal_component_errors(s["q"], truth, series.normal, body, skip=skip, lag=1)
+            errors = found.summary()
+            notes += worse_than_none(path, found)
+    notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)
+    return OfflineEstimate(str(path), series, errors, integrity, notes)
 
 
 def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[str]) -> Path:

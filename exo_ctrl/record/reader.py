@@ -4,7 +4,9 @@ The file's layout is that of :mod:`.format`.  Every signal comes
 from its ``raw/<name>`` entity, bit for bit; ``t`` is rebuilt as k Δt from
 the ``tick`` timeline (exactly as :func:`~exo_ctrl.sim.simulate` computes
 it), not from the nanosecond ``sim_time``.  A file cut short by a crash is
-read up to what reached the disk (see :func:`read_recording`).
+read up to what reached the disk (see :func:`read_recording`);
+:func:`read_recording_integrity` also says how whole the file was
+(:class:`RecordingIntegrity`).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from ..model import load_body
 from ..sim import RunStats, SimConfig, SimResult
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
 
-__all__ = ["read_recording"]
+__all__ = ["RecordingIntegrity", "read_recording", "read_recording_integrity"]
 
 #: RRD stream framing (rerun 0.2x-0.41): a 12-byte file header starting with
 #: b"RRF2", then messages of a 16-byte header (kind, payload length; both
@@ -39,6 +41,55 @@ __all__ = ["read_recording"]
 _RRD_MAGIC = b"RRF2"
 _RRD_FILE_HEADER = 12
 _RRD_MSG_HEADER = struct.Struct("<QQ")
+
+
+@dataclasses.dataclass(frozen=True)
+class RecordingIntegrity:
+    """How whole a recording file is, as found when reading it.
+
+    Attributes:
+        file_bytes: size of the file [bytes].
+        cut_at_byte: end of the last complete message when the file's last
+            message is cut short (a writer stopped mid-write, a copy cut in
+            half; ``rerun rrd verify`` fails on such a file), else None.
+        has_end_record: the file holds ``raw/outcome`` (the run finished and
+            its end was written).
+        ticks_recovered: ticks present in every signal, 0 … N-1.
+        ticks_logged: ticks the run reported it logged (``raw/outcome``), or
+            None without an end record.
+        ticks_planned: ticks the run was configured for.
+
+    """
+
+    file_bytes: int
+    cut_at_byte: int | None
+    has_end_record: bool
+    ticks_recovered: int
+    ticks_logged: int | None
+    ticks_planned: int
+
+    @property
+    def complete(self) -> bool:
+        """The end record is there and every tick the run logged was recovered."""
+        return self.has_end_record and self.ticks_recovered == self.ticks_logged
+
+    def describe(self) -> str:
+        """One line: what is missing, and how many ticks were recovered ("" if complete)."""
+        if self.complete:
+            return ""
+        faults = []
+        if self.cut_at_byte is not None:
+            faults.append(f"the file is cut short at byte {self.cut_at_byte} of {self.file_bytes}")
+        if not self.has_end_record:
+            faults.append("it has no end record (the run or its writer stopped early)")
+        if self.ticks_logged is None:
+            of = f"of the {self.ticks_planned} planned"
+        else:
+            of = f"of the {self.ticks_logged} the run logged"
+            if self.ticks_recovered != self.ticks_logged:
+                faults.append("ticks are missing")
+        what = " and ".join(faults)
+        return f"incomplete recording: {what}; {self.ticks_recovered} ticks {of} recovered"
 
 
 def read_recording(path: str | os.PathLike[str]) -> SimResult:
@@ -61,10 +112,21 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
             :class:`~.writer.RerunRecorder`, or its data is inconsistent.
 
     """
+    return read_recording_integrity(path)[0]
+
+
+def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, RecordingIntegrity]:
+    """:func:`read_recording`, and how whole the file was.
+
+    Raises:
+        RecordingError: as :func:`read_recording`.
+
+    """
     p = Path(path)
     if not p.is_file():
         raise RecordingError(f"cannot read recording {p}: file not found")
-    chunks, note = _read_chunks(p)
+    chunks, cut = _read_chunks(p)
+    note = f"; the file was cut at byte {cut} of {p.stat().st_size}" if cut is not None else ""
 
     texts: dict[str, str] = {}
     raw: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
@@ -132,7 +194,16 @@ def read_recording(path: str | os.PathLike[str]) -> SimResult:
     step = min(config.chunk_ticks, max(config.n_ticks, 1))  # the loop's chunks: same sums
     for start in range(0, n, step):
         result.stats.update({name: arr[start : start + step] for name, arr in ordered.items()})
-    return result
+    logged = outcome.get("ticks") if "raw/outcome" in texts else None
+    integrity = RecordingIntegrity(
+        file_bytes=p.stat().st_size,
+        cut_at_byte=cut,
+        has_end_record="raw/outcome" in texts,
+        ticks_recovered=n,
+        ticks_logged=int(logged) if isinstance(logged, (int, float)) else None,
+        ticks_planned=int(meta.get("n_ticks_planned", config.n_ticks)),
+    )
+    return result, integrity
 
 
 def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
@@ -150,8 +221,8 @@ def _load_chunks(path: Path) -> list:
         return RrdReader(path).stream().to_chunks()
 
 
-def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, str]:
-    """All chunks of the file's recording, and a note if the file had to be salvaged.
+def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, int | None]:
+    """All chunks of the file's recording, and where it was cut if it had to be salvaged.
 
     A writer stopped in the middle of a message (disk full) leaves a last
     message cut short, and rerun then refuses the whole file.  In that case
@@ -162,7 +233,7 @@ def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, str]:
     error: Exception | None = None
     for _ in range(attempts):
         try:
-            return _load_chunks(path), ""
+            return _load_chunks(path), None
         except (ValueError, RuntimeError, OSError) as exc:
             error = exc
         end = _complete_prefix(path)
@@ -173,9 +244,7 @@ def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, str]:
             with path.open("rb") as src, copy.open("wb") as dst:
                 _copy_bytes(src, dst, end)
             with contextlib.suppress(ValueError, RuntimeError, OSError):
-                chunks = _load_chunks(copy)
-                size = path.stat().st_size
-                return chunks, f"; the file was cut at byte {end} of {size}"
+                return _load_chunks(copy), end
     raise RecordingError(f"cannot read recording {path}: {error}") from None
 
 

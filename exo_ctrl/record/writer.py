@@ -51,6 +51,7 @@ import dataclasses
 import math
 import os
 import shutil
+import sys
 import threading
 import warnings
 from pathlib import Path
@@ -59,6 +60,7 @@ from typing import NoReturn
 import numpy as np
 import rerun as rr
 
+from .._io import is_special, output_problem
 from ..exceptions import InvalidParameter, RecordingError
 from ..model import BodyModel, load_body, load_patient
 from ..sim import SimResult
@@ -77,14 +79,15 @@ from .format import (
 )
 from .scene import Skeleton, log_scene_static, send_scene
 
-__all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder"]
+__all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder", "find_viewer", "spawn_viewer"]
 
 #: Default rate of the 3-D scene [Hz]: a display rate, far below the control rate.
 DEFAULT_SCENE_RATE_HZ = 50.0
-#: Estimated file size per tick [B], for the free-space check (measured about
-#: 2.2 kB per tick at 1 kHz with the default scene rate; taken lower on purpose
-#: so the check only refuses when the disk surely cannot hold the run).
-BYTES_PER_TICK_ESTIMATE = 1500
+#: Estimated file size per tick [B], for the free-space check: the default
+#: run (2400 ticks at 1 kHz, 3-D scene at 50 Hz) writes 6.03 MB, 2514 B per
+#: tick with the fixed part (blueprint, parameters, geometry) spread over it;
+#: 4800 ticks write 11.71 MB (2363 B per tick beyond the first 2400).
+BYTES_PER_TICK_ESTIMATE = 2500
 #: Longest wait for a flush to reach the disk [s].  A flush of a 2000-tick
 #: chunk (about 4 MB) normally takes milliseconds; after a write error (disk
 #: full) rerun 0.41's flush blocks until this timeout, or without one forever,
@@ -103,6 +106,40 @@ _LEVELS = {
     "estop": "WARN",
     "state": "INFO",
 }
+
+
+def find_viewer() -> Path | None:
+    """The rerun viewer executable: the one installed with rerun-sdk, else one on PATH.
+
+    rerun-sdk installs ``rerun`` next to the Python interpreter
+    (``.venv/bin/rerun``), which is not on PATH unless the environment is
+    activated; that one is looked for first.
+    """
+    beside = Path(sys.executable).parent / ("rerun.exe" if os.name == "nt" else "rerun")
+    if beside.is_file() and os.access(beside, os.X_OK):
+        return beside
+    found = shutil.which("rerun")
+    return Path(found) if found else None
+
+
+def spawn_viewer(rec: rr.RecordingStream) -> str | None:
+    """Start the rerun viewer :func:`find_viewer` finds, listening for ``rec``.
+
+    Returns:
+        None when it started, else why not, in one line.
+
+    """
+    viewer = find_viewer()
+    if viewer is None:
+        return (
+            f"no rerun viewer found (neither {Path(sys.executable).parent / 'rerun'} nor "
+            "'rerun' on PATH; it comes with rerun-sdk)"
+        )
+    try:
+        rr.spawn(connect=False, executable_path=str(viewer), recording=rec)
+    except (RuntimeError, OSError) as exc:
+        return f"could not start the rerun viewer {viewer}: {' '.join(str(exc).split())}"
+    return None
 
 
 class RerunRecorder:
@@ -272,14 +309,9 @@ class RerunRecorder:
 
     def _spawn_viewer(self, rec: rr.RecordingStream) -> bool:
         """Start a viewer to stream to; on failure warn and record to the file only."""
-        try:
-            rec.spawn(connect=False)
-        except (RuntimeError, OSError) as exc:
-            warnings.warn(
-                f"could not start the rerun viewer ({exc}); recording to {self.path} only",
-                RuntimeWarning,
-                stacklevel=4,
-            )
+        problem = spawn_viewer(rec)
+        if problem is not None:
+            warnings.warn(f"{problem}; recording to {self.path} only", RuntimeWarning, stacklevel=4)
             return False
         return True
 
@@ -299,17 +331,11 @@ class RerunRecorder:
     def _check_writable(self, n_ticks: int) -> None:
         path = self.path
         parent = path.parent
-        if not parent.is_dir():
-            raise RecordingError(
-                f"cannot write recording {path}: directory {parent} does not exist"
-            )
-        if path.is_dir():
-            raise RecordingError(f"cannot write recording {path}: it is a directory")
-        target = path if path.exists() else parent
-        if not os.access(target, os.W_OK):
-            raise RecordingError(f"cannot write recording {path}: permission denied on {target}")
-        if path.exists() and not path.is_file():
-            return  # a device (/dev/null): no free-space figure applies
+        problem = output_problem(path)  # the check every output of the command line gets
+        if problem is not None:
+            raise RecordingError(f"cannot write recording {path}: {problem}")
+        if is_special(path):
+            return  # a device (/dev/null) or a FIFO: no free-space figure applies
         with contextlib.suppress(OSError):
             free = shutil.disk_usage(parent).free
             need = n_ticks * BYTES_PER_TICK_ESTIMATE

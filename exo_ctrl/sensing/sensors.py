@@ -133,6 +133,10 @@ class SensorParams:
         v.positive("velocity_filter", self.velocity_filter_hz, "Hz")
         v.non_negative("torque_noise_std", self.torque_noise_std_Nm, "N·m")
         v.non_negative("torque_resolution", self.torque_resolution_Nm, "N·m")
+        raw = self.torque_bias_Nm
+        for b in raw if isinstance(raw, (tuple, list, np.ndarray)) else (raw,):
+            if isinstance(b, (str, bytes, bool, np.bool_)):
+                v.finite("torque_bias", b, "N·m")  # refuses text and truth values
         try:
             bias = np.broadcast_to(np.asarray(self.torque_bias_Nm, dtype=float), (4,))
         except (TypeError, ValueError):

@@ -4,7 +4,7 @@ from .config import CONTROLLERS, SimConfig
 from .loop import simulate
 from .result import SimObserver, SimResult
 from .schema import SIGNALS, Signal, log_dtype, signal_shapes
-from .setup import Setup, build, drive_for, plan_rows, start_on_plan
+from .setup import Setup, build, drive_for, start_on_plan
 from .summary import RunStats
 from .tick import UNTIMED_TICKS, Runner
 
@@ -22,7 +22,6 @@ __all__ = [
     "build",
     "drive_for",
     "log_dtype",
-    "plan_rows",
     "signal_shapes",
     "simulate",
     "start_on_plan",

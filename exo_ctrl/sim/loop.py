@@ -51,6 +51,8 @@ def simulate(
         observer still gets :meth:`SimObserver.finish`, and then it is raised.
 
     """
+    if keep_history:
+        config.check_history()  # before anything is built
     setup = build(config)
     runner = Runner(setup)
     n = config.n_ticks

@@ -1,8 +1,15 @@
-"""The pieces of a run, built from its configuration, and the state it starts in."""
+"""The pieces of a run, built from its configuration, and the state it starts in.
+
+A run is built only for a plan the device can follow (:func:`check_followable`):
+a gait whose planned joint speeds break a URDF speed limit, or need more
+than the supply voltage for the back-EMF alone, is bad input, refused before
+anything runs.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,12 +20,16 @@ from ..control import (
     QPController,
     feedforward_torque,
 )
-from ..model import BodyModel, load_exo, load_patient
+from ..exceptions import InvalidParameter
+from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..plan import GaitPlan, JointTrajectory, plan_joints
 from ..plant import MotorParams, Plant
 from .config import SimConfig
 
-__all__ = ["Setup", "build", "drive_for", "plan_rows", "start_on_plan"]
+__all__ = ["Setup", "build", "check_followable", "drive_for", "start_on_plan"]
+
+#: Samples per gait period (at least) of the speed check of :func:`check_followable`.
+SPEED_SAMPLES_PER_PERIOD = 1000
 
 
 @dataclass
@@ -34,14 +45,21 @@ class Setup:
 
 
 def build(config: SimConfig) -> Setup:
-    """Load the models, plan the run and build the plant and controller."""
+    """Load the models, plan the run and build the plant and controller.
+
+    Raises:
+        ExoCtrlError: a model, a gait or a plan the device cannot follow
+            (:func:`check_followable`) is refused; nothing has run.
+
+    """
     exo = load_exo(config.exo)
     patient = load_patient(config.patient)
-    rows = plan_rows(config)
+    rows = config.plan_rows
     plan = plan_joints(GaitPlan(config.gait), exo, np.arange(rows) * config.dt)
     if rows <= config.n_ticks:
         plan = dataclasses.replace(plan, period_ticks=rows)
     motor = drive_for(config.motor, exo)
+    check_followable(config, plan, exo, patient, motor)
     plant = Plant(
         exo, patient, dt=config.dt / config.plant_substeps, motors=motor, cuffs=config.cuffs
     )
@@ -62,20 +80,6 @@ def build(config: SimConfig) -> Setup:
     else:
         controller = PDController(plan, config.gains)
     return Setup(config, exo, patient, plan, plant, controller)
-
-
-def plan_rows(config: SimConfig) -> int:
-    """Rows of the joint plan: one gait period if it is a whole number of ticks.
-
-    The gait is periodic, so tick k uses row k mod P; with P = T_s / Δt an
-    integer (1200 for the default 1.2 s at 1 kHz) the plan's memory does not
-    grow with the run's length.  Otherwise the plan covers every tick.
-    """
-    period = config.gait.period / config.dt
-    p = round(period)
-    if p >= 2 and abs(p - period) <= 1e-9 * period:
-        return min(p, config.n_ticks + 1)
-    return config.n_ticks + 1
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
@@ -104,3 +108,80 @@ def start_on_plan(setup: Setup) -> None:
     limit = motor.current_limit_A
     i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -limit, limit)
     plant.reset(plan.q[0], plan.dq[0], current_A=i0)
+
+
+def check_followable(
+    config: SimConfig,
+    plan: JointTrajectory,
+    exo: BodyModel,
+    patient: BodyModel,
+    motor: MotorParams,
+) -> None:
+    r"""Refuse a gait whose planned joint speeds the device cannot follow.
+
+    The planned speed ω_j(t) of each joint is taken from the run's ``plan``
+    when its ticks sample a gait period at least
+    :data:`SPEED_SAMPLES_PER_PERIOD` times, else from the gait sampled that
+    often over its first period (the run's span if shorter): a coarse
+    control rate does not hide a peak between its ticks.  Each joint may move
+    at most at the smallest of
+
+    - the exoskeleton URDF's speed limit ``<limit velocity>`` [rad/s],
+    - the patient URDF's (the patient's joints follow the exoskeleton's),
+    - the drive's no-load speed at the supply, ω₀ = U_max / (i_G / k_E)
+      [rad/s]: there the back-EMF i_G ω / k_E alone takes the whole supply
+      voltage, and any torque needs R I on top (12.4 rad/s with the
+      defaults).
+
+    A limit that is not a finite number > 0 is no limit.  The default
+    scenario peaks at 2.15 rad/s (knees), 2.8 times within the 6 rad/s of
+    the default exoskeleton.
+
+    Args:
+        config: the run (its gait, duration and control rate).
+        plan: the run's joint plan (:func:`build`).
+        exo: the exoskeleton model.
+        patient: the patient model.
+        motor: the drive as configured (:func:`drive_for`).
+
+    Raises:
+        InvalidParameter: the joint whose planned speed is furthest beyond its
+            limit, with the speed [rad/s], the limit and where it comes from.
+
+    """
+    gait = config.gait
+    if config.dt > gait.period / SPEED_SAMPLES_PER_PERIOD:
+        span = min(config.duration_s, gait.period)
+        n = max(math.ceil(SPEED_SAMPLES_PER_PERIOD * span / gait.period), 1) + 1
+        plan = plan_joints(GaitPlan(gait), exo, np.linspace(0.0, span, n))
+    t, dq = plan.t, np.abs(plan.dq)
+    kb = motor.back_emf_V_per_rad_s
+    sources = (
+        (exo.velocity_limit, "the exoskeleton URDF's speed limit"),
+        (patient.velocity_limit, "the patient URDF's speed limit"),
+        (
+            np.full(4, motor.supply_voltage_V / kb),
+            f"where the drive's back-EMF i_G ω / k_E ({kb:.4g} V·s/rad × ω) "
+            f"takes the whole {motor.supply_voltage_V:.4g} V supply",
+        ),
+    )
+    peak = dq.max(axis=0)
+    worst = None
+    for limits, reason in sources:
+        for j, limit in enumerate(limits):
+            if not (math.isfinite(limit) and limit > 0.0):
+                continue
+            ratio = peak[j] / limit
+            if ratio > 1.0 and (worst is None or ratio > worst[0]):
+                worst = (ratio, j, float(limit), reason)
+    if worst is None:
+        return
+    _, j, limit, reason = worst
+    at = float(t[np.argmax(dq[:, j])])
+    raise InvalidParameter(
+        f"planned {JOINT_NAMES[j]} speed",
+        float(f"{peak[j]:.4g}"),
+        f"at most {limit:.4g} rad/s, {reason}",
+        f"rad/s, at t = {at:.4g} s of a gait with period {gait.period:g} s and step_length "
+        f"{gait.step_length:g} m: a longer period or a shorter step slows it",
+    )

@@ -3,49 +3,55 @@
 ``exo-ctrl sweep --param NAME=V1,V2,... [--param ...] --out PATH.parquet``
 runs the sweep (:func:`~exo_ctrl.sweep.run.run_sweep`) on local worker
 processes, or on a Dask scheduler with ``--scheduler tcp://HOST:PORT``, then
-prints where the table went and the report's worst cases.  The exit code is
-0 when done and 130 on Ctrl-C (the finished runs are kept; the same command
-resumes).
+prints where the table went, how many runs completed and failed, and the
+report's worst cases.  Exit codes: 0 when at least one run completed, 1 when
+none did (the table, with every run's error, is still written), 2 for bad
+input, 130 on Ctrl-C (the finished runs are kept; the same command resumes).
 """
 
 from __future__ import annotations
 
 import argparse
 import concurrent.futures as cf
+import os
 import sys
 from typing import Any
 
+from .._io import OUTPUT_ALLOWED, output_problem
 from ..exceptions import InvalidParameter, MissingDependency, SweepError
 from ..sim import CONTROLLERS, SimConfig
 from .outputs import SweepPaths
-from .parameters import parameter_names
+from .parameters import parameter_listing
 from .run import SweepInterrupted, run_sweep
 from .spec import DEFAULT_CYCLES, SweepSpec
 
-__all__ = ["DASK_HINT", "add_sweep_arguments", "run_sweep_command"]
+__all__ = ["DASK_HINT", "add_sweep_arguments", "check_sweep_outputs", "run_sweep_command"]
 
-DASK_HINT = 'pip install "exo-ctrl[dask]"'
+DASK_HINT = '.venv/bin/pip install -e ".[dask]"'
 
 
 def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``exo-ctrl sweep`` options to ``parser``."""
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = parameter_listing()
     parser.add_argument(
         "--param",
         action="append",
         required=True,
         metavar="NAME=V1,V2,...|NAME=LO:HI:N",
         help="a swept parameter: a list, or N evenly spaced values LO..HI (repeatable); "
-        f"names: {', '.join(parameter_names())}",
+        "names, units, accepted values and defaults: below",
     )
     parser.add_argument(
         "--samples",
         type=int,
         default=None,
         metavar="N",
-        help="N random points, uniform in each parameter's [min, max] (default: the full grid)",
+        help="number of random points, no unit, uniform in each parameter's [min, max] "
+        "(default: none, the full grid)",
     )
     parser.add_argument(
-        "--seed", type=int, default=0, metavar="S", help="seed of --samples (default 0)"
+        "--seed", type=int, default=0, metavar="S", help="seed of --samples, no unit (default 0)"
     )
     parser.add_argument(
         "--out",
@@ -59,13 +65,15 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=None,
         metavar="N",
-        help="local worker processes (default: the CPU count; 1: in this process)",
+        help="local worker processes, no unit "
+        f"(default: the CPU count, {os.cpu_count()} here; 1 runs in this process)",
     )
     parser.add_argument(
         "--scheduler",
         default=None,
         metavar="tcp://HOST:PORT",
-        help=f"run on this Dask scheduler instead (needs {DASK_HINT})",
+        help="run on this Dask scheduler instead "
+        f"(default: none, local worker processes; needs {DASK_HINT})",
     )
     span = parser.add_mutually_exclusive_group()
     span.add_argument(
@@ -73,10 +81,15 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="N",
-        help=f"gait cycles per run (default {DEFAULT_CYCLES:g})",
+        help=f"gait cycles per run [cycles] (default {DEFAULT_CYCLES:g})",
     )
     span.add_argument(
-        "--duration", type=float, default=None, metavar="SEC", help="simulated time per run [s]"
+        "--duration",
+        type=float,
+        default=None,
+        metavar="SEC",
+        help=f"simulated time per run [s] (default: {DEFAULT_CYCLES:g} gait cycles, "
+        f"{DEFAULT_CYCLES * SimConfig().gait.period:g} s at the default period)",
     )
     parser.add_argument(
         "--controller",
@@ -88,7 +101,11 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
     )
     parser.add_argument(
-        "--substeps", type=int, default=1, metavar="N", help="plant steps per tick (default 1)"
+        "--substeps",
+        type=int,
+        default=1,
+        metavar="N",
+        help="plant steps per tick, no unit (default 1)",
     )
     parser.add_argument("--no-plots", action="store_true", help="do not write the load diagrams")
 
@@ -107,11 +124,32 @@ def _dask_executor(address: str) -> tuple[cf.Executor, int, Any]:
     return client.get_executor(pure=False), workers, client
 
 
+def check_sweep_outputs(out: str) -> SweepPaths:
+    """The files of a sweep to ``out``, each checked as an output.
+
+    Raises:
+        InvalidParameter: ``out`` does not end in .parquet, or one of the
+            files cannot be written (the message names ``--out`` and the file).
+
+    """
+    try:
+        paths = SweepPaths.for_output(out)
+    except InvalidParameter as exc:
+        raise InvalidParameter("--out", out, exc.allowed) from None
+    for path in (paths.table, paths.csv, paths.journal, paths.report):
+        problem = output_problem(path)
+        if problem is not None:
+            raise InvalidParameter("--out", out, OUTPUT_ALLOWED, problem)
+    return paths
+
+
 def run_sweep_command(args: argparse.Namespace) -> int:
-    """Run ``exo-ctrl sweep``; returns the exit code (0 done, 130 interrupted).
+    """Run ``exo-ctrl sweep``; returns the exit code (module docstring).
 
     Bad input raises :class:`~exo_ctrl.exceptions.ExoCtrlError` (the CLI
-    prints it in one line and exits 2).
+    prints it in one line and exits 2), an output that cannot be written
+    among them (:func:`exo_ctrl._io.check_output` of each file beside
+    ``--out``), before any run starts.
     """
     names = [p.partition("=")[0].strip() for p in args.param]
     if args.controller is not None and "controller" in names:
@@ -133,6 +171,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         cycles=args.cycles,
         base=base,
     )
+    paths = check_sweep_outputs(args.out)  # before any run: never after a long sweep
     executor, workers, client = None, args.workers, None
     if args.scheduler is not None:
         executor, workers, client = _dask_executor(args.scheduler)
@@ -150,10 +189,11 @@ def run_sweep_command(args: argparse.Namespace) -> int:
     finally:
         if client is not None:
             client.close()
-    paths = SweepPaths.for_output(args.out)
     status = table.column("status").to_pylist()
+    completed = status.count("completed")
+    failed = len(status) - completed
     print(
-        f"wrote {len(table)} runs ({status.count('completed')} completed) to {paths.table} "
+        f"wrote {len(table)} runs ({completed} completed, {failed} failed) to {paths.table} "
         f"and {paths.csv}"
     )
     if paths.report.is_file():
@@ -161,4 +201,12 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         for line in paths.report.read_text(encoding="utf-8").splitlines():
             if line.startswith("worst"):
                 print("  " + line)
+    if completed == 0 and status:
+        errors = [e for e in table.column("error").to_pylist() if e]
+        first = f"; the first error: {errors[0].splitlines()[0]}" if errors else ""
+        print(
+            f"exo-ctrl sweep: none of the {len(status)} runs completed{first}",
+            file=sys.stderr,
+        )
+        return 1
     return 0

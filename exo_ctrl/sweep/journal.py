@@ -20,6 +20,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ..exceptions import OutputError
 from .outputs import OUTPUT_COLUMNS, SweepPaths, empty_outputs
 from .spec import SweepTask
 
@@ -62,13 +63,23 @@ class Journal:
     """Append-only JSON lines, one per finished run, flushed and synced per line."""
 
     def __init__(self, path: Path) -> None:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        """Open (or create, with the umask's mode) the journal at ``path``.
+
+        Its directory is not created: it is the sweep's output directory.
+
+        Raises:
+            OutputError: the file cannot be opened for appending.
+
+        """
         torn = False
-        if path.is_file() and path.stat().st_size:
-            with path.open("rb") as handle:
-                handle.seek(-1, os.SEEK_END)
-                torn = handle.read(1) != b"\n"
-        self._handle = path.open("a", encoding="utf-8")
+        try:
+            if path.is_file() and path.stat().st_size:
+                with path.open("rb") as handle:
+                    handle.seek(-1, os.SEEK_END)
+                    torn = handle.read(1) != b"\n"
+            self._handle = path.open("a", encoding="utf-8")
+        except OSError as exc:
+            raise OutputError(path, exc.strerror or str(exc)) from None
         if torn:  # end a line torn by a kill, so the next entry starts clean
             self._handle.write("\n")
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import ctypes
 import dataclasses
 import hashlib
 import multiprocessing
@@ -23,6 +24,7 @@ import os
 import signal
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -99,15 +101,17 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
         ExoCtrlError: a value or combination the library rejects.
 
     """
-    groups: dict[str, dict[str, Any]] = {"gait": {}, "patient": {}, "motor": {}, "cuffs": {}}
+    groups: dict[str, dict[str, Any]] = {
+        "gait": {},
+        "patient": {},
+        "motor": {},
+        "cuffs": {},
+        "gains": {},
+    }
     for name, value in values.items():
         info = PARAMETERS.get(name)
-        if info is None:
-            continue
-        group = info.group
-        if group == "device":
-            group = "motor" if hasattr(base.motor, info.attribute) else "cuffs"
-        groups[group][info.attribute] = value
+        if info is not None:
+            groups[info.target][info.attribute] = value
     patient = base.patient
     if base.patient is None and groups["patient"]:
         patient = _patient_urdf(groups["patient"], cache_dir)
@@ -118,6 +122,7 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
         controller=values.get("controller", base.controller),
         motor=dataclasses.replace(base.motor, **groups["motor"]),
         cuffs=dataclasses.replace(base.cuffs, **groups["cuffs"]),
+        gains=dataclasses.replace(base.gains, **groups["gains"]),
         duration_s=values.get("duration_s", base.duration_s),
     )
 
@@ -159,9 +164,35 @@ def run_point(
     return out
 
 
-def _ignore_sigint() -> None:
-    """Pool worker initializer: Ctrl-C is the parent's to handle."""
+_PR_SET_PDEATHSIG = 1  # prctl(2) option: the signal a process gets when its parent dies
+_PARENT_POLL_S = 0.5  # how often a worker checks that its parent is alive [s]
+
+
+def _init_worker(parent_pid: int) -> None:
+    """Pool worker initializer: Ctrl-C is the parent's to handle; die with the parent.
+
+    A worker holds both ends of the pool's pipes itself, so the parent's death
+    (SIGKILL) never ends it.  On Linux the kernel kills it when the parent
+    exits (``prctl(PR_SET_PDEATHSIG)``); everywhere a daemon thread ends it
+    once its parent is no longer ``parent_pid`` (also if that was before this ran).
+
+    Args:
+        parent_pid: the process id of the sweep that owns the pool.
+
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    """End this worker at once when its parent is no longer ``parent_pid``."""
+    while os.getppid() == parent_pid:
+        time.sleep(_PARENT_POLL_S)
+    os._exit(1)
 
 
 class _InlineExecutor(cf.Executor):
@@ -179,11 +210,13 @@ class _InlineExecutor(cf.Executor):
 def _pool(workers: int) -> cf.ProcessPoolExecutor:
     """A local process pool of ``workers`` spawned interpreters."""
     # spawn: a clean interpreter per worker (fork after pyarrow/rerun threads
-    # exist can deadlock); workers ignore Ctrl-C, the parent handles it.
+    # exist can deadlock); workers ignore Ctrl-C, the parent handles it, and
+    # die with the parent.
     return cf.ProcessPoolExecutor(
         max_workers=workers,
         mp_context=multiprocessing.get_context("spawn"),
-        initializer=_ignore_sigint,
+        initializer=_init_worker,
+        initargs=(os.getpid(),),
     )
 
 

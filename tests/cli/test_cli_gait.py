@@ -209,6 +209,81 @@ def test_bad_urdf_files(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
         assert_clean_failure(code, err, expected, tmp_path, {"bad.urdf"})
 
 
+#: The left shank's inertia in the committed exoskeleton URDF.
+SHANK_INERTIA = 'ixx="0.1024125" ixy="0.0" ixz="0.0" iyy="0.1024125" iyz="0.0" izz="0.002025"'
+
+BAD_BODIES = [
+    (
+        'ixx="-1" ixy="0.0" ixz="0.0" iyy="0.1024125" iyz="0.0" izz="0.002025"',
+        "inertia is not physically valid: ixx = -1 kg·m² must be > 0",
+    ),
+    (
+        'ixx="1" ixy="2" ixz="0" iyy="1" iyz="0" izz="1"',
+        "inertia is not physically valid: the principal moments -1, 1, 3 kg·m² must be > 0 "
+        "and each smaller than the sum of the other two",
+    ),
+    ("MASS", "mass must be a finite number > 0 kg; got -4.5"),
+]
+BAD_BODY_IDS = ["negative-ixx", "not-positive-definite", "negative-mass"]
+
+
+def bad_body_urdf(tmp_path: Path, exo_path: Path, inertia: str) -> Path:
+    """The committed exoskeleton with the left shank's inertia (or mass) made non-physical."""
+    text = exo_path.read_text(encoding="utf-8")
+    if inertia == "MASS":
+        bad = text.replace('<mass value="4.5"/>', '<mass value="-4.5"/>', 1)
+    else:
+        bad = text.replace(SHANK_INERTIA, inertia, 1)
+    assert bad != text
+    path = tmp_path / "bad.urdf"
+    path.write_text(bad, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("inertia", "reason"), BAD_BODIES, ids=BAD_BODY_IDS)
+@pytest.mark.parametrize("command", ["gait", "simulate", "estimate"])
+def test_non_physical_urdf_is_bad_input_for_every_command(
+    tmp_path: Path,
+    exo_path: Path,
+    capsys: pytest.CaptureFixture,
+    command: str,
+    inertia: str,
+    reason: str,
+) -> None:
+    urdf = bad_body_urdf(tmp_path, exo_path, inertia)
+    log = tmp_path / "log.csv"  # a valid estimate input: 1 s at rest, 1 kHz
+    columns = "t," + ",".join(f"{j}_{x}" for x in ("q", "tau") for j in HEADER[-4:])
+    log.write_text(columns + "\n" + "".join(f"{k / 1000},{'0,' * 7}0\n" for k in range(1000)))
+    out = tmp_path / "out.file"
+    argv = {
+        "gait": ["gait", "--exo", str(urdf), "--csv", str(out)],
+        "simulate": ["simulate", "--exo", str(urdf), "--duration", "0.05", "--out", str(out)],
+        "estimate": ["estimate", str(log), "--exo", str(urdf), "--out", str(out)],
+    }[command]
+    code = cli.main(argv)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err == f"exo-ctrl {command}: error: invalid model: 'left_shank' in {urdf}: {reason}\n"
+    assert {p.name for p in tmp_path.iterdir()} == {"bad.urdf", "log.csv"}
+
+
+def test_negative_inertia_via_the_installed_command(tmp_path: Path, exo_path: Path) -> None:
+    urdf = bad_body_urdf(tmp_path, exo_path, BAD_BODIES[0][0])
+    exe = Path(sys.executable).with_name("exo-ctrl")
+    proc = subprocess.run(
+        [str(exe), "gait", "--exo", str(urdf), "--csv", str(tmp_path / "o.csv")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr == (
+        f"exo-ctrl gait: error: invalid model: 'left_shank' in {urdf}: {BAD_BODIES[0][1]}\n"
+    )
+    assert proc.stdout == ""
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.urdf"]
+
+
 def test_failure_leaves_an_existing_file_untouched(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -370,3 +371,15 @@ def test_validated_parameters_are_stored_as_floats() -> None:
         return  # refusing it is fine too
     assert isinstance(p.step_length, float)
     assert p.belt_speed == pytest.approx(0.35 / (0.5 * 1.2))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"step_length": "0.3"}, "step_length must be a finite number [m]; got '0.3'"),
+        ({"period": True}, "period must be a finite number [s]; got True"),
+    ],
+)
+def test_numbers_given_as_text_or_truth_values_are_refused(kwargs, message) -> None:
+    with pytest.raises(InvalidParameter, match="^" + re.escape(message) + "$"):
+        GaitParams(**kwargs)

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import math
+import tracemalloc
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
+from exo_ctrl._validate import MAX_ALLOCATION_BYTES
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter, UnreachableFootTarget
 from exo_ctrl.model import SIDES, BodyModel
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import (
+    PLAN_BYTES_PER_SAMPLE,
     forward_kinematics,
     inverse_kinematics,
     joint_accelerations,
@@ -348,3 +351,42 @@ def test_plan_outside_the_range_of_motion_is_refused(exo: BodyModel) -> None:
         "left_knee angle on the plan must be within the range of motion [-0.05, 2.09] rad of "
     )
     assert str(exc).endswith("(at t = 0 s)")  # the left foot is at the top of its swing at t = 0
+
+
+# ------------------------------------------------------------------ memory cap (issue 19)
+
+
+def test_plan_memory_per_sample_is_bounded_by_the_stated_figure(exo: BodyModel) -> None:
+    """tracemalloc sees every numpy allocation: the peak of plan_joints per sample."""
+    plan = GaitPlan(GaitParams())
+    plan_joints(plan, exo, np.arange(10) * 1e-3)  # warm: nothing lazily allocated later
+    n = 200_000
+    t = np.arange(n) * 1e-3
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        joints = plan_joints(plan, exo, t)
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+    assert joints.q.shape == (n, 4)
+    # the result alone holds 24 numbers a sample; the bound is within 25 % of the peak
+    assert 24 * 8 * n < peak <= PLAN_BYTES_PER_SAMPLE * n < 1.25 * peak
+
+
+def test_plan_beyond_the_memory_cap_is_refused_before_allocating(exo: BodyModel) -> None:
+    n = MAX_ALLOCATION_BYTES // PLAN_BYTES_PER_SAMPLE + 1  # 2,684,355 samples
+    t = np.broadcast_to(0.0, (n,))  # no memory behind it
+    tracemalloc.start()
+    try:
+        with pytest.raises(InvalidParameter) as info:
+            plan_joints(GaitPlan(GaitParams()), exo, t)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1_000_000
+    assert str(info.value) == (
+        "t must be shorter so that the plan samples fit in the 1 GiB memory cap "
+        "(at most 2,684,354 of 400 B each); got (2684355,) "
+        "(2,684,355 plan samples would need 1,073,742,000 B)"
+    )

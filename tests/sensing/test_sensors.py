@@ -10,6 +10,7 @@ on a sine.
 from __future__ import annotations
 
 import math
+import re
 import tracemalloc
 
 import numpy as np
@@ -263,3 +264,22 @@ def test_readings_of_the_wrong_length_are_refused_by_name() -> None:
     assert sensors.samples == 0  # no effect:
     for name in before.dtype.names:
         assert np.array_equal(sensors.record[name], before[name]), name
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (
+            {"torque_noise_std_Nm": "0.2"},
+            "torque_noise_std must be a finite number [N·m]; got '0.2'",
+        ),
+        ({"torque_bias_Nm": "1"}, "torque_bias must be a finite number [N·m]; got '1'"),
+        (
+            {"torque_bias_Nm": (0.0, True, 0.0, 0.0)},
+            "torque_bias must be a finite number [N·m]; got True",
+        ),
+    ],
+)
+def test_numbers_given_as_text_or_truth_values_are_refused(kwargs, message) -> None:
+    with pytest.raises(InvalidParameter, match="^" + re.escape(message) + "$"):
+        SensorParams(**kwargs)

@@ -99,7 +99,6 @@ def test_gains_are_sweepable_with_the_same_gain_on_every_joint(tmp_path):
     assert resolved_run(base, {}) == {**base.to_dict(), "patient_body": None}
 
 
-@pytest.mark.xfail(strict=True, reason="needs the gains group in exo_ctrl/sweep/run.py config_for")
 def test_swept_gains_reach_the_run(tmp_path):
     (task,) = SweepSpec.parse(["kp=50", "kd=1"], duration_s=0.4).tasks()
     config = config_for(SimConfig(), task.values, str(tmp_path))
@@ -140,7 +139,6 @@ def test_listing_gives_every_parameter_its_unit_range_and_default():
     assert rows["kp"].split()[4:6] == ["per", "joint"]
 
 
-@pytest.mark.xfail(strict=True, reason="needs parameter_listing() as the sweep parser's epilog")
 def test_sweep_help_shows_the_listing():
     out = io.StringIO()
     with contextlib.redirect_stdout(out), pytest.raises(SystemExit) as info:
