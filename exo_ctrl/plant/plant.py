@@ -60,11 +60,6 @@ __all__ = ["Plant"]
 #: A joint speed above this is taken as divergence [rad/s].
 MAX_JOINT_SPEED_RAD_S = 100.0
 
-# What :func:`_kick_and_drift` returns: the step is done, the run diverged, or
-# a drive's implicit torque went beyond its current limit and the
-# accelerations must be solved again with that drive held at the limit.
-_DONE, _DIVERGED, _RESOLVE = 0, 1, 2
-
 
 class Plant:
     """Exoskeleton + patient + drives + cuffs, stepped at a fixed step.
@@ -144,6 +139,7 @@ class Plant:
         self.patient_torque = r["patient_torque"][0]
         self._arm_base, self._arm_const = r["arm_base"][0], r["arm_const"][0]
         self._changed = r["armature_changed"]
+        self._resolve = r["resolve"]
         self._arm_base[:] = rotor
         r["b"][0] = self._b
         r["friction"][0] = self._fr
@@ -235,11 +231,11 @@ class Plant:
         acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
         self.t += self.dt
         status = _kick_and_drift(self.record, acc)
-        while status == _RESOLVE:  # a drive reached its current limit: at most 4 times
+        while self._resolve[0]:  # a drive reached its current limit: at most 4 times
             self.model.armature = self._arm
             acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
             status = _kick_and_drift(self.record, acc)
-        if status == _DIVERGED:
+        if status:
             self._diverged()
 
     @property
@@ -298,7 +294,9 @@ class Plant:
 #: [N·m·s/rad] and ``friction`` dry friction [N·m] (8 each), the step ``h``
 #: [s], ``has_friction``, ``has_motors``; ``armature_changed``: the last
 #: first half-step changed the exo armature (D_m changes only when a drive's
-#: current enters or leaves its limit).  :func:`plant_fields` adds the
+#: current enters or leaves its limit); ``resolve``: the second half-step held
+#: a drive at its current limit and stepped nothing (solve the accelerations
+#: again).  :func:`plant_fields` adds the
 #: drives' record ``motors`` and the cuffs' record ``cuffs``.
 def plant_fields() -> list[tuple]:
     """The fields of the plant's record (:data:`PLANT_FIELDS`, the drives' and cuffs' records)."""
@@ -331,6 +329,7 @@ PLANT_FIELDS = [
     ("has_friction", np.bool_),
     ("has_motors", np.bool_),
     ("armature_changed", np.bool_),
+    ("resolve", np.bool_),
 ]
 
 
@@ -404,12 +403,13 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
     again: at most four re-solves; 1 kHz runs of the default scenario need none.
 
     Returns:
-        ``_DONE``; ``_DIVERGED`` when a joint speed is not below
-        :data:`MAX_JOINT_SPEED_RAD_S` (NaN included); ``_RESOLVE`` when a
-        drive was held at its limit.
+        ``Status.DIVERGED`` when a joint speed is not below
+        :data:`MAX_JOINT_SPEED_RAD_S` (NaN included), else ``Status.OK``
+        (with ``resolve`` set when a drive was held at its limit).
 
     """
     p = plant[0]
+    p.resolve = False
     if p.has_motors:
         m = p.motors
         cap = m.kt * m.i_max
@@ -430,7 +430,8 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
                 m.damping[j] = 0.0
                 held = True
         if held:
-            return _RESOLVE
+            p.resolve = True
+            return Status.OK.value
     q, v, acc, qm = p.q, p.v, p.acc, p.q_mid
     for i in range(8):
         acc[i] = acc_all[i]
@@ -451,4 +452,4 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
         v[i] = v[i] + acc[i] * p.h
         q[i] = qm[i] + v[i] * half
         speed2 += v[i] * v[i]
-    return _DONE if speed2 < MAX_JOINT_SPEED_RAD_S**2 else _DIVERGED
+    return Status.OK.value if speed2 < MAX_JOINT_SPEED_RAD_S**2 else Status.DIVERGED.value
