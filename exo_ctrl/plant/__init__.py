@@ -4,6 +4,9 @@ from .cuffs import (
     CuffParams,
     CuffSet,
 )
+from .end_stops import (
+    EndStopParams,
+)
 from .motor import (
     MotorBank,
     MotorParams,
@@ -24,6 +27,7 @@ __all__ = [
     "PATIENT_TORQUES",
     "CuffParams",
     "CuffSet",
+    "EndStopParams",
     "MotorBank",
     "MotorParams",
     "PatientTorque",

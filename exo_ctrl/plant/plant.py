@@ -53,6 +53,7 @@ from .._jit import Status, check, kernel, record, shared_dtype
 from ..exceptions import InvalidModel, InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .cuffs import CUFF_FIELDS, CuffParams, CuffSet, forces_of
+from .end_stops import END_STOP_FIELDS, EndStopParams, end_stop_torques
 from .motor import MotorBank, MotorParams, motor_fields, step_drives
 
 __all__ = ["Plant"]
@@ -75,6 +76,8 @@ class Plant:
             rotor inertia, no back-EMF) — for passive tests.
         cuffs: cuff parameters.
         joint_losses: apply the URDF's joint damping and friction.
+        end_stops: the exoskeleton joints' hard stops at the URDF limits
+            (:mod:`exo_ctrl.plant.end_stops`; default on).
 
     Raises:
         InvalidModel: a body without exactly the four joints in JOINT_NAMES
@@ -91,6 +94,7 @@ class Plant:
         motors: MotorParams | None = None,
         cuffs: CuffParams | None = None,
         joint_losses: bool = True,
+        end_stops: EndStopParams | None = None,
     ) -> None:
         for body in (exo, patient):
             if not np.array_equal(body.q_index, np.arange(4)) or body.model.nq != 4:
@@ -141,6 +145,15 @@ class Plant:
         self._changed = r["armature_changed"]
         self._resolve = r["resolve"]
         self._arm_base[:] = rotor
+        self.end_stops = end_stops if end_stops is not None else EndStopParams()
+        lower, upper = exo.position_limits
+        r["stop_lower"][0] = lower
+        r["stop_upper"][0] = upper
+        self._p["stop_k"] = self.end_stops.stiffness_Nm_per_rad
+        self._p["stop_c"] = self.end_stops.damping_Nm_s_per_rad
+        self._p["has_stops"] = self.end_stops.enabled
+        #: The end stops' torque on each exoskeleton joint over the last step [N·m].
+        self.end_stop_torque = r["stop_torque"][0]
         r["b"][0] = self._b
         r["friction"][0] = self._fr
         self._p["h"] = self.dt
@@ -261,10 +274,11 @@ class Plant:
     # ------------------------------------------------------------------ diagnostics
 
     def mechanical_energy(self) -> float:
-        """Kinetic + gravitational + cuff-spring energy of both bodies [J].
+        """Kinetic + gravitational + cuff-spring + end-stop-spring energy of both bodies [J].
 
         Kinetic energy includes the reflected rotor inertia of the drives.
-        Gravity potential is m g z of every body (world z up).
+        Gravity potential is m g z of every body (world z up).  An end stop
+        stores ½ K d² at a penetration d.
         """
         energy = 0.0
         for model, q, v, arm in (
@@ -278,6 +292,10 @@ class Plant:
             energy += float(pin.computePotentialEnergy(model, data, q))
         stretch = self.cuffs.stretch(self.q)
         energy += 0.5 * self.cuff_params.stiffness_N_per_m * float(stretch @ stretch)
+        if self.end_stops.enabled:
+            lower, upper = self.record["stop_lower"][0], self.record["stop_upper"][0]
+            depth = np.maximum(self.q[:4] - upper, 0.0) + np.maximum(lower - self.q[:4], 0.0)
+            energy += 0.5 * self.end_stops.stiffness_Nm_per_rad * float(depth @ depth)
         return energy
 
 
@@ -299,9 +317,10 @@ class Plant:
 #: again).  :func:`plant_fields` adds the
 #: drives' record ``motors`` and the cuffs' record ``cuffs``.
 def plant_fields() -> list[tuple]:
-    """The fields of the plant's record (:data:`PLANT_FIELDS`, the drives' and cuffs' records)."""
+    """The plant record's fields: PLANT_FIELDS, the stops', the drives' and the cuffs' records."""
     return [
         *PLANT_FIELDS,
+        *END_STOP_FIELDS,
         ("motors", shared_dtype(motor_fields(4), align=True)),
         ("cuffs", shared_dtype(CUFF_FIELDS, align=True)),
     ]
@@ -343,7 +362,7 @@ def _drift_and_forces(
     """First half of :meth:`Plant.step`: drift to mid-step and every force there.
 
     q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
-    (+ patient torque, if ``given``) (+ drive torque of the exact motor
+    + end stops(q½, v½) (+ patient torque, if ``given``) (+ drive torque of the exact motor
     step); the exo armature i_G² J_rotor + h b + h D_m (fields: PLANT_FIELDS).
     Returns ``Status.WRONG_LENGTH`` (nothing done) when the voltages or
     patient torques are not 4, else ``Status.OK``.
@@ -364,6 +383,7 @@ def _drift_and_forces(
         if p.has_friction:
             t -= np.tanh(v[i] / FRICTION_SMOOTHING_RAD_S) * p.friction[i]
         tau[i] = t
+    end_stop_torques(p, qm, vm, tau)
     if given:
         for j in range(4):
             p.patient_torque[j] = patient_torque_Nm[j]

@@ -11,7 +11,7 @@ from ..control import PDGains
 from ..estimation import DEFAULT_GAIN_PER_S
 from ..exceptions import InvalidParameter
 from ..plan import PLAN_BYTES_PER_SAMPLE, GaitParams
-from ..plant import PATIENT_TORQUES, CuffParams, MotorParams
+from ..plant import PATIENT_TORQUES, CuffParams, EndStopParams, MotorParams
 from ..safety import SafetyLimits
 from ..sensing import SensorParams
 from .schema import log_dtype
@@ -61,6 +61,8 @@ class SimConfig:
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
         cuffs: cuff parameters.
+        end_stops: the exoskeleton joints' hard stops at the URDF limits
+            (:mod:`exo_ctrl.plant.end_stops`).
         duration_s: simulated time [s].
         control_rate_hz: control rate [Hz] (default 1 kHz).
         plant_substeps: plant steps per control tick (plant step = Δt / n).
@@ -95,6 +97,7 @@ class SimConfig:
     gains: PDGains = field(default_factory=PDGains)
     motor: MotorParams = field(default_factory=MotorParams)
     cuffs: CuffParams = field(default_factory=CuffParams)
+    end_stops: EndStopParams = field(default_factory=EndStopParams)
     duration_s: float = 2.4
     control_rate_hz: float = 1000.0
     plant_substeps: int = 1

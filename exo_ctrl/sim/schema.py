@@ -56,6 +56,7 @@ SIGNALS: list[Signal] = [
     Signal("current", (4,), "A", "mean drive current over the tick", "joint"),
     Signal("drive_torque", (4,), "N·m", "drive torque at the joint", "joint"),
     Signal("patient_torque", (4,), "N·m", "patient joint torque", "joint"),
+    Signal("end_stop_torque", (4,), "N·m", "mechanical end stops' torque on the joint", "joint"),
     Signal("cuff_force", (4, 2), "N", "cuff force on the exoskeleton (x, z)", "cuff"),
     Signal(
         "safety_state",

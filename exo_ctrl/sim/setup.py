@@ -61,7 +61,12 @@ def build(config: SimConfig) -> Setup:
     motor = drive_for(config.motor, exo)
     check_followable(config, plan, exo, patient, motor)
     plant = Plant(
-        exo, patient, dt=config.dt / config.plant_substeps, motors=motor, cuffs=config.cuffs
+        exo,
+        patient,
+        dt=config.dt / config.plant_substeps,
+        motors=motor,
+        cuffs=config.cuffs,
+        end_stops=config.end_stops,
     )
     controller: PDController
     if config.controller == "ct":

@@ -190,7 +190,7 @@ def write_applied(log, row, controller, supervisor, plant):
     ``controller``: its record (``u_cmd``, ``active_constraints``,
     ``failures``); ``supervisor``: its record (``state``); ``plant``: its
     record (``voltage``, ``current``, ``drive_torque``, ``patient_torque``,
-    ``cuff_force``).
+    ``stop_torque``, ``cuff_force``).
     """
     r = log[row]
     c = controller[0]
@@ -204,5 +204,6 @@ def write_applied(log, row, controller, supervisor, plant):
         r.current[j] = p.current[j]
         r.drive_torque[j] = p.drive_torque[j]
         r.patient_torque[j] = p.patient_torque[j]
+        r.end_stop_torque[j] = p.stop_torque[j]
         r.cuff_force[j, 0] = p.cuff_force[j, 0]
         r.cuff_force[j, 1] = p.cuff_force[j, 1]

@@ -214,10 +214,13 @@ def test_long_runs_with_a_periodic_plan_are_not_capped() -> None:
     assert config.plan_rows == 1200
     with pytest.raises(InvalidParameter) as info:
         config.check_history()
+    rows = v.max_items(HISTORY_BYTES_PER_TICK)  # 680 B per tick before the end stops' signal
     assert str(info.value) == (
-        "duration must be at most 1579 s at 1000 Hz so that the history rows fit in the "
-        "1 GiB memory cap (at most 1,579,032 of 680 B each); got 100000.0 (100,000,000 "
-        "history rows would need 63.33 GiB; simulate(keep_history=False) keeps none)"
+        f"duration must be at most {rows // 1000} s at 1000 Hz so that the history rows fit in "
+        f"the 1 GiB memory cap (at most {rows:,} of {HISTORY_BYTES_PER_TICK} B each); got "
+        f"100000.0 (100,000,000 history rows would need "
+        f"{v.format_bytes(10**8 * HISTORY_BYTES_PER_TICK)}; "
+        "simulate(keep_history=False) keeps none)"
     )
     SimConfig(duration_s=1500.0).check_history()
 
@@ -229,8 +232,9 @@ def test_chunk_ticks_beyond_the_cap() -> None:
         SimConfig(duration_s=3000.0, chunk_ticks=10**9)
     assert str(info.value) == (
         "chunk_ticks must be smaller so that the log chunk rows fit in the 1 GiB memory cap "
-        "(at most 1,458,888 of 736 B each); got 1000000000 (3,000,000 log chunk rows would "
-        "need 2.056 GiB)"
+        f"(at most {v.max_items(CHUNK_ROW_BYTES):,} of {CHUNK_ROW_BYTES} B each); got "
+        f"1000000000 (3,000,000 log chunk rows would need "
+        f"{v.format_bytes(3 * 10**6 * CHUNK_ROW_BYTES)})"
     )
 
 

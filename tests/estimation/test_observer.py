@@ -31,6 +31,7 @@ from exo_ctrl.estimation import (
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import CUFF_NAMES, BodyModel
 from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.plant.end_stops import EndStopParams
 from exo_ctrl.plant.plant import Plant
 from exo_ctrl.sensing.readings import SensorReadings
 from exo_ctrl.sensing.sensors import SensorParams, Sensors
@@ -88,7 +89,10 @@ def test_free_swing_without_interaction_gives_no_external_torque(exo) -> None:
     from exo_ctrl.model import default_urdf_path, load_body
 
     patient = load_body(default_urdf_path("patient"), name="patient")
-    plant = Plant(exo, patient, motors=None, cuffs=CuffParams(1e-9, 0.0))
+    # No interaction: no cuffs to speak of, and no end stops (a stop is an
+    # external torque, which the observer would rightly report).
+    free = EndStopParams(enabled=False)
+    plant = Plant(exo, patient, motors=None, cuffs=CuffParams(1e-9, 0.0), end_stops=free)
     plant.reset(np.array([1.2, 0.2, -0.4, 1.5]), np.array([2.0, -3.0, 1.0, 0.0]))
     est = CuffForceEstimator(exo, plant.dt, 200.0)
     s = Sensors(SensorParams.ideal(), plant.dt)

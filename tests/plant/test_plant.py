@@ -38,6 +38,7 @@ import pytest
 from exo_ctrl.exceptions import InvalidModel, InvalidParameter, SimulationDiverged
 from exo_ctrl.model import BodyModel, default_urdf_path, load_body
 from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.plant.end_stops import EndStopParams
 from exo_ctrl.plant.motor import MotorParams
 from exo_ctrl.plant.plant import Plant
 
@@ -251,6 +252,8 @@ def passive_plant(exo: BodyModel, patient: BodyModel, dt: float = 1e-3) -> Plant
         motors=None,
         cuffs=CuffParams(damping_N_s_per_m=0.0),
         joint_losses=False,
+        # The hard stops are a non-smooth contact (test_end_stops.py): off here.
+        end_stops=EndStopParams(enabled=False),
     )
 
 
