@@ -55,6 +55,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._jit import kernel, record
 from .._validate import array, positive
 from ..exceptions import InvalidParameter
+from .energy import book_drives, energy_fields, energy_report
 
 __all__ = ["MotorBank", "MotorParams", "motor_step"]
 
@@ -190,6 +191,7 @@ class MotorBank:
         m = self.record[0]
         m["u_max"], m["kb"], m["inv_r"] = p.supply_voltage_V, self._kb, 1.0 / p.resistance_ohm
         m["i_max"], m["kt"] = p.current_limit_A, self._kt
+        m["res"], m["ind"] = p.resistance_ohm, p.inductance_H
         m["eps"] = m["phi"] = m["d_unsat"] = math.nan
         r = self.record
         self._current, self._mean, self._u = r["current"][0], r["mean"][0], r["u"][0]
@@ -247,6 +249,7 @@ class MotorBank:
         x = dt / self._tau_e
         em1 = math.expm1(-x)  # e^{-x} - 1, accurate for small x
         m = self.record[0]
+        m["h"] = dt
         m["eps"] = em1 + 1.0  # e^{-x}
         m["phi"] = -em1 / x  # φ
         m["d_unsat"] = self._d_coef * (x + em1) / x  # D unsaturated; (x + em1)/x = 1 − φ
@@ -327,10 +330,21 @@ class MotorBank:
             raise InvalidParameter("current_A", current_A, f"finite and within ±{i_max:g} A")
         self._current[:] = i
         self._mean[:] = i
+        r = self.record
+        r["i_start"][0] = i
+        for name in ("e_electrical", "e_regenerated", "e_copper", "e_mechanical"):
+            r[name][0] = 0.0
         self._u.fill(0.0)
         self._sat.fill(0.0)
         self._damping.fill(0.0)  # set by the next step
         np.multiply(self._mean, self._kt, out=self._torque)
+
+    def energy(self, names: tuple[str, ...]) -> dict:
+        """The drives' energy books since the last reset, a drive per name.
+
+        See :func:`exo_ctrl.plant.energy.energy_report`.
+        """
+        return energy_report(self.record, names)
 
     # -- steady state and feedforward -----------------------------------------
     def steady_state_current(self, voltage_V: ArrayLike, omega_rad_s: ArrayLike) -> NDArray:
@@ -396,24 +410,34 @@ def motor_fields(n: int) -> list[tuple]:
     at the end of the last step, ``mean`` Ī [A], ``u`` the applied voltage
     [V], ``torque`` i_G k_m Ī [N·m], ``saturated`` (1.0/0.0), ``damping``
     D of the step's mean torque [N·m·s/rad] (zero where Ī is at the limit).
+    And the energy books (:func:`exo_ctrl.plant.energy.energy_fields`).
     """
     scalars = ("u_max", "kb", "inv_r", "i_max", "kt", "eps", "phi", "d_unsat")
     rows = ("current", "mean", "u", "torque", "saturated", "damping")
-    return [(name, np.float64) for name in scalars] + [(name, np.float64, (n,)) for name in rows]
+    return (
+        [(name, np.float64) for name in scalars]
+        + [(name, np.float64, (n,)) for name in rows]
+        + energy_fields(n)
+    )
 
 
 @kernel
 def motor_step(motors: NDArray, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
     """One exact step of every drive, in place (the module docstring's maths).
 
-    ``motors``: the bank's record array (:func:`motor_fields`).
+    ``motors``: the bank's record array (:func:`motor_fields`).  The step is
+    booked (:func:`~exo_ctrl.plant.energy.book_drives`).
     """
     step_drives(motors[0], voltage_cmd_V, omega_rad_s)
+    book_drives(motors[0], omega_rad_s)
 
 
 @kernel
 def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
-    """:func:`motor_step` on the record ``m`` itself (also a field of another record)."""
+    """:func:`motor_step` on the record ``m`` itself (also a field of another record).
+
+    The step is not booked: its owner books it once it is final.
+    """
     u_max, kb, inv_r, i_max, kt = m.u_max, m.kb, m.inv_r, m.i_max, m.kt
     eps, phi, d_unsat = m.eps, m.phi, m.d_unsat
     current, mean_out, u_out, torque, saturated, damping = (
@@ -427,11 +451,16 @@ def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
     for j in range(current.shape[0]):
         u = min(max(voltage_cmd_V[j], -u_max), u_max)
         i_inf = (u - kb * omega_rad_s[j]) * inv_r
-        d0 = current[j] - i_inf
+        i0 = current[j]
+        d0 = i0 - i_inf
         mean = d0 * phi + i_inf
         sat = abs(mean) > i_max
-        current[j] = min(max(d0 * eps + i_inf, -i_max), i_max)
+        end = d0 * eps + i_inf
+        current[j] = min(max(end, -i_max), i_max)
         mean = min(max(mean, -i_max), i_max)
+        m.i_prev[j] = i0
+        m.i_asym[j] = i_inf
+        m.held[j] = 1.0 if sat or abs(end) > i_max else 0.0
         mean_out[j] = mean
         u_out[j] = u
         torque[j] = mean * kt

@@ -54,6 +54,7 @@ from ..exceptions import InvalidModel, InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .cuffs import CUFF_FIELDS, CuffParams, CuffSet, forces_of
 from .end_stops import END_STOP_FIELDS, EndStopParams, end_stop_torques
+from .energy import book_drives
 from .motor import MotorBank, MotorParams, motor_fields, step_drives
 
 __all__ = ["Plant"]
@@ -448,6 +449,7 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
                 m.torque[j] = limit
                 m.saturated[j] = 1.0
                 m.damping[j] = 0.0
+                m.held[j] = 1.0
                 held = True
         if held:
             p.resolve = True
@@ -456,6 +458,7 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
     for i in range(8):
         acc[i] = acc_all[i]
     if p.has_motors:
+        book_drives(p.motors, v)  # the step is final; ω held: the start of step's
         for j in range(4):
             p.drive_torque[j] = p.drive_torque[j] - p.damping_m[j] * acc[j]
             p.sensor_torque[j] = p.drive_torque[j] - p.arm_base[j] * acc[j]

@@ -18,6 +18,7 @@ import numpy as np
 from .._progress import Progress
 from ..estimation import EstimateErrorStats
 from ..exceptions import SimulationDiverged
+from ..model import JOINT_NAMES
 from .config import SimConfig
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
@@ -132,6 +133,8 @@ def simulate(
             error = error or exc
     bar.close(done)
     result.qp_failures = int(runner._records[3][0]["failures"])
+    if setup.plant.motors is not None:
+        result.energy = setup.plant.motors.energy(JOINT_NAMES)
     if runner.supervisor is not None:
         result.events.extend(runner.supervisor.events)
         result.safety_state = runner.supervisor.state

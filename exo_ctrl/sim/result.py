@@ -43,6 +43,11 @@ class SimResult:
         timed_ticks: ticks the wall clock covers (all done but the untimed).
         belt_speed_mps: belt speed v_f [m/s].
         exo_source: the exoskeleton URDF used; patient_source likewise.
+        events: violations, e-stops and the run's end (t, kind, message, ...).
+        safety_state: the supervisor's final state.
+        qp_failures: the QP's fallbacks.
+        energy: the drives' energy books (:func:`exo_ctrl.plant.energy.energy_report`):
+            ``energy_J`` per joint and ``energy_balance_residual_rel``.
 
     """
 
@@ -59,6 +64,7 @@ class SimResult:
     events: list[dict[str, Any]] = field(default_factory=list)
     safety_state: str = "normal"
     qp_failures: int = 0
+    energy: dict[str, Any] = field(default_factory=dict)
     stats: RunStats = field(default_factory=RunStats, repr=False)
 
     def __getattr__(self, name: str) -> np.ndarray:

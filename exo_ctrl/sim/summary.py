@@ -23,6 +23,7 @@ class RunOutcome(Protocol):
     error: str
     belt_speed_mps: float
     qp_failures: int
+    energy: dict[str, Any]
     safety_state: str
     events: list[dict[str, Any]]
     wall_time_s: float
@@ -110,6 +111,7 @@ class RunStats:
         }
         if self.estimate is not None:
             out.update(self.estimate.summary())
+        out.update(result.energy)  # energy_J, energy_balance_residual_rel
         return out
 
 
