@@ -144,6 +144,21 @@ def format_summary(summary: dict[str, Any]) -> str:
         )
     cuffs = ", ".join(f"{c} {f:.1f}" for c, f in summary["peak_cuff_force_N"].items())
     lines.append(f"peak cuff force [N]: {cuffs}")
+    lines.append(
+        f"{'drive sizing':<12}{'rms τ [N·m]':>12}{'peak q̇ [rad/s]':>16}{'peak P [W]':>11}"
+        f"{'rms I [A]':>10}"
+    )
+    for j, d in summary["drive_sizing"].items():
+        lines.append(
+            f"{j:<12}{d['rms_torque_Nm']:>12.1f}{d['peak_speed_rad_s']:>16.2f}"
+            f"{d['peak_power_W']:>11.1f}{d['rms_current_A']:>10.2f}"
+        )
+    if "energy_balance_residual_rel" in summary:
+        residual = summary["energy_balance_residual_rel"]
+        lines.append(
+            f"drive energy balance: residual {residual:.2e} of the energy drawn"
+            + (" (the drive model is not energy-consistent)" if residual > 1e-6 else "")
+        )
     for event in summary["safety_events"][:5]:
         lines.append(f"safety: {event['message']}")
     if summary["safety_state"] != "normal":

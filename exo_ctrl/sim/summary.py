@@ -43,10 +43,10 @@ class RunStats:
     def __init__(self, estimate: EstimateErrorStats | None = None) -> None:
         self.estimate = estimate
         self.ticks = 0
-        # Running sums (Σ err², Σ τ²) and peaks (|err|, |τ|, |i|, |U|, |τ q̇|,
-        # cuff |f|), a row of 4 each: :func:`_accumulate`'s buffers.
-        self._sums = np.zeros((2, 4))
-        self._peaks = np.zeros((6, 4))
+        # Running sums (Σ err², Σ τ², Σ i²) and peaks (|err|, |τ|, |i|, |U|,
+        # |τ q̇|, cuff |f|, |q̇|), a row of 4 each: :func:`_accumulate`'s buffers.
+        self._sums = np.zeros((3, 4))
+        self._peaks = np.zeros((7, 4))
 
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
@@ -75,6 +75,11 @@ class RunStats:
         ``peak_motor_current_A``, ``peak_motor_voltage_V``,
         ``peak_mechanical_power_W`` (|τ q̇|; keyed by joint),
         ``peak_cuff_force_N`` (magnitude of the sagittal force, keyed by cuff),
+        ``rms_motor_current_A`` (what heats a motor) and
+        ``peak_joint_speed_rad_s`` (keyed by joint), ``drive_sizing`` (per
+        joint, the figures that size a drive: peak and RMS joint torque,
+        peak joint speed, peak mechanical power, peak and RMS motor current,
+        peak voltage),
         ``safety_state`` (the supervisor's final state) and ``safety_events``
         (violations and e-stops: t, quantity, value, limit, message),
         ``wall_time_s``, ``real_time_factor`` (simulated / wall time of the
@@ -84,8 +89,9 @@ class RunStats:
         the estimated normal component, and that over its peak true value).
         """
         n = max(self.ticks, 1)
-        sq_err, sq_tau = self._sums
-        max_err, tau, current, voltage, power, cuff = self._peaks
+        sq_err, sq_tau, sq_current = self._sums
+        max_err, tau, current, voltage, power, cuff, speed = self._peaks
+        rms_tau, rms_current = np.sqrt(sq_tau / n), np.sqrt(sq_current / n)
         duration = self.ticks * result.config.dt
         wall = result.wall_time_s
         out = {
@@ -98,8 +104,10 @@ class RunStats:
             "rms_tracking_error_rad": _keyed(np.sqrt(sq_err / n), JOINT_NAMES),
             "max_tracking_error_rad": _keyed(max_err, JOINT_NAMES),
             "peak_drive_torque_Nm": _keyed(tau, JOINT_NAMES),
-            "rms_drive_torque_Nm": _keyed(np.sqrt(sq_tau / n), JOINT_NAMES),
+            "rms_drive_torque_Nm": _keyed(rms_tau, JOINT_NAMES),
             "peak_motor_current_A": _keyed(current, JOINT_NAMES),
+            "rms_motor_current_A": _keyed(rms_current, JOINT_NAMES),
+            "peak_joint_speed_rad_s": _keyed(speed, JOINT_NAMES),
             "peak_motor_voltage_V": _keyed(voltage, JOINT_NAMES),
             "peak_mechanical_power_W": _keyed(power, JOINT_NAMES),
             "peak_cuff_force_N": _keyed(cuff, CUFF_NAMES),
@@ -108,6 +116,18 @@ class RunStats:
             "safety_events": [e for e in result.events if e.get("kind") in ("violation", "estop")],
             "wall_time_s": wall,
             "real_time_factor": (result.timed_ticks * result.config.dt / wall if wall > 0 else 0.0),
+            "drive_sizing": {
+                joint: {
+                    "peak_torque_Nm": float(tau[j]),
+                    "rms_torque_Nm": float(rms_tau[j]),
+                    "peak_speed_rad_s": float(speed[j]),
+                    "peak_power_W": float(power[j]),
+                    "peak_current_A": float(current[j]),
+                    "rms_current_A": float(rms_current[j]),
+                    "peak_voltage_V": float(voltage[j]),
+                }
+                for j, joint in enumerate(JOINT_NAMES)
+            },
         }
         if self.estimate is not None:
             out.update(self.estimate.summary())
@@ -128,6 +148,7 @@ def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks):
             t = tau[r, j]
             sums[0, j] += err * err
             sums[1, j] += t * t
+            sums[2, j] += current[r, j] * current[r, j]
             peaks[0, j] = max(peaks[0, j], abs(err))
             peaks[1, j] = max(peaks[1, j], abs(t))
             peaks[2, j] = max(peaks[2, j], abs(current[r, j]))
@@ -135,3 +156,4 @@ def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks):
             peaks[4, j] = max(peaks[4, j], abs(t * dq[r, j]))
             fx, fz = cuff_force[r, j, 0], cuff_force[r, j, 1]
             peaks[5, j] = max(peaks[5, j], math.sqrt(fx * fx + fz * fz))
+            peaks[6, j] = max(peaks[6, j], abs(dq[r, j]))

@@ -30,6 +30,8 @@ METRICS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("rms_drive_torque_Nm", JOINT_NAMES),
     ("peak_mechanical_power_W", JOINT_NAMES),
     ("peak_motor_current_A", JOINT_NAMES),
+    ("rms_motor_current_A", JOINT_NAMES),
+    ("peak_joint_speed_rad_s", JOINT_NAMES),
     ("peak_motor_voltage_V", JOINT_NAMES),
     ("peak_cuff_force_N", CUFF_NAMES),
     ("rms_tracking_error_rad", JOINT_NAMES),

@@ -373,3 +373,24 @@ def test_human_patient_run_tracks(ct_run) -> None:
     assert np.sqrt(np.mean(err**2, axis=0)).max() < 2e-3
     # A different patient: the cuffs carry different loads.
     assert not np.allclose(result.signals["cuff_force"], ct_run.signals["cuff_force"])
+
+
+def test_drive_sizing_figures_equal_the_signals(pd_run) -> None:
+    """Peak speed, RMS current and the drive_sizing block, recomputed from the logged signals."""
+    summary = pd_run.summary()
+    current, dq, tau = (
+        pd_run.signals["current"],
+        pd_run.signals["dq"],
+        pd_run.signals["drive_torque"],
+    )
+    for j, joint in enumerate(JOINT_NAMES):
+        sizing = summary["drive_sizing"][joint]
+        assert summary["rms_motor_current_A"][joint] == pytest.approx(
+            np.sqrt(np.mean(current[:, j] ** 2)), rel=1e-12
+        )
+        assert summary["peak_joint_speed_rad_s"][joint] == np.max(np.abs(dq[:, j]))
+        assert sizing["peak_speed_rad_s"] == summary["peak_joint_speed_rad_s"][joint]
+        assert sizing["rms_current_A"] == summary["rms_motor_current_A"][joint]
+        assert sizing["peak_torque_Nm"] == np.max(np.abs(tau[:, j]))
+        assert sizing["peak_power_W"] == np.max(np.abs(tau[:, j] * dq[:, j]))
+        assert sizing["rms_current_A"] <= sizing["peak_current_A"]
