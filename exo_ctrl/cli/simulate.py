@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from .. import _validate as v
 from ..control import PDGains
+from ..model import load_exo
 from ..plan import GaitParams
 from ..plant import PATIENT_TORQUES
 from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
-from ..sim import CONTROLLERS, SimConfig, simulate
+from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
+from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
 from .common import (
     add_gait_options,
     check_outputs,
@@ -133,6 +136,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-record", action="store_true", help="do not write a recording")
     p.add_argument(
+        "--plots",
+        default=None,
+        metavar="DIR",
+        help="write the drives' torque-speed operating points against their limits as "
+        "DIR/torque_speed.png (an existing directory; needs matplotlib; default: none)",
+    )
+    p.add_argument(
         "--spawn",
         action="store_true",
         help="also stream to a rerun viewer (the rerun executable of this Python environment)",
@@ -174,17 +184,32 @@ def run(args: argparse.Namespace) -> int:
     The output paths are checked before anything else; the summary is written
     after the run.
     """
-    check_outputs(args, summary="--summary", **({} if args.no_record else {"out": "--out"}))
+    args.plot_file = None if args.plots is None else str(Path(args.plots) / "torque_speed.png")
+    check_outputs(
+        args,
+        summary="--summary",
+        plot_file="--plots",
+        **({} if args.no_record else {"out": "--out"}),
+    )
     config = sim_config(args)
-    observers = []
+    observers: list = []
     if not args.no_record:
         recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=args.scene_rate)
         observers.append(recorder)
+    points = OperatingPoints()
+    if args.plots is not None:
+        observers.append(points)
     result = simulate(config, observers=observers, progress=True, keep_history=False)
     summary = result.summary()
     if args.summary:
         write_json(args.summary, summary)
     print(format_summary(summary))
+    if args.plots is not None:
+        exo = load_exo(config.exo)
+        title = f"{config.controller} controller, {config.duration_s:g} s of the gait"
+        motor = drive_for(config.motor, exo)
+        write_torque_speed_plot(points, motor, exo.effort_limit, args.plot_file, title)
+        print(f"torque-speed plot: {args.plot_file}")
     if not args.no_record:
         print(f"recording: {args.out} (view offline: rerun {args.out})")
     if result.status == "interrupted":

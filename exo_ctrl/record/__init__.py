@@ -8,6 +8,8 @@
 - :mod:`.writer`: :class:`RerunRecorder`, the observer that
   writes a run as it goes.
 - :mod:`.reader`: :func:`read_recording`, the run back from a file.
+- :mod:`.sizing_plot`: the drives' torque-speed operating points
+  against their limits (a PNG).
 - :mod:`.estimate`: cuff-force estimation along a recording
   or a CSV log (``exo-ctrl estimate``).
 
