@@ -13,6 +13,7 @@ from ..plan import GaitParams
 from ..plant import PATIENT_TORQUES
 from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
 from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
+from ..record.writer import find_viewer
 from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
 from .common import (
     add_gait_options,
@@ -211,7 +212,8 @@ def run(args: argparse.Namespace) -> int:
         write_torque_speed_plot(points, motor, exo.effort_limit, args.plot_file, title)
         print(f"torque-speed plot: {args.plot_file}")
     if not args.no_record:
-        print(f"recording: {args.out} (view offline: rerun {args.out})")
+        viewer = find_viewer() or "rerun"
+        print(f"recording: {args.out} (view offline: {viewer} {args.out})")
     if result.status == "interrupted":
         return 130
     if result.status != "completed":
