@@ -49,25 +49,38 @@ def _plt():
     return plt
 
 
+def _gait_label(p: GaitParams) -> str:
+    """The gait parameter vector s̄ with its entries named (paper §III)."""
+    return (
+        f"step s = {p.step_length:g} m, lift h_s = {p.lift_height:g} m, "
+        f"hip height H_s = {p.hip_height:g} m, k_v = {p.shape_coeff:g}, period T_s = {p.period:g} s"
+    )
+
+
+def _legend_below(ax, ncol: int) -> None:
+    """The axes' legend under them, off the curves."""
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=ncol, frameon=False)
+
+
 def fig3(out: Path) -> Path:
     """Foot paths for the paper's two Fig. 3 parameter vectors."""
     plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.2), constrained_layout=True)
     for ax, vec, label in zip(
         axes, ((0.2, 0.3, 0.7, 0.5, 4.0), (0.6, 0.1, 0.8, 0.25, 4.0)), "ab", strict=True
     ):
-        s, h, H, kv, T = vec
-        feet = GaitPlan(GaitParams(s, h, H, kv, T)).feet(np.linspace(0, T, 801))
-        ax.plot(feet.pos[:, 0, 0], feet.pos[:, 0, 1], label="left foot")
-        ax.plot(feet.pos[:, 1, 0], feet.pos[:, 1, 1], "--", label="right foot")
-        ax.set_title(f"({label}) s̄ = {vec}")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("z [m]")
+        params = GaitParams(*vec)
+        feet = GaitPlan(params).feet(np.linspace(0, params.period, 801))
+        ax.plot(feet.pos[:, 0, 0], feet.pos[:, 0, 1], label="left foot O_L3")
+        ax.plot(feet.pos[:, 1, 0], feet.pos[:, 1, 1], "--", label="right foot O_R3")
+        ax.set_title(f"({label}) " + _gait_label(params).replace(", hip", ",\nhip"), fontsize=9)
+        ax.set_xlabel("foot x relative to the hip [m]")
+        ax.set_ylabel("foot z relative to the hip [m]")
         ax.axis("equal")
         ax.grid(True)
-        ax.legend()
+        _legend_below(ax, 2)
+    fig.suptitle("Fig. 3: foot paths over one gait period")
     path = out / "fig3_foot_paths.png"
-    fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
@@ -79,29 +92,29 @@ def fig5_6(out: Path) -> list[Path]:
     params = GaitParams(0.5, 0.2, 0.8, 0.5, 1.0)
     t = np.linspace(0, 2.0, 2001)
     feet = GaitPlan(params).feet(t)
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4.8), constrained_layout=True)
     for leg, name in enumerate(("L", "R")):
-        ax.plot(t, feet.pos[:, leg, 0], label=f"x_O{name}3")
-        ax.plot(t, feet.pos[:, leg, 1], "--", label=f"y_O{name}3 (z)")
+        ax.plot(t, feet.pos[:, leg, 0], label=f"x of O_{name}3")
+        ax.plot(t, feet.pos[:, leg, 1], "--", label=f"y of O_{name}3 (up, the URDF's z)")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("[m]")
+    ax.set_ylabel("foot coordinate relative to the hip [m]")
+    ax.set_title("Fig. 5: foot coordinates, links 0.5 m, " + _gait_label(params), fontsize=9)
     ax.grid(True)
-    ax.legend()
+    _legend_below(ax, 4)
     paths = [out / "fig5_foot_coordinates.png"]
-    fig.tight_layout()
     fig.savefig(paths[0], dpi=120)
     plt.close(fig)
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4.8), constrained_layout=True)
     for leg, name in enumerate(("L", "R")):
         phi1, phi2 = inverse_kinematics(feet.pos[:, leg, 0], feet.pos[:, leg, 1], 0.5, 0.5)
-        ax.plot(t, np.degrees(phi1), label=f"φ_{name}1")
-        ax.plot(t, np.degrees(phi2), "--", label=f"φ_{name}2")
+        ax.plot(t, np.degrees(phi1), label=f"φ_{name}1 (thigh)")
+        ax.plot(t, np.degrees(phi2), "--", label=f"φ_{name}2 (shank)")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("absolute angle [deg]")
+    ax.set_ylabel("absolute link angle from +x [deg]")
+    ax.set_title("Fig. 6: absolute link angles, " + _gait_label(params), fontsize=9)
     ax.grid(True)
-    ax.legend()
+    _legend_below(ax, 4)
     paths.append(out / "fig6_absolute_angles.png")
-    fig.tight_layout()
     fig.savefig(paths[1], dpi=120)
     plt.close(fig)
     return paths
@@ -118,7 +131,7 @@ def fig8(out: Path, controller: str) -> tuple[Path, dict]:
     result = simulate(config)
     s = result.signals
     t = result.t
-    fig, axes = plt.subplots(3, 1, figsize=(9, 10), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 11), sharex=True, constrained_layout=True)
     for j, name in enumerate(JOINT_NAMES[:2]):
         axes[0].plot(t, np.degrees(s["q"][:, j]), label=f"exo {name}")
         axes[0].plot(t, np.degrees(s["q_patient"][:, j]), "--", label=f"patient {name}")
@@ -133,10 +146,13 @@ def fig8(out: Path, controller: str) -> tuple[Path, dict]:
     axes[2].set_xlabel("t [s]")
     for ax in axes:
         ax.grid(True)
-        ax.legend(fontsize=8)
-    fig.suptitle(f"left leg, controller {controller}, patient torques zero")
+        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    fig.suptitle(
+        f"Fig. 8: left leg, {controller.upper()} controller, patient torques zero\n"
+        + _gait_label(config.gait),
+        fontsize=10,
+    )
     path = out / f"fig8_dynamics_{controller}.png"
-    fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
     summary = result.summary()
