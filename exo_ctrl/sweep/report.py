@@ -154,40 +154,67 @@ def write_plots(table: Any, spec: SweepSpec, paths: SweepPaths) -> list[Path]:
 
     Each figure has peak drive torque [N·m] (top) and peak mechanical power
     [W] (bottom) of the four joints against the parameter, one point per
-    completed run; with several runs per value (other parameters swept too)
-    a line joins the largest value at each, the envelope to size against.
+    completed run, a colour per joint and a marker per controller; with
+    several runs per value (other parameters swept too) a line joins the
+    largest value at each, the envelope to size against.  The legend sits
+    below the panels, off the points.
     """
     require("matplotlib", f"the load plots need matplotlib: {PLOTS_HINT}")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
     cols = _columns(table)
     ok = cols["status"].astype(str) == "completed" if len(table) else np.zeros(0, bool)
+    controllers = (
+        cols["controller"][ok].astype(str) if "controller" in cols else np.full(ok.sum(), "")
+    )
+    kinds = [c for c in ("pd", "ct", "qp") if c in set(controllers)] or [""]
+    markers = dict(zip(("pd", "ct", "qp", ""), "os^o", strict=True))
+    colours = dict(
+        zip(JOINT_NAMES, ("tab:blue", "tab:orange", "tab:green", "tab:red"), strict=True)
+    )
     written = []
     for name in spec.names:
         if name == "controller" or not ok.any():
             continue
         x = cols[name][ok].astype(float)
-        fig = Figure(figsize=(8.0, 6.5), layout="constrained")
+        fig = Figure(figsize=(9.0, 7.5), layout="constrained")
         FigureCanvasAgg(fig)
         axes = fig.subplots(2, 1, sharex=True)
         for ax, key, ylabel in (
             (axes[0], "peak_drive_torque_Nm", "peak drive torque [N·m]"),
             (axes[1], "peak_mechanical_power_W", "peak mechanical power [W]"),
         ):
-            for joint, marker in zip(JOINT_NAMES, "os^v", strict=True):
+            for joint in JOINT_NAMES:
                 y = cols[f"{key}_{joint}"][ok].astype(float)
-                dots = ax.plot(x, y, marker, ms=5, mfc="none", label=joint)[0]
+                for kind in kinds:
+                    own = controllers == kind if kind else np.ones(len(x), bool)
+                    ax.plot(x[own], y[own], markers[kind], ms=6, mfc="none", color=colours[joint])
                 xs = np.unique(x)
                 if len(xs) < len(x):
                     env = [np.nanmax(y[x == v]) for v in xs]
-                    ax.plot(xs, env, "-", color=dots.get_color(), alpha=0.6)
+                    ax.plot(xs, env, "-", color=colours[joint], alpha=0.6)
             ax.set_ylabel(ylabel)
             ax.grid(True, alpha=0.3)
-        axes[0].legend(fontsize="small", ncols=2)
+        handles = [
+            Line2D([], [], color=colours[j], lw=2, label=j.replace("_", " ")) for j in JOINT_NAMES
+        ]
+        handles += [
+            Line2D([], [], color="0.3", ls="none", marker=markers[k], mfc="none", label=k.upper())
+            for k in kinds
+            if k
+        ]
+        handles.append(
+            Line2D([], [], color="0.3", alpha=0.6, label="largest at each value (the envelope)")
+        )
+        fig.legend(handles=handles, loc="outside lower center", ncols=4, frameon=False)
         unit = PARAMETERS[name].unit
         axes[1].set_xlabel(name + (f" [{unit}]" if unit else ""))
-        fig.suptitle(f"drive loads against {name} ({int(ok.sum())} completed runs)")
+        fig.suptitle(
+            f"drive loads against {name} ({int(ok.sum())} completed runs); "
+            "colour: joint, marker: controller"
+        )
         target = paths.plot(name)
         with atomic_write(target, "wb") as handle:
             fig.savefig(handle, format="png", dpi=100)
