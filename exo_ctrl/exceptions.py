@@ -21,6 +21,7 @@ __all__ = [
     "RecordingError",
     "SimulationDiverged",
     "SweepError",
+    "Terminated",
     "UnreachableFootTarget",
 ]
 
@@ -171,3 +172,19 @@ class OutputError(ExoCtrlError, OSError):
         self.path = str(path)
         self.reason = reason
         super().__init__(f"cannot write {self.path}: {reason}")
+
+
+class Terminated(KeyboardInterrupt):
+    """The process was asked to stop by a signal (SIGTERM): ends a run as Ctrl-C does.
+
+    Not an error (like KeyboardInterrupt, which it derives from): the run
+    stops where it is, keeps its data, and its recording gets its end.
+
+    Attributes:
+        signal_name: the signal's name (``"SIGTERM"``).
+
+    """
+
+    def __init__(self, signal_name: str) -> None:
+        self.signal_name = signal_name
+        super().__init__(f"terminated by {signal_name}")

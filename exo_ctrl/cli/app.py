@@ -13,12 +13,14 @@ each, ``exo-ctrl CMD: warning: ...``.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import warnings
 from collections.abc import Callable, Sequence
-from typing import TextIO
+from typing import Any, TextIO
 
-from ..exceptions import ExoCtrlError, OutputError
+from ..exceptions import ExoCtrlError, OutputError, Terminated
 from . import estimate, gait, simulate, sweep, urdf
 from .common import Parser
 
@@ -61,10 +63,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``exo-ctrl``; returns the exit code.
 
     0 success, 1 the work failed or its output could not be written, 2 bad
-    input, 130 interrupted.
+    input, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
     """
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = _on_sigterm()
+    try:
+        return _run(args)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _on_sigterm() -> Any:
+    """Make SIGTERM end the command as Ctrl-C does (data kept, files whole); the old handler.
+
+    None when this is not the main thread (signals cannot be set there).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def terminate(signum: int, frame: Any) -> None:
+        raise Terminated("SIGTERM")
+
+    return signal.signal(signal.SIGTERM, terminate)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The subcommand of ``args``, its errors turned into messages and exit codes."""
     with warnings.catch_warnings():
         warnings.showwarning = _one_line_warnings(args.command)
         try:
@@ -78,6 +104,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         except OSError as exc:
             print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
             return 2
+        except Terminated as exc:
+            print(f"exo-ctrl {args.command}: {exc}", file=sys.stderr)
+            return 143
         except KeyboardInterrupt:
             print(f"exo-ctrl {args.command}: interrupted", file=sys.stderr)
             return 130

@@ -215,7 +215,7 @@ def run(args: argparse.Namespace) -> int:
         viewer = find_viewer() or "rerun"
         print(f"recording: {args.out} (view offline: {viewer} {args.out})")
     if result.status == "interrupted":
-        return 130
+        return 143 if result.error.startswith("terminated by SIGTERM") else 130
     if result.status != "completed":
         print(f"exo-ctrl simulate: error: {result.error}", file=sys.stderr)
         return 1

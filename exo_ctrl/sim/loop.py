@@ -17,7 +17,7 @@ import numpy as np
 
 from .._progress import Progress
 from ..estimation import EstimateErrorStats
-from ..exceptions import SimulationDiverged
+from ..exceptions import SimulationDiverged, Terminated
 from ..model import JOINT_NAMES
 from .config import SimConfig
 from .result import SimObserver, SimResult
@@ -117,8 +117,10 @@ def simulate(
         k = n
     except SimulationDiverged as exc:
         fail("diverged", exc.time, str(exc))
-    except KeyboardInterrupt:
-        fail("interrupted", k * config.dt, f"interrupted by the user at t = {k * config.dt:.4f} s")
+    except KeyboardInterrupt as exc:
+        who = f"terminated by {exc.signal_name}" if isinstance(exc, Terminated) else "interrupted"
+        by = "" if isinstance(exc, Terminated) else " by the user"
+        fail("interrupted", k * config.dt, f"{who}{by} at t = {k * config.dt:.4f} s")
     except Exception as exc:  # recorded, the observers finish, then it propagates
         fail("error", k * config.dt, f"{type(exc).__name__}: {exc}")
         error = exc
