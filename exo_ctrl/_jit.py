@@ -37,6 +37,7 @@ from typing import Any, TypeVar
 import numba
 import numpy as np
 
+from ._validate import refuse_shapes
 from .exceptions import InvalidParameter, KernelStatusError, SimulationDiverged
 
 __all__ = ["Status", "check", "kernel", "preload", "record", "shared_dtype"]
@@ -128,9 +129,7 @@ def check(
     if status == Status.WRONG_LENGTH:
         shapes = shapes or {}
         for name, value in inputs.items():
-            shape = shapes.get(name, (4,))
-            if np.shape(value) != shape:
-                raise InvalidParameter(name, value, f"an array of shape {shape}")
+            refuse_shapes(shapes.get(name, (4,)), **{name: value})
         raise InvalidParameter(where, tuple(inputs), "arrays of the shapes it needs")
     if status == Status.NOT_FINITE:
         for name, value in inputs.items():
