@@ -10,11 +10,12 @@ from .. import _validate as v
 from ..control import PDGains
 from ..model import load_exo
 from ..plan import GaitParams
-from ..plant import PATIENT_TORQUES
+from ..plant import MOTOR_PRESETS, PATIENT_TORQUES, consistency_warning, motor_preset
 from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
 from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
 from ..record.writer import find_viewer
 from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
+from ..sim.config import CUFF_FITS
 from .common import (
     add_gait_options,
     check_outputs,
@@ -50,15 +51,41 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="N",
-        help="gait cycles to run [cycles]; 0.5 = one step (default 2)",
+        help="gait cycles to run at full speed after the ramp-in (and before any ramp-out) "
+        "[cycles]; 0.5 = one step (default 2)",
     )
     span.add_argument(
         "--duration",
         type=float,
         default=None,
         metavar="SEC",
-        help="simulated time [s] (default: 2 gait cycles, "
-        f"{2 * GaitParams().period:g} s at the default period)",
+        help="simulated time [s], ramps included (default: the ramp-in, 2 gait cycles and the "
+        f"ramp-out, {3 * GaitParams().period:g} s at the default period)",
+    )
+    p.add_argument(
+        "--ramp-in",
+        type=float,
+        default=None,
+        metavar="SEC",
+        help="the start: standing at rest, then step length and belt speed rising smoothly "
+        "(C2) into the gait over this time [s]; 0 starts on the gait at full speed "
+        f"(default: one gait period, {GaitParams().period:g} s at the default period)",
+    )
+    p.add_argument(
+        "--ramp-out",
+        type=float,
+        default=0.0,
+        metavar="SEC",
+        help="the end: from the gait back to standing over the run's last SEC seconds [s] "
+        "(default 0: none)",
+    )
+    p.add_argument(
+        "--cuff-fit",
+        choices=CUFF_FITS,
+        default="equilibrium",
+        help="the cuffs at the start: equilibrium (the patient settled into them at rest) or "
+        "slack (fitted in the exoskeleton's posture: the patient drops into them) "
+        "(default equilibrium)",
     )
     p.add_argument(
         "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
@@ -69,6 +96,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=1,
         metavar="N",
         help="plant steps per control tick, no unit (default 1)",
+    )
+    p.add_argument(
+        "--motor",
+        choices=MOTOR_PRESETS,
+        default="default",
+        help="the drives: default (an energy-consistent brushless motor with the paper's "
+        "winding, a 120:1 harmonic drive of 85 %% efficiency, 24 V, 30 A) or paper-printed "
+        "(Table I as printed, k_m = 0.35 N·m/A with k_E = 25.9 rad/(V·s), ratio 50, 10 A: "
+        "not energy-consistent, warns; its own default gains kp 100, kd 2) (default default)",
     )
     p.add_argument(
         "--kp",
@@ -152,15 +188,27 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def sim_config(args: argparse.Namespace) -> SimConfig:
-    """The run's SimConfig from the parsed options (default duration: two gait cycles)."""
+    """The run's SimConfig from the parsed options.
+
+    The duration: ``--duration``, else the ramp-in, ``--cycles`` (default 2)
+    gait cycles at full speed and the ramp-out.
+    """
     gait = gait_params_from(args)
-    if args.cycles is not None:
-        duration = v.positive("cycles", args.cycles) * gait.period
+    ramp_in = args.ramp_in
+    if ramp_in is not None:
+        ramp_in = v.non_negative("ramp_in", ramp_in, "s")
+    ramp_out = v.non_negative("ramp_out", args.ramp_out, "s")
+    if args.duration is not None:
+        duration = args.duration
     else:
-        duration = args.duration if args.duration is not None else 2 * gait.period
+        cycles = 2.0 if args.cycles is None else v.positive("cycles", args.cycles)
+        lead = gait.period if ramp_in is None else ramp_in
+        duration = lead + cycles * gait.period + ramp_out
+    motor = motor_preset(args.motor)
+    base = PDGains.paper_printed() if args.motor == "paper-printed" else PDGains()
     gains = PDGains(
-        kp=args.kp if args.kp is not None else PDGains().kp,
-        kd=args.kd if args.kd is not None else PDGains().kd,
+        kp=args.kp if args.kp is not None else base.kp,
+        kd=args.kd if args.kd is not None else base.kd,
     )
     return SimConfig(
         gait=gait,
@@ -168,7 +216,11 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         patient=args.patient,
         controller=args.controller,
         gains=gains,
+        motor=motor,
         duration_s=duration,
+        ramp_in_s=ramp_in,
+        ramp_out_s=ramp_out,
+        cuff_fit=args.cuff_fit,
         control_rate_hz=args.rate,
         plant_substeps=args.substeps,
         patient_torque=args.patient_torque,
@@ -193,6 +245,9 @@ def run(args: argparse.Namespace) -> int:
         **({} if args.no_record else {"out": "--out"}),
     )
     config = sim_config(args)
+    warning = consistency_warning(config.motor)
+    if warning:
+        print(f"exo-ctrl simulate: warning: --motor {args.motor}: {warning}", file=sys.stderr)
     observers: list = []
     if not args.no_record:
         recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=args.scene_rate)

@@ -53,8 +53,9 @@ class PDGains:
 
     Chosen by simulation on the default scenario (the paper gives no values):
     with the default drive the steady-state joint speed per volt is
-    k_E / i_G ≈ 0.52 rad/(V·s), so k_p = 100 V/rad closes a position loop of
-    about 50 rad/s; k_d = 2 V·s/rad damps it.
+    k_E / i_G ≈ 0.216 rad/(V·s), so k_p = 300 V/rad closes a position loop of
+    about 65 rad/s; k_d = 5 V·s/rad damps it.  (The paper's printed drive,
+    0.52 rad/(V·s), was run with k_p = 100, k_d = 2: :meth:`paper_printed`.)
 
     Attributes:
         kp: proportional gain per joint [V/rad], (4,) or scalar.
@@ -68,8 +69,8 @@ class PDGains:
 
     """
 
-    kp: tuple[float, ...] | float = 100.0
-    kd: tuple[float, ...] | float = 2.0
+    kp: tuple[float, ...] | float = 300.0
+    kd: tuple[float, ...] | float = 5.0
 
     def __post_init__(self) -> None:
         for name, unit in (("kp", "V/rad"), ("kd", "V·s/rad")):
@@ -78,6 +79,11 @@ class PDGains:
             if name == "kp" and not all(x > 0 for x in gains):
                 raise InvalidParameter("kp", given, "> 0 V/rad for every joint")
             object.__setattr__(self, name, gains)
+
+    @classmethod
+    def paper_printed(cls) -> PDGains:
+        """The gains tuned for the paper's printed drive (``MotorParams.paper_printed()``)."""
+        return cls(kp=100.0, kd=2.0)
 
 
 def _items(name: str, value: object) -> list[object]:

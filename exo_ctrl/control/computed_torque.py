@@ -14,7 +14,7 @@ torques are unknown to the controller and taken as zero.  τ_ff becomes a
 voltage through the steady-state motor model, U_ff = R τ_ff / (i_G k_m) +
 i_G q̇* / k_E (the back-EMF at the planned speed is the larger part), and is
 added to the PD voltage.  As U_ff depends on the plan only, it is tabulated
-for every plan row (one gait period for a periodic plan) when the controller
+for every plan row (the ramps' rows and one gait period for a periodic plan) when the controller
 is built; a tick looks its row up, in the PD's kernel
 (:func:`~exo_ctrl.control.pd.pd_law`): one compiled call per tick.
 """
@@ -60,7 +60,7 @@ class ComputedTorqueController(PDController):
     ) -> None:
         super().__init__(plan, gains)
         # The feedforward depends on the plan only: tabulated once per plan row
-        # (one gait period for a periodic plan), looked up per tick.
+        # (the ramps and one gait period for a periodic plan), looked up per tick.
         self._motor = MotorBank(4, motor)
         self._torque_ff = feedforward_torque(plan, exo, patient, motor)
         self._u_ff = np.ascontiguousarray(self._motor.voltage_for(self._torque_ff, plan.dq))

@@ -10,18 +10,23 @@ from .. import _validate as v
 from .._jit import Status, check, kernel, record
 from ..exceptions import InvalidParameter
 from ..plan.kinematics import JointTrajectory
+from ..plan.rows import plan_row
 from ..sensing.readings import SensorReadings
 from .base import COMMAND_FIELDS, PDGains
 
 __all__ = ["PD_FIELDS", "PDController", "pd_command", "pd_law"]
 
 #: The PD law's part of a controller's record (after :data:`~exo_ctrl.control.base.COMMAND_FIELDS`):
-#: the gains k_p [V/rad] and k_d [V·s/rad]; the plan's period in rows (0: row k
-#: is tick k); the plan row of the last tick.
+#: the gains k_p [V/rad] and k_d [V·s/rad]; the plan's row rule
+#: (:func:`~exo_ctrl.plan.rows.plan_row`: ramp-in ticks ``lead``, ``period`` in
+#: rows, 0: row k is tick k, first ramp-out tick ``tail``); the plan row of the
+#: last tick.
 PD_FIELDS: list[tuple[Any, ...]] = [
     ("kp", np.float64, (4,)),
     ("kd", np.float64, (4,)),
+    ("lead", np.int64),
     ("period", np.int64),
+    ("tail", np.int64),
     ("row", np.int64),
 ]
 
@@ -30,8 +35,9 @@ class PDController:
     """U = k_p (q* - q) + k_d (q̇* - q̇) per drive [V].
 
     Args:
-        plan: joint targets at the control ticks: row k for tick k, or row
-            k mod ``plan.period_ticks`` for a plan holding one period.
+        plan: joint targets at the control ticks: row k for tick k, or the
+            row of :func:`~exo_ctrl.plan.rows.plan_row` for a plan holding
+            its ramps and one period.
         gains: the PD gains.
 
     Attributes:
@@ -44,13 +50,12 @@ class PDController:
 
     def __init__(self, plan: JointTrajectory, gains: PDGains | None = None) -> None:
         self.plan = plan
-        self._period = plan.period_ticks or 0
         self.gains = gains or PDGains()
         self.record = record(self._fields())
         s = self.record[0]
         s["kp"] = self.gains.kp
         s["kd"] = self.gains.kd
-        s["period"] = self._period
+        s["lead"], s["period"], s["tail"] = plan.row_rule
         self._q_des, self._dq_des = plan.q, plan.dq
         #: The feedforward voltage per plan row [V]: one zero row for the plain PD.
         self._u_ff = np.zeros((1, 4))
@@ -79,7 +84,7 @@ class PDController:
     def _refuse(self, status: int, k: int, q: np.ndarray, dq: np.ndarray) -> NoReturn:
         """Raise for a tick :func:`pd_law` refused (its docstring)."""
         rows = self._q_des.shape[0]
-        row = k % self._period if self._period else k
+        row = self.plan.row(k)
         if not 0 <= row < rows:
             raise InvalidParameter("k", k, f"a control tick on the plan's {rows} rows")
         check(status, f"{type(self).__name__}.command", sensors_q=q, sensors_dq=dq)
@@ -105,7 +110,9 @@ class PDController:
 def pd_law(
     kp: np.ndarray,
     kd: np.ndarray,
+    lead: int,
     period: int,
+    tail: int,
     q_des: np.ndarray,
     dq_des: np.ndarray,
     u_ff: np.ndarray,
@@ -116,7 +123,9 @@ def pd_law(
 ) -> tuple[int, int]:  # pragma: no cover - compiled
     """Write k_p (q*[r] - q) + k_d (q̇*[r] - q̇) + U_ff[r] [V] to ``out``, r: tick k's plan row.
 
-    r = k mod ``period`` (or k for a period of 0).  ``u_ff``: the
+    r = :func:`~exo_ctrl.plan.rows.plan_row` (k, ``lead``, ``period``,
+    ``tail``): k for a period of 0, else k mod ``period`` after the ``lead``
+    ramp-in rows, then the ramp-out rows from tick ``tail``.  ``u_ff``: the
     feedforward voltage per plan row, or one row for every tick (row r mod
     its length).  Returns (status, r), the status a
     :class:`~exo_ctrl._jit.Status` value: WRONG_LENGTH (nothing written)
@@ -124,7 +133,7 @@ def pd_law(
     """
     if q.shape[0] != 4 or dq.shape[0] != 4:
         return Status.WRONG_LENGTH.value, 0
-    row = k % period if period > 0 else k
+    row = plan_row(k, lead, period, tail)
     if row < 0 or row >= q_des.shape[0]:
         return Status.WRONG_LENGTH.value, 0
     ff = u_ff[row % u_ff.shape[0]]
@@ -145,7 +154,9 @@ def pd_command(
 ) -> int:  # pragma: no cover - compiled
     """A PD or CT tick: :func:`pd_law` into ``state[0].u_cmd``, its row; returns its status."""
     s = state[0]
-    status, row = pd_law(s.kp, s.kd, s.period, q_des, dq_des, u_ff, k, q, dq, s.u_cmd)
+    status, row = pd_law(
+        s.kp, s.kd, s.lead, s.period, s.tail, q_des, dq_des, u_ff, k, q, dq, s.u_cmd
+    )
     if status == Status.OK.value:
         s.row = row
     return status

@@ -14,16 +14,26 @@ from .kinematics import (
     joint_rates,
     plan_joints,
 )
+from .ramp import Ramp, RampedGait, smoothstep
+from .rows import NO_TAIL, RowLayout, fill_rows, layout, plan_row
 
 __all__ = [
+    "NO_TAIL",
     "PLAN_BYTES_PER_SAMPLE",
     "FootTrajectory",
     "GaitParams",
     "GaitPlan",
     "JointTrajectory",
+    "Ramp",
+    "RampedGait",
+    "RowLayout",
+    "fill_rows",
     "forward_kinematics",
     "inverse_kinematics",
     "joint_accelerations",
     "joint_rates",
+    "layout",
     "plan_joints",
+    "plan_row",
+    "smoothstep",
 ]

@@ -30,6 +30,8 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter, UnreachableFootTarget
 from ..model import JOINT_NAMES, SIDES, BodyModel
 from .gait import GaitPlan
+from .ramp import RampedGait
+from .rows import NO_TAIL, fill_rows, plan_row
 
 __all__ = [
     "PLAN_BYTES_PER_SAMPLE",
@@ -132,9 +134,12 @@ class JointTrajectory:
         phi: the paper's absolute link angles [rad].
         foot_pos: foot positions relative to the hips, (N, 2 legs, x/z) [m].
         foot_vel: foot velocities, (N, 2, 2) [m/s].
-        period_ticks: when set, the rows hold one period of a periodic plan
-            sampled at the control ticks, and tick k uses row k mod
-            period_ticks; None: row k is tick k.
+        period_ticks: when set, the rows hold the ramp-in ticks, one period
+            of a periodic plan and the ramp-out ticks, sampled at the control
+            ticks (:mod:`exo_ctrl.plan.rows`); None: row k is tick k.
+        lead_ticks: L, the ramp-in ticks before the period (with a period).
+        tail_tick: K, the first tick of the ramp-out rows (with a period;
+            None: no ramp-out).
 
     """
 
@@ -146,10 +151,28 @@ class JointTrajectory:
     foot_pos: np.ndarray
     foot_vel: np.ndarray
     period_ticks: int | None = None
+    lead_ticks: int = 0
+    tail_tick: int | None = None
+
+    @property
+    def row_rule(self) -> tuple[int, int, int]:
+        """(L, P, K) of :func:`~exo_ctrl.plan.rows.plan_row` (P = 0: row k is tick k)."""
+        tail = NO_TAIL if self.tail_tick is None else int(self.tail_tick)
+        return int(self.lead_ticks), int(self.period_ticks or 0), tail
+
+    def row(self, k: int) -> int:
+        """The row of tick ``k`` (:func:`~exo_ctrl.plan.rows.plan_row`)."""
+        return int(plan_row(int(k), *self.row_rule))
+
+    def rows(self, start: int, n: int) -> np.ndarray:
+        """The rows of ticks ``start`` … ``start + n - 1``, (n,) int64."""
+        out = np.empty(n, dtype=np.int64)
+        fill_rows(int(start), out, *self.row_rule)
+        return out
 
 
-def plan_joints(plan: GaitPlan, body: BodyModel, t: np.ndarray) -> JointTrajectory:
-    """Joint-space plan of ``body`` following ``plan`` at times ``t`` [s].
+def plan_joints(plan: GaitPlan | RampedGait, body: BodyModel, t: np.ndarray) -> JointTrajectory:
+    """Joint-space plan of ``body`` following ``plan`` (a gait, or a ramped one) at times ``t`` [s].
 
     The foot path is checked against each leg's reach, and the resulting
     joint angles against the URDF's ranges of motion.

@@ -8,8 +8,11 @@ from .end_stops import (
     EndStopParams,
 )
 from .motor import (
+    MOTOR_PRESETS,
     MotorBank,
     MotorParams,
+    consistency_warning,
+    motor_preset,
     motor_step,
 )
 from .patient import (
@@ -24,6 +27,7 @@ from .plant import (
 )
 
 __all__ = [
+    "MOTOR_PRESETS",
     "PATIENT_TORQUES",
     "CuffParams",
     "CuffSet",
@@ -34,6 +38,8 @@ __all__ = [
     "Plant",
     "SpasticParams",
     "SpasticPatient",
+    "consistency_warning",
     "make_patient_torque",
+    "motor_preset",
     "motor_step",
 ]

@@ -12,8 +12,10 @@ change of magnetic energy, with Ī h = ∫I dt and, in closed form,
 
     ∫I² dt = h (I∞² + 2 I∞ d₀ φ + d₀² φ (1 + ε) / 2),   ε = e^{−h/τ_e}, φ = (1 − ε) / (h/τ_e).
 
-The mechanical work at the joint is the drive torque's, k_t Ī ω h
-(k_t = i_G k_m; the gearbox is lossless, so its loss is zero).  The two
+The motor's work is k_t Ī ω h (k_t = i_G k_m); the gearbox passes g = η^s
+of it to the joint (:mod:`exo_ctrl.plant.motor`: η motoring, 1/η braking),
+so the mechanical work at the joint is g k_t Ī ω h and the gear loss
+(1 − g) k_t Ī ω h, never negative.  The back-EMF's and the motor's
 conversions agree, k_b ω Ī = k_t Ī ω, only for an energy-consistent motor,
 whose back-EMF constant [V·s/rad] equals its torque constant [N·m/A]: for
 any other pair the run's books do not balance, and the residual
@@ -44,14 +46,14 @@ def energy_fields(n: int) -> list[tuple[Any, ...]]:
 
     Parameters: ``h`` the step [s], ``res`` R [Ω], ``ind`` L [H].  Per drive
     [J], since the last reset: ``e_electrical`` (net, supply to drive),
-    ``e_regenerated`` (returned to the supply), ``e_copper``,
+    ``e_regenerated`` (returned to the supply), ``e_copper``, ``e_gear``,
     ``e_mechanical`` (at the joint), and ``i_start`` the current at the
     reset [A]; the last step's, until it is booked: ``i_prev`` the current at
     its start [A], ``i_asym`` its asymptote I∞ [A], ``held`` (1.0: the driver
     held the current at its limit).
     """
     rows = (
-        "e_electrical", "e_regenerated", "e_copper", "e_mechanical", "i_start",
+        "e_electrical", "e_regenerated", "e_copper", "e_gear", "e_mechanical", "i_start",
         "i_prev", "i_asym", "held",
     )  # fmt: skip
     return [("h", np.float64), ("res", np.float64), ("ind", np.float64)] + [
@@ -90,7 +92,10 @@ def book_step(
         electrical = u * mean * h
     m.e_electrical[j] += electrical
     m.e_copper[j] += copper
-    m.e_mechanical[j] += m.kt * mean * omega * h
+    motor = m.kt * mean * omega * h
+    g = m.gear[j]
+    m.e_mechanical[j] += g * motor
+    m.e_gear[j] += motor - g * motor
     if electrical < 0.0:
         m.e_regenerated[j] -= electrical
 
@@ -132,11 +137,12 @@ def energy_report(m: np.ndarray, names: tuple[str, ...]) -> dict[str, Any]:
     for j, name in enumerate(names):
         electrical, copper = float(r["e_electrical"][j]), float(r["e_copper"][j])
         mechanical, regenerated = float(r["e_mechanical"][j]), float(r["e_regenerated"][j])
-        residual = electrical - copper - mechanical - float(magnetic[j])
+        gear = float(r["e_gear"][j])
+        residual = electrical - copper - gear - mechanical - float(magnetic[j])
         out[name] = {
             "electrical": electrical,
             "copper_loss": copper,
-            "gear_loss": 0.0,
+            "gear_loss": gear,
             "mechanical": mechanical,
             "regenerated": regenerated,
             "magnetic": float(magnetic[j]),

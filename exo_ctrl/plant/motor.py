@@ -1,15 +1,32 @@
 r"""DC motor and gearbox of the exoskeleton drives (paper §V).
 
-Each drive is a DC motor behind a gearbox of ratio ``i_G``.  With the joint
-speed ``ω`` [rad/s] (motor speed ``i_G ω``) the armature obeys
+Each drive is a DC motor behind a gearbox of ratio ``i_G`` and efficiency
+``η``.  With the joint speed ``ω`` [rad/s] (motor speed ``i_G ω``) the
+armature obeys
 
 .. math::
 
     L \frac{dI}{dt} + R I + e = U, \qquad e = \frac{i_G\,\omega}{k_E},
 
-and the drive puts the joint torque ``τ = i_G k_m I`` on its joint.  The gear
-efficiency is taken as 1 and gearbox friction is left to the joint model
-(URDF ``<dynamics>``).
+the motor puts ``τ_m = i_G k_m I`` (referred to the joint) into the gearbox
+and the joint receives ``τ = η^{s}\,τ_m`` (below).
+
+**Energy consistency.**  For a DC motor in SI units the torque constant
+[N·m/A] equals the back-EMF constant [V·s/rad]: ``k_m = 1/k_E``.  Then the
+power the back-EMF takes from the winding, ``e I``, is exactly the motor's
+mechanical power ``τ_m ω``, and the energy books of
+:mod:`exo_ctrl.plant.energy` balance.  :class:`MotorParams` refuses any
+other pair (within 0.1 %, a datasheet's rounding) unless it is built as
+:meth:`MotorParams.paper_printed`.
+
+**Gearbox efficiency, direction-aware.**  When the motor drives the load
+(motoring, ``τ_m ω > 0``) the joint gets ``η τ_m``; when the load drives the
+motor (braking, ``τ_m ω < 0``) the joint must supply ``τ_m / η``.  Both are
+``τ = η^{s} τ_m`` with ``s = sign(τ_m) tanh(ω/ω_η)``: ``s = ±1`` away from
+standstill, smoothed over ``ω_η`` = :data:`EFFICIENCY_SMOOTHING_RAD_S` so
+that the torque is continuous in ω (a held joint, ω = 0, sees the motor's
+torque).  The gear loss ``(τ_m − τ) ω = τ_m ω (1 − η^{s}) ≥ 0`` for every
+sign: the gearbox only dissipates.
 
 **Exact step.**  The electrical time constant ``τ_e = L/R`` is about 0.7 ms.
 Explicit Euler on the current multiplies the error by ``1 − h R/L`` per step:
@@ -26,7 +43,7 @@ with ``U`` and ``ω`` held over a step ``h`` the ODE is linear, and with
     \varphi = \frac{1 - e^{-x}}{x},
 
 where ``Ī`` is the mean current over the step; the joint torque applied over
-the step is ``τ = i_G k_m Ī``.
+the step is ``τ = η^{s} i_G k_m Ī``.
 
 **Limits.**  The applied voltage is the command clipped to the supply,
 ``clip(U_cmd, −U_max, U_max)``.  The driver's current loop keeps
@@ -34,13 +51,17 @@ the step is ``τ = i_G k_m Ī``.
 ``±I_max`` (the voltage the driver then actually applies is not modelled;
 ``applied_voltage_V`` is the clipped command).
 
-**Units of the paper's constants.**  Table I gives ``k_m = 0.35 N·m/A`` and
-``k_E = 25.9 rad/(V·s)``.  For an ideal DC motor ``k_m = 1/k_E`` in SI, but
-here ``1/k_E = 0.0386 V·s/rad``, nine times smaller than ``k_m``: with the
-values as printed the model delivers more mechanical power
-(``i_G k_m I ω``) than the back-EMF absorbs (``e I``).  (Read as
-25.9 rpm/V, ``1/k_E`` would be 0.369 V·s/rad, within 5 % of ``k_m``.)  The
-defaults keep the paper's numbers as printed; both are configurable.
+**The paper's printed constants.**  Table I gives ``k_m = 0.35 N·m/A`` and
+``k_E = 25.9 rad/(V·s)``: ``k_m k_E = 9.06``, so ``1/k_E = 0.0386 V·s/rad``
+is nine times smaller than ``k_m`` and a drive with that pair delivers nine
+times more mechanical power (``i_G k_m I ω``) than its back-EMF absorbs
+(``e I``): in the default PD run each hip did 36 J of positive work from
+4.9 J of electrical input.  (Read as 25.9 rpm/V, ``1/k_E`` would be
+0.369 V·s/rad, within 5 % of ``k_m``.)  The default drive keeps the paper's
+speed constant, whose motor class is known (below), and takes
+``k_m = 1/k_E``; the printed pair is the preset
+:meth:`MotorParams.paper_printed` (``exo-ctrl simulate --motor
+paper-printed``), which warns that it is not energy-consistent.
 """
 
 from __future__ import annotations
@@ -57,26 +78,62 @@ from .._validate import array, positive
 from ..exceptions import InvalidParameter
 from .energy import book_drives, energy_fields, energy_report
 
-__all__ = ["MotorBank", "MotorParams", "motor_step"]
+__all__ = [
+    "MOTOR_PRESETS",
+    "MotorBank",
+    "MotorParams",
+    "consistency_warning",
+    "gear_factor",
+    "motor_preset",
+    "motor_step",
+]
+
+
+#: Speed ω_η over which the gearbox efficiency turns from braking (τ_m/η) to
+#: motoring (η τ_m) [rad/s at the joint]: tanh(ω/ω_η) is 0.76 at ω_η.  Small
+#: against the gait's joint speeds (0.5–2 rad/s) and above the encoder's
+#: speed noise.
+EFFICIENCY_SMOOTHING_RAD_S = 0.05
+
+#: Largest relative mismatch |k_m k_E − 1| an energy-consistent drive may have
+#: (a datasheet's three-digit rounding of the two constants).
+CONSISTENCY_TOLERANCE = 1e-3
+
+#: The paper's speed constant k_E (Table I) [rad/(V·s)].
+PAPER_SPEED_CONSTANT_RAD_PER_VS = 25.9
 
 
 @dataclass(frozen=True)
 class MotorParams:
-    """Parameters of one drive (motor + gearbox), shared by a :class:`MotorBank`.
+    r"""Parameters of one drive (motor + gearbox), shared by a :class:`MotorBank`.
 
-    The first four are the paper's Table I.  The others are not in the paper
-    and were chosen here (override them for a real device):
+    The default is an energy-consistent drive of a real class: a flat
+    brushless motor with the paper's winding (Table I: ``L``, ``R``, ``k_E``)
+    behind a harmonic drive.  Values the paper does not give, and why:
 
-    - ``gear_ratio = 50``: gives a peak joint torque ``i_G k_m I_max`` of
-      175 N·m, margin over the ~100 N·m the paper reports for a 0.35 m step,
-      while the back-EMF at the joint (1.93 V per rad/s) leaves the drive
-      about 12 rad/s of no-load joint speed at 24 V.
+    - ``torque_constant_Nm_per_A = 1/k_E = 0.0386 N·m/A``: the SI identity
+      of a DC motor (module docstring).  A speed constant of 25.9 rad/(V·s)
+      (247 rpm/V) with 0.1 Ω and 72 µH is the winding class of a 45–60 mm flat
+      brushless motor of 100–200 W at 12–24 V (maxon EC flat and similar
+      catalogues list 200–300 rpm/V windings of that size).
+    - ``gear_ratio = 120``: harmonic drives of 100:1–160:1 are the usual
+      exoskeleton joint reducers.  At 120 the default gait's joint speeds
+      (≤ 2.2 rad/s) need ≤ 10.2 V of the 24 V supply and its hip torques
+      (121 N·m motoring, 130 N·m braking, rotor included) ≤ 31 A.
+    - ``gear_efficiency = 0.85``: harmonic-drive catalogue efficiency at
+      rated torque and 1000–2000 rpm input, 25 °C (70–85 % for ratios
+      100–120; lower at light load and low temperature), taken in both
+      directions (module docstring).
     - ``supply_voltage_V = 24``: a common battery/bus voltage for
       exoskeleton drives.
-    - ``current_limit_A = 10``: the driver's current limit (175 N·m peak).
-    - ``rotor_inertia_kgm2 = 6e-5``: typical of a 150–250 W DC motor;
-      reflected to the joint it is ``i_G² J_rotor = 0.15 kg·m²``, which the
-      caller adds to the exoskeleton model's joint armature.
+    - ``current_limit_A = 32``: the peak current of a servo driver of this
+      class, chosen so that the held torque ``i_G k_m I_max`` = 148 N·m stays
+      within the joints' 150 N·m rating (motoring the joint gets η of it,
+      126 N·m; braking, the plant holds the joint torque at the rating).
+    - ``rotor_inertia_kgm2 = 2e-5``: rotor of a 45–60 mm flat brushless motor
+      (1–3 × 10⁻⁵ kg·m² in such catalogues) with a harmonic drive's wave
+      generator; reflected to the joint it is ``i_G² J_rotor = 0.29 kg·m²``,
+      which the caller adds to the exoskeleton model's joint armature.
 
     Attributes:
         inductance_H: armature inductance L [H].
@@ -88,27 +145,74 @@ class MotorParams:
         supply_voltage_V: supply voltage limit U_max [V].
         current_limit_A: driver current limit I_max [A].
         rotor_inertia_kgm2: rotor inertia J_rotor, at the motor shaft [kg·m²].
+        gear_efficiency: gearbox efficiency η in (0, 1] [-] (1: lossless).
+        energy_consistent: refuse a pair with ``k_m k_E ≠ 1``; False only
+            for :meth:`paper_printed` (a run with it warns).
 
     Raises:
-        InvalidParameter: a field is not a finite number > 0 (text and
-            bools are refused, not converted).
+        InvalidParameter: a number is not finite and > 0 (text and bools are
+            refused, not converted), ``gear_efficiency`` beyond 1, or
+            ``k_m k_E`` off 1 by more than :data:`CONSISTENCY_TOLERANCE`
+            for an energy-consistent drive (naming both and the product).
 
     """
 
     inductance_H: float = field(default=0.072e-3, metadata={"unit": "H"})
     resistance_ohm: float = field(default=0.103, metadata={"unit": "Ω"})
-    torque_constant_Nm_per_A: float = field(default=0.35, metadata={"unit": "N·m/A"})
-    speed_constant_rad_per_Vs: float = field(default=25.9, metadata={"unit": "rad/(V·s)"})
-    gear_ratio: float = field(default=50.0, metadata={"unit": ""})
+    torque_constant_Nm_per_A: float = field(
+        default=1.0 / PAPER_SPEED_CONSTANT_RAD_PER_VS, metadata={"unit": "N·m/A"}
+    )
+    speed_constant_rad_per_Vs: float = field(
+        default=PAPER_SPEED_CONSTANT_RAD_PER_VS, metadata={"unit": "rad/(V·s)"}
+    )
+    gear_ratio: float = field(default=120.0, metadata={"unit": ""})
     supply_voltage_V: float = field(default=24.0, metadata={"unit": "V"})
-    current_limit_A: float = field(default=10.0, metadata={"unit": "A"})
-    rotor_inertia_kgm2: float = field(default=6e-5, metadata={"unit": "kg·m²"})
+    current_limit_A: float = field(default=32.0, metadata={"unit": "A"})
+    rotor_inertia_kgm2: float = field(default=2e-5, metadata={"unit": "kg·m²"})
+    gear_efficiency: float = field(default=0.85, metadata={"unit": ""})
+    energy_consistent: bool = field(default=True, metadata={"unit": None})
 
     def __post_init__(self) -> None:
         for f in fields(self):
             unit = f.metadata["unit"]
+            if unit is None:
+                continue
             value = positive(f.name, getattr(self, f.name), unit)
             object.__setattr__(self, f.name, value)
+        if self.gear_efficiency > 1.0:
+            raise InvalidParameter("gear_efficiency", self.gear_efficiency, "in (0, 1]")
+        if not isinstance(self.energy_consistent, bool):
+            raise InvalidParameter("energy_consistent", self.energy_consistent, "True or False")
+        product = self.torque_constant_Nm_per_A * self.speed_constant_rad_per_Vs
+        if self.energy_consistent and abs(product - 1.0) > CONSISTENCY_TOLERANCE:
+            raise InvalidParameter(
+                "torque_constant_Nm_per_A",
+                self.torque_constant_Nm_per_A,
+                f"1/speed_constant_rad_per_Vs = {1.0 / self.speed_constant_rad_per_Vs:.4g} "
+                f"N·m/A within {CONSISTENCY_TOLERANCE:.1%} (an energy-consistent DC motor)",
+                f"with speed_constant_rad_per_Vs = {self.speed_constant_rad_per_Vs:g} the "
+                f"product k_m k_E is {product:.4g}, not 1: the motor would put out "
+                f"{product:.3g} times the power its back-EMF takes in; "
+                "MotorParams.paper_printed() is the paper's printed pair",
+            )
+
+    @classmethod
+    def paper_printed(cls) -> MotorParams:
+        """The paper's Table I constants as printed, with the earlier defaults.
+
+        ``k_m = 0.35 N·m/A``, ``k_E = 25.9 rad/(V·s)`` (not energy-consistent:
+        ``k_m k_E = 9.06``, module docstring), a lossless gearbox of ratio 50,
+        24 V and 10 A.  Kept to reproduce the paper's figures and earlier runs;
+        a run with it warns.
+        """
+        return cls(
+            torque_constant_Nm_per_A=0.35,
+            gear_ratio=50.0,
+            current_limit_A=10.0,
+            rotor_inertia_kgm2=6e-5,
+            gear_efficiency=1.0,
+            energy_consistent=False,
+        )
 
     @property
     def electrical_time_constant_s(self) -> float:
@@ -117,7 +221,10 @@ class MotorParams:
 
     @property
     def torque_per_amp_Nm_per_A(self) -> float:
-        """Joint torque per armature ampere ``i_G k_m`` [N·m/A]."""
+        """Motor torque per armature ampere referred to the joint, ``i_G k_m`` [N·m/A].
+
+        Before the gearbox's efficiency (the joint gets ``η^{s}`` of it).
+        """
         return self.gear_ratio * self.torque_constant_Nm_per_A
 
     @property
@@ -132,8 +239,67 @@ class MotorParams:
 
     @property
     def peak_torque_Nm(self) -> float:
-        """Joint torque at the current limit ``i_G k_m I_max`` [N·m]."""
+        """Motor torque at the current limit ``i_G k_m I_max``, at the joint [N·m].
+
+        What the drive holds at standstill; motoring it delivers η of it,
+        braking it resists with 1/η of it.
+        """
         return self.torque_per_amp_Nm_per_A * self.current_limit_A
+
+    @property
+    def log_efficiency(self) -> float:
+        """``ln η`` [-]: the gear factor is ``exp(s ln η)``."""
+        return math.log(self.gear_efficiency)
+
+
+#: Named drives: ``exo-ctrl simulate --motor NAME``.
+MOTOR_PRESETS = ("default", "paper-printed")
+
+
+def motor_preset(name: str) -> MotorParams:
+    """The drive of a :data:`MOTOR_PRESETS` name.
+
+    Raises:
+        InvalidParameter: an unknown name.
+
+    """
+    if name == "default":
+        return MotorParams()
+    if name == "paper-printed":
+        return MotorParams.paper_printed()
+    raise InvalidParameter("motor", name, f"one of {', '.join(MOTOR_PRESETS)}")
+
+
+def consistency_warning(params: MotorParams) -> str | None:
+    """What a run with an energy-inconsistent drive must be told (None for a consistent one)."""
+    if params.energy_consistent:
+        return None
+    product = params.torque_constant_Nm_per_A * params.speed_constant_rad_per_Vs
+    return (
+        f"the drive is not energy-consistent: k_m = {params.torque_constant_Nm_per_A:g} N·m/A "
+        f"with k_E = {params.speed_constant_rad_per_Vs:g} rad/(V·s) gives k_m k_E = "
+        f"{product:.3g} (1 for a real DC motor), so it puts out {product:.3g} times the "
+        "mechanical power its back-EMF takes in; its voltages, currents and energy books are "
+        "not a real drive's (the paper's printed constants, kept to reproduce its figures)"
+    )
+
+
+def gear_factor(efficiency: float, torque_Nm: ArrayLike, omega_rad_s: ArrayLike) -> NDArray:
+    """The gearbox's ``η^{s}``, ``s = sign(τ_m) tanh(ω/ω_η)`` (module docstring).
+
+    Args:
+        efficiency: η in (0, 1].
+        torque_Nm: motor torques referred to the joint τ_m, broadcastable [N·m].
+        omega_rad_s: joint speeds, broadcastable [rad/s].
+
+    Returns:
+        The factor, broadcast shape: η motoring, 1/η braking, 1 at standstill.
+
+    """
+    s = np.sign(torque_Nm) * np.tanh(
+        np.asarray(omega_rad_s, dtype=float) / EFFICIENCY_SMOOTHING_RAD_S
+    )
+    return np.exp(s * math.log(efficiency))
 
 
 def _read_only(a: NDArray) -> NDArray:
@@ -154,7 +320,7 @@ class MotorBank:
 
         bank = MotorBank(4)
         tau = bank.step(u_cmd, qdot, 1e-3)  # joint torques over the step [N·m]
-        D = bank.damping_Nm_s_per_rad(1e-3)  # back-EMF damping [N·m·s/rad]
+        D = bank.damping_Nm_s_per_rad  # the step's damping [N·m·s/rad]
 
     Args:
         n_drives: number of drives n (>= 1).
@@ -192,6 +358,8 @@ class MotorBank:
         m["u_max"], m["kb"], m["inv_r"] = p.supply_voltage_V, self._kb, 1.0 / p.resistance_ohm
         m["i_max"], m["kt"] = p.current_limit_A, self._kt
         m["res"], m["ind"] = p.resistance_ohm, p.inductance_H
+        m["lneta"], m["inv_w_eta"] = p.log_efficiency, 1.0 / EFFICIENCY_SMOOTHING_RAD_S
+        m["gear"] = 1.0
         m["eps"] = m["phi"] = m["d_unsat"] = math.nan
         r = self.record
         self._current, self._mean, self._u = r["current"][0], r["mean"][0], r["u"][0]
@@ -260,7 +428,7 @@ class MotorBank:
 
         Updates :attr:`current_A` in place by the exact solution (module
         docstring), clips voltage and current to their limits, and returns the
-        mean joint torque over the step, ``τ = i_G k_m Ī``.
+        mean joint torque over the step, ``τ = η^{s} i_G k_m Ī``.
 
         Nothing is allocated; inputs are not checked for shape or finiteness
         (numpy raises on a shape mismatch; a NaN command propagates to the
@@ -285,32 +453,22 @@ class MotorBank:
         motor_step(self.record, voltage_cmd_V, omega_rad_s)
         return self._ro_torque
 
-    def damping_Nm_s_per_rad(self, dt_s: float) -> NDArray[np.float64]:
-        r"""Return the back-EMF damping ``D = −∂τ/∂ω`` of the step's mean torque [N·m·s/rad].
+    @property
+    def damping_Nm_s_per_rad(self) -> NDArray[np.float64]:
+        r"""The last step's damping ``D = −∂τ/∂ω`` of the mean joint torque [N·m·s/rad].
 
-        For a drive whose mean current is not at the limit
+        With ``g = η^{s}`` the gear factor and ``θ = tanh(ω/ω_η)``,
 
         .. math::
 
-            D = i_G k_m \,(1 - \varphi)\, \frac{i_G / k_E}{R},
+            D = g\, i_G k_m \,(1 - \varphi)\, \frac{i_G / k_E}{R}
+              + |τ|\,|\ln η|\,\frac{1 - θ^2}{ω_η},
 
-        and ``D = 0`` for a drive that is (the saturation state is the last
-        step's, :attr:`saturated`).  For implicit integration: the torque over
-        the next step is ``τ(ω) ≈ τ(ω_0) − D (ω − ω_0)``.
-
-        Args:
-            dt_s: step length h [s], finite and > 0.
-
-        Returns:
-            D per drive, shape (n,) [N·m·s/rad]: a read-only view of the
-            bank's buffer, overwritten by the next call.
-
-        Raises:
-            InvalidParameter: ``dt_s`` is not a finite number > 0.
-
+        the back-EMF part zero for a drive whose mean current was held at
+        the limit (:attr:`saturated`).  For implicit integration: the torque
+        over the step is ``τ(ω) ≈ τ(ω_0) − D (ω − ω_0)``.  A read-only view,
+        overwritten by the next :meth:`step`.
         """
-        self.set_step(dt_s)
-        np.multiply(self._sat == 0.0, self.record[0]["d_unsat"], out=self._damping)
         return self._ro_damping
 
     def reset(self, current_A: ArrayLike = 0.0) -> None:
@@ -332,7 +490,7 @@ class MotorBank:
         self._mean[:] = i
         r = self.record
         r["i_start"][0] = i
-        for name in ("e_electrical", "e_regenerated", "e_copper", "e_mechanical"):
+        for name in ("e_electrical", "e_regenerated", "e_copper", "e_gear", "e_mechanical"):
             r[name][0] = 0.0
         self._u.fill(0.0)
         self._sat.fill(0.0)
@@ -366,54 +524,48 @@ class MotorBank:
         i = (u - self._kb * np.asarray(omega_rad_s, dtype=float)) / p.resistance_ohm
         return np.clip(i, -p.current_limit_A, p.current_limit_A)
 
-    def voltage_for(
-        self,
-        torque_Nm: ArrayLike,
-        omega_rad_s: ArrayLike,
-        out: NDArray[np.float64] | None = None,
-    ) -> NDArray[np.float64]:
+    def voltage_for(self, torque_Nm: ArrayLike, omega_rad_s: ArrayLike) -> NDArray[np.float64]:
         """Return the steady-state voltage giving a joint torque at a joint speed [V].
 
-        ``U = R τ/(i_G k_m) + i_G ω/k_E``: inductance is neglected (the
-        current settles within a few ``τ_e`` ≈ 0.7 ms).  Not clipped: a
-        torque beyond :attr:`MotorParams.peak_torque_Nm` or a voltage beyond
-        the supply is limited when applied by :meth:`step`.
+        ``U = R τ_m/(i_G k_m) + i_G ω/k_E`` with the motor torque
+        ``τ_m = τ / η^{s}`` the gearbox needs for ``τ`` at the joint
+        (``s = sign(τ) tanh(ω/ω_η)``, module docstring): inductance is
+        neglected (the current settles within a few ``τ_e`` ≈ 0.7 ms).  Not
+        clipped: a torque beyond what the current limit gives or a voltage
+        beyond the supply is limited when applied by :meth:`step`.  Allocates
+        its result (for tables made before a run, not for the tick).
 
         Args:
             torque_Nm: wanted joint torques, broadcastable [N·m].
             omega_rad_s: joint speeds, broadcastable [rad/s].
-            out: optional array to write the result into (no allocation).
 
         Returns:
-            Voltages [V] (``out`` when given).
+            Voltages [V], the broadcast shape.
 
         """
         p = self.params
-        if out is None:
-            return p.resistance_ohm / self._kt * np.asarray(torque_Nm, dtype=float) + (
-                self._kb * np.asarray(omega_rad_s, dtype=float)
-            )
-        # U = (i_G/k_E) (ω + R τ / (i_G k_m i_G/k_E)), in place.
-        np.multiply(torque_Nm, p.resistance_ohm / (self._kt * self._kb), out=out)
-        np.add(out, omega_rad_s, out=out)
-        np.multiply(out, self._kb, out=out)
-        return out
+        tau = np.asarray(torque_Nm, dtype=float)
+        omega = np.asarray(omega_rad_s, dtype=float)
+        tau_m = tau / gear_factor(p.gear_efficiency, tau, omega)
+        return p.resistance_ohm / self._kt * tau_m + self._kb * omega
 
 
 def motor_fields(n: int) -> list[tuple]:
     """Fields of a bank of ``n`` drives' record.
 
     Parameters: ``u_max`` U_max [V], ``kb`` i_G/k_E [V·s/rad], ``inv_r`` 1/R
-    [1/Ω], ``i_max`` I_max [A], ``kt`` i_G k_m [N·m/A], and of the step
+    [1/Ω], ``i_max`` I_max [A], ``kt`` i_G k_m [N·m/A], ``lneta`` ln η,
+    ``inv_w_eta`` 1/ω_η [s/rad], and of the step
     length h: ``eps`` e^{-h/τ_e}, ``phi`` φ, ``d_unsat`` the unsaturated
     back-EMF damping D [N·m·s/rad].  State per drive: ``current`` I(h) [A]
     at the end of the last step, ``mean`` Ī [A], ``u`` the applied voltage
-    [V], ``torque`` i_G k_m Ī [N·m], ``saturated`` (1.0/0.0), ``damping``
-    D of the step's mean torque [N·m·s/rad] (zero where Ī is at the limit).
+    [V], ``torque`` η^s i_G k_m Ī at the joint [N·m], ``gear`` the gear
+    factor η^s, ``saturated`` (1.0/0.0), ``damping`` D = −∂τ/∂ω of the
+    step's mean torque [N·m·s/rad] (back-EMF part zero where Ī is at the limit).
     And the energy books (:func:`exo_ctrl.plant.energy.energy_fields`).
     """
-    scalars = ("u_max", "kb", "inv_r", "i_max", "kt", "eps", "phi", "d_unsat")
-    rows = ("current", "mean", "u", "torque", "saturated", "damping")
+    scalars = ("u_max", "kb", "inv_r", "i_max", "kt", "lneta", "inv_w_eta", "eps", "phi", "d_unsat")
+    rows = ("current", "mean", "u", "torque", "gear", "saturated", "damping")
     return (
         [(name, np.float64) for name in scalars]
         + [(name, np.float64, (n,)) for name in rows]
@@ -439,6 +591,7 @@ def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
     The step is not booked: its owner books it once it is final.
     """
     u_max, kb, inv_r, i_max, kt = m.u_max, m.kb, m.inv_r, m.i_max, m.kt
+    lneta, inv_w = m.lneta, m.inv_w_eta
     eps, phi, d_unsat = m.eps, m.phi, m.d_unsat
     current, mean_out, u_out, torque, saturated, damping = (
         m.current,
@@ -463,6 +616,16 @@ def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
         m.held[j] = 1.0 if sat or abs(end) > i_max else 0.0
         mean_out[j] = mean
         u_out[j] = u
-        torque[j] = mean * kt
         saturated[j] = 1.0 if sat else 0.0
-        damping[j] = 0.0 if sat else d_unsat
+        if lneta == 0.0:
+            torque[j] = mean * kt
+            damping[j] = 0.0 if sat else d_unsat
+            continue
+        # η^s, s = sign(τ_m) tanh(ω/ω_η); D = −∂τ/∂ω = η^s D_emf + |τ| |ln η| sech²(ω/ω_η)/ω_η.
+        th = math.tanh(omega_rad_s[j] * inv_w)
+        s = th if mean > 0.0 else (-th if mean < 0.0 else 0.0)
+        g = math.exp(s * lneta)
+        m.gear[j] = g
+        tau = mean * kt * g
+        torque[j] = tau
+        damping[j] = (0.0 if sat else d_unsat * g) - abs(tau) * lneta * (1.0 - th * th) * inv_w

@@ -146,6 +146,8 @@ class Plant:
         self._changed = r["armature_changed"]
         self._resolve = r["resolve"]
         self._arm_base[:] = rotor
+        effort = np.asarray(exo.effort_limit, dtype=float)
+        r["effort"][0] = np.where(np.isfinite(effort) & (effort > 0.0), effort, np.inf)
         self.end_stops = end_stops if end_stops is not None else EndStopParams()
         lower, upper = exo.position_limits
         r["stop_lower"][0] = lower
@@ -340,6 +342,7 @@ PLANT_FIELDS = [
             "arm_const",
             "voltage",
             "current",
+            "effort",
         )
     ),
     ("cuff_force", np.float64, (4, 2)),
@@ -418,9 +421,13 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
     end-of-step speed, so its current (τ_m - h D_m a) / (i_G k_m) is bounded by
     I_max like any other.  h D_m is 0.15 N·m·s/rad at 1 ms but 3.0 at 10 ms:
     at 100 Hz the correction alone reached 170 N·m (241 N·m against the
-    150 N·m cap).  A drive beyond ±i_G k_m I_max is held there (torque in
-    ``tau`` at the limit, no damping, currents ±I_max) and nothing is stepped:
-    the caller solves the accelerations again.  A held drive is not held
+    150 N·m cap).  The cap is the smaller of the drive's own, η^s i_G k_m
+    I_max (η^s the gear factor, :mod:`exo_ctrl.plant.motor`), and the joint's
+    rated effort (URDF ``<limit effort>``: a braking gearbox passes the motor
+    torque over η, and the driver keeps the output within the rating).  A
+    drive beyond the cap is held there (torque in ``tau`` at the limit, no
+    damping, the current that gives it) and nothing is stepped: the caller
+    solves the accelerations again.  A held drive is not held
     again: at most four re-solves; 1 kHz runs of the default scenario need none.
 
     Returns:
@@ -433,9 +440,13 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
     p.resolve = False
     if p.has_motors:
         m = p.motors
-        cap = m.kt * m.i_max
         held = False
         for j in range(4):
+            cap = m.kt * m.i_max * m.gear[j]
+            i_held = m.i_max
+            if cap > p.effort[j]:  # the joint's rating binds first (braking, or a big drive)
+                cap = p.effort[j]
+                i_held = cap / (m.kt * m.gear[j])
             linear = p.drive_torque[j] - p.damping_m[j] * acc_all[j]
             if abs(linear) > cap:
                 sign = 1.0 if linear > 0.0 else -1.0
@@ -444,8 +455,8 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
                 p.drive_torque[j] = limit
                 p.damping_m[j] = 0.0
                 p.armature[j] = p.arm_const[j]
-                m.mean[j] = sign * m.i_max
-                m.current[j] = sign * m.i_max
+                m.mean[j] = sign * i_held
+                m.current[j] = sign * i_held
                 m.torque[j] = limit
                 m.saturated[j] = 1.0
                 m.damping[j] = 0.0

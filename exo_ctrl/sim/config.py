@@ -10,7 +10,7 @@ from .. import _validate as v
 from ..control import PDGains
 from ..estimation import DEFAULT_GAIN_PER_S
 from ..exceptions import InvalidParameter
-from ..plan import PLAN_BYTES_PER_SAMPLE, GaitParams
+from ..plan import PLAN_BYTES_PER_SAMPLE, GaitParams, Ramp, RowLayout, layout
 from ..plant import PATIENT_TORQUES, CuffParams, EndStopParams, MotorParams
 from ..safety import SafetyLimits
 from ..sensing import SensorParams
@@ -19,12 +19,19 @@ from .schema import log_dtype
 __all__ = [
     "CHUNK_ROW_BYTES",
     "CONTROLLERS",
+    "CUFF_FITS",
     "HISTORY_BYTES_PER_TICK",
     "PLAN_ROW_BYTES",
     "SimConfig",
 ]
 
 CONTROLLERS = ("pd", "ct", "qp")
+
+#: How the cuffs are fitted at the start (:func:`~exo_ctrl.sim.setup.start_on_plan`):
+#: ``"equilibrium"``, the patient settled into the straps at static
+#: equilibrium; ``"slack"``, slack in the exoskeleton's posture (the patient
+#: then drops into them).
+CUFF_FITS = ("equilibrium", "slack")
 
 #: Memory per row of a run's joint plan [bytes]: its time (8 B), the plan
 #: (:data:`~exo_ctrl.plan.PLAN_BYTES_PER_SAMPLE`) and the computed-torque
@@ -63,7 +70,17 @@ class SimConfig:
         cuffs: cuff parameters.
         end_stops: the exoskeleton joints' hard stops at the URDF limits
             (:mod:`exo_ctrl.plant.end_stops`).
-        duration_s: simulated time [s].
+        duration_s: simulated time [s], ramps included.  Default 3.6 s: the
+            default ramp-in (one 1.2 s gait period) and two gait cycles.
+        ramp_in_s: the start's ramp from standing into the gait
+            (:mod:`exo_ctrl.plan.ramp`) [s], within the run; None: one gait
+            period (a shorter run ends within it; with a ramp-out, at most the
+            run less the ramp-out); 0: the run starts on the gait at full
+            speed (as before the ramp existed).
+        ramp_out_s: the ramp from the gait back to standing over the last
+            seconds of the run [s] (default 0: none).
+        cuff_fit: how the cuffs are fitted at the start, one of
+            :data:`CUFF_FITS` (default ``"equilibrium"``).
         control_rate_hz: control rate [Hz] (default 1 kHz).
         plant_substeps: plant steps per control tick (plant step = Δt / n).
         chunk_ticks: rows per logging chunk.
@@ -98,7 +115,10 @@ class SimConfig:
     motor: MotorParams = field(default_factory=MotorParams)
     cuffs: CuffParams = field(default_factory=CuffParams)
     end_stops: EndStopParams = field(default_factory=EndStopParams)
-    duration_s: float = 2.4
+    duration_s: float = 3.6
+    ramp_in_s: float | None = None
+    ramp_out_s: float = 0.0
+    cuff_fit: str = "equilibrium"
     control_rate_hz: float = 1000.0
     plant_substeps: int = 1
     chunk_ticks: int = 2000
@@ -130,6 +150,11 @@ class SimConfig:
                 "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_TORQUES)}"
             )
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
+        if self.cuff_fit not in CUFF_FITS:
+            raise InvalidParameter("cuff_fit", self.cuff_fit, f"one of {', '.join(CUFF_FITS)}")
+        Ramp(0.0, self.ramp_out_s, self.duration_s)  # refuses a bad or too long ramp-out
+        if self.ramp_in_s is not None:
+            self._check_ramp_in()
         if self.estop_at_s is not None:
             self._check_estop()
         self._check_plan_size()
@@ -160,14 +185,46 @@ class SimConfig:
             f"the run lasts {self.duration_s:g} s; its last control tick is at t = {last:g} s",
         )
 
+    def _check_ramp_in(self) -> None:
+        """Refuse a ramp-in time that is not a number >= 0 or does not fit in the run."""
+        t_in = v.non_negative("ramp_in", self.ramp_in_s, "s")
+        room = self.duration_s - self.ramp_out_s
+        if t_in > room:
+            out = self.ramp_out_s
+            raise InvalidParameter(
+                "ramp_in",
+                self.ramp_in_s,
+                f"at most {max(room, 0.0):g} s, within the run",
+                f"the run lasts {self.duration_s:g} s"
+                + (f", of which the ramp-out takes the last {out:g} s" if out else ""),
+            )
+
     def _check_plan_size(self) -> None:
-        """Refuse a plan beyond the memory cap, naming the period or the duration."""
+        """Refuse a plan beyond the memory cap, naming the period, a ramp or the duration."""
         rows = self.plan_rows
         most = v.max_items(PLAN_ROW_BYTES)
         rate = self.control_rate_hz
-        if self.plan_periodic and rows < self.n_ticks + 1:
-            name, value = "period", self.gait.period
-            limit, note = f"at most {most / rate:.4g} s at {rate:g} Hz", "the plan holds one period"
+        lay = self.plan_layout
+        if lay.period:
+            # The rows of each time the user can shorten; the default ramp-in is one period.
+            parts = {
+                "period": lay.period,
+                "ramp_in": lay.lead,
+                "ramp_out": rows - lay.lead - lay.period,
+            }
+            if self.ramp_in_s is None:
+                parts["period"] += parts.pop("ramp_in")
+            # The largest part that can make room alone, else the largest.
+            fits = [r for r in parts if rows - parts[r] < most] or list(parts)
+            name = max(fits, key=lambda r: parts[r])
+            value = {"period": self.gait.period, "ramp_in": self.ramp_in}.get(name, self.ramp_out_s)
+            share = 2 if name == "period" and self.ramp_in_s is None and lay.lead else 1
+            room = max(most - (rows - parts[name]), 0) / share
+            limit = f"at most {room / rate:.4g} s at {rate:g} Hz"
+            note = "the plan holds one period"
+            if rows > lay.period:
+                ramps = "the default ramp-in of one period" if share == 2 else "the ramps"
+                note = f"the plan holds one period and {ramps} ({rows - lay.period:,} ticks)"
         else:
             name, value = "duration", self.duration_s
             limit = f"at most {(most - 1) / rate:.4g} s at {rate:g} Hz"
@@ -189,16 +246,47 @@ class SimConfig:
         return p >= 2 and abs(p - period) <= 1e-9 * period
 
     @property
-    def plan_rows(self) -> int:
-        """Rows of the joint plan: one gait period if it is a whole number of ticks.
+    def ramp_in(self) -> float:
+        """The ramp-in time T_r [s]: ``ramp_in_s``, or its default (one gait period).
 
-        The gait is periodic, so tick k uses row k mod P; with P = T_s / Δt an
-        integer (1200 for the default 1.2 s at 1 kHz) the plan's memory does
-        not grow with the run's length.  Otherwise the plan covers every tick.
+        With a ramp-out the default is at most the run less the ramp-out.
         """
-        if self.plan_periodic:
-            return min(round(self.gait.period / self.dt), self.n_ticks + 1)
-        return self.n_ticks + 1
+        if self.ramp_in_s is not None:
+            return float(self.ramp_in_s)
+        if self.ramp_out_s > 0.0:
+            return max(min(self.gait.period, self.duration_s - self.ramp_out_s), 0.0)
+        return self.gait.period
+
+    @property
+    def ramp(self) -> Ramp:
+        """The run's ramps (:mod:`exo_ctrl.plan.ramp`), ending at ``duration_s``.
+
+        Raises:
+            InvalidParameter: ``ramp_out_s`` not a number >= 0, or the ramps
+                longer than the run.
+
+        """
+        return Ramp(self.ramp_in, self.ramp_out_s, self.duration_s)
+
+    @property
+    def plan_layout(self) -> RowLayout:
+        """The rows of the joint plan and the ticks they serve (:func:`~exo_ctrl.plan.layout`)."""
+        ramp = self.ramp
+        return layout(
+            self.n_ticks, self.dt, self.gait.period, ramp.ramp_in_s, ramp.ramp_out_s, ramp.end_s
+        )
+
+    @property
+    def plan_rows(self) -> int:
+        """Rows of the joint plan: the ramps' ticks and one gait period, or every tick.
+
+        The gait is periodic, so after the L ramp-in ticks tick k uses row
+        L + (k - L) mod P, then the ramp-out's rows (:mod:`exo_ctrl.plan.rows`);
+        with P = T_s / Δt an integer (1200 for the default 1.2 s at 1 kHz) the
+        plan's memory does not grow with the run's length.  Otherwise the plan
+        covers every tick.
+        """
+        return self.plan_layout.rows
 
     def check_history(self) -> None:
         """Refuse a run whose kept history would exceed the memory cap.

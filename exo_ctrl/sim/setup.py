@@ -22,8 +22,9 @@ from ..control import (
 )
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
-from ..plan import GaitPlan, JointTrajectory, plan_joints
-from ..plant import MotorParams, Plant
+from ..plan import NO_TAIL, JointTrajectory, RampedGait, plan_joints
+from ..plant import MotorParams, Plant, make_patient_torque
+from ..plant.equilibrium import holding_torque, settle_patient
 from .config import SimConfig
 
 __all__ = ["Setup", "build", "check_followable", "drive_for", "start_on_plan"]
@@ -54,10 +55,13 @@ def build(config: SimConfig) -> Setup:
     """
     exo = load_exo(config.exo)
     patient = load_patient(config.patient)
-    rows = config.plan_rows
-    plan = plan_joints(GaitPlan(config.gait), exo, np.arange(rows) * config.dt)
-    if rows <= config.n_ticks:
-        plan = dataclasses.replace(plan, period_ticks=rows)
+    rows = config.plan_layout
+    plan = plan_joints(RampedGait(config.gait, config.ramp), exo, rows.ticks() * config.dt)
+    if rows.period:
+        tail = None if rows.tail == NO_TAIL else rows.tail
+        plan = dataclasses.replace(
+            plan, period_ticks=rows.period, lead_ticks=rows.lead, tail_tick=tail
+        )
     motor = drive_for(config.motor, exo)
     check_followable(config, plan, exo, patient, motor)
     plant = Plant(
@@ -91,8 +95,11 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     """The drive as configured for this exoskeleton.
 
     The driver's current limit is capped at the smallest URDF effort limit
-    divided by i_G k_m, so that no drive torque ever exceeds its joint's
-    rated effort (150 N·m → 8.57 A with the defaults).
+    divided by i_G k_m, so that the torque a drive holds never exceeds its
+    joint's rated effort (150 N·m → 32.4 A for the default drive, above its
+    own 32 A; 8.57 A for the paper's printed one).  Braking, where the
+    gearbox passes the motor torque over η, the plant holds the joint
+    torque at the rating (:mod:`exo_ctrl.plant.plant`).
     """
     cap = float(np.min(exo.effort_limit)) / motor.torque_per_amp_Nm_per_A
     if motor.current_limit_A <= cap:
@@ -101,18 +108,39 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
 
 
 def start_on_plan(setup: Setup) -> None:
-    """Put the plant on the plan at t = 0, with the planned speed.
+    """Put the plant on the plan's first row at t = 0, with the planned speed.
 
-    The drive currents carry the feedforward torque of t = 0 (clipped to the
-    driver's limit), so the legs do not sag at the start; the patient starts
-    in the exoskeleton's posture and the cuffs are fitted there.
+    The exoskeleton starts at the plan's q₀, q̇₀ (standing at rest after a
+    ramp-in; on the gait at speed without one).  The cuffs
+    (``config.cuff_fit``):
+
+    - ``"equilibrium"``: fitted slack with the patient aligned, then the
+      patient settled into them at static equilibrium
+      (:func:`~exo_ctrl.plant.equilibrium.settle_patient`), the patient at the
+      exoskeleton's speed;
+    - ``"slack"``: fitted slack with the patient in the exoskeleton's posture
+      (the patient then drops into the straps).
+
+    The drive currents (clipped to the driver's limit): at rest, the torque
+    holding the exoskeleton still, its gravity less the cuffs' reaction
+    (:func:`~exo_ctrl.plant.equilibrium.holding_torque`); on the gait at
+    speed, the feedforward torque of t = 0, so that the legs do not sag.
     """
-    plant, plan = setup.plant, setup.plan
+    plant, plan, config = setup.plant, setup.plan, setup.config
     motor = plant.motor_params
-    tau0 = feedforward_torque(plan, setup.exo, setup.patient, motor, rows=1)[0]
+    q0, dq0 = plan.q[0], plan.dq[0]
+    q_p = q0
+    if config.cuff_fit == "equilibrium":
+        own = make_patient_torque(config.patient_torque)
+        q_p = settle_patient(plant.cuffs, setup.patient.model, q0, own)
+    if config.ramp_in > 0.0:
+        tau0 = holding_torque(plant.cuffs, setup.exo.model, q0, q_p)
+    else:
+        tau0 = feedforward_torque(plan, setup.exo, setup.patient, motor, rows=1)[0]
     limit = motor.current_limit_A
     i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -limit, limit)
-    plant.reset(plan.q[0], plan.dq[0], current_A=i0)
+    fit = config.cuff_fit == "slack"
+    plant.reset(q0, dq0, q_p, dq0, current_A=i0, fit_cuffs=fit)
 
 
 def check_followable(
@@ -126,16 +154,17 @@ def check_followable(
 
     The planned speed ω_j(t) of each joint is taken from the run's ``plan``
     when its ticks sample a gait period at least
-    :data:`SPEED_SAMPLES_PER_PERIOD` times, else from the gait sampled that
-    often over its first period (the run's span if shorter): a coarse
-    control rate does not hide a peak between its ticks.  Each joint may move
+    :data:`SPEED_SAMPLES_PER_PERIOD` times, else from the ramped gait sampled
+    that often over its ramp-in and first period after it, and over its
+    ramp-out (the run's span if shorter): a coarse control rate does not hide
+    a peak between its ticks.  Each joint may move
     at most at the smallest of
 
     - the exoskeleton URDF's speed limit ``<limit velocity>`` [rad/s],
     - the patient URDF's (the patient's joints follow the exoskeleton's),
     - the drive's no-load speed at the supply, ω₀ = U_max / (i_G / k_E)
       [rad/s]: there the back-EMF i_G ω / k_E alone takes the whole supply
-      voltage, and any torque needs R I on top (12.4 rad/s with the
+      voltage, and any torque needs R I on top (5.18 rad/s with the
       defaults).
 
     A limit that is not a finite number > 0 is no limit.  The default
@@ -154,11 +183,16 @@ def check_followable(
             limit, with the speed [rad/s], the limit and where it comes from.
 
     """
-    gait = config.gait
+    gait, ramp = config.gait, config.ramp
     if config.dt > gait.period / SPEED_SAMPLES_PER_PERIOD:
-        span = min(config.duration_s, gait.period)
-        n = max(math.ceil(SPEED_SAMPLES_PER_PERIOD * span / gait.period), 1) + 1
-        plan = plan_joints(GaitPlan(gait), exo, np.linspace(0.0, span, n))
+        spans = [(0.0, min(config.duration_s, ramp.ramp_in_s + gait.period))]
+        if ramp.ramp_out_s > 0.0:
+            spans.append((ramp.out_start_s, ramp.end_s))
+        times = []
+        for start, end in spans:
+            n = max(math.ceil(SPEED_SAMPLES_PER_PERIOD * (end - start) / gait.period), 1) + 1
+            times.append(np.linspace(start, end, n))
+        plan = plan_joints(RampedGait(gait, ramp), exo, np.concatenate(times))
     t, dq = plan.t, np.abs(plan.dq)
     kb = motor.back_emf_V_per_rad_s
     sources = (
@@ -183,10 +217,15 @@ def check_followable(
         return
     _, j, limit, reason = worst
     at = float(t[np.argmax(dq[:, j])])
+    remedy = "a longer period or a shorter step slows it"
+    if at < ramp.ramp_in_s or at > ramp.out_start_s:
+        which = "ramp-in" if at < ramp.ramp_in_s else "ramp-out"
+        span = ramp.ramp_in_s if which == "ramp-in" else ramp.ramp_out_s
+        remedy = f"in its {span:g} s {which}: a longer {which} or a shorter step slows it"
     raise InvalidParameter(
         f"planned {JOINT_NAMES[j]} speed",
         float(f"{peak[j]:.4g}"),
         f"at most {limit:.4g} rad/s, {reason}",
         f"rad/s, at t = {at:.4g} s of a gait with period {gait.period:g} s and step_length "
-        f"{gait.step_length:g} m: a longer period or a shorter step slows it",
+        f"{gait.step_length:g} m: {remedy}",
     )

@@ -150,9 +150,7 @@ class Runner:
     def fill_plan(self, start: int, rows: int) -> None:
         """Copy the planned rows ``start:start+rows`` into the log."""
         plan = self.setup.plan
-        index = np.arange(start, start + rows)
-        if plan.period_ticks:
-            index %= plan.period_ticks
+        index = plan.rows(start, rows)
         self.buf["q_des"][:rows] = plan.q[index]
         self.buf["dq_des"][:rows] = plan.dq[index]
 

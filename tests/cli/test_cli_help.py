@@ -82,10 +82,10 @@ def test_simulate_help_shows_the_numbers(capsys) -> None:
     assert info.value.code == 0
     text = " ".join(capsys.readouterr().out.split())
     assert (
-        "--duration SEC simulated time [s] (default: 2 gait cycles, 2.4 s at the default period)"
-        in text
+        "--duration SEC simulated time [s], ramps included (default: the ramp-in, 2 gait cycles "
+        "and the ramp-out, 3.6 s at the default period)" in text.replace("- ", "-")
     )
-    assert "--kd V.S/RAD PD derivative gain [V·s/rad], all joints (default 2)" in text
+    assert "--kd V.S/RAD PD derivative gain [V·s/rad], all joints (default 5)" in text
     assert "--step-length S step length s [m] (default 0.35)" in text
 
 

@@ -177,5 +177,5 @@ def test_the_free_space_estimate_matches_a_default_recording(tmp_path: Path, cap
     """The recorder's size estimate per tick is the measured one (within 10 %), not 40 % low."""
     out = tmp_path / "default.rrd"
     assert cli.main(["simulate", "--out", str(out)]) == 0
-    per_tick = out.stat().st_size / 2400  # 2.4 s at 1 kHz
+    per_tick = out.stat().st_size / 3600  # 3.6 s at 1 kHz (the ramp-in and two cycles)
     assert 0.9 < per_tick / writer.BYTES_PER_TICK_ESTIMATE < 1.1, per_tick

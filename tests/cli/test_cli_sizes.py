@@ -157,14 +157,20 @@ SIM_PLAN = (
     "(100,000,001 plan rows would need 43.96 GiB; the plan holds every tick, as the period "
     "1.2003 s is not a whole number of 1 ms ticks)\n"
 )
-SIM_PERIOD = (
+SIM_PERIOD = (  # the default ramp-in of one period holds as many rows as the period
+    "exo-ctrl simulate: error: period must be at most 1137 s at 1000 Hz so that the plan "
+    "rows fit in the 1 GiB memory cap (at most 2,274,876 of 472 B each); got 1000000.0 "
+    "(2,000,000,000 plan rows would need 879.2 GiB; the plan holds one period and the default "
+    "ramp-in of one period (1,000,000,000 ticks))\n"
+)
+SIM_PERIOD_AT_SPEED = (
     "exo-ctrl simulate: error: period must be at most 2275 s at 1000 Hz so that the plan "
     "rows fit in the 1 GiB memory cap (at most 2,274,876 of 472 B each); got 1000000.0 "
     "(1,000,000,000 plan rows would need 439.6 GiB; the plan holds one period)\n"
 )
-SIM_ESTOP = (
-    "exo-ctrl simulate: error: estop_at must be in [0, 2.399] s, within the run; got 3.0 "
-    "(the run lasts 2.4 s; its last control tick is at t = 2.399 s)\n"
+SIM_ESTOP = (  # the default run: the ramp-in and two cycles, 3.6 s
+    "exo-ctrl simulate: error: estop_at must be in [0, 3.599] s, within the run; got 4.0 "
+    "(the run lasts 3.6 s; its last control tick is at t = 3.599 s)\n"
 )
 
 
@@ -173,9 +179,10 @@ SIM_ESTOP = (
     [
         (["--duration", "1e5", "--period", "1.2003"], SIM_PLAN),
         (["--duration", "2e6", "--period", "1e6"], SIM_PERIOD),
-        (["--estop-at", "3"], SIM_ESTOP),
+        (["--duration", "2e6", "--period", "1e6", "--ramp-in", "0"], SIM_PERIOD_AT_SPEED),
+        (["--estop-at", "4"], SIM_ESTOP),
     ],
-    ids=["plan-every-tick", "plan-one-period", "estop-after-the-end"],
+    ids=["plan-every-tick", "plan-one-period", "plan-one-period-at-speed", "estop-after-the-end"],
 )
 def test_simulate_refuses_before_anything_is_written(
     tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], expected: str
@@ -200,7 +207,7 @@ def test_estop_at_the_last_tick_is_accepted_and_one_tick_later_refused() -> None
 def test_estop_refused_via_the_installed_command(tmp_path: Path) -> None:
     exe = Path(sys.executable).with_name("exo-ctrl")
     proc = subprocess.run(
-        [str(exe), "simulate", "--estop-at", "3", "--out", str(tmp_path / "r.rrd")],
+        [str(exe), "simulate", "--estop-at", "4", "--out", str(tmp_path / "r.rrd")],
         capture_output=True,
         text=True,
         timeout=120,
@@ -209,9 +216,9 @@ def test_estop_refused_via_the_installed_command(tmp_path: Path) -> None:
 
 
 def test_long_runs_with_a_periodic_plan_are_not_capped() -> None:
-    """Only what grows is capped: one period of plan rows serves any duration."""
+    """Only what grows is capped: the ramp-in's and one period's plan rows serve any duration."""
     config = SimConfig(duration_s=1e5)  # 1e8 ticks, the old 5e7-tick cap refused it
-    assert config.plan_rows == 1200
+    assert config.plan_rows == 1200 + 1200
     with pytest.raises(InvalidParameter) as info:
         config.check_history()
     rows = v.max_items(HISTORY_BYTES_PER_TICK)  # 680 B per tick before the end stops' signal

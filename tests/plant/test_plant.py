@@ -378,7 +378,7 @@ def test_drive_in_the_plant_settles_to_the_stall_current(exo, patient) -> None:
 def test_drive_in_the_plant_sees_the_exoskeleton_joint_speed(exo, patient) -> None:
     params = MotorParams()
     plant = Plant(exo, patient, dt=1e-3, motors=params)
-    voltage = np.array([1.5, -2.2, 3.7, 0.2])
+    voltage = np.array([1.5, -2.2, 5.7, 0.2])  # currents -8, 24, -12, 2 A: within every limit
     w = np.array([0.5, -1.0, 1.5, 0.0])
     clamped_run(plant, voltage, np.array([0.3, 0.5, -0.1, 0.2]), w, 50)
     # At a held speed the back-EMF i_G ω / k_E opposes the voltage.
@@ -452,7 +452,7 @@ def test_combined_aba_is_the_two_bodies_apart(request, exo, patient, which) -> N
         plant.step(voltage, np.array([1.0, 2.0, -3.0, 0.5]))
         saturated += int(np.any(plant.motors.saturated))
         arm = expected_arm.copy()
-        arm[:4] += h * plant.motors.damping_Nm_s_per_rad(h)
+        arm[:4] += h * plant.motors.damping_Nm_s_per_rad
         expected = apart(arm, plant._q_mid, plant._v_mid, plant._tau)
         np.testing.assert_allclose(plant.acceleration, expected, rtol=0.0, atol=1e-12)
     assert 0 < saturated < 6

@@ -168,12 +168,19 @@ def test_run_shorter_than_the_start_up_gets_no_error_figures(tmp_path: Path) -> 
 
 def test_relative_error_over_a_vanishing_force_is_not_given(tmp_path: Path) -> None:
     # 20 Hz: the start-up is one tick, and the one tick compared has a true
-    # force of about 1e-13 N (the cuffs start relaxed): the 3.1e14 of the issue.
-    path = _record(tmp_path / "coarse.rrd", duration_s=0.1, control_rate_hz=20.0)
+    # force of about 1e-13 N (the cuffs start relaxed, fitted slack on the gait at
+    # speed, not at the patient's equilibrium): the 3.1e14 of the issue.
+    path = _record(
+        tmp_path / "coarse.rrd",
+        duration_s=0.1,
+        control_rate_hz=20.0,
+        ramp_in_s=0.0,
+        cuff_fit="slack",
+    )
     est = estimate_file(path)
     summary = est.summary()
     assert all(v is None for v in summary["cuff_force_estimate_rms_error_rel"].values())
-    assert all(v > 10.0 for v in summary["cuff_force_estimate_rms_error_N"].values())
+    assert all(v > 5.0 for v in summary["cuff_force_estimate_rms_error_N"].values())
     assert '"left_thigh": null' in json.dumps(summary)
     assert est.warnings == []  # a true force below the floor is not judged
     rows = est.table().splitlines()

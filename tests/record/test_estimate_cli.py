@@ -58,7 +58,14 @@ def test_truncated_recording_exits_0_with_one_warning_line(chunked: Path, tmp_pa
 
 
 def test_vanishing_denominator_shows_a_dash_and_null(tmp_path: Path, capsys) -> None:
-    path = _record(tmp_path / "coarse.rrd", duration_s=0.1, control_rate_hz=20.0)
+    # The cuffs start relaxed (fitted slack, on the gait at speed): a true force of ~0 N.
+    path = _record(
+        tmp_path / "coarse.rrd",
+        duration_s=0.1,
+        control_rate_hz=20.0,
+        ramp_in_s=0.0,
+        cuff_fit="slack",
+    )
     summary = tmp_path / "s.json"
     assert cli_main(["estimate", str(path), "--summary", str(summary)]) == 0
     captured = capsys.readouterr()

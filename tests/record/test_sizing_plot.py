@@ -41,11 +41,16 @@ def test_a_long_run_keeps_at_most_max_points(monkeypatch) -> None:
 def test_the_envelope_is_the_current_and_the_voltage_limit() -> None:
     motor = MotorParams()
     kt, kb, r = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s, motor.resistance_ohm
-    fast = (motor.supply_voltage_V - r * motor.current_limit_A) / kb + 1.0  # voltage-bound
+    # Voltage-bound, below the no-load speed: half the current limit's R I is left.
+    fast = (motor.supply_voltage_V - 0.5 * r * motor.current_limit_A) / kb
     lower, upper = envelope(motor, np.array([0.0, fast]))
-    assert upper[0] == pytest.approx(kt * motor.current_limit_A)
-    assert upper[1] == pytest.approx(kt * (motor.supply_voltage_V - kb * fast) / r)
+    eta = motor.gear_efficiency
+    # At rest the gearbox passes the motor's torque whole; moving forward the
+    # joint gets η of a forward torque (motoring) and 1/η of a backward one (braking).
+    assert upper[0] == pytest.approx(kt * motor.current_limit_A, rel=1e-12)
     assert lower[0] == -upper[0]
+    assert upper[1] == pytest.approx(eta * kt * (motor.supply_voltage_V - kb * fast) / r, rel=1e-9)
+    assert lower[1] == pytest.approx(-kt * motor.current_limit_A / eta, rel=1e-9)
 
 
 def test_the_cli_writes_the_plot_into_an_existing_directory(tmp_path: Path, capsys) -> None:

@@ -240,7 +240,8 @@ def check_stop_at(run: Run, k: int, quantity: str, value: float, limit: float) -
 
 
 def test_cuff_force_violation_stops_at_the_first_tick_over_the_limit() -> None:
-    run = run_loop(duration_s=1.0, limits=SafetyLimits(cuff_force_N=60.0))
+    # The cuffs pass 60 N late in the ramp-in (0.87 s); the hold follows within 1.5 s.
+    run = run_loop(duration_s=1.5, limits=SafetyLimits(cuff_force_N=60.0))
     k = first_tick(run.cuff > 60.0)
     c = int(np.argmax(run.cuff[k]))
     print(f"\ncuff force > 60 N first at t = {run.t[k]:.3f} s: {run.supervisor.events[0]}")
@@ -249,7 +250,7 @@ def test_cuff_force_violation_stops_at_the_first_tick_over_the_limit() -> None:
 
 
 def test_estimated_cuff_force_is_named_so() -> None:
-    run = run_loop(duration_s=0.5, limits=SafetyLimits(cuff_force_N=60.0), use_estimate=True)
+    run = run_loop(duration_s=1.5, limits=SafetyLimits(cuff_force_N=60.0), use_estimate=True)
     assert run.supervisor.events[0]["quantity"].startswith("estimated cuff force ")
 
 

@@ -21,6 +21,13 @@ from exo_ctrl.sim.setup import build, drive_for
 
 TAIL = "a longer period or a shorter step slows it)"
 
+#: The messages below name the first peak of a run started on the gait at speed
+#: (a ramp-in moves it one period later: tests/sim/test_start.py checks the ramp's).
+AT_SPEED = {"ramp_in_s": 0.0}
+
+#: A 48 V supply: no-load speed 10.4 rad/s, so the URDF's 6 rad/s is the limit that binds.
+HIGH_SUPPLY = MotorParams(supply_voltage_V=48.0)
+
 
 def message(joint: str, speed: str, limit: str, t: str, period: str = "1.2") -> str:
     return (
@@ -36,9 +43,9 @@ def test_default_scenario_is_well_within_every_limit() -> None:
     t = np.linspace(0.0, gait.period, 1201)
     peak = np.abs(plan_joints(GaitPlan(gait), exo, t).dq).max(axis=0)
     # 2.15 rad/s at the knees: 36 % of the URDF's 6 rad/s, and the back-EMF
-    # at that speed (1.93 V·s/rad × 2.15 rad/s = 4.2 V) is 17 % of the supply.
+    # at that speed (4.63 V·s/rad × 2.15 rad/s = 10.0 V) is 42 % of the supply.
     assert np.all(peak < 0.4 * exo.velocity_limit)
-    assert np.all(motor.back_emf_V_per_rad_s * peak < 0.2 * motor.supply_voltage_V)
+    assert np.all(motor.back_emf_V_per_rad_s * peak < 0.45 * motor.supply_voltage_V)
     build(SimConfig())  # and nothing is refused
 
 
@@ -48,14 +55,17 @@ def test_a_ten_millisecond_period_is_refused_not_diverged(
     """Before the check, ``--period 0.01`` ran and "diverged" (exit 1)."""
     expected = message("left_knee", "258.0", "6 rad/s, the exoskeleton URDF's speed limit",
                        "0.00869", "0.01")  # fmt: skip
+    back_emf = "5.18 rad/s, where the drive's back-EMF i_G ω / k_E (4.633 V·s/rad × ω) takes "
+    drive = message("left_knee", "258.0", back_emf + "the whole 24 V supply", "0.00869", "0.01")
     with pytest.raises(InvalidParameter) as info:
-        simulate(SimConfig(gait=GaitParams(period=0.01)))
+        simulate(SimConfig(gait=GaitParams(period=0.01), motor=HIGH_SUPPLY, **AT_SPEED))
     assert str(info.value) == expected
     out, summary = tmp_path / "run.rrd", tmp_path / "s.json"
-    argv = ["simulate", "--period", "0.01", "--out", str(out), "--summary", str(summary)]
+    argv = ["simulate", "--period", "0.01", "--ramp-in", "0", "--out", str(out)]
+    argv += ["--summary", str(summary)]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
-    assert err == f"exo-ctrl simulate: error: {expected}\n"
+    assert err == f"exo-ctrl simulate: error: {drive}\n"  # the default drive's 24 V binds first
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
@@ -65,37 +75,41 @@ def test_the_check_does_not_depend_on_the_control_rate() -> None:
                        "0.3476", "0.4")  # fmt: skip
     for rate in (10.0, 100.0, 1000.0):
         with pytest.raises(InvalidParameter) as info:
-            build(SimConfig(gait=GaitParams(period=0.4), control_rate_hz=rate))
+            build(
+                SimConfig(
+                    gait=GaitParams(period=0.4), control_rate_hz=rate, motor=HIGH_SUPPLY, **AT_SPEED
+                )
+            )
         assert str(info.value) == expected, rate
 
 
 def test_a_limit_just_above_the_peak_is_accepted(tmp_path: Path) -> None:
     path = write_urdf(BodyParams.exo_default(velocity_limit=6.5), tmp_path / "exo.urdf")
-    build(SimConfig(gait=GaitParams(period=0.4), exo=str(path)))
+    build(SimConfig(gait=GaitParams(period=0.4), exo=str(path), motor=HIGH_SUPPLY))
 
 
 def test_the_patient_urdf_limit_counts(tmp_path: Path) -> None:
     path = write_urdf(BodyParams.patient_default(velocity_limit=1.5), tmp_path / "patient.urdf")
     with pytest.raises(InvalidParameter) as info:
-        build(SimConfig(patient=str(path)))
+        build(SimConfig(patient=str(path), **AT_SPEED))
     assert str(info.value) == message(
         "right_knee", "2.15", "1.5 rad/s, the patient URDF's speed limit", "0.757"
     )
 
 
 def test_a_supply_the_back_emf_alone_exceeds_is_refused(capsys: pytest.CaptureFixture) -> None:
-    """3 V supply: the no-load speed is 3 V / 1.931 V·s/rad = 1.554 rad/s < 2.15 rad/s."""
+    """3 V supply: the no-load speed is 3 V / 4.633 V·s/rad = 0.6475 rad/s < 2.15 rad/s."""
     motor = MotorParams(supply_voltage_V=3.0)
     limit = 3.0 / motor.back_emf_V_per_rad_s
-    assert f"{limit:.4g}" == "1.554"
+    assert f"{limit:.4g}" == "0.6475"
     with pytest.raises(InvalidParameter) as info:
-        build(SimConfig(motor=motor))
+        build(SimConfig(motor=motor, **AT_SPEED))
     assert str(info.value) == message(
         "right_knee",
         "2.15",
-        "1.554 rad/s, where the drive's back-EMF i_G ω / k_E (1.931 V·s/rad × ω) "
+        "0.6475 rad/s, where the drive's back-EMF i_G ω / k_E (4.633 V·s/rad × ω) "
         "takes the whole 3 V supply",
         "0.757",
     )
-    # 5 V: 2.59 rad/s of no-load speed, above the plan's 2.15 rad/s: accepted.
-    build(SimConfig(motor=MotorParams(supply_voltage_V=5.0)))
+    # 12 V: 2.59 rad/s of no-load speed, above the plan's 2.15 rad/s: accepted.
+    build(SimConfig(motor=MotorParams(supply_voltage_V=12.0)))

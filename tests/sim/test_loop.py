@@ -12,8 +12,9 @@ import pytest
 from exo_ctrl.control import PDGains
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES, BodyModel, BodyParams, write_urdf
-from exo_ctrl.plan.gait import GaitParams, GaitPlan
+from exo_ctrl.plan.gait import GaitParams
 from exo_ctrl.plan.kinematics import plan_joints
+from exo_ctrl.plan.ramp import RampedGait
 from exo_ctrl.plant.motor import MotorParams
 from exo_ctrl.sensing.sensors import SensorParams
 from exo_ctrl.sim import (
@@ -30,6 +31,10 @@ DIVERGED = re.compile(
     r"(exoskeleton|patient) (left|right)_(hip|knee) speed \[rad/s\] = (\S+) "
     r"\(allowed magnitude 100\)"
 )
+
+#: The start before the ramp: on the gait at full speed, the cuffs fitted slack
+#: (its bump saturates the drives, which the limit tests below need).
+LEGACY_START = {"ramp_in_s": 0.0, "cuff_fit": "slack"}
 
 
 @pytest.fixture(scope="module")
@@ -95,9 +100,10 @@ def test_chunking_changes_nothing(ct_run) -> None:
     assert_same_run(ct_run, chunked)
     assert seen[0][0] == "start" and seen[-1][0] == "finish"
     chunks = seen[1:-1]
-    # Consecutive chunks of 7 rows covering the 2400 ticks, the last one shorter.
-    assert [c[1] for c in chunks] == list(range(0, 2400, 7))
-    assert [c[2] for c in chunks] == [7] * (2400 // 7) + [2400 % 7]
+    # Consecutive chunks of 7 rows covering the 3600 ticks, the last one shorter.
+    assert ct_run.n_ticks == 3600
+    assert [c[1] for c in chunks] == list(range(0, 3600, 7))
+    assert [c[2] for c in chunks] == [7] * (3600 // 7) + [3600 % 7]
 
 
 def test_summary_without_history_equals_the_full_run(ct_run) -> None:
@@ -118,17 +124,28 @@ def test_summary_without_history_equals_the_full_run(ct_run) -> None:
 
 
 def test_run_starts_on_the_plan(exo: BodyModel, pd_run, ct_run) -> None:
-    plan0 = plan_joints(GaitPlan(GaitParams()), exo, np.array([0.0]))
+    """Standing at rest on the plan's first row; the patient settled in the cuffs nearby."""
+    plan0 = plan_joints(RampedGait(GaitParams(), pd_run.config.ramp), exo, np.array([0.0]))
+    np.testing.assert_allclose(plan0.dq[0], 0.0, atol=1e-15)
     for run in (pd_run, ct_run):
         s = run.signals
         np.testing.assert_allclose(s["q"][0], plan0.q[0], rtol=0, atol=1e-12)
         np.testing.assert_allclose(s["dq"][0], plan0.dq[0], rtol=0, atol=1e-12)
         np.testing.assert_allclose(s["q_des"][0], plan0.q[0], rtol=0, atol=1e-12)
         np.testing.assert_allclose(s["dq_des"][0], plan0.dq[0], rtol=0, atol=1e-12)
-        # The patient is strapped in the same posture.
-        np.testing.assert_allclose(s["q_patient"][0], plan0.q[0], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(s["dq_patient"][0], plan0.dq[0], rtol=0, atol=1e-12)
+        # The patient hangs in the straps a little below the exoskeleton's posture, at rest
+        # (the equilibrium itself: tests/sim/test_start.py).
+        gap = np.abs(s["q_patient"][0] - plan0.q[0])
+        assert np.all(gap < 0.05) and np.any(gap > 1e-3)
+        np.testing.assert_array_equal(s["dq_patient"][0], 0.0)
         assert run.t[0] == 0.0
+    # The old start: on the gait at speed, the patient strapped in the same posture.
+    legacy = simulate(SimConfig(controller="ct", duration_s=0.01, **LEGACY_START)).signals
+    plan0 = plan_joints(RampedGait(GaitParams()), exo, np.array([0.0]))
+    np.testing.assert_allclose(legacy["q"][0], plan0.q[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(legacy["dq"][0], plan0.dq[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(legacy["q_patient"][0], plan0.q[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(legacy["dq_patient"][0], plan0.dq[0], rtol=0, atol=1e-12)
 
 
 def test_no_start_up_jump_with_computed_torque() -> None:
@@ -157,8 +174,9 @@ def strong_exo_path(tmp_path_factory: pytest.TempPathFactory) -> str:
 
 def diverging_config(name: str, strong_exo_path: str) -> SimConfig:
     if name == "10 Hz control":
-        # Plant step of 0.1 s: far beyond the stable step for the 8 N/mm cuffs.
-        return SimConfig(control_rate_hz=10.0)
+        # Plant step of 0.1 s: far beyond the stable step for the 8 N/mm cuffs (started at
+        # speed: the ramp's slow start diverges more gently, below the speed bound's 100).
+        return SimConfig(control_rate_hz=10.0, **LEGACY_START)
     # Absurd gains need a drive that can follow them.  With the default drive
     # the 24 V supply and the current limit (capped by the URDF effort limit,
     # whatever MotorParams says) bound the torque and the run completes: see
@@ -277,7 +295,7 @@ def test_summary_keys_and_values(controller: str, pd_run, ct_run) -> None:
     assert summary.keys() >= REQUIRED_KEYS
     s = result.signals
     assert summary["controller"] == controller
-    assert summary["duration_s"] == pytest.approx(2.4)
+    assert summary["duration_s"] == pytest.approx(3.6)
     gait = GaitParams()
     # design.md §3: each foot is in stance for T_s/2 and covers s: v = 2 s / T_s.
     assert summary["belt_speed_mps"] == pytest.approx(2 * gait.step_length / gait.period)
@@ -301,13 +319,13 @@ def test_summary_keys_and_values(controller: str, pd_run, ct_run) -> None:
     # The clock starts after the first tick (which loads the compiled kernels).
     assert result.timed_ticks == result.t.size - UNTIMED_TICKS == result.t.size - 3
     assert summary["real_time_factor"] == pytest.approx(
-        (2.4 - 3 * result.config.dt) / result.wall_time_s, rel=1e-12
+        (3.6 - 3 * result.config.dt) / result.wall_time_s, rel=1e-12
     )
 
 
-def test_drive_limits_hold_in_the_run(exo: BodyModel, pd_run) -> None:
-    """The PD run saturates: voltages within the supply, torques within the URDF effort."""
-    s = pd_run.signals
+def test_drive_limits_hold_in_the_run(exo: BodyModel) -> None:
+    """The PD run started at speed saturates: voltages within the supply, torques within effort."""
+    s = simulate(SimConfig(controller="pd", **LEGACY_START)).signals
     motor = MotorParams()
     np.testing.assert_array_equal(
         s["voltage"], np.clip(s["voltage_cmd"], -motor.supply_voltage_V, motor.supply_voltage_V)
@@ -333,7 +351,7 @@ def test_drive_torque_keeps_the_effort_cap_at_100_hz(exo: BodyModel, controller:
     again.  Then no torque exceeds the effort cap, and a drive at the cap
     logs the current limit.
     """
-    result = simulate(SimConfig(controller=controller, control_rate_hz=100.0))
+    result = simulate(SimConfig(controller=controller, control_rate_hz=100.0, **LEGACY_START))
     assert result.status == "completed", result.error
     s = result.signals
     motor = MotorParams()
@@ -343,7 +361,18 @@ def test_drive_torque_keeps_the_effort_cap_at_100_hz(exo: BodyModel, controller:
     assert torque.max() <= cap + 1e-9
     assert torque.max() == pytest.approx(cap)  # the drives do saturate here
     at_cap = torque >= cap - 1e-9
-    np.testing.assert_allclose(np.abs(s["current"][at_cap]), i_max, rtol=1e-12)
+    # Motoring, the drive reaches η i_G k_m I_max = 126 N·m, below the cap: a
+    # joint at the cap is braking, where the gearbox passes the motor torque
+    # over η, so its current is η cap / (i_G k_m) (1/η fully reached beyond
+    # the smoothing speed, 0.05 rad/s).
+    assert at_cap.any()
+    braking = s["drive_torque"] * s["dq"] < 0.0
+    assert np.all(braking[at_cap])
+    moving = at_cap & (np.abs(s["dq"]) > 0.5)
+    assert moving.any()
+    held = motor.gear_efficiency * i_max
+    np.testing.assert_allclose(np.abs(s["current"][moving]), held, rtol=1e-6)
+    assert np.all(np.abs(s["current"][at_cap]) <= i_max + 1e-9)
     np.testing.assert_array_equal(np.sign(s["current"][at_cap]), np.sign(s["drive_torque"][at_cap]))
     assert max(result.summary()["peak_drive_torque_Nm"].values()) <= cap + 1e-9
 

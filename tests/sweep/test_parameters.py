@@ -83,13 +83,13 @@ def test_parse_errors(text, message):
 def test_gains_are_sweepable_with_the_same_gain_on_every_joint(tmp_path):
     assert parse_param("kp=50:150:3") == ("kp", (50.0, 100.0, 150.0))
     assert parse_param("kd=0,2") == ("kd", (0.0, 2.0))
-    spec = SweepSpec.parse(["kp=50,100", "kd=1"], duration_s=0.4)
+    spec = SweepSpec.parse(["kp=50,300", "kd=1"], duration_s=0.4)
     low, default = spec.tasks()
     assert low.run["gains"] == {"kp": (50.0,) * 4, "kd": (1.0,) * 4}
-    assert default.run["gains"] == {"kp": (100.0,) * 4, "kd": (1.0,) * 4}
+    assert default.run["gains"] == {"kp": (300.0,) * 4, "kd": (1.0,) * 4}
     # Sweeping the base's gain is the same run as not sweeping it (same run id).
     (unswept,) = SweepSpec.parse(["step_length=0.35"], duration_s=0.4).tasks()
-    (swept,) = SweepSpec.parse(["kp=100", "kd=2"], duration_s=0.4).tasks()
+    (swept,) = SweepSpec.parse(["kp=300", "kd=5"], duration_s=0.4).tasks()
     assert swept.run_id == unswept.run_id
     # A base with per-joint gains keeps them while they are not swept.
     base = SimConfig(gains=PDGains(kp=(100, 90, 80, 70)))
@@ -123,8 +123,8 @@ def test_listing_gives_every_parameter_its_unit_range_and_default():
         "8000",
     ]
     assert "8000 N/m = the paper's 8 N/mm" in rows["cuff_stiffness"]
-    assert rows["kp"].split()[:5] == ["kp", "[V/rad]", "(0,", "1000]", "100"]
-    assert rows["kd"].split()[:5] == ["kd", "[V·s/rad]", "[0,", "20]", "2"]
+    assert rows["kp"].split()[:5] == ["kp", "[V/rad]", "(0,", "1000]", "300"]
+    assert rows["kd"].split()[:5] == ["kd", "[V·s/rad]", "[0,", "20]", "5"]
     assert rows["controller"].split() == [
         "controller",
         *[f"{c}," for c in CONTROLLERS[:-1]],

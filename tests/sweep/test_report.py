@@ -5,11 +5,16 @@ from __future__ import annotations
 import numpy as np
 
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
+from exo_ctrl.sim import SimConfig
 from exo_ctrl.sweep import PARAMETERS, SweepPaths, run_sweep
 
 
 def test_plots_and_report_name_the_worst_case(tmp_path, make_spec):
-    spec = make_spec("step_length=0.3,0.45", "patient_shank_mass=3,6", "lift_height=0.1,0.5")
+    # Started on the gait at speed: a short run's plan then holds the full 0.5 m lift.
+    at_speed = SimConfig(ramp_in_s=0.0, cuff_fit="slack")
+    spec = make_spec(
+        "step_length=0.3,0.45", "patient_shank_mass=3,6", "lift_height=0.1,0.5", base=at_speed
+    )
     out = tmp_path / "r.parquet"
     table = run_sweep(spec, out, workers=1, progress=False)
     paths = SweepPaths.for_output(out)

@@ -84,7 +84,9 @@ def front(
     Returns :func:`~exo_ctrl.control.pd.pd_law`'s status (nothing done unless OK).
     """
     s = state[0]
-    status, row = pd_law(s.kp, s.kd, s.period, q_des, dq_des, u_ff, k, q, dq, s.u_ct)
+    status, row = pd_law(
+        s.kp, s.kd, s.lead, s.period, s.tail, q_des, dq_des, u_ff, k, q, dq, s.u_ct
+    )
     if status != Status.OK.value:
         return status
     s.row = row

@@ -20,23 +20,37 @@ limit |I| ≤ I_max (τ = i_G k_m I) and the supply |U| ≤ U_max:
     \mathrm{cap} = \min(τ_{eff}, i_G k_m I_{max}), \; c_0 = c_2 U_{max}.
 
 It is empty (τ_lo > τ_hi) above ω = (U_max + R I_max) k_E / i_G.
+
+**At the joint.**  These are the motor's torques referred to the joint, τ_m;
+the gearbox passes ``τ = g τ_m`` with ``g = η^{s}``, ``s = sign(τ_m)
+tanh(ω/ω_η)`` (η motoring, 1/η braking, :mod:`exo_ctrl.plant.motor`).  ``g``
+depends on τ only through its sign, so the map is exact bound by bound: the
+command, the box and the QP's variable are joint torques (each bound times
+the ``g`` of its own sign, the effort cap applied at the joint), and a joint
+torque τ is the voltage ``U = (τ/g(τ) + c₁ ω)/c₂``.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
 from ..._jit import kernel
-from ...plant.motor import MotorParams
+from ...plant.motor import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
 
 __all__ = ["TORQUE_BOX_FIELDS", "box_constants", "torque_box", "voltage"]
 
 #: Fields of a record holding the box: c₀ [N·m], c₁ [N·m·s/rad], c₂ [N·m/V],
-#: cap [N·m] per joint; the last τ_cmd, τ_lo and τ_hi [N·m].
+#: the drive's cap i_G k_m I_max and the joint's effort [N·m] per joint, ln η
+#: and 1/ω_η [s/rad] of the gearbox; the last τ_cmd, τ_lo and τ_hi at the
+#: joint [N·m].
 TORQUE_BOX_FIELDS: list[tuple[Any, ...]] = [
     ("c0", np.float64),
+    ("lneta", np.float64),
+    ("inv_w_eta", np.float64),
+    ("effort", np.float64, (4,)),
     ("c1", np.float64, (4,)),
     ("c2", np.float64, (4,)),
     ("cap", np.float64, (4,)),
@@ -53,8 +67,20 @@ def box_constants(motor: MotorParams, effort_Nm: np.ndarray) -> dict[str, Any]:
         "c0": kt * motor.supply_voltage_V / r,
         "c1": np.full(4, kt * kb / r),
         "c2": np.full(4, kt / r),
-        "cap": np.minimum(effort_Nm, kt * motor.current_limit_A),
+        "cap": np.full(4, kt * motor.current_limit_A),
+        "effort": np.asarray(effort_Nm, dtype=float),
+        "lneta": motor.log_efficiency,
+        "inv_w_eta": 1.0 / EFFICIENCY_SMOOTHING_RAD_S,
     }
+
+
+@kernel
+def gear(lneta: float, inv_w: float, torque: float, omega: float) -> float:  # pragma: no cover
+    """The gear factor g = η^s of a torque's sign at speed ω (module docstring)."""
+    if lneta == 0.0 or torque == 0.0:
+        return 1.0
+    th = math.tanh(omega * inv_w)
+    return math.exp((th if torque > 0.0 else -th) * lneta)
 
 
 @kernel
@@ -66,23 +92,29 @@ def torque_box(
     A NaN speed gives a NaN box.  ``u_cmd`` and ``omega``: (4,) (checked by
     the caller).
     """
-    c1, c2, cap, c0 = s.c1, s.c2, s.cap, s.c0
+    c1, c2, cap, c0, effort = s.c1, s.c2, s.cap, s.c0, s.effort
+    lneta, inv_w = s.lneta, s.inv_w_eta
     target, lo, hi = s.torque_cmd, s.torque_lo, s.torque_hi
     for j in range(4):
-        t = c1[j] * omega[j]
-        target[j] = c2[j] * u_cmd[j] - t
+        w = omega[j]
+        t = c1[j] * w
+        m = c2[j] * u_cmd[j] - t
+        target[j] = m * gear(lneta, inv_w, m, w)
         if t != t:
             hi[j] = lo[j] = t
         else:
-            hi[j] = min(c0 - t, cap[j])
-            lo[j] = max(-c0 - t, -cap[j])
+            m_hi = min(c0 - t, cap[j])
+            m_lo = max(-c0 - t, -cap[j])
+            hi[j] = min(m_hi * gear(lneta, inv_w, m_hi, w), effort[j])
+            lo[j] = max(m_lo * gear(lneta, inv_w, m_lo, w), -effort[j])
 
 
 @kernel
 def voltage(
     s: np.void, torque: np.ndarray, omega: np.ndarray, out: np.ndarray
 ) -> None:  # pragma: no cover - compiled
-    """Write U = (τ + c₁ ω) / c₂ to ``out``: the voltage giving ``torque`` at speed ω [V]."""
-    c1, c2 = s.c1, s.c2
+    """Write U = (τ/g(τ) + c₁ ω) / c₂ to ``out``: the voltage giving joint ``torque`` at ω [V]."""
+    c1, c2, lneta, inv_w = s.c1, s.c2, s.lneta, s.inv_w_eta
     for j in range(4):
-        out[j] = (torque[j] + c1[j] * omega[j]) / c2[j]
+        w = omega[j]
+        out[j] = (torque[j] / gear(lneta, inv_w, torque[j], w) + c1[j] * w) / c2[j]

@@ -211,7 +211,11 @@ def test_horizon_prediction_matches_the_plant_with_the_command_held(exo, patient
     estimate of them is the observer's job, tested below) and d = 0 (the
     held run applies no patient torque).
     """
-    setup = build(SimConfig(controller="ct", safety=False, patient_torque="spastic"))
+    setup = build(
+        SimConfig(
+            controller="ct", safety=False, patient_torque="spastic", ramp_in_s=0.0, cuff_fit="slack"
+        )
+    )
     runner = Runner(setup)
     plant, drive = setup.plant, setup.plant.motor_params
     model = CuffHorizonModel(exo, patient, drive)

@@ -80,7 +80,7 @@ def test_screening_hands_proxsuite_the_rows_nearest_to_binding(
     """A fresh controller (last torque 0): the screened rows are the top SCREENED_ROWS
     of the measure at τ_cmd and at 0, and the answer meets every row."""
     checked = 0
-    for k in range(0, 1200, 25):
+    for k in range(0, 1200, 5):
         ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
         ctrl.command(k, on_plan(plan, k))
         if ctrl.last_status != "solved" or ctrl.screen_rounds != 1:
