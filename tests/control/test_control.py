@@ -240,7 +240,7 @@ def rms_error(result) -> np.ndarray:
     return np.sqrt(np.mean(err**2, axis=0))
 
 
-def test_computed_torque_tracks_at_least_five_times_better_than_pd(runs) -> None:
+def test_computed_torque_tracks_at_least_fifteen_times_better_than_pd(runs) -> None:
     assert all(r.status == "completed" for r in runs.values())
     pd_rms, ct_rms = rms_error(runs["pd"]), rms_error(runs["ct"])
     print("\nRMS joint tracking error [mrad] on the default scenario (3.6 s, ramp included):")
@@ -249,7 +249,7 @@ def test_computed_torque_tracks_at_least_five_times_better_than_pd(runs) -> None
         print(
             f"  {name:10s} PD {1e3 * pd_rms[j]:8.3f}   CT {1e3 * ct_rms[j]:8.4f}   ({ratio:.0f}x)"
         )
-    assert np.all(pd_rms >= 5.0 * ct_rms)
+    assert np.all(pd_rms >= 15.0 * ct_rms)  # measured 18–26x with the default drive
     # And the errors are real, not an artefact of comparing empty runs.
     assert np.all(pd_rms > 1e-3)
     assert runs["pd"].n_ticks == runs["ct"].n_ticks == 3600  # the ramp-in and two cycles
