@@ -81,15 +81,16 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="N",
-        help=f"gait cycles per run [cycles] (default {DEFAULT_CYCLES:g})",
+        help=f"gait cycles at full speed per run, after the ramp-in [cycles] (default "
+        f"{DEFAULT_CYCLES:g})",
     )
     span.add_argument(
         "--duration",
         type=float,
         default=None,
         metavar="SEC",
-        help=f"simulated time per run [s] (default: {DEFAULT_CYCLES:g} gait cycles, "
-        f"{DEFAULT_CYCLES * SimConfig().gait.period:g} s at the default period)",
+        help=f"simulated time per run [s] (default: a one-period ramp-in and {DEFAULT_CYCLES:g} "
+        f"gait cycles, {(DEFAULT_CYCLES + 1) * SimConfig().gait.period:g} s at the default period)",
     )
     parser.add_argument(
         "--controller",

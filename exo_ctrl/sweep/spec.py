@@ -96,7 +96,8 @@ class SweepSpec:
         samples: None for the full grid, else the number of random points.
         seed: seed of the random points [-] (integer >= 0).
         duration_s: simulated time per run [s]; exclusive with ``cycles``.
-        cycles: gait cycles per run (duration = cycles × the run's period);
+        cycles: gait cycles at full speed per run (duration = the ramp-in +
+            cycles × the run's period + the ramp-out);
             when neither is given, :data:`DEFAULT_CYCLES`.
         base: the run every point starts from (values not swept, gains,
             motor and cuff constants, exo and patient, rates).  Patient
@@ -234,8 +235,10 @@ class SweepSpec:
             :func:`~exo_ctrl.sweep.parameters.parameter_names` (the patient
             ones only when ``base.patient`` is None, the PD gains only when
             swept), plus ``duration_s`` [s]
-            (``cycles`` × the run's period, rounded to 12 significant digits,
-            when no duration is given).  Values are not cross-checked here
+            (the base's ramp-in, one period of the run's gait unless set,
+            ``cycles`` × the run's period at full speed and the base's
+            ramp-out, rounded to 12 significant digits, when no duration is
+            given: as ``exo-ctrl simulate --cycles``).  Values are not cross-checked here
             (e.g. lift vs hip height): the worker builds the run and records a
             rejected one as ``failed``.
 
@@ -246,7 +249,9 @@ class SweepSpec:
             values["duration_s"] = float(self.duration_s)
         else:
             cycles = self.cycles if self.cycles is not None else DEFAULT_CYCLES
-            values["duration_s"] = round_12(cycles * float(values["period"]))
+            period = float(values["period"])
+            ramp_in = self.base.ramp_in_s if self.base.ramp_in_s is not None else period
+            values["duration_s"] = round_12(ramp_in + cycles * period + self.base.ramp_out_s)
         return values
 
     def describe(self) -> dict[str, Any]:

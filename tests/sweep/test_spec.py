@@ -78,6 +78,7 @@ def test_base_fields_are_kept_and_part_of_the_run_id(tmp_path, make_spec, durati
     assert (
         task.run_id != make_spec("gear_ratio=40", "cuff_damping=50", "period=1.0").tasks()[0].run_id
     )
-    # --cycles: the duration follows each point's period.
+    # --cycles: the duration follows each point's period: a one-period ramp-in
+    # (the default base's) and the cycles at full speed.
     periods = make_spec("period=1.0,1.3", duration_s=None, cycles=1.5).tasks()
-    assert [t.values["duration_s"] for t in periods] == [1.5, 1.95]
+    assert [t.values["duration_s"] for t in periods] == [2.5, 3.25]
