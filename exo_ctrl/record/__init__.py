@@ -7,6 +7,9 @@
   forces, belt, planned foot paths).
 - :mod:`.writer`: :class:`RerunRecorder`, the observer that
   writes a run as it goes.
+- :mod:`.rrd_file`, :mod:`.rrd_footer`, :mod:`.write_process`: the file
+  itself, written from rerun's in-memory encoding with a footer after
+  every chunk, by a process of its own (so that SIGKILL cannot cut it).
 - :mod:`.reader`: :func:`read_recording`, the run back from a file.
 - :mod:`.sizing_plot`: the drives' torque-speed operating points
   against their limits (a PNG).

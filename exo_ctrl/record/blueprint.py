@@ -15,46 +15,62 @@ import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
 from ..exceptions import ExoCtrlError, RecordingError
-from .format import EST_ENTITY, TIME
+from ..model import CUFF_NAMES, JOINT_NAMES
+from .format import TIME, Layout, Series, layout
 
-__all__ = ["blueprint_views", "make_blueprint"]
+__all__ = ["MAX_LINES_PER_PANEL", "blueprint_views", "make_blueprint"]
+
+#: Most lines any time-series panel of :func:`make_blueprint` shows (the
+#: per-joint and per-cuff panels show 1-3; a 4-joint signal of the "Other
+#: signals" tab shows 4, one entity cannot be split between panels).
+MAX_LINES_PER_PANEL = 4
+#: The time-series panels hide their legends (rerun 0.41 draws a legend
+#: inside the plot, in a corner, over the curves); each panel's name says
+#: which colour is which line instead.
+_NO_LEGEND = rrb.PlotLegend(visible=False)
+_LEGS = ("left", "right")
 
 
-def make_blueprint() -> rrb.Blueprint:
-    """The default layout: 3-D view beside time series grouped by quantity.
+def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
+    """The default layout: the 3-D scene beside tabs of time series, one quantity per tab.
 
-    Left: the 3-D scene (``world``) above tabs with the event log (``events``)
-    and the parameters (``params``).  Right: time series of joint angles,
-    drive torques, currents, voltages and cuff forces (with their estimate,
-    ``signals/cuff_force_est``, when logged), and tabs with joint speeds,
-    patient torques, the safety state and every other signal.  The time
-    panel shows ``sim_time``.
+    Left: the 3-D scene (``world``) above tabs with the event log
+    (``events``) and the parameters (``params``).  Right: one tab per
+    quantity, its unit in the tab's name: joint angles and voltages (a panel
+    per joint: desired, actual and patient angle; command and applied
+    voltage), drive torques and currents (a panel per leg: hip and knee),
+    cuff forces (a row per cuff: simulated and estimated x, z and magnitude
+    side by side), joint speeds, patient torques, and every other signal of
+    the log schema (a panel each).  No panel holds more than
+    :data:`MAX_LINES_PER_PANEL` lines; legends are hidden and each panel's
+    name says what it shows, its unit and which colour is which line.  The
+    time panel shows ``sim_time``.
+
+    Args:
+        lay: the series to lay out (default: those of the log schema now).
+
     """
-    series = [
-        ("signals/joint_angle", "Joint angles [rad]"),
-        ("signals/drive_torque", "Drive torques [N·m]"),
-        ("signals/current", "Drive currents [A]"),
-        ("signals/voltage", "Drive voltages [V]"),
-        ("signals/cuff_force", "Cuff forces on the exo [N]"),
-    ]
-    views = [rrb.TimeSeriesView(origin=origin, name=name) for origin, name in series[:-1]]
-    # Cuff forces beside their estimate from the joint torque sensors.
-    views.append(
-        rrb.TimeSeriesView(
-            origin=series[-1][0], name=series[-1][1], contents=["$origin/**", f"/{EST_ENTITY}/**"]
-        )
-    )
+    series = {s.entity: s for s in (lay or layout()).series}
+    shown: set[str] = set()
+
+    def take(entities: list[str]) -> list[Series]:
+        found = [series[e] for e in entities if e in series]
+        shown.update(s.entity for s in found)
+        return found
+
     tabs = [
-        ("signals/joint_speed", "Joint speeds [rad/s]"),
-        ("signals/patient_torque", "Patient torques [N·m]"),
-        ("signals/safety_state", "Safety state"),
+        _per_joint(take, "joint_angle", "Joint angles"),
+        _per_leg(take, "drive_torque", "Drive torques"),
+        _per_leg(take, "current", "Drive currents"),
+        _per_joint(take, "voltage", "Drive voltages"),
+        _cuffs(take),
+        _per_joint(take, "joint_speed", "Joint speeds"),
+        _per_leg(take, "patient_torque", "Patient torques"),
     ]
-    shown = [origin for origin, _ in series + tabs] + [EST_ENTITY]
-    rest = ["+ /signals/**"] + [f"- /{o}" for o in shown] + [f"- /{o}/**" for o in shown]
-    extra = rrb.Tabs(
-        *(rrb.TimeSeriesView(origin=origin, name=name) for origin, name in tabs),
-        rrb.TimeSeriesView(origin="signals", name="Other signals", contents=rest),
-    )
+    rest = take([e for e in series if e not in shown])
+    if rest:  # one panel per signal, named by its log-schema name (and meaning, if unitless)
+        others = (_panel(s.entity, [s], _signal_name(s)) for s in rest)
+        tabs.append(rrb.Grid(*others, grid_columns=2, name="Other signals"))
     left = rrb.Vertical(
         rrb.Spatial3DView(origin="world", name="Exoskeleton, patient and belt"),
         rrb.Tabs(
@@ -63,22 +79,96 @@ def make_blueprint() -> rrb.Blueprint:
         ),
         row_shares=[3, 1],
     )
+    right = rrb.Tabs(*(tab for tab in tabs if tab is not None))
     return rrb.Blueprint(
-        rrb.Horizontal(left, rrb.Vertical(*views, extra), column_shares=[1, 1]),
+        rrb.Horizontal(left, right, column_shares=[1, 1]),
         rrb.TimePanel(timeline=TIME),
         collapse_panels=False,
     )
 
 
-def blueprint_views(path: str | os.PathLike[str]) -> list[dict[str, str]]:
+def _panel(origin: str, shown: list[Series], what: str) -> rrb.TimeSeriesView:
+    """A time-series panel of ``shown``, named with its unit and its colour key."""
+    unit = shown[0].unit
+    key = ", ".join(f"{color} {_short(part, what)}" for s in shown for color, part in s.key)
+    name = what + (f" [{unit}]" if unit else "") + (f": {key}" if key else "")
+    contents = [f"/{s.entity}" for s in shown]
+    return rrb.TimeSeriesView(origin=origin, contents=contents, name=name, plot_legend=_NO_LEGEND)
+
+
+def _per_joint(take, quantity: str, title: str) -> rrb.Vertical | None:
+    """A tab of one panel per joint (its series' components: desired, actual, ...)."""
+    panels, units = [], set()
+    for joint in JOINT_NAMES:
+        found = take([f"signals/{quantity}/{joint}"])
+        if found:
+            panels.append(_panel(found[0].entity, found, joint.replace("_", " ")))
+            units.add(found[0].unit)
+    return rrb.Vertical(*panels, name=_titled(title, units)) if panels else None
+
+
+def _per_leg(take, quantity: str, title: str) -> rrb.Vertical | None:
+    """A tab of one panel per leg, its hip and knee together."""
+    panels, units = [], set()
+    for leg in _LEGS:
+        found = take([f"signals/{quantity}/{j}" for j in JOINT_NAMES if j.startswith(leg)])
+        if found:
+            panels.append(_panel(f"signals/{quantity}", found, f"{leg} leg"))
+            units.update(s.unit for s in found)
+    return rrb.Vertical(*panels, name=_titled(title, units)) if panels else None
+
+
+def _cuffs(take) -> rrb.Grid | None:
+    """A row per cuff: the simulated force on the exo, then its estimate."""
+    panels, units = [], set()
+    for cuff in CUFF_NAMES:
+        name = cuff.replace("_", " ")
+        for entity, what in (("cuff_force", name), ("cuff_force_est", f"{name}, estimated")):
+            found = take([f"signals/{entity}/{cuff}"])
+            if found:
+                panels.append(_panel(found[0].entity, found, what))
+                units.add(found[0].unit)
+    if not panels:
+        return None
+    return rrb.Grid(*panels, grid_columns=2, name=_titled("Cuff forces on the exo", units))
+
+
+def _signal_name(series: Series) -> str:
+    """A signal's log-schema name, with its description when it has no unit to say it."""
+    name = series.entity.split("/", 1)[1]
+    return name if series.unit or not series.title else f"{name} ({series.title})"
+
+
+def _short(part: str, what: str) -> str:
+    """A component's name in a panel's key: without the leg the panel names, L/R otherwise."""
+    if part == "magnitude":
+        return "|F|"
+    for leg in _LEGS:
+        if part.startswith(f"{leg} "):
+            rest = part[len(leg) + 1 :]
+            return rest if what.startswith(leg) else f"{leg[0].upper()} {rest}"
+    return part
+
+
+def _titled(title: str, units: set[str]) -> str:
+    """``title [unit]`` (units joined if a tab mixes them, none if unitless)."""
+    named = sorted(u for u in units if u)
+    return f"{title} [{', '.join(named)}]" if named else title
+
+
+def blueprint_views(path: str | os.PathLike[str]) -> list[dict]:
     """The views of the default blueprint stored in a recording.
 
-    ``save(path, default_blueprint=...)`` writes the blueprint as a second
-    store of kind "blueprint" in the same file (same application id, its own
-    recording id), with entities ``/viewport``, ``/container/<uuid>`` and
-    ``/view/<uuid>``.  This returns one dict per view with the keys
-    ``class`` (``"3D"``, ``"TimeSeries"``, ``"TextLog"``, ``"TextDocument"``),
-    ``name`` and ``origin``.
+    ``save(path, default_blueprint=...)`` (or a sink's default blueprint)
+    writes the blueprint as a second store of kind "blueprint" in the same
+    file (same application id, its own recording id), with entities
+    ``/viewport``, ``/container/<uuid>``, ``/view/<uuid>`` and the view's
+    properties below it (``/view/<uuid>/ViewContents``,
+    ``/view/<uuid>/PlotLegend``).  This returns one dict per view with the
+    keys ``class`` (``"3D"``, ``"TimeSeries"``, ``"TextLog"``,
+    ``"TextDocument"``), ``name``, ``origin``, ``contents`` (the view's
+    entity query, one rule per item, ``$origin`` as written) and
+    ``legend_visible`` (None when the view does not set it).
 
     Raises:
         RecordingError: the file is unreadable or holds no blueprint.
@@ -97,19 +187,35 @@ def blueprint_views(path: str | os.PathLike[str]) -> list[dict[str, str]]:
         if isinstance(exc, ExoCtrlError):
             raise
         raise RecordingError(f"cannot read recording {p}: {exc}") from None
-    views = []
+    columns = {
+        "class": "ViewBlueprint:class_identifier",
+        "name": "ViewBlueprint:display_name",
+        "origin": "ViewBlueprint:space_origin",
+        "contents": "ViewContents:query",
+        "legend_visible": "PlotLegend:visible",
+    }
+    found: dict[str, dict] = {}
     for chunk in chunks:
-        batch = chunk.to_record_batch()
-        if "ViewBlueprint:class_identifier" not in batch.schema.names:
+        entity = chunk.entity_path.lstrip("/")
+        if not entity.startswith("view/"):
             continue
-        row = {
-            "class": "ViewBlueprint:class_identifier",
-            "name": "ViewBlueprint:display_name",
-            "origin": "ViewBlueprint:space_origin",
-        }
-        view = {}
-        for key, column in row.items():
-            value = batch.column(column).to_pylist()[-1] if column in batch.schema.names else None
-            view[key] = str(value[-1]) if value else ""
-        views.append(view)
+        view = found.setdefault(entity.split("/")[1], {})
+        batch = chunk.to_record_batch()
+        for key, column in columns.items():
+            if column in batch.schema.names:
+                values = batch.column(column).to_pylist()[-1]
+                view[key] = values if key == "contents" else (values[-1] if values else None)
+    views = []
+    for view in found.values():
+        if "class" not in view:
+            continue
+        views.append(
+            {
+                "class": str(view["class"]),
+                "name": str(view.get("name") or ""),
+                "origin": str(view.get("origin") or ""),
+                "contents": [str(rule) for rule in view.get("contents") or []],
+                "legend_visible": view.get("legend_visible"),
+            }
+        )
     return views

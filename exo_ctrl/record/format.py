@@ -64,6 +64,7 @@ __all__ = [
     "FORCE_ARROW_M_PER_N",
     "FORMAT_VERSION",
     "RECORDING_FORMAT",
+    "SERIES_COLORS",
     "TICK",
     "TIME",
     "Layout",
@@ -96,6 +97,29 @@ COLORS = {
     "series_desired": (60, 180, 75, 255),
     "series_actual": (70, 130, 220, 255),
     "series_patient": (235, 150, 80, 255),
+    "series_command": (60, 180, 75, 255),
+    "series_applied": (70, 130, 220, 255),
+}
+#: Series colours (RGBA) by what a component is, and the word a panel's name uses
+#: for each (the panels hide their legends: the name says which line is which).
+#: Left dark, right light; hip and thigh blue, knee and shank red.
+SERIES_COLORS = {
+    "left_hip": ((0, 90, 180, 255), "blue"),
+    "left_knee": ((200, 50, 30, 255), "red"),
+    "right_hip": ((110, 180, 240, 255), "pale blue"),
+    "right_knee": ((240, 160, 40, 255), "orange"),
+    "left_thigh": ((0, 90, 180, 255), "blue"),
+    "left_shank": ((200, 50, 30, 255), "red"),
+    "right_thigh": ((110, 180, 240, 255), "pale blue"),
+    "right_shank": ((240, 160, 40, 255), "orange"),
+    "x": ((200, 50, 30, 255), "red"),
+    "z": ((0, 90, 180, 255), "blue"),
+    "magnitude": ((30, 30, 30, 255), "black"),
+    "desired": (COLORS["series_desired"], "green"),
+    "actual": (COLORS["series_actual"], "blue"),
+    "patient": (COLORS["series_patient"], "orange"),
+    "command": (COLORS["series_command"], "green"),
+    "applied": (COLORS["series_applied"], "blue"),
 }
 #: Human-friendly series of the per-joint signals: one entity per quantity and
 #: joint, signals/{quantity}/{joint}, whose components are these signals.
@@ -128,6 +152,10 @@ class Series:
         colors: RGBA per component, or None for rerun's defaults.
         columns: per component, the column of the chunk's extended row
             (:class:`Layout`) it shows.
+        unit: SI unit of the values (the log schema's; "" for a count or code).
+        title: what the values are, in words (the log schema's description).
+        key: per component, the colour's word and what it is, e.g.
+            ``("blue", "left hip")`` (empty with rerun's default colours).
 
     """
 
@@ -135,6 +163,9 @@ class Series:
     names: list[str]
     colors: list[tuple[int, int, int, int]] | None
     columns: tuple[int, ...]
+    unit: str = ""
+    title: str = ""
+    key: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -196,6 +227,8 @@ def layout(shapes: dict[str, tuple[int, ...]] | None = None) -> Layout:
     if shapes is None:
         shapes = schema_shapes()
     labels = {s.name: s.labels for s in schema.SIGNALS}
+    units = {s.name: s.unit for s in schema.SIGNALS}
+    titles = {s.name: s.description for s in schema.SIGNALS}
     offsets, width = {}, 0
     for name, shape in shapes.items():
         offsets[name] = width
@@ -206,33 +239,52 @@ def layout(shapes: dict[str, tuple[int, ...]] | None = None) -> Layout:
     for quantity, parts in JOINT_GROUPS.items():
         present = [(sig, label) for sig, label in parts if shapes.get(sig) == (4,)]
         used.update(sig for sig, _ in present)
-        keys = [f"series_{label}" for _, label in present]
-        colors = [COLORS[k] for k in keys] if all(k in COLORS for k in keys) else None
+        unit = units.get(present[0][0], "") if present else ""
+        title = quantity.replace("_", " ")
         for j, joint in enumerate(JOINT_NAMES if present else ()):
             names = [f"{joint} {label}".rstrip() for _, label in present]
             columns = tuple(offsets[sig] + j for sig, _ in present)
-            out.append(Series(f"signals/{quantity}/{joint}", names, colors, columns))
+            parts = [label or joint for _, label in present]
+            colors, key = _colors(parts)
+            out.append(
+                Series(f"signals/{quantity}/{joint}", names, colors, columns, unit, title, key)
+            )
     for name, shape in shapes.items():
         if name in used:
             continue
         off, label = offsets[name], labels.get(name, "")
+        unit, title = units.get(name, ""), titles.get(name, name)
         if shape == (4, 2) and label == "cuff":
+            colors, key = _colors(["x", "z", "magnitude"])
             for c, cuff in enumerate(CUFF_NAMES):
                 tag = "" if name == "cuff_force" else f" ({name})"
                 names = [f"{cuff} {part}{tag}" for part in ("x", "z", "magnitude")]
                 x, z = off + 2 * c, off + 2 * c + 1
                 columns = (x, z, width + len(magnitudes))
                 magnitudes.append((x, z))
-                out.append(Series(f"signals/{name}/{cuff}", names, None, columns))
+                entity = f"signals/{name}/{cuff}"
+                out.append(Series(entity, names, colors, columns, unit, title, key))
         elif shape == (4,) and label in ("joint", "cuff"):
             items = CUFF_NAMES if label == "cuff" else JOINT_NAMES
             names = [f"{name} {item}" for item in items]
-            out.append(Series(f"signals/{name}", names, None, tuple(range(off, off + 4))))
-        else:  # a plain per-component series
+            colors, key = _colors(list(items))
+            columns = tuple(range(off, off + 4))
+            out.append(Series(f"signals/{name}", names, colors, columns, unit, title, key))
+        else:  # a plain per-component series (rerun's colours, its legend names them)
             idx = list(np.ndindex(*shape))
             names = [name + "".join(f"[{i}]" for i in ix) for ix in idx]
-            out.append(Series(f"signals/{name}", names, None, tuple(range(off, off + len(idx)))))
+            columns = tuple(range(off, off + len(idx)))
+            out.append(Series(f"signals/{name}", names, None, columns, unit, title))
     return Layout(dict(shapes), offsets, width, tuple(magnitudes), tuple(out))
+
+
+def _colors(parts: list[str]) -> tuple[list[tuple[int, int, int, int]] | None, tuple]:
+    """Colours of components named ``parts``, and the key naming them (("blue", "actual"), …)."""
+    if not all(p in SERIES_COLORS for p in parts):
+        return None, ()
+    colors = [SERIES_COLORS[p][0] for p in parts]
+    key = tuple((SERIES_COLORS[p][1], p.replace("_", " ")) for p in parts)
+    return colors, key
 
 
 def _jsonable(value: Any) -> Any:

@@ -41,6 +41,8 @@ __all__ = ["RecordingIntegrity", "read_recording", "read_recording_integrity"]
 _RRD_MAGIC = b"RRF2"
 _RRD_FILE_HEADER = 12
 _RRD_MSG_HEADER = struct.Struct("<QQ")
+#: The stream footer after the end marker (rerun 0.41): where the footer is, its checksum.
+_RRD_STREAM_FOOTER = 32
 
 
 @dataclasses.dataclass(frozen=True)
@@ -224,18 +226,22 @@ def _load_chunks(path: Path) -> list:
 def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, int | None]:
     """All chunks of the file's recording, and where it was cut if it had to be salvaged.
 
-    A writer stopped in the middle of a message (disk full) leaves a last
-    message cut short, and rerun then refuses the whole file.  In that case
-    the complete messages are copied to a temporary file and read from there.
-    A file still being written (rerun's threads append to it while the run
-    goes) can look cut and be whole a moment later: then it is read again.
+    A writer stopped in the middle of a message or of the footer (see
+    :mod:`.rrd_file`) leaves the file cut short, and rerun then refuses the
+    whole file.  In that case the complete messages are copied to a
+    temporary file and read from there.  A file still being written (the
+    recorder appends to it while the run goes) can look cut and be whole a
+    moment later: then it is read again.  A file whose footer alone is cut
+    short reads directly (rerun reads forwards), and is reported cut too.
     """
     error: Exception | None = None
     for _ in range(attempts):
         try:
-            return _load_chunks(path), None
+            chunks = _load_chunks(path)
         except (ValueError, RuntimeError, OSError) as exc:
             error = exc
+        else:  # rerun read it forwards; a footer cut short is still a cut file
+            return chunks, _complete_prefix(path)
         end = _complete_prefix(path)
         if end is None:
             continue  # no message is cut (any more): read the file again
@@ -249,7 +255,11 @@ def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, int | None]:
 
 
 def _complete_prefix(path: Path) -> int | None:
-    """Length of the file's complete messages if the last one is cut short, else None."""
+    """Length of the file's complete messages if the last one is cut short, else None.
+
+    The end marker (the footer) counts as a message: a file cut inside it
+    keeps every message before it.
+    """
     size = path.stat().st_size
     with path.open("rb") as f:
         if f.read(len(_RRD_MAGIC)) != _RRD_MAGIC:
@@ -257,10 +267,14 @@ def _complete_prefix(path: Path) -> int | None:
         offset = _RRD_FILE_HEADER
         while offset + _RRD_MSG_HEADER.size <= size:
             f.seek(offset)
-            kind, length = _RRD_MSG_HEADER.unpack(f.read(_RRD_MSG_HEADER.size))
-            if kind == 0:
-                return None  # the stream ended properly: the problem is elsewhere
-            if offset + _RRD_MSG_HEADER.size + length > size:
+            header = f.read(_RRD_MSG_HEADER.size)
+            if len(header) < _RRD_MSG_HEADER.size:  # cut while this was reading it
+                return offset
+            kind, length = _RRD_MSG_HEADER.unpack(header)
+            end = offset + _RRD_MSG_HEADER.size + length
+            if kind == 0:  # the end marker: whole with its stream footer, or cut in it
+                return offset if end + _RRD_STREAM_FOOTER > size else None
+            if end > size:
                 return offset
             offset += _RRD_MSG_HEADER.size + length
     return offset if offset < size else None

@@ -7,41 +7,47 @@ packs every signal of the log schema into one float64 vector
 rate only, and the time series at every tick.  The entity hierarchy is in
 :mod:`.format`.
 
-Failure safety.  The file is written in place at its final path, not to a
-temporary file renamed at the end: rerun streams each chunk to the file as it
-is sent, so a crash (even SIGKILL or ``os._exit``) leaves, at the path the
-user asked for, a file readable with every chunk flushed before it.  A temp
-file would hide that data under another name, and a run that never reaches
-:meth:`~RerunRecorder.finish` would never rename it.  The costs: a previous
-recording at the same path is replaced as soon as the run starts, and a file
-cut by a crash has no footer (``rerun rrd verify`` rejects it; the viewer and
-:func:`~.reader.read_recording` read it).  When :meth:`~RerunRecorder.chunk`
-returns, the chunk's exact signals (``raw/``) and its 3-D scene are on disk
-(flushed); its human-friendly series (``signals/``, copies of the same
-values) are sent after that flush and written by rerun's own threads while
-the loop runs on, and are on disk by the next chunk's flush or by
-:meth:`~RerunRecorder.finish`.  So a hard crash loses at most the series of
-the last chunk, never a signal.  Every way a run ends (normal end,
-divergence, Ctrl-C, an error in the loop or in an observer) reaches
-:meth:`~RerunRecorder.finish`, which logs the events and the outcome and
-writes the footer.
+Failure safety.  Rerun encodes the recording into memory (a
+``BinaryStream``, no file sink of its own); after :meth:`start`, each
+:meth:`~RerunRecorder.chunk` and :meth:`~RerunRecorder.finish` the recorder
+takes what rerun encoded and writes it to the file itself, whole messages
+followed by a footer for the whole file (:class:`~.rrd_file.RrdFile`, through
+a small writer process of its own).  So after each write the file is a
+complete recording that ``rerun rrd verify`` accepts, whatever happens
+next, SIGKILL of this process included (:mod:`.rrd_file` says what can
+still cut a write).  By default a chunk is written in a helper thread while
+the loop simulates the next one (``write_behind``): it is on disk, with its
+exact signals ``raw/``, its series ``signals/`` and its 3-D scene, by the
+time the next chunk is handed over, :meth:`~RerunRecorder.sync` or
+:meth:`~RerunRecorder.finish` returns, so a hard kill loses at most the
+chunk being written; with ``write_behind=False`` it is on disk when
+:meth:`~RerunRecorder.chunk` returns.  The file is written in place at its
+final path, not to a temporary file renamed at the end, so that what a
+crash leaves is where the user looks; a previous recording at the same path
+is replaced as soon as the run starts.  A write error (disk full) is an
+``OSError`` of the recorder's, raised as an
+:class:`~exo_ctrl.exceptions.OutputError` naming the path and the ticks the
+file keeps (the failed write is undone: the file is whole up to them);
+nothing of rerun's is left writing to a failed file, so the process also
+exits cleanly.  Every way a run ends (normal end, divergence, Ctrl-C,
+SIGTERM, an error in the loop or in an observer) reaches
+:meth:`~RerunRecorder.finish`, which logs the events and the outcome.
 
-Speed.  Measured here (rerun 0.41, 2 cores), a 2000-tick chunk of the
-default run costs the loop about 10-11 ms: rerun's own work per entity and
-chunk (about 40 µs at 2000 rows, in the calling thread) for the 61 entities
-logged every tick and the 17 of the scene, about 3 ms waiting for the
-exact signals to be flushed, and about 2 ms packing and computing the scene
-(batched forward kinematics).  Writing the series after the flush keeps
-their encoding and writing (about 4-6 ms more) off the loop's path.
+Speed.  Measured here (rerun 0.41, 2 shared cores), a 2000-tick chunk of the
+default run costs the loop 13-17 ms with write-behind (27 ms without):
+rerun's own work per entity and chunk in the calling thread (about 7 ms for
+the 61 entities logged every tick and the 17 of the scene, and the 3-D
+scene's forward kinematics), then, in the helper thread, rerun encoding it
+into memory (about 11 ms, the interpreter lock released), the footer
+(2-3 ms) and handing about 5 MB to the writer process (4-6 ms).
 
 Memory.  The recorder keeps no rows between chunks: it packs the chunk it is
 given into arrays of pyarrow's memory pool, sends them, and rerun frees them
-once written (at most about two chunks' worth in flight).  Rerun's file
-sink, however, keeps an index entry per written rerun chunk for the file
-footer (about 2 kB per entity and chunk, measured with rerun 0.41), so a
-process recording a long run grows by about 0.15 MB per recorded chunk (0.08
-MB per simulated second with the default 2000-tick chunks); larger
-``chunk_ticks`` shrink that.
+once encoded; the encoded bytes are written and dropped at each chunk.
+What grows is the footer's index, one row per entity and chunk (about 80
+rows per chunk, a few hundred bytes each before compression), held as an
+Arrow table and rewritten compressed after every chunk; larger
+``chunk_ticks`` shrink it.
 """
 
 from __future__ import annotations
@@ -61,7 +67,7 @@ import numpy as np
 import rerun as rr
 
 from .._io import is_special, output_problem
-from ..exceptions import InvalidParameter, RecordingError
+from ..exceptions import InvalidParameter, OutputError, RecordingError
 from ..model import BodyModel, load_body, load_patient
 from ..sim import SimResult
 from .blueprint import make_blueprint
@@ -77,6 +83,7 @@ from .format import (
     layout,
     params_markdown,
 )
+from .rrd_file import RrdFile
 from .scene import Skeleton, log_scene_static, send_scene
 
 __all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder", "find_viewer", "spawn_viewer"]
@@ -88,13 +95,9 @@ DEFAULT_SCENE_RATE_HZ = 50.0
 #: tick with the fixed part (blueprint, parameters, geometry) spread over it;
 #: 4800 ticks write 11.71 MB (2363 B per tick beyond the first 2400).
 BYTES_PER_TICK_ESTIMATE = 2500
-#: Longest wait for a flush to reach the disk [s].  A flush of a 2000-tick
-#: chunk (about 4 MB) normally takes milliseconds; after a write error (disk
-#: full) rerun 0.41's flush blocks until this timeout, or without one forever,
-#: and then raises, which becomes a RecordingError.
+#: Longest wait for rerun to encode what was sent into memory [s]; a 2000-tick
+#: chunk takes milliseconds.  Past it rerun raises, which becomes a RecordingError.
 FLUSH_TIMEOUT_S = 10.0
-#: Longest wait for closing a file whose writing failed [s] (see close()).
-CLOSE_AFTER_FAILURE_S = 2.0
 
 #: TextLog level of an event or final status by kind.
 _LEVELS = {
@@ -152,12 +155,16 @@ class RerunRecorder:
         scene_rate_hz: rate of the 3-D scene [Hz] (the ticks k with k mod
             round(f_ctrl / f_scene) = 0, at least every tick); the time
             series are logged at every tick whatever it is.
+        write_behind: write each chunk in a helper thread while the loop
+            runs on (on disk by the next chunk), or before :meth:`chunk`
+            returns (module docstring).
 
     Raises:
         InvalidParameter: scene_rate_hz is not a finite rate > 0.
         RecordingError: from :meth:`start` when the file cannot be created
-            (missing or read-only directory, not enough free space), and from
-            :meth:`chunk` / :meth:`finish` when writing fails (disk full).
+            (missing or read-only directory, not enough free space).
+        OutputError: from :meth:`start`, :meth:`chunk` or :meth:`finish`
+            when writing fails (disk full, device error).
 
     """
 
@@ -167,6 +174,7 @@ class RerunRecorder:
         spawn: bool = False,
         app_id: str = "exo_ctrl",
         scene_rate_hz: float = DEFAULT_SCENE_RATE_HZ,
+        write_behind: bool = True,
     ) -> None:
         ok = isinstance(scene_rate_hz, (int, float)) and not isinstance(scene_rate_hz, bool)
         if not (ok and math.isfinite(scene_rate_hz) and scene_rate_hz > 0):
@@ -175,8 +183,14 @@ class RerunRecorder:
         self.spawn = bool(spawn)
         self.app_id = str(app_id)
         self.scene_rate_hz = float(scene_rate_hz)
+        self.write_behind = bool(write_behind)
         self._rec: rr.RecordingStream | None = None
+        self._stream: rr.BinaryStream | None = None
+        self._file: RrdFile | None = None
         self._failed = False
+        self._pending: threading.Thread | None = None  # the write of the last chunk
+        self._pending_error: BaseException | None = None
+        self._on_disk = 0  # ticks whose write has completed
         self._next_tick = 0
         self._dt = 0.0
         self._stride = 1
@@ -193,7 +207,8 @@ class RerunRecorder:
         config = result.config
         self._check_writable(config.n_ticks)
         self._failed = False
-        self._next_tick = 0
+        self._pending_error = None
+        self._next_tick = self._on_disk = 0
         self._dt = config.dt
         self._stride = max(1, round(config.control_rate_hz / self.scene_rate_hz))
         self._columns = SignalColumns(layout())  # the log schema as it is now
@@ -206,22 +221,22 @@ class RerunRecorder:
             ("exo", Skeleton(exo), "q"),
             ("patient", Skeleton(patient, offset), "q_patient"),
         )
-        rec = rr.RecordingStream(self.app_id)
-        blueprint = make_blueprint()
         try:
-            if self.spawn and self._spawn_viewer(rec):
-                sinks = (rr.FileSink(str(self.path)), rr.GrpcSink())
-                rec.set_sinks(*sinks, default_blueprint=blueprint)
-            else:
-                rec.save(self.path, default_blueprint=blueprint)
-        except (RuntimeError, OSError) as exc:
-            raise RecordingError(f"cannot write recording {self.path}: {exc}") from None
-        self._rec = rec
+            file = RrdFile(self.path)
+        except OSError as exc:
+            raise RecordingError(f"cannot write recording {self.path}: {exc.strerror}") from None
+        rec = rr.RecordingStream(self.app_id)
+        stream = rr.binary_stream(recording=rec)
+        sinks: list = [stream]
+        if self.spawn and self._spawn_viewer(rec):
+            sinks.append(rr.GrpcSink())
+        rec.set_sinks(*sinks, default_blueprint=make_blueprint())
+        self._rec, self._stream, self._file = rec, stream, file
         try:
             rec.send_recording_name(self.path.stem)
             self._log_static(result, exo, offset)
-            rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-        except (RuntimeError, OSError) as exc:
+            self._write()
+        except (RecordingError, RuntimeError, OSError) as exc:
             # The loop never calls finish() when start() fails: close here.
             self._failed = True
             self.close()
@@ -230,19 +245,21 @@ class RerunRecorder:
     def chunk(self, result: SimResult, start: int, rows: dict[str, np.ndarray]) -> None:
         """Log rows ``start:start+n`` of every signal.
 
-        The exact signals and the 3-D scene are flushed to disk before this
-        returns; the series follow in the background (module docstring).
-        Rows already logged are skipped, so a chunk handed over twice is
-        logged once.
+        The chunk is sent to rerun here and written to the file in the
+        background; it is on disk, with a footer, by the time the next chunk
+        is handed over (this waits for it first), :meth:`finish` or
+        :meth:`sync` returns (module docstring).  Rows already logged are
+        skipped, so a chunk handed over twice is logged once.
 
         Raises:
-            RecordingError: writing failed, or ``rows`` lacks a signal of
-                the log schema.
+            OutputError: writing this or the previous chunk failed (disk full).
+            RecordingError: ``rows`` lacks a signal of the log schema.
 
         """
         rec = self._rec
         if rec is None or self._failed:
             return
+        self.sync()
         total = int(next(iter(rows.values())).shape[0])
         skip = max(0, self._next_tick - start)
         if skip >= total:
@@ -257,53 +274,109 @@ class RerunRecorder:
         try:
             columns.send_raw(rec, ticks, self._dt, values)
             self._send_scene(rec, ticks, source, n, result.belt_speed_mps)
-            rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-            columns.send_series(rec, ticks, self._dt, source)  # written in the background
-        except (RuntimeError, OSError) as exc:
+            columns.send_series(rec, ticks, self._dt, source)
+        except (RecordingError, RuntimeError, OSError) as exc:
             self._fail(exc)
         self._next_tick = start + total
+        if self.write_behind:
+            self._write_behind(self._next_tick)
+        else:
+            try:
+                self._write()
+            except (RecordingError, RuntimeError, OSError) as exc:
+                self._fail(exc)
+            self._on_disk = self._next_tick
 
     def finish(self, result: SimResult) -> None:
-        """Log the events and the outcome, then close the file (writes its footer)."""
+        """Log the events and the outcome, write them, and close the file."""
         rec = self._rec
         if rec is None:
             return
         error: BaseException | None = None
         try:
-            if not self._failed:
+            error = self._join()
+            if error is None and not self._failed:
                 self._log_outcome(rec, result)
-                rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-        except (RuntimeError, OSError) as exc:
+                self._write()
+        except (RecordingError, RuntimeError, OSError) as exc:
             error = exc
-            self._failed = True
         finally:
+            if error is not None:
+                self._failed = True
             self.close()
         if error is not None:
             self._fail(error)
 
-    def close(self) -> None:
-        """Flush and close the file (writes the footer); safe to call more than once.
+    def sync(self) -> None:
+        """Wait until every chunk handed over is on disk.
 
-        After a write failure rerun's file writer is dead and closing can block
-        (seen with rerun 0.41), so then the close runs in a helper thread that
-        is waited for at most CLOSE_AFTER_FAILURE_S.
+        Raises:
+            OutputError: the background write failed (disk full).
+
         """
-        rec, self._rec = self._rec, None
-        if rec is None:
-            return
+        error = self._join()
+        if error is not None:
+            self._fail(error)
 
-        def shut() -> None:
-            with contextlib.suppress(RuntimeError, OSError):
-                rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
-            with contextlib.suppress(RuntimeError, OSError):
-                rec.disconnect()
+    def close(self) -> None:
+        """Close the file (a special file gets its footer now); safe to call more than once.
 
-        if not self._failed:
-            shut()
+        What was sent after the last write is not written: every path of the
+        loop writes before it closes (:meth:`chunk`, :meth:`finish`).
+
+        Raises:
+            OutputError: the footer of a special file could not be written.
+
+        """
+        self._join()
+        rec, self._rec, self._stream = self._rec, None, None
+        file, self._file = self._file, None
+        if rec is not None:
+            with contextlib.suppress(RuntimeError, OSError):
+                rec.disconnect()  # rerun's sinks are memory and a viewer: nothing to fail
+        if file is None:
             return
-        closer = threading.Thread(target=shut, name="rerun-recorder-close", daemon=True)
-        closer.start()
-        closer.join(CLOSE_AFTER_FAILURE_S)
+        if self._failed:
+            file.abandon()
+            return
+        try:
+            file.close()
+        except OSError as exc:
+            self._fail(exc)
+
+    def _write(self) -> None:
+        """Write what rerun encoded since the last write (whole messages and a footer)."""
+        stream, file = self._stream, self._file
+        if stream is None or file is None:
+            return
+        file.append(stream.read(flush=True, flush_timeout_sec=FLUSH_TIMEOUT_S))
+
+    def _write_behind(self, ticks: int) -> None:
+        """:meth:`_write` in a helper thread; ``ticks`` are on disk once it is done.
+
+        Rerun encodes while reading (``BinaryStream.read``, about 10 ms for a
+        2000-tick chunk) and releases the interpreter lock meanwhile, as the
+        write does: the loop simulates the next chunk in the meantime.
+        """
+
+        def job() -> None:
+            try:
+                self._write()
+            except (RecordingError, RuntimeError, OSError) as exc:
+                self._pending_error = exc
+            else:
+                self._on_disk = ticks
+
+        self._pending = threading.Thread(target=job, name="exo-ctrl-recorder-write", daemon=True)
+        self._pending.start()
+
+    def _join(self) -> BaseException | None:
+        """Wait for the background write; its error, if it failed (cleared)."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.join()
+        error, self._pending_error = self._pending_error, None
+        return error
 
     # ------------------------------------------------------------------ checks
 
@@ -316,17 +389,22 @@ class RerunRecorder:
         return True
 
     def _fail(self, exc: BaseException) -> NoReturn:
-        """Mark the recording failed and raise RecordingError with the path and reason."""
+        """Mark the recording failed; raise OutputError (a write error) or RecordingError.
+
+        The message names the path, the reason and the ticks the file keeps.
+        """
         self._failed = True
-        reason = str(exc)
-        with contextlib.suppress(OSError):
-            free = shutil.disk_usage(self.path.parent).free
-            if free < 1 << 20:
-                reason += f"; the disk is full ({free} B free)"
-        raise RecordingError(
-            f"writing recording {self.path} failed after tick {self._next_tick}: {reason} "
-            "(the ticks flushed before remain readable)"
-        ) from None
+        kept = self._on_disk
+        held = f"the file holds ticks 0-{kept - 1}, readable" if kept else "no tick was recorded"
+        if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+            reason = exc.strerror or str(exc)
+            if not is_special(self.path):
+                with contextlib.suppress(OSError):
+                    free = shutil.disk_usage(self.path.parent).free
+                    if free < 1 << 20:
+                        reason += f" ({free} B free)"
+            raise OutputError(self.path, f"{reason}; {held}") from None
+        raise RecordingError(f"writing recording {self.path} failed: {exc}; {held}") from None
 
     def _check_writable(self, n_ticks: int) -> None:
         path = self.path

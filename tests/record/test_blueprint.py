@@ -6,7 +6,11 @@ import json
 
 from rerun.chunk import RrdReader
 
+from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.record import blueprint_views
+from exo_ctrl.record.blueprint import MAX_LINES_PER_PANEL
+from exo_ctrl.record.format import JOINT_GROUPS
+from exo_ctrl.sim.schema import SIGNALS
 
 
 def test_rrd_verify_passes(short_run, verify):
@@ -21,22 +25,72 @@ def test_blueprint_is_stored_in_the_file(short_run):
     (blueprint,) = reader.blueprints()  # a second store in the same file
     assert blueprint.application_id == recording.application_id == "exo_ctrl"
     assert blueprint.recording_id != recording.recording_id
-    views = {(v["class"], v["origin"]) for v in blueprint_views(path)}
-    expected = {
-        ("3D", "world"),
-        ("TextLog", "events"),
-        ("TextDocument", "params"),
-        ("TimeSeries", "signals/joint_angle"),
-        ("TimeSeries", "signals/drive_torque"),
-        ("TimeSeries", "signals/current"),
-        ("TimeSeries", "signals/voltage"),
-        ("TimeSeries", "signals/cuff_force"),
+    views = blueprint_views(path)
+    kinds = {(v["class"], v["origin"]) for v in views}
+    assert {("3D", "world"), ("TextLog", "events"), ("TextDocument", "params")} <= kinds
+    shown = {
+        rule.lstrip("/") for v in views if v["class"] == "TimeSeries" for rule in v["contents"]
     }
-    assert expected <= views
+    for quantity in ("joint_angle", "drive_torque", "current", "voltage", "joint_speed"):
+        assert {f"signals/{quantity}/{j}" for j in JOINT_NAMES} <= shown, quantity
+    for cuff in CUFF_NAMES:
+        assert {f"signals/cuff_force/{cuff}", f"signals/cuff_force_est/{cuff}"} <= shown
     # Every view shows something that is in the recording.
     entities = {c.entity_path for c in reader.stream().to_chunks()}
-    for _, origin in views:
+    for _, origin in kinds:
         assert any(e == "/" + origin or e.startswith(f"/{origin}/") for e in entities), origin
+
+
+def _unit_of(entity: str) -> str:
+    """The log schema's unit of the values a series entity shows."""
+    units = {s.name: s.unit for s in SIGNALS}
+    _, quantity, *_ = entity.split("/")
+    if quantity in JOINT_GROUPS:
+        (unit,) = {units[sig] for sig, _ in JOINT_GROUPS[quantity]}
+        return unit
+    return units[quantity]
+
+
+def test_every_panel_has_few_lines_no_legend_and_its_unit(short_run, entity_columns):
+    """Each time-series panel: at most 4 lines (3 in the tabs of the main quantities).
+
+    The lines are counted from the file: each shown entity's static
+    ``SeriesLines`` names (one per component), so a panel that showed a
+    parent path or a whole quantity would fail.  Legends are off (rerun 0.41
+    draws them over the curves); the panel's name carries the unit of every
+    signal it shows (one unit per panel) and one colour word per line.
+    """
+    _, path = short_run
+    panels = [v for v in blueprint_views(path) if v["class"] == "TimeSeries"]
+    assert len(panels) >= 30
+    shown: list[str] = []
+    for view in panels:
+        assert view["legend_visible"] is False, view["name"]
+        entities = [rule.lstrip("/") for rule in view["contents"]]
+        assert all("*" not in e and "$" not in e for e in entities), view  # exact paths only
+        lines = 0
+        for entity in entities:
+            _, names = entity_columns(path, entity, "SeriesLines:names")
+            assert names, entity
+            lines += len(names[-1])
+        assert 1 <= lines <= MAX_LINES_PER_PANEL == 4, view
+        main = entities[0].split("/")[1] in (*JOINT_GROUPS, "cuff_force", "cuff_force_est")
+        assert lines <= (3 if main else 4), view
+        (unit,) = {_unit_of(e) for e in entities}
+        if unit:
+            assert f"[{unit}]" in view["name"], view
+        else:
+            assert "[" not in view["name"] and "(" in view["name"], view  # says what it is
+        key = view["name"].partition(": ")[2]
+        assert lines == 1 or len(key.split(", ")) == lines, view  # a colour word per line
+        shown += entities
+    # Every series of the recording is shown, each in one panel.
+    series = {
+        c.entity_path.lstrip("/")
+        for c in RrdReader(path).stream().to_chunks()
+        if "SeriesLines:names" in c.to_record_batch().schema.names
+    }
+    assert sorted(shown) == sorted(series)
 
 
 def test_params_document_holds_the_config(short_run, short_config, entity_columns):

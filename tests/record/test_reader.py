@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 import pytest
 import rerun as rr
@@ -11,6 +13,7 @@ from exo_ctrl.exceptions import RecordingError
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.record import RerunRecorder, read_recording
+from exo_ctrl.record.reader import read_recording_integrity
 from exo_ctrl.sim import SimConfig, simulate
 
 
@@ -82,3 +85,23 @@ def test_read_refuses_missing_foreign_and_junk_files(tmp_path):
     rec.disconnect()
     with pytest.raises(RecordingError, match="not written by exo_ctrl"):
         read_recording(foreign)
+
+
+@pytest.mark.parametrize("keep", [-1, -32, -40, -5000])
+def test_a_file_cut_in_its_footer_keeps_every_message(short_run, assert_same_run, tmp_path, keep):
+    """A file that ends inside the end marker or the stream footer (a write cut short).
+
+    Cut 1, 32, 40 and 5000 bytes before its end: in the stream footer, at its
+    start, in and well inside the footer.  Every message before the footer is
+    whole: all 300 ticks and the end record come back; the cut is reported
+    at the end marker's offset.
+    """
+    result, path = short_run
+    data = path.read_bytes()
+    marker, _, _ = struct.unpack_from("<QQI", data, len(data) - 32)  # the footer's payload
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(data[:keep])
+    back, integrity = read_recording_integrity(cut)
+    assert integrity.cut_at_byte == marker - 16  # the end marker's header
+    assert integrity.has_end_record and back.status == result.status == "completed"
+    assert_same_run(back, result)

@@ -2,7 +2,7 @@
 
 Real simulations are written to real .rrd files and read back; crashes and
 full disks are real too (a child process killed with ``os._exit``, a file
-size limit).
+size limit).  SIGKILL of the command line is in tests/cli/test_cli_crash.py.
 """
 
 from __future__ import annotations
@@ -17,9 +17,10 @@ from pathlib import Path
 
 import pytest
 
-from exo_ctrl.exceptions import InvalidParameter, RecordingError
+from exo_ctrl.exceptions import InvalidParameter, OutputError, RecordingError
 from exo_ctrl.plant import CuffParams
 from exo_ctrl.record import RerunRecorder, read_recording, writer
+from exo_ctrl.record.reader import read_recording_integrity
 from exo_ctrl.sim import SimConfig, simulate
 
 #: A short run; 70-tick chunks so the last chunk (300 = 4 x 70 + 20) is partial.
@@ -95,29 +96,52 @@ def test_observer_that_raises_leaves_a_complete_file(
     assert read_recording(path).n_ticks == 210
 
 
-def test_each_chunk_is_on_disk_when_chunk_returns(tmp_path):
-    """Each chunk is in the file when chunk() returns: nothing is held back for later."""
+class OnDisk:
+    """An observer that reads the file after the recorder's chunk() (after sync() if asked)."""
+
+    def __init__(self, path: Path, recorder: RerunRecorder, sync: bool) -> None:
+        self.path, self.recorder, self.sync = path, recorder, sync
+        self.seen: list[tuple[int, bool, int | None]] = []
+
+    def start(self, result):
+        pass
+
+    def chunk(self, result, start, rows):
+        if self.sync:
+            self.recorder.sync()
+        back, integrity = read_recording_integrity(self.path)
+        self.seen.append((back.n_ticks, integrity.has_end_record, integrity.cut_at_byte))
+
+    def finish(self, result):
+        pass
+
+
+@pytest.mark.parametrize("write_behind", [False, True])
+def test_each_chunk_is_a_whole_file_on_disk(tmp_path, write_behind):
+    """After each chunk the file is a whole recording: every chunk so far, its own footer.
+
+    Without write-behind when chunk() returns, with it once sync() returns
+    (the next chunk() waits the same way).  The reader reads through the
+    footer (rerun's RrdReader jumps to it), so a wrong footer fails here.
+    """
     path = tmp_path / "flushed.rrd"
-
-    class OnDisk:
-        def __init__(self) -> None:
-            self.seen: list[int] = []
-
-        def start(self, result):
-            pass
-
-        def chunk(self, result, start, rows):
-            self.seen.append(read_recording(path).n_ticks)
-
-        def finish(self, result):
-            pass
-
-    probe = OnDisk()
-    simulate(SHORT, observers=[RerunRecorder(path), probe])
-    assert probe.seen == [70, 140, 210, 280, 300]
+    recorder = RerunRecorder(path, write_behind=write_behind)
+    probe = OnDisk(path, recorder, sync=write_behind)
+    simulate(SHORT, observers=[recorder, probe])
+    assert probe.seen == [(n, False, None) for n in (70, 140, 210, 280, 300)]
+    back, integrity = read_recording_integrity(path)
+    assert back.n_ticks == 300 and integrity.complete
 
 
-def test_hard_crash_keeps_every_flushed_chunk(tmp_path, reference, assert_same_run, entity_columns):
+def test_hard_crash_keeps_every_written_chunk(
+    tmp_path, reference, assert_same_run, entity_columns, verify
+):
+    """``os._exit`` after the third chunk is written: a whole file of 210 ticks.
+
+    The recorder writes synchronously here (write_behind=False), so the
+    crash comes after the write; the command line's default, write-behind,
+    is killed for real in tests/cli/test_cli_crash.py.
+    """
     path = tmp_path / "crash.rrd"
     script = textwrap.dedent(
         f"""
@@ -133,18 +157,22 @@ def test_hard_crash_keeps_every_flushed_chunk(tmp_path, reference, assert_same_r
             def finish(self, result): pass
 
         simulate(SimConfig(duration_s=0.3, chunk_ticks=70),
-                 observers=[RerunRecorder({str(path)!r}), Crash()])
+                 observers=[RerunRecorder({str(path)!r}, write_behind=False), Crash()])
         """
     )
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=120)
     assert proc.returncode == 3, proc.stderr.decode()
+    assert verify(path).returncode == 0  # the footer written with the third chunk
     back = read_recording(path)
     assert back.n_ticks == 210
     assert_same_run(back, reference, n=210)
     assert back.status == "interrupted" and "without an end record" in back.error
-    # The 3-D scene of the last chunk made it too (flushed with the signals).
+    # The 3-D scene and the series of the last chunk made it too (written together).
     ticks, _ = entity_columns(path, "world/belt/stripes", "LineStrips3D:strips")
     assert ticks.tolist() == list(range(0, 210, 20))
+    ticks, series = entity_columns(path, "signals/joint_angle/left_hip", "Scalars:scalars")
+    assert ticks.tolist() == list(range(210))
+    assert [row[1] for row in series] == reference.signals["q"][:210, 0].tolist()
 
 
 def test_unwritable_paths_raise_at_start(tmp_path, raise_observer):
@@ -153,8 +181,9 @@ def test_unwritable_paths_raise_at_start(tmp_path, raise_observer):
         simulate(SHORT, observers=[RerunRecorder(tmp_path / "missing" / "x.rrd"), ran])
     with pytest.raises(RecordingError, match="is a directory"):
         simulate(SHORT, observers=[RerunRecorder(tmp_path), ran])
-    if Path("/dev/full").exists():
-        with pytest.raises(RecordingError, match="No space left"):
+    if Path("/dev/full").exists():  # a write error, not bad input: OutputError (exit 1)
+        message = "cannot write /dev/full: No space left on device; no tick was recorded"
+        with pytest.raises(OutputError, match=f"^{re.escape(message)}$"):
             simulate(SHORT, observers=[RerunRecorder("/dev/full"), ran])
     if os.geteuid() != 0:  # root ignores permissions
         locked = tmp_path / "locked"
@@ -177,47 +206,45 @@ def test_scene_rate_must_be_a_positive_rate(rate):
         RerunRecorder("x.rrd", scene_rate_hz=rate)
 
 
-def test_write_failure_mid_run_raises_recording_error(tmp_path, reference, assert_same_run):
-    """A 1 MB file-size limit makes the disk 'full' in the third chunk.
+@pytest.mark.parametrize("write_behind", [False, True])
+def test_write_failure_mid_run_raises_output_error(
+    tmp_path, reference, assert_same_run, verify, write_behind
+):
+    """A 1.2 MB file-size limit makes the disk 'full' while the third chunk is written.
 
-    The file holds about 127 kB of parameters, geometry and blueprint, then
-    about 320 kB per 70-100-tick chunk.
+    The file holds 483 kB after start() (parameters, geometry, blueprint),
+    then grows by about 270-310 kB per 70-tick chunk, footer included: 1069 kB
+    with two chunks, 1342 kB with three.  The failed write is undone: the
+    file is the whole two-chunk recording again, with its footer.  With
+    write-behind the error surfaces at the next chunk() (or finish()).  The
+    process then ends normally (no hang in the interpreter's shutdown: rerun
+    never owned the file).
     """
     path = tmp_path / "full.rrd"
     script = textwrap.dedent(
         f"""
-        import os, resource, signal, sys
-        from exo_ctrl.record import writer
-        from exo_ctrl.exceptions import RecordingError
+        import resource
+        from exo_ctrl.exceptions import OutputError
         from exo_ctrl.record import RerunRecorder
         from exo_ctrl.sim import SimConfig, simulate
 
-        # After the write error rerun's flush sometimes blocks until the timeout.
-        writer.FLUSH_TIMEOUT_S = 3.0
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (1_000_000, 1_000_000))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1_200_000, 1_200_000))  # SIGXFSZ: ignored
+        recorder = RerunRecorder({str(path)!r}, write_behind={write_behind})
         try:
-            simulate(SimConfig(duration_s=0.3, chunk_ticks=70),
-                     observers=[RerunRecorder({str(path)!r})])
-        except RecordingError as exc:
-            print("RecordingError:", exc)
-        # After its file sink failed rerun sometimes hangs in the interpreter's
-        # shutdown (seen in a few runs in a hundred): leave without it.
-        sys.stdout.flush()
-        os._exit(0)
+            simulate(SimConfig(duration_s=0.3, chunk_ticks=70), observers=[recorder])
+        except OutputError as exc:
+            print(f"{{type(exc).__name__}}: {{exc}}")
         """
     )
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=120)
-    out = proc.stdout.decode()
     assert proc.returncode == 0, proc.stderr.decode()
-    assert out.startswith(f"RecordingError: writing recording {path} failed after tick"), out
-    flushed = int(re.search(r"after tick (\d+)", out).group(1))
-    assert flushed in (140, 210)
-    # What reached the disk is still readable (the message cut short is dropped).
-    back = read_recording(path)
-    assert flushed <= back.n_ticks < 300
-    assert back.status == "interrupted" and "cut at byte" in back.error
-    assert_same_run(back, reference, n=back.n_ticks)
+    expected = f"OutputError: cannot write {path}: File too large; the file holds ticks 0-139, "
+    assert proc.stdout.decode() == expected + "readable\n"
+    assert verify(path).returncode == 0
+    back, integrity = read_recording_integrity(path)
+    assert back.n_ticks == 140 and integrity.cut_at_byte is None
+    assert back.status == "interrupted" and "without an end record" in back.error
+    assert_same_run(back, reference, n=140)
 
 
 MEMORY_CHILD = textwrap.dedent(
@@ -269,10 +296,11 @@ def test_recording_memory_does_not_grow_with_run_length(tmp_path):
     Holding the rows would cost 50 s x 1000 ticks/s x 97 floats (SIGNALS now)
     x 8 B = 39 MB more at 60 s (21 MB for the original 52 floats), holding
     what was logged (the file grows by about 125 MB) far more.  What does
-    grow is rerun's footer index, about 0.15 MB per 2000-tick chunk, and the
-    transient of writing the footer: measured differences 7.5-10.5 MB.  So
-    the bound is 16 MB.  With keep_history=True the difference measured
-    40 MB: the test then fails, as it should.
+    grow is the footer's index, one row per entity and chunk (an Arrow table
+    of about 2000 rows more at 60 s, well under 1 MB): measured differences
+    -0.6 to 0.5 MB (7.5-10.5 MB when rerun's own file sink kept its index).
+    The bound, 16 MB, is kept.  With keep_history=True the difference
+    measured 40 MB: the test then fails, as it should.
     (ru_maxrss is not used: it survives exec, so a child spawned from a large
     pytest process reports the parent's size.)
     """
