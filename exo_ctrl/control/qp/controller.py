@@ -25,7 +25,7 @@ active the answer is τ_cmd and the command is the CT+PD voltage itself.
 ``I = τ / (i_G k_m)`` within the driver's limit ``[-I_max, I_max]`` and
 within the supply, ``[(-U_max - i_G ω/k_E)/R, (U_max - i_G ω/k_E)/R]``.  The
 box is the intersection of the three; if it is empty for some joint (a speed
-above ``(U_max + R I_max) k_E / i_G`` ≈ 12.9 rad/s with the defaults) no
+above ``(U_max + R I_max) k_E / i_G`` ≈ 5.9 rad/s with the defaults) no
 command meets the limits and the tick falls back (below).
 
 **Cuff forces, affine in τ, over a horizon** (design.md §5).  The cuffs
@@ -46,15 +46,18 @@ estimate (or ``force_feedback=False``) the cuffs are taken as fitted
 shared by the horizon points, costs ρ s_c² (ρ = :data:`SLACK_WEIGHT` = 1e4:
 1 N over the bound costs as much as 100 N·m off the command).
 
-**What the bound achieves — measured** (default 2.4 s run, default sensors,
-safety off, tests/control/qp/test_closed_loop.py):
+**What the bound achieves — measured** (default 3.6 s run: ramp-in and two
+cycles, the default drive, default sensors, safety off,
+tests/control/qp/test_closed_loop.py):
 
-- spastic patient, F_max = 150 N: real peak 158.7 N (+5.8 %; CT: 180.8 N),
-  RMS error 2.1/17.7 mrad hip/knee, no fallback;
-- passive patient, F_max = 80 N: real peak 90.3 N (+12.9 %; CT: 106.0 N),
-  RMS 9.2/2.4 mrad, no fallback;
-- passive patient, 120 N (default): the bound does not bind; RMS
-  0.62/0.99 mrad against CT's 0.69/0.99.
+- spastic patient, F_max = 150 N: real peak 159.5 N (+6.3 %; CT: 180.7 N),
+  RMS error 2.9/17.6 mrad hip/knee, no fallback;
+- passive patient, F_max = 80 N: real peak 88.4 N (+10.5 %; CT: 104.6 N),
+  RMS 9.8/2.7 mrad, no fallback;
+- passive patient, 120 N (default): the cuff bound does not bind; RMS
+  0.92/0.81 mrad against CT's 0.58/0.80: the hips pass through zero speed
+  near 120 N·m, where the torque box (1/η of a braking joint, judged from
+  the measured speed's sign) binds.
 
 Margin, stated in the tests: 10 % at 150 N from the error budget of the
 compliant prediction — the horizon model's own error given the true cuff
@@ -66,8 +69,8 @@ the peak, :mod:`exo_ctrl.estimation.observer`), about 7 % at the peak.  At
 **Ticks without proxsuite.**  When τ_cmd clipped into the torque box meets
 every cuff row it is the QP's optimum (the clip test of
 :mod:`~exo_ctrl.control.qp.screening`) and the tick takes it without calling
-proxsuite.  Measured on the 2.4 s runs (tools/bench.py): proxsuite is called
-on none of the default run's ticks (120 N) and on 29.5 % of the spastic
+proxsuite.  Measured on the default runs (tools/bench.py): proxsuite is called
+on none of the default run's ticks (120 N) and on 22 % of the spastic
 patient's at 150 N.  Otherwise proxsuite solves over the :data:`SCREENED_ROWS`
 rows most nearly binding, widened by violated rows at most
 :data:`SCREEN_ROUNDS` times (the screening of the same module).
