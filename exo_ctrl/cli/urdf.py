@@ -5,7 +5,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..model import DEFAULT_URDF_NAMES, BodyParams, load_body, write_urdf
+from .. import _validate as v
+from ..exceptions import InvalidParameter
+from ..model import (
+    DEFAULT_URDF_NAMES,
+    SEXES,
+    BodyParams,
+    load_body,
+    patient_from_anthropometry,
+    write_urdf,
+)
 from .common import check_outputs
 
 __all__ = ["register", "run"]
@@ -42,8 +51,50 @@ def register(sub: argparse._SubParsersAction) -> None:
             f"patient {getattr(patient, field):g}, paper Table I; a cuff not given keeps its "
             "fraction of a changed link length)",
         )
+    body = p.add_argument_group(
+        "patient from height and mass (de Leva 1996's segment tables; --kind patient only)"
+    )
+    body.add_argument(
+        "--height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="stature [m], 1.4 to 2.1 (default: none, the paper's patient); needs --mass",
+    )
+    body.add_argument(
+        "--mass",
+        type=float,
+        default=None,
+        metavar="KG",
+        help="body mass [kg], 35 to 150 (default: none); needs --height",
+    )
+    body.add_argument(
+        "--sex",
+        choices=SEXES,
+        default="male",
+        help="which of de Leva's tables (default male, as the paper's patient)",
+    )
     p.add_argument("--out", required=True, metavar="PATH", help="output URDF file")
     p.set_defaults(func=run)
+
+
+def _base(args: argparse.Namespace) -> BodyParams:
+    """The body before the length, mass and cuff options: the default or the regressions'."""
+    if args.height is None and args.mass is None:
+        return BodyParams.exo_default() if args.kind == "exo" else BodyParams.patient_default()
+    if args.kind != "patient":
+        given = "--height" if args.height is not None else "--mass"
+        value = args.height if args.height is not None else args.mass
+        raise InvalidParameter(
+            given, value, "unset for --kind exo", "height and mass describe a patient"
+        )
+    if args.mass is None:
+        raise InvalidParameter("--mass", None, "a body mass [kg] given with --height")
+    if args.height is None:
+        raise InvalidParameter("--height", None, "a stature [m] given with --mass")
+    return patient_from_anthropometry(
+        v.finite("height", args.height, "m"), v.finite("mass", args.mass, "kg"), args.sex
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     if Path(args.out).is_dir():  # a directory: the body's default file name in it
         args.out = str(Path(args.out) / DEFAULT_URDF_NAMES[args.kind])
     check_outputs(args, out="--out")
-    base = BodyParams.exo_default() if args.kind == "exo" else BodyParams.patient_default()
+    base = _base(args)
     names = [name.replace("-", "_") for name, _ in _OPTIONS]
     changes = {name: getattr(args, name) for name in names if getattr(args, name) is not None}
     for seg in ("thigh", "shank"):
@@ -63,8 +114,12 @@ def run(args: argparse.Namespace) -> int:
     params = base.replace(**changes)
     path = write_urdf(params, args.out)
     body = load_body(path, name=args.kind)
-    print(
-        f"wrote {path}: {args.kind}, legs {body.legs['left'].thigh_length:g} m + "
-        f"{body.legs['left'].shank_length:g} m, moving mass {body.mass:.4g} kg"
-    )
+    thigh, shank = body.legs["left"].thigh_length, body.legs["left"].shank_length
+    legs = f"legs {thigh:.4g} m + {shank:.4g} m, moving mass {body.mass:.4g} kg"
+    print(f"wrote {path}: {args.kind}, {legs}")
+    if args.height is not None:
+        print(
+            "  an exoskeleton fitted to these legs (joints aligned): exo-ctrl urdf --kind exo "
+            f"--thigh-length {thigh:.4g} --shank-length {shank:.4g} --out EXO.urdf"
+        )
     return 0

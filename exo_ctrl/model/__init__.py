@@ -10,6 +10,7 @@
   the parameters of a generated body and its URDF.
 """
 
+from .anthropometry import SEXES, patient_from_anthropometry
 from .body_params import BodyParams, SegmentInertia, segment_inertia
 from .combined import combined_model
 from .geometry import LegGeometry
@@ -30,6 +31,7 @@ __all__ = [
     "DEFAULT_URDF_NAMES",
     "FRICTION_SMOOTHING_RAD_S",
     "JOINT_NAMES",
+    "SEXES",
     "SIDES",
     "BodyModel",
     "BodyParams",
@@ -43,6 +45,7 @@ __all__ = [
     "load_exo",
     "load_human_patient",
     "load_patient",
+    "patient_from_anthropometry",
     "segment_inertia",
     "urdf_xml",
     "write_urdf",
