@@ -10,7 +10,9 @@ well under a microsecond plus one dispatch.
 public numba options:
 
 - ``cache=True``: compiled once per machine into ``__pycache__`` (the first
-  run after an install compiles; later processes load);
+  run after an install compiles; later processes load; a cache made from
+  other sources than the package's present ones is deleted at import,
+  :mod:`exo_ctrl._jit_cache`, because numba checks a kernel's own file only);
 - no ``fastmath``: results are IEEE, run-to-run bit-identical, and equal to
   the numpy formulation up to rounding;
 - ``error_model="numpy"``: a division by zero gives inf/NaN as numpy does,
@@ -32,13 +34,17 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numba
 import numpy as np
 
+from . import _jit_cache
 from ._validate import refuse_shapes
 from .exceptions import InvalidParameter, KernelStatusError, SimulationDiverged
+
+_jit_cache.refresh(Path(__file__).resolve().parent)
 
 __all__ = ["Status", "check", "kernel", "preload", "record", "shared_dtype"]
 

@@ -1,7 +1,7 @@
 """The package's imports follow the data flow (walked with ``ast``, nothing imported).
 
 model < plan < plant < sensing < estimation < control < safety < sim < record
-< sweep < cli, with the small shared modules (exceptions, _jit, _validate,
+< sweep < cli, with the small shared modules (exceptions, _jit, _jit_cache, _validate,
 _io, _progress) below them all.  A module may import its own package and the
 packages below it, never one above; no module imports another of the
 project's lazily (inside a function), so no cycle can hide; the module graph
@@ -21,6 +21,7 @@ ROOT = Path(__file__).resolve().parents[1] / "exo_ctrl"
 RANKS = {
     "exceptions": 0,
     "_jit": 0,
+    "_jit_cache": 0,
     "_validate": 0,
     "_io": 0,
     "_progress": 0,

@@ -8,13 +8,20 @@ from pathlib import Path
 
 from .. import _validate as v
 from ..control import PDGains
-from ..model import load_exo
+from ..model import SEXES, load_exo
 from ..plan import GaitParams
-from ..plant import MOTOR_PRESETS, PATIENT_TORQUES, consistency_warning, motor_preset
+from ..plant import (
+    MOTOR_PRESETS,
+    PATIENT_TORQUES,
+    CompliantJoint,
+    consistency_warning,
+    motor_preset,
+)
 from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
 from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
 from ..record.writer import find_viewer
 from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
+from ..sim.belief import Belief
 from ..sim.config import CUFF_FITS
 from .common import (
     add_gait_options,
@@ -107,6 +114,24 @@ def register(sub: argparse._SubParsersAction) -> None:
         "not energy-consistent, warns; its own default gains kp 100, kd 2) (default default)",
     )
     p.add_argument(
+        "--joint-stiffness",
+        type=float,
+        default=0.0,
+        metavar="NM_PER_RAD",
+        help="joint compliance: a torsional spring between each drive's rotor and its link "
+        f"[N·m/rad], e.g. {CompliantJoint().stiffness_Nm_per_rad:g} for a size-20-25 harmonic "
+        "drive; the encoders then measure the link and the torque sensors the spring "
+        "(default 0: a rigid drive)",
+    )
+    p.add_argument(
+        "--joint-damping",
+        type=float,
+        default=CompliantJoint().damping_Nm_s_per_rad,
+        metavar="NM_S_PER_RAD",
+        help="the joint spring's damping [N·m·s/rad], with --joint-stiffness "
+        f"(default {CompliantJoint().damping_Nm_s_per_rad:g})",
+    )
+    p.add_argument(
         "--kp",
         type=float,
         default=None,
@@ -127,6 +152,46 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="the qp controller's bound on each cuff's predicted force [N] (default "
         f"{SimConfig().cuff_force_limit_N:g}: ISO/TS 15066 lower leg 130 N with a margin)",
+    )
+    device = p.add_argument_group(
+        "what the device believes (the controller's, estimator's and supervisor's models; "
+        "the plant simulates --exo and --patient)"
+    )
+    device.add_argument(
+        "--controller-patient",
+        default="truth",
+        metavar="truth|nominal|URDF",
+        help="the patient model the device holds: truth (the --patient URDF itself: the ideal "
+        "comparison), nominal (the measured leg lengths with de Leva's segment tables for the "
+        "patient's stature and mass) or a URDF file (default truth)",
+    )
+    device.add_argument(
+        "--controller-exo",
+        default=None,
+        metavar="URDF",
+        help="the exoskeleton model the device holds (default: the --exo URDF)",
+    )
+    device.add_argument(
+        "--patient-height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="the patient's stature for the nominal model [m] (default: the paper's 1.75 m, "
+        "for the default patient only)",
+    )
+    device.add_argument(
+        "--patient-mass",
+        type=float,
+        default=None,
+        metavar="KG",
+        help="the patient's body mass for the nominal model [kg] (default: the paper's 80 kg, "
+        "for the default patient only)",
+    )
+    device.add_argument(
+        "--patient-sex",
+        choices=SEXES,
+        default="male",
+        help="which of de Leva's tables the nominal model takes (default male)",
     )
     p.add_argument(
         "--patient-torque",
@@ -205,6 +270,9 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         lead = gait.period if ramp_in is None else ramp_in
         duration = lead + cycles * gait.period + ramp_out
     motor = motor_preset(args.motor)
+    stiffness = v.non_negative("joint_stiffness", args.joint_stiffness, "N·m/rad")
+    rigid = CompliantJoint(damping_Nm_s_per_rad=args.joint_damping)  # checks the damping
+    compliance = CompliantJoint(stiffness, args.joint_damping, True) if stiffness > 0 else rigid
     base = PDGains.paper_printed() if args.motor == "paper-printed" else PDGains()
     gains = PDGains(
         kp=args.kp if args.kp is not None else base.kp,
@@ -228,6 +296,14 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         safety_use_estimate=args.safety_estimate,
         estop_at_s=args.estop_at,
         cuff_force_limit_N=args.cuff_force_limit,
+        joint_compliance=compliance,
+        belief=Belief(
+            patient=args.controller_patient,
+            exo=args.controller_exo,
+            patient_height_m=args.patient_height,
+            patient_mass_kg=args.patient_mass,
+            patient_sex=args.patient_sex,
+        ),
     )
 
 

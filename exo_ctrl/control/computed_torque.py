@@ -70,6 +70,13 @@ class ComputedTorqueController(PDController):
         """Feedforward torque of the last tick [N·m], (4,)."""
         return self._torque_ff[self.last_row]
 
+    @property
+    def torque_ff_table(self) -> np.ndarray:
+        """Feedforward torque of every plan row [N·m], (rows, 4): a read-only view."""
+        view = self._torque_ff.view()
+        view.flags.writeable = False
+        return view
+
 
 class _Feedforward:
     """τ_ff of the module docstring, allocated once."""

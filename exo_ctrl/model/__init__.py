@@ -10,7 +10,7 @@
   the parameters of a generated body and its URDF.
 """
 
-from .anthropometry import SEXES, patient_from_anthropometry
+from .anthropometry import SEXES, nominal_patient, patient_from_anthropometry
 from .body_params import BodyParams, SegmentInertia, segment_inertia
 from .combined import combined_model
 from .geometry import LegGeometry
@@ -45,6 +45,7 @@ __all__ = [
     "load_exo",
     "load_human_patient",
     "load_patient",
+    "nominal_patient",
     "patient_from_anthropometry",
     "segment_inertia",
     "urdf_xml",

@@ -44,7 +44,7 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter
 from .body_params import BodyParams
 
-__all__ = ["SEXES", "Segment", "patient_from_anthropometry"]
+__all__ = ["SEXES", "Segment", "nominal_patient", "patient_from_anthropometry"]
 
 #: The sexes of de Leva's tables.
 SEXES = ("female", "male")
@@ -169,3 +169,44 @@ def patient_from_anthropometry(
         "shank_gyration_ratio": math.sqrt(inertia / m_shank) / shank_length,
     }
     return BodyParams.patient_default(**{**values, **overrides})
+
+
+def nominal_patient(
+    thigh_length_m: float,
+    shank_length_m: float,
+    height_m: float,
+    mass_kg: float,
+    sex: str = "male",
+) -> BodyParams:
+    """What a device can know of its patient: measured link lengths, the rest from the tables.
+
+    A clinic measures the patient's stature, body mass and leg segment
+    lengths (the exoskeleton is adjusted to them); masses, centres of mass
+    and radii of gyration come from :func:`patient_from_anthropometry` for
+    the stature, mass and sex, kept as fractions of each link's length (the
+    radii scaled with it) and applied to the measured lengths.
+
+    Args:
+        thigh_length_m: measured hip to knee [m].
+        shank_length_m: measured knee to foot point (sole) [m].
+        height_m: stature [m].
+        mass_kg: body mass [kg].
+        sex: ``"female"`` or ``"male"``.
+
+    Raises:
+        InvalidParameter: as :func:`patient_from_anthropometry`, or a length
+            that is not a finite number > 0.
+
+    """
+    table = patient_from_anthropometry(height_m, mass_kg, sex)
+    thigh = v.positive("thigh_length", thigh_length_m, "m")
+    shank = v.positive("shank_length", shank_length_m, "m")
+    k_t, k_s = thigh / table.thigh_length, shank / table.shank_length
+    return table.replace(
+        thigh_length=thigh,
+        shank_length=shank,
+        thigh_cuff=THIGH_CUFF_RATIO * thigh,
+        shank_cuff=SHANK_CUFF_RATIO * shank,
+        thigh_radius=table.thigh_radius * k_t,
+        shank_radius=table.shank_radius * k_s,
+    )

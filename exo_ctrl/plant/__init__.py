@@ -1,5 +1,8 @@
 """The simulated device, the truth: bodies, drives, cuffs, patient torques."""
 
+from .compliance import (
+    CompliantJoint,
+)
 from .cuffs import (
     CuffParams,
     CuffSet,
@@ -29,6 +32,7 @@ from .plant import (
 __all__ = [
     "MOTOR_PRESETS",
     "PATIENT_TORQUES",
+    "CompliantJoint",
     "CuffParams",
     "CuffSet",
     "EndStopParams",

@@ -225,7 +225,10 @@ class CuffSet:
 #: damping ``c`` [N·s/m], ``k_offset`` = K (D p₀ - r₀) [N] (8,); outputs:
 #: ``f`` the forces on the exoskeleton (fx of the 4 cuffs, fz of the 4) [N],
 #: ``tau`` the generalised forces on [exo, patient] joints [N·m]; work rows
-#: ``cs`` = (cos θ, sin θ), ``csr`` = (-sin θ, cos θ), ``y`` (16 each).
+#: ``cs`` = (cos θ, sin θ), ``csr`` = (-sin θ, cos θ), ``y`` (16 each);
+#: ``slipped`` per cuff (CUFF_NAMES order; 1.0: the cuff has slipped off, it
+#: transmits no force, stiffness and damping zero; set only by fault
+#: injection, :mod:`exo_ctrl.sim.faults`).
 CUFF_FIELDS = [
     ("select", np.float64, (8, 8)),
     ("dp", np.float64, (8, 16)),
@@ -238,6 +241,7 @@ CUFF_FIELDS = [
     ("cs", np.float64, (16,)),
     ("csr", np.float64, (16,)),
     ("y", np.float64, (16,)),
+    ("slipped", np.float64, (4,)),
 ]
 
 
@@ -277,7 +281,7 @@ def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
         acc = 0.0
         for j in range(16):
             acc += dp[row, j] * y[j]
-        f[row] = acc - k_offset[row]
+        f[row] = acc - k_offset[row] if r.slipped[row % 4] == 0.0 else 0.0
     for i in range(8):
         tau[i] = 0.0
     for j in range(16):

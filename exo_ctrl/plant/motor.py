@@ -79,7 +79,10 @@ from ..exceptions import InvalidParameter
 from .energy import book_drives, energy_fields, energy_report
 
 __all__ = [
+    "DRIVE_FAULTS",
     "MOTOR_PRESETS",
+    "OPEN_PHASE",
+    "SHORTED",
     "MotorBank",
     "MotorParams",
     "consistency_warning",
@@ -251,6 +254,19 @@ class MotorParams:
         """``ln η`` [-]: the gear factor is ``exp(s ln η)``."""
         return math.log(self.gear_efficiency)
 
+
+#: Drive faults, the values of a drive's ``fault`` field in the drives' record
+#: (:func:`motor_fields`), set only by fault injection (:mod:`exo_ctrl.sim.faults`)
+#: and honoured by :func:`step_drives`: 0 healthy; ``OPEN_PHASE`` (1), a winding
+#: or a phase lead open: no current flows, the drive gives no torque and no
+#: back-EMF braking (the rotor's inertia stays on the joint; the field's
+#: ½ L I² at the opening is lost in the arc, outside the energy books);
+#: ``SHORTED`` (2), the winding shorted: U = 0 whatever the command, the
+#: back-EMF drives a braking current (the drive is the viscous brake of a
+#: power cut).
+DRIVE_FAULTS = ("healthy", "open_phase", "shorted")
+OPEN_PHASE = 1.0
+SHORTED = 2.0
 
 #: Named drives: ``exo-ctrl simulate --motor NAME``.
 MOTOR_PRESETS = ("default", "paper-printed")
@@ -561,11 +577,12 @@ def motor_fields(n: int) -> list[tuple]:
     at the end of the last step, ``mean`` Ī [A], ``u`` the applied voltage
     [V], ``torque`` η^s i_G k_m Ī at the joint [N·m], ``gear`` the gear
     factor η^s, ``saturated`` (1.0/0.0), ``damping`` D = −∂τ/∂ω of the
-    step's mean torque [N·m·s/rad] (back-EMF part zero where Ī is at the limit).
+    step's mean torque [N·m·s/rad] (back-EMF part zero where Ī is at the limit),
+    ``fault`` (:data:`DRIVE_FAULTS`: 0.0 healthy, set only by fault injection).
     And the energy books (:func:`exo_ctrl.plant.energy.energy_fields`).
     """
     scalars = ("u_max", "kb", "inv_r", "i_max", "kt", "lneta", "inv_w_eta", "eps", "phi", "d_unsat")
-    rows = ("current", "mean", "u", "torque", "gear", "saturated", "damping")
+    rows = ("current", "mean", "u", "torque", "gear", "saturated", "damping", "fault")
     return (
         [(name, np.float64) for name in scalars]
         + [(name, np.float64, (n,)) for name in rows]
@@ -603,6 +620,14 @@ def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
     )
     for j in range(current.shape[0]):
         u = min(max(voltage_cmd_V[j], -u_max), u_max)
+        fault = m.fault[j]
+        if fault != 0.0:
+            if fault == OPEN_PHASE:  # no current flows: no torque, no back-EMF damping
+                current[j] = mean_out[j] = torque[j] = damping[j] = u_out[j] = 0.0
+                m.i_prev[j] = m.i_asym[j] = m.held[j] = saturated[j] = 0.0
+                m.gear[j] = 1.0
+                continue
+            u = 0.0  # SHORTED: the winding is shorted, U = 0 whatever the command
         i_inf = (u - kb * omega_rad_s[j]) * inv_r
         i0 = current[j]
         d0 = i0 - i_inf

@@ -38,7 +38,9 @@ joint, τ_m(v) - h D_m a (the mean-current torque with its implicit back-EMF
 correction, held within the drive's current limit: ``_kick_and_drift``);
 ``sensor_torque`` is what a joint torque sensor between the
 gearbox and the link reads, drive_torque - i_G² J_rotor a (the rotor's
-inertia is on the motor side of the sensor).
+inertia is on the motor side of the sensor).  With joint compliance
+(:mod:`exo_ctrl.plant.compliance`, off by default) each rotor is a body of its
+own behind a spring–damper and the sensor reads the spring's torque.
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from .. import _validate as _v
 from .._jit import Status, check, kernel, record, shared_dtype
 from ..exceptions import InvalidModel, InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
+from .compliance import COMPLIANCE_FIELDS, CompliantJoint, Rotors, rotor_forces, rotor_kick
 from .cuffs import CUFF_FIELDS, CuffParams, CuffSet, forces_of
 from .end_stops import END_STOP_FIELDS, EndStopParams, end_stop_torques
 from .energy import book_drives
@@ -79,11 +82,14 @@ class Plant:
         joint_losses: apply the URDF's joint damping and friction.
         end_stops: the exoskeleton joints' hard stops at the URDF limits
             (:mod:`exo_ctrl.plant.end_stops`; default on).
+        compliance: a spring–damper between each drive and its link
+            (:mod:`exo_ctrl.plant.compliance`; default off: rigid).
 
     Raises:
         InvalidModel: a body without exactly the four joints in JOINT_NAMES
             order, or the two models' gravities differ.
-        InvalidParameter: a step that is not a positive number.
+        InvalidParameter: a step that is not a positive number, or
+            compliance the step cannot integrate (:class:`~exo_ctrl.plant.compliance.Rotors`).
 
     """
 
@@ -96,6 +102,7 @@ class Plant:
         cuffs: CuffParams | None = None,
         joint_losses: bool = True,
         end_stops: EndStopParams | None = None,
+        compliance: CompliantJoint | None = None,
     ) -> None:
         for body in (exo, patient):
             if not np.array_equal(body.q_index, np.arange(4)) or body.model.nq != 4:
@@ -119,7 +126,10 @@ class Plant:
         self.record = record(plant_fields())
         r = self.record
         self.motors = MotorBank(4, motors, into=r["motors"]) if motors is not None else None
-        rotor = motors.reflected_inertia_kgm2 if motors is not None else 0.0
+        self.compliance = compliance if compliance is not None else CompliantJoint()
+        #: The rotors behind the springs (with compliance; a rigid drive's are the links').
+        self.rotors = Rotors(r, self.compliance, motors, exo.model, self.dt)
+        rotor = self.rotors.link_armature_kgm2
         losses = 1.0 if joint_losses else 0.0
         self._b = losses * np.concatenate((exo.damping, patient.damping))
         self._fr = losses * np.concatenate((exo.friction, patient.friction))
@@ -209,6 +219,7 @@ class Plant:
         self.cuffs.compute(self.q, self.v)
         self.drive_torque[:] = self.motors.torque_Nm if self.motors is not None else 0.0
         self.sensor_torque[:] = self.drive_torque
+        self.rotors.reset()
 
     @property
     def cuff_force(self) -> np.ndarray:
@@ -299,7 +310,7 @@ class Plant:
             lower, upper = self.record["stop_lower"][0], self.record["stop_upper"][0]
             depth = np.maximum(self.q[:4] - upper, 0.0) + np.maximum(lower - self.q[:4], 0.0)
             energy += 0.5 * self.end_stops.stiffness_Nm_per_rad * float(depth @ depth)
-        return energy
+        return energy + self.rotors.energy()  # with compliance, the rotors' and springs'
 
 
 #: Fields of the plant's record.  State and work per joint of [exo, patient]
@@ -317,34 +328,26 @@ class Plant:
 #: first half-step changed the exo armature (D_m changes only when a drive's
 #: current enters or leaves its limit); ``resolve``: the second half-step held
 #: a drive at its current limit and stepped nothing (solve the accelerations
-#: again).  :func:`plant_fields` adds the
-#: drives' record ``motors`` and the cuffs' record ``cuffs``.
+#: again).  :func:`plant_fields` adds the stops' and the compliance's fields,
+#: the drives' record ``motors`` and the cuffs' record ``cuffs``.
 def plant_fields() -> list[tuple]:
     """The plant record's fields: PLANT_FIELDS, the stops', the drives' and the cuffs' records."""
     return [
         *PLANT_FIELDS,
         *END_STOP_FIELDS,
+        *COMPLIANCE_FIELDS,
         ("motors", shared_dtype(motor_fields(4), align=True)),
         ("cuffs", shared_dtype(CUFF_FIELDS, align=True)),
     ]
 
 
+_DRIVE_ROWS = (
+    "drive_torque", "sensor_torque", "patient_torque", "damping_m", "arm_base", "arm_const",
+    "voltage", "current", "effort",
+)  # fmt: skip
 PLANT_FIELDS = [
     *((name, np.float64, (8,)) for name in ("q", "v", "acc", "q_mid", "v_mid", "tau", "armature")),
-    *(
-        (name, np.float64, (4,))
-        for name in (
-            "drive_torque",
-            "sensor_torque",
-            "patient_torque",
-            "damping_m",
-            "arm_base",
-            "arm_const",
-            "voltage",
-            "current",
-            "effort",
-        )
-    ),
+    *((name, np.float64, (4,)) for name in _DRIVE_ROWS),
     ("cuff_force", np.float64, (4, 2)),
     ("b", np.float64, (8,)),
     ("friction", np.float64, (8,)),
@@ -393,7 +396,9 @@ def _drift_and_forces(
             p.patient_torque[j] = patient_torque_Nm[j]
             tau[4 + j] += p.patient_torque[j]
     changed = False
-    if p.has_motors:
+    if p.compliant:
+        rotor_forces(p, voltage_V, qm, vm, tau)
+    elif p.has_motors:
         m = p.motors
         step_drives(m, voltage_V, v[:4])
         for j in range(4):
@@ -438,7 +443,7 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
     """
     p = plant[0]
     p.resolve = False
-    if p.has_motors:
+    if p.has_motors and not p.compliant:
         m = p.motors
         held = False
         for j in range(4):
@@ -468,7 +473,9 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
     q, v, acc, qm = p.q, p.v, p.acc, p.q_mid
     for i in range(8):
         acc[i] = acc_all[i]
-    if p.has_motors:
+    if p.compliant:
+        rotor_kick(p)
+    elif p.has_motors:
         book_drives(p.motors, v)  # the step is final; ω held: the start of step's
         for j in range(4):
             p.drive_torque[j] = p.drive_torque[j] - p.damping_m[j] * acc[j]

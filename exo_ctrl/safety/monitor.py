@@ -16,6 +16,12 @@ TORQUE     |τ| - DBL_MAX        N·m (finiteness only)
 VOLTAGE    |U| - DBL_MAX        V (finiteness only, the command)
 =========  ===================  ====================================
 
+Four more groups, the plausibility monitors (drive model residual, encoder
+step, torque sensor unchanged, command age), are written into the rows after
+these by :func:`exo_ctrl.safety.plausibility.plausibility` before this
+kernel runs; it counts them in ``worst`` and ``passed`` like its own (44
+channels in all).
+
 A channel is violated when ``not e <= 0``: e > 0, or e NaN (a NaN reading),
 or e = +inf (an infinite one).  The tick's ``worst`` is the sum of the
 violated excesses (0 when all is well, > 0 or NaN if not).
@@ -55,10 +61,18 @@ __all__ = [
     "monitor_record",
 ]
 
-#: Channel groups: the rows of the record's ``excess`` and ``limit``.
+#: Channel groups: the rows of the record's ``excess`` and ``limit``.  The
+#: last four (drive, jump, stuck, age) are the plausibility monitors'
+#: (:mod:`exo_ctrl.safety.plausibility`), written before this kernel runs
+#: (their limits +DBL_MAX, never violated, unless the supervisor sets them).
 CUFF, UPPER, LOWER, SPEED, CURRENT, TORQUE, VOLTAGE = range(7)
 #: The groups' names, in row order.
-GROUPS = ("cuff", "upper", "lower", "speed", "current", "torque", "voltage")
+GROUPS = (
+    "cuff", "upper", "lower", "speed", "current", "torque", "voltage",
+    "drive", "jump", "stuck", "age",
+)  # fmt: skip
+#: Groups of the limit monitor itself (this kernel writes their excesses).
+LIMIT_GROUPS = 7
 
 #: The monitor's record (numpy dtype fields; one element, see :func:`_jit.record`).
 MONITOR_FIELDS = [
@@ -104,6 +118,7 @@ def monitor_record(limits: ResolvedLimits, estop_s: float) -> np.ndarray:
             limits.current_limit,
             np.full(4, big),
             np.full(4, big),
+            *(np.full(4, big) for _ in GROUPS[LIMIT_GROUPS:]),
         )
     )
     state["estop_s"] = estop_s
@@ -201,7 +216,7 @@ class Channel:
 
     def finite_only(self, excess: float) -> bool:
         """Whether the violation is a non-finite reading (no value to report)."""
-        return self.group >= TORQUE or not math.isfinite(excess)
+        return self.group in (TORQUE, VOLTAGE) or not math.isfinite(excess)
 
     def describe(self, excess: float) -> tuple[float, str]:
         """The value that violated the limit, from its ``excess`` > 0, and a sentence.
@@ -223,12 +238,16 @@ class Channel:
         return value, f"|{q}| {value:.4g} {u} > limit {limit:.4g} {u}"
 
 
-def channels(limits: ResolvedLimits, use_estimate: bool) -> tuple[Channel, ...]:
-    """The 28 channels in the order of the record's ``excess`` flattened (group-major).
+def channels(
+    limits: ResolvedLimits, use_estimate: bool, plausible: np.ndarray | None = None
+) -> tuple[Channel, ...]:
+    """The 44 channels in the order of the record's ``excess`` flattened (group-major).
 
     Args:
         limits: the resolved limits (reported in the events).
         use_estimate: the cuff forces are estimates (``"estimated cuff force ..."``).
+        plausible: the plausibility groups' limits, (4, 4)
+            (:func:`~exo_ctrl.safety.plausibility.plausibility_limits`; None: DBL_MAX).
 
     """
     force = "estimated cuff force" if use_estimate else "cuff force"
@@ -241,6 +260,14 @@ def channels(limits: ResolvedLimits, use_estimate: bool) -> tuple[Channel, ...]:
         ("current", "A", limits.current_limit, JOINT_NAMES),
         ("torque sensor", "N·m", zero, JOINT_NAMES),
         ("voltage command", "V", zero, JOINT_NAMES),
+    )
+    if plausible is None:
+        plausible = np.full((4, 4), np.finfo(float).max)
+    table += (
+        ("drive model residual", "N·m", plausible[0], JOINT_NAMES),
+        ("encoder step", "rad", plausible[1], JOINT_NAMES),
+        ("equal torque readings", "", plausible[2], JOINT_NAMES),
+        ("command age", "s", plausible[3], JOINT_NAMES),
     )
     return tuple(
         Channel(g, f"{name} {label}", unit, float(lim[i]))

@@ -8,12 +8,15 @@ from typing import Any
 
 from .. import _validate as v
 from ..control import PDGains
+from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S
 from ..exceptions import InvalidParameter
 from ..plan import PLAN_BYTES_PER_SAMPLE, GaitParams, Ramp, RowLayout, layout
-from ..plant import PATIENT_TORQUES, CuffParams, EndStopParams, MotorParams
+from ..plant import PATIENT_TORQUES, CompliantJoint, CuffParams, EndStopParams, MotorParams
 from ..safety import SafetyLimits
 from ..sensing import SensorParams
+from .belief import Belief
+from .faults import Fault, faults_of
 from .schema import log_dtype
 
 __all__ = [
@@ -61,6 +64,11 @@ class SimConfig:
         controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD) or
             ``"qp"`` (CT + PD distributed by a QP under drive limits and
             cuff-force bounds, :mod:`exo_ctrl.control.qp.controller`).
+        qp_estimate_bandwidth_per_s: ω_f, the bandwidth the QP brings the
+            cuff-force estimate to before it rebuilds the cuff state from it
+            [1/s] (:mod:`exo_ctrl.control.qp.observer`; default 200, twice
+            the estimator's: its lag halved; ``observer_gain_per_s`` leaves
+            the estimate as it is).
         cuff_force_limit_N: the QP's bound on each cuff's PREDICTED force [N].
             Default 120 N: ISO/TS 15066 Annex A's quasi-static limit for the
             lower leg, 130 N, with a margin.  The real elastic cuff force can
@@ -70,6 +78,8 @@ class SimConfig:
         cuffs: cuff parameters.
         end_stops: the exoskeleton joints' hard stops at the URDF limits
             (:mod:`exo_ctrl.plant.end_stops`).
+        joint_compliance: a torsional spring–damper between each drive and
+            its link (:mod:`exo_ctrl.plant.compliance`; default disabled: rigid).
         duration_s: simulated time [s], ramps included.  Default 3.6 s: the
             default ramp-in (one 1.2 s gait period) and two gait cycles.
         ramp_in_s: the start's ramp from standing into the gait
@@ -98,6 +108,11 @@ class SimConfig:
             forces (as a real device must) instead of the simulated ones.
         estop_at_s: emergency stop at this time [s] (None: none); at most
             the time of the last control tick, (n_ticks - 1) Δt.
+        belief: the models the controller, the estimator and the supervisor
+            hold (:mod:`exo_ctrl.sim.belief`; default: the true URDFs,
+            loaded anew: the ideal comparison).
+        faults: faults to inject (:mod:`exo_ctrl.sim.faults`; default none),
+            each with its onset within the run.
 
     The arrays a run allocates from these numbers (the plan, the log chunk)
     are checked against the memory cap
@@ -115,6 +130,7 @@ class SimConfig:
     motor: MotorParams = field(default_factory=MotorParams)
     cuffs: CuffParams = field(default_factory=CuffParams)
     end_stops: EndStopParams = field(default_factory=EndStopParams)
+    joint_compliance: CompliantJoint = field(default_factory=CompliantJoint)
     duration_s: float = 3.6
     ramp_in_s: float | None = None
     ramp_out_s: float = 0.0
@@ -126,11 +142,14 @@ class SimConfig:
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
     cuff_force_limit_N: float = 120.0
+    qp_estimate_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S
     patient_torque: str = "none"
     safety: bool = True
     safety_limits: SafetyLimits = field(default_factory=SafetyLimits)
     safety_use_estimate: bool = False
     estop_at_s: float | None = None
+    belief: Belief = field(default_factory=Belief)
+    faults: tuple[Fault, ...] = ()
 
     def __post_init__(self) -> None:
         if self.controller not in CONTROLLERS:
@@ -150,6 +169,7 @@ class SimConfig:
                 "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_TORQUES)}"
             )
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
+        v.positive("qp_estimate_bandwidth", self.qp_estimate_bandwidth_per_s, "1/s")
         if self.cuff_fit not in CUFF_FITS:
             raise InvalidParameter("cuff_fit", self.cuff_fit, f"one of {', '.join(CUFF_FITS)}")
         Ramp(0.0, self.ramp_out_s, self.duration_s)  # refuses a bad or too long ramp-out
@@ -157,6 +177,12 @@ class SimConfig:
             self._check_ramp_in()
         if self.estop_at_s is not None:
             self._check_estop()
+        object.__setattr__(self, "faults", faults_of(self.faults))
+        for fault in self.faults:
+            if fault.at_s > (self.n_ticks - 1) * self.dt:
+                raise InvalidParameter(
+                    "fault at_s", fault.at_s, f"in [0, {(self.n_ticks - 1) * self.dt:g}] s"
+                )
         self._check_plan_size()
         chunk = min(self.chunk_ticks, max(self.n_ticks, 1))
         v.allocation(

@@ -137,9 +137,12 @@ def simulate(
     result.qp_failures = int(runner._records[3][0]["failures"])
     if setup.plant.motors is not None:
         result.energy = setup.plant.motors.energy(JOINT_NAMES)
+    if runner.faults is not None:
+        result.events.extend(runner.faults.events)
     if runner.supervisor is not None:
         result.events.extend(runner.supervisor.events)
         result.safety_state = runner.supervisor.state
+    result.events.sort(key=lambda e: e["t"])  # in time order, the run's end last
     if keep_history and done < n:
         result.t = result.t[:done]
         result.signals = {name: arr[:done] for name, arr in history.items()}

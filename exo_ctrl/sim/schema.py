@@ -59,6 +59,13 @@ SIGNALS: list[Signal] = [
     Signal("end_stop_torque", (4,), "N·m", "mechanical end stops' torque on the joint", "joint"),
     Signal("cuff_force", (4, 2), "N", "cuff force on the exoskeleton (x, z)", "cuff"),
     Signal(
+        "joint_deflection",
+        (4,),
+        "rad",
+        "drive's spring deflection θ − q at mid-step (joint compliance; 0 if rigid)",
+        "joint",
+    ),
+    Signal(
         "safety_state",
         (),
         "",

@@ -25,6 +25,7 @@ from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..plan import NO_TAIL, JointTrajectory, RampedGait, plan_joints
 from ..plant import MotorParams, Plant, make_patient_torque
 from ..plant.equilibrium import holding_torque, settle_patient
+from .belief import device_models
 from .config import SimConfig
 
 __all__ = ["Setup", "build", "check_followable", "drive_for", "start_on_plan"]
@@ -43,6 +44,11 @@ class Setup:
     plan: JointTrajectory
     plant: Plant
     controller: PDController
+    #: The models the device holds (:mod:`exo_ctrl.sim.belief`): the
+    #: controller's, the estimator's and the supervisor's; ``exo`` and
+    #: ``patient`` above are the truth the plant simulates.
+    device_exo: BodyModel
+    device_patient: BodyModel
 
 
 def build(config: SimConfig) -> Setup:
@@ -64,6 +70,7 @@ def build(config: SimConfig) -> Setup:
         )
     motor = drive_for(config.motor, exo)
     check_followable(config, plan, exo, patient, motor)
+    model_exo, model_patient = device_models(config.belief, config.exo, config.patient, patient)
     plant = Plant(
         exo,
         patient,
@@ -71,24 +78,27 @@ def build(config: SimConfig) -> Setup:
         motors=motor,
         cuffs=config.cuffs,
         end_stops=config.end_stops,
+        compliance=config.joint_compliance,
     )
     controller: PDController
     if config.controller == "ct":
-        controller = ComputedTorqueController(plan, exo, patient, motor, config.gains)
+        controller = ComputedTorqueController(plan, model_exo, model_patient, motor, config.gains)
     elif config.controller == "qp":
         controller = QPController(
             plan,
-            exo,
-            patient,
+            model_exo,
+            model_patient,
             motor,
             config.gains,
             cuff_force_limit_N=config.cuff_force_limit_N,
             cuffs=config.cuffs,
             dt=config.dt,
+            estimate_gain_per_s=config.observer_gain_per_s,
+            restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
         )
     else:
         controller = PDController(plan, config.gains)
-    return Setup(config, exo, patient, plan, plant, controller)
+    return Setup(config, exo, patient, plan, plant, controller, model_exo, model_patient)
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:

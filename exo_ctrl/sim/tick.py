@@ -26,6 +26,7 @@ from ..estimation import CuffForceEstimator
 from ..plant import make_patient_torque
 from ..safety import SafetyLimits, SafetySupervisor
 from ..sensing import Sensors
+from .faults import FaultInjector
 from .schema import log_dtype
 from .setup import Setup, start_on_plan
 
@@ -74,7 +75,7 @@ class Runner:
         self.buf = {name: self.log[name] for name in self.log.dtype.names}
         self.sensor_model = Sensors(config.sensors, config.dt)
         self.estimator = CuffForceEstimator(
-            setup.exo,
+            setup.device_exo,
             config.dt,
             config.observer_gain_per_s,
             stiffness_ratio=config.cuff_stiffness_ratio,
@@ -93,20 +94,33 @@ class Runner:
             limits = config.safety_limits if config.safety else _NO_LIMITS
             self.supervisor = SafetySupervisor(
                 limits,
-                setup.exo,
-                setup.patient,
+                setup.device_exo,
+                setup.device_patient,
                 plant.motor_params,
                 config.dt,
                 estop_at_s=config.estop_at_s,
                 use_estimate=config.safety_use_estimate,
+                sensors=config.sensors,
+                compliant_drives=config.joint_compliance.enabled,
             )
         sup = self.supervisor
         self._sup_force = None
         if sup is not None:
             self._sup_force = self.sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
+        #: The run's fault injector (:mod:`exo_ctrl.sim.faults`; None: no faults).
+        self.faults: FaultInjector | None = None
+        if config.faults:
+            self.faults = FaultInjector(
+                config.faults,
+                config.dt,
+                config.n_ticks,
+                config.sensors.velocity_filter_hz,
+                plant.record["motors"] if plant.motors is not None else None,
+                plant.record["cuffs"],
+            )
         self._records = (
             plant.record,
-            self.sensor_model.record,
+            self.sensor_model.record if self.faults is None else self.faults.record,
             self.estimator.record,
             setup.controller.record,
             sup.record if sup is not None else record(_NO_SUPERVISOR),
@@ -127,11 +141,17 @@ class Runner:
         read, truth, estimate, command, supervise, step = self._stages
         plant_rec, sensor_rec, est_rec, ctrl_rec, sup_rec = self._records
         readings = read(k, *truth)
+        faults = self.faults
+        if faults is not None:
+            readings = faults.readings_at(k, readings)
         estimate(readings)
         write_measured(self.log, row, plant_rec, sensor_rec, est_rec)
         u = command(k, readings)
+        age = 0.0
+        if faults is not None:
+            u, age = faults.command_at(k, u)
         if supervise is not None:
-            u = supervise(k, k * self._dt, readings, self._sup_force, self._mean_current, u)
+            u = supervise(k, k * self._dt, readings, self._sup_force, self._mean_current, u, age)
         if step is not None:
             step(u)
         else:
@@ -188,7 +208,7 @@ def write_applied(log, row, controller, supervisor, plant):
     ``controller``: its record (``u_cmd``, ``active_constraints``,
     ``failures``); ``supervisor``: its record (``state``); ``plant``: its
     record (``voltage``, ``current``, ``drive_torque``, ``patient_torque``,
-    ``stop_torque``, ``cuff_force``).
+    ``stop_torque``, ``deflection``, ``cuff_force``).
     """
     r = log[row]
     c = controller[0]
@@ -203,5 +223,6 @@ def write_applied(log, row, controller, supervisor, plant):
         r.drive_torque[j] = p.drive_torque[j]
         r.patient_torque[j] = p.patient_torque[j]
         r.end_stop_torque[j] = p.stop_torque[j]
+        r.joint_deflection[j] = p.deflection[j]
         r.cuff_force[j, 0] = p.cuff_force[j, 0]
         r.cuff_force[j, 1] = p.cuff_force[j, 1]

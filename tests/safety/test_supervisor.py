@@ -22,7 +22,7 @@ from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.plant import PatientTorque, make_patient_torque
 from exo_ctrl.safety import SafetyLimits, SafetySupervisor
-from exo_ctrl.sensing import SensorReadings
+from exo_ctrl.sensing import SensorParams, SensorReadings
 from exo_ctrl.sim import SimConfig, build, start_on_plan
 
 DT = 1e-3
@@ -64,6 +64,7 @@ def run_loop(
     plant, ctrl = setup.plant, setup.controller
     motor = plant.motor_params
     start_on_plan(setup)
+    supervisor_kwargs.setdefault("sensors", SensorParams.ideal())  # the readings are the truth
     sup = SafetySupervisor(
         limits or SafetyLimits(), setup.exo, setup.patient, motor, config.dt, **supervisor_kwargs
     )
@@ -398,8 +399,19 @@ def test_normal_step_returns_the_command_and_allocates_nothing() -> None:
     setup = build(SimConfig(controller="ct", duration_s=0.01))
     plant = setup.plant
     plant.reset(setup.plan.q[0], setup.plan.dq[0])
-    sup = SafetySupervisor(SafetyLimits(), setup.exo, setup.patient, plant.motor_params, DT)
-    sensors = SensorReadings(q=setup.plan.q[0].copy(), dq=np.zeros(4), tau=np.zeros(4))
+    # Noise-free sensors: an unchanging torque reading is then not a stuck sensor.
+    sup = SafetySupervisor(
+        SafetyLimits(),
+        setup.exo,
+        setup.patient,
+        plant.motor_params,
+        DT,
+        sensors=SensorParams.ideal(),
+    )
+    # At rest with 1 V across each winding the drive model's torque is i_G k_m (1 V) / R.
+    motor = plant.motor_params
+    held = np.full(4, motor.torque_per_amp_Nm_per_A / motor.resistance_ohm)
+    sensors = SensorReadings(q=setup.plan.q[0].copy(), dq=np.zeros(4), tau=held)
     # The plant's own buffers, as the loop passes them (the force is a transposed view).
     force, current, u = plant.cuff_force, plant.motors.mean_current_A, np.ones(4)
 

@@ -20,13 +20,15 @@ from exo_ctrl.sim import SimConfig, simulate
 
 #: What the golden runs were made with: the paper's printed drive constants
 #: and its gains (the defaults before the drive was made energy-consistent),
-#: two gait cycles started on the plan at speed, the cuffs fitted slack.
+#: two gait cycles started on the plan at speed, the cuffs fitted slack, the
+#: QP taking the force estimate with its own lag.
 LEGACY = {
     "motor": MotorParams.paper_printed(),
     "gains": PDGains.paper_printed(),
     "duration_s": 2.4,
     "ramp_in_s": 0.0,
     "cuff_fit": "slack",
+    "qp_estimate_bandwidth_per_s": 100.0,  # the estimator's own: the estimate as it is
 }
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "golden_runs.npz"

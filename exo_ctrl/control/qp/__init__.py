@@ -10,11 +10,14 @@
   state from the force estimate.
 - :mod:`~exo_ctrl.control.qp.screening`: the octagon rows, the clip test, the
   screening of rows for proxsuite.
+- :mod:`~exo_ctrl.control.qp.margin`: :func:`stated_margin`, the error
+  budget of the bound.
 - :mod:`~exo_ctrl.control.qp.workspace`: :class:`TorqueQP`, the persistent
   proxsuite workspace, its checks and its fallback.
 """
 
 from .controller import CONTROLLER_EPS_ABS, NO_BOUND, SLACK_WEIGHT, QPController
+from .margin import stated_margin
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -35,4 +38,5 @@ __all__ = [
     "QPController",
     "TorqueQP",
     "polygon_rows",
+    "stated_margin",
 ]

@@ -1,0 +1,117 @@
+"""What the device believes: the models the controller, the estimator and the supervisor hold.
+
+The plant simulates the truth: the exoskeleton and patient URDFs of
+:class:`~exo_ctrl.sim.config.SimConfig`.  A real device does not hold the
+patient's true segment inertias; it holds a model.  :class:`Belief` names
+it:
+
+- ``patient="truth"``: the true patient's URDF, loaded again (the ideal
+  comparison: a device that knows its patient perfectly; a figure made with
+  it must say so);
+- ``patient="nominal"``: what a clinic can know: the patient's measured leg
+  lengths (those of the true model: the exoskeleton is adjusted to them),
+  stature, body mass and sex, with masses, centres of mass and radii of
+  gyration from de Leva's tables
+  (:func:`~exo_ctrl.model.nominal_patient`);
+- a URDF path: a model of the user's (e.g. identified).
+
+The exoskeleton model is its URDF (default: the true one's file, loaded
+again), or another file, to study a device whose model is wrong.  Either
+way the device's models are objects of their own, never the plant's.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from .. import _validate as v
+from ..exceptions import InvalidParameter
+from ..model import SEXES, BodyModel, load_exo, load_patient, nominal_patient, write_urdf
+
+__all__ = ["PAPER_PATIENT", "PATIENT_BELIEFS", "Belief", "device_models"]
+
+#: The named patient models (anything else is a URDF path).
+PATIENT_BELIEFS = ("truth", "nominal")
+
+#: The paper's patient (Table I): 1.75 m, 80 kg, and a man's segment table
+#: (Table I's thigh is 14.1 % of the body mass, de Leva's male 14.16 %).
+PAPER_PATIENT = {"height_m": 1.75, "mass_kg": 80.0, "sex": "male"}
+
+
+@dataclass(frozen=True)
+class Belief:
+    """The device's models (module docstring).
+
+    Attributes:
+        patient: ``"truth"``, ``"nominal"`` or a patient URDF path.
+        exo: the exoskeleton URDF the device holds (None: the true one's file).
+        patient_height_m: the patient's stature for the nominal model [m]
+            (None: the paper's 1.75 m, for the default patient only).
+        patient_mass_kg: the patient's body mass for the nominal model [kg]
+            (None: the paper's 80 kg, for the default patient only).
+        patient_sex: ``"female"`` or ``"male"``: which table.
+
+    Raises:
+        InvalidParameter: an unknown sex, a height or mass not > 0.
+
+    """
+
+    patient: str = "truth"
+    exo: str | None = None
+    patient_height_m: float | None = None
+    patient_mass_kg: float | None = None
+    patient_sex: str = "male"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.patient, str) or not self.patient:
+            raise InvalidParameter(
+                "controller_patient", self.patient, "truth, nominal or a URDF path"
+            )
+        if self.patient_sex not in SEXES:
+            raise InvalidParameter("patient_sex", self.patient_sex, f"one of {', '.join(SEXES)}")
+        if self.patient_height_m is not None:
+            v.positive("patient_height", self.patient_height_m, "m")
+        if self.patient_mass_kg is not None:
+            v.positive("patient_mass", self.patient_mass_kg, "kg")
+
+
+def device_models(
+    belief: Belief, exo_path: str | None, patient_path: str | None, true_patient: BodyModel
+) -> tuple[BodyModel, BodyModel]:
+    """The exoskeleton and patient models the device holds, each loaded anew.
+
+    Args:
+        belief: what the device believes.
+        exo_path: the true exoskeleton's URDF (None: the default).
+        patient_path: the true patient's URDF, ``"human"`` or None (the default).
+        true_patient: the true patient's model, for its measured leg lengths only.
+
+    Raises:
+        InvalidParameter: a nominal model of a patient other than the
+            default without its height and mass.
+        ExoCtrlError: a URDF that cannot be loaded.
+
+    """
+    exo = load_exo(belief.exo if belief.exo is not None else exo_path)
+    if belief.patient == "truth":
+        return exo, load_patient(patient_path)
+    if belief.patient != "nominal":
+        return exo, load_patient(belief.patient)
+    height, mass = belief.patient_height_m, belief.patient_mass_kg
+    if patient_path is not None and (height is None or mass is None):
+        missing = "patient_height" if height is None else "patient_mass"
+        raise InvalidParameter(
+            missing,
+            None,
+            "given for a nominal model of a patient other than the paper's",
+            "the device's nominal patient is built from the stature and body mass",
+        )
+    height = height if height is not None else PAPER_PATIENT["height_m"]
+    mass = mass if mass is not None else PAPER_PATIENT["mass_kg"]
+    leg = true_patient.legs["left"]
+    params = nominal_patient(leg.thigh_length, leg.shank_length, height, mass, belief.patient_sex)
+    with tempfile.TemporaryDirectory(prefix="exo_ctrl_nominal_") as folder:
+        path = write_urdf(params, Path(folder) / "nominal_patient.urdf")
+        return exo, load_patient(str(path))

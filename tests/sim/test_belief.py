@@ -1,0 +1,142 @@
+"""Truth and belief: the plant simulates the URDFs, the device holds models of its own.
+
+Checks: the device's models are never the plant's objects; a nominal patient
+has de Leva's inertial parameters on the true leg lengths (not the truth's
+masses); PD, which holds no model, runs bit for bit the same with either
+belief; CT with the nominal model tracks worse than with the truth (both
+printed); bad inputs are refused with exact messages.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from exo_ctrl import cli
+from exo_ctrl.exceptions import InvalidParameter
+from exo_ctrl.model import BodyParams, nominal_patient, write_urdf
+from exo_ctrl.sim import SimConfig, simulate
+from exo_ctrl.sim.belief import Belief
+from exo_ctrl.sim.setup import build
+
+SHORT = {"duration_s": 1.8, "safety": False}
+
+
+def _thigh_mass(body) -> float:
+    model = body.model
+    return float(model.inertias[model.getJointId("left_hip")].mass)
+
+
+def test_the_device_never_holds_the_plants_objects() -> None:
+    setup = build(SimConfig(controller="ct"))
+    assert setup.device_exo is not setup.exo and setup.device_patient is not setup.patient
+    assert setup.device_exo.model is not setup.exo.model
+    assert setup.device_patient.source == setup.patient.source  # truth: the same file, anew
+    assert _thigh_mass(setup.device_patient) == _thigh_mass(setup.patient)
+
+
+def test_a_nominal_patient_has_the_tables_masses_on_the_true_lengths() -> None:
+    setup = build(SimConfig(controller="ct", belief=Belief(patient="nominal")))
+    true_leg, model_leg = setup.patient.legs["left"], setup.device_patient.legs["left"]
+    assert model_leg.thigh_length == pytest.approx(true_leg.thigh_length, rel=1e-12)
+    assert model_leg.shank_length == pytest.approx(true_leg.shank_length, rel=1e-12)
+    # de Leva's male thigh, 14.16 % of the paper's 80 kg, against Table I's 11.3 kg in the plant.
+    assert _thigh_mass(setup.device_patient) == pytest.approx(0.1416 * 80.0, rel=1e-9)
+    assert _thigh_mass(setup.patient) == pytest.approx(11.3, rel=1e-12)
+    expected = nominal_patient(true_leg.thigh_length, true_leg.shank_length, 1.75, 80.0)
+    knee = setup.device_patient.model.getJointId("left_knee")
+    assert setup.device_patient.model.inertias[knee].mass == pytest.approx(
+        expected.shank_mass, rel=1e-9
+    )
+
+
+def test_pd_holds_no_model_so_the_belief_changes_nothing() -> None:
+    truth = simulate(SimConfig(**SHORT))
+    nominal = simulate(SimConfig(belief=Belief(patient="nominal"), **SHORT))
+    for name in ("q", "voltage", "cuff_force"):
+        np.testing.assert_array_equal(truth.signals[name], nominal.signals[name])
+
+
+def _rms(result) -> np.ndarray:
+    return np.array(list(result.summary()["rms_tracking_error_rad"].values()))
+
+
+def test_computed_torque_with_the_nominal_patient(tmp_path: Path) -> None:
+    """The nominal model changes CT's feedforward, and a grossly wrong one costs tracking.
+
+    Measured: the nominal patient (de Leva's tables; the truth is Winter's
+    shank, COM 0.61 L against 0.50 L) tracks as well as the truth on the
+    passive patient: CT's residual error is the PD's answer to what no
+    rigid model holds (the cuffs' compliance, the sensors), not the patient's
+    inertia.  A model with twice the true thigh mass does track worse.
+    """
+    truth_setup = build(SimConfig(controller="ct"))
+    nominal_setup = build(SimConfig(controller="ct", belief=Belief(patient="nominal")))
+    gap = np.abs(truth_setup.controller.torque_ff_table - nominal_setup.controller.torque_ff_table)
+    assert gap.max() > 1.0  # N·m: the model is what CT's feedforward is made of
+    heavy = write_urdf(BodyParams.patient_default(thigh_mass=22.6), tmp_path / "heavy.urdf")
+    truth = simulate(SimConfig(controller="ct", **SHORT))
+    nominal = simulate(SimConfig(controller="ct", belief=Belief(patient="nominal"), **SHORT))
+    wrong = simulate(SimConfig(controller="ct", belief=Belief(patient=str(heavy)), **SHORT))
+    pd = simulate(SimConfig(**SHORT))
+    print(
+        f"\nRMS error [mrad] hip/knee: CT truth {np.round(1e3 * _rms(truth)[:2], 3)}, "
+        f"CT nominal {np.round(1e3 * _rms(nominal)[:2], 3)}, CT with 2x thigh mass "
+        f"{np.round(1e3 * _rms(wrong)[:2], 3)}, PD {np.round(1e3 * _rms(pd)[:2], 3)}; "
+        f"feedforward gap nominal-truth up to {gap.max():.1f} N·m"
+    )
+    assert nominal.status == truth.status == wrong.status == "completed"
+    assert np.all(_rms(nominal) < 1.5 * _rms(truth))
+    assert _rms(wrong)[0] > 2.0 * _rms(truth)[0]  # the hip carries the thigh
+    assert np.all(_rms(nominal) < 0.1 * _rms(pd))
+
+
+def test_a_patient_model_file_is_what_the_device_holds(tmp_path: Path) -> None:
+    heavy = write_urdf(BodyParams.patient_default(thigh_mass=14.0), tmp_path / "heavy.urdf")
+    setup = build(SimConfig(controller="ct", belief=Belief(patient=str(heavy))))
+    assert _thigh_mass(setup.device_patient) == pytest.approx(14.0, rel=1e-12)
+    assert _thigh_mass(setup.patient) == pytest.approx(11.3, rel=1e-12)
+
+
+def test_a_nominal_model_of_another_patient_needs_its_height_and_mass(tmp_path: Path) -> None:
+    other = write_urdf(BodyParams.patient_default(thigh_mass=9.0), tmp_path / "other.urdf")
+    with pytest.raises(InvalidParameter) as info:
+        build(SimConfig(patient=str(other), belief=Belief(patient="nominal")))
+    assert str(info.value) == (
+        "patient_height must be given for a nominal model of a patient other than the paper's; "
+        "got None (the device's nominal patient is built from the stature and body mass)"
+    )
+    setup = build(
+        SimConfig(
+            patient=str(other),
+            belief=Belief(patient="nominal", patient_height_m=1.6, patient_mass_kg=60.0),
+        )
+    )
+    assert _thigh_mass(setup.device_patient) == pytest.approx(0.1416 * 60.0, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"patient_sex": "x"}, "patient_sex must be one of female, male; got 'x'"),
+        ({"patient_mass_kg": -3.0}, "patient_mass must be > 0 kg; got -3.0"),
+        ({"patient": ""}, "controller_patient must be truth, nominal or a URDF path; got ''"),
+    ],
+)
+def test_bad_beliefs_are_refused(kwargs: dict, message: str) -> None:
+    with pytest.raises(InvalidParameter) as info:
+        Belief(**kwargs)
+    assert str(info.value) == message
+
+
+def test_the_cli_runs_a_nominal_model_and_refuses_a_missing_file(tmp_path: Path, capsys) -> None:
+    argv = ["simulate", "--duration", "0.3", "--no-record", "--controller", "ct"]
+    assert cli.main([*argv, "--controller-patient", "nominal"]) == 0
+    capsys.readouterr()
+    missing = tmp_path / "none.urdf"
+    assert cli.main([*argv, "--controller-patient", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("exo-ctrl simulate: error: ") and str(missing) in err
+    assert err.count("\n") == 1

@@ -1,0 +1,57 @@
+"""Stale compiled kernels are deleted when any of the package's sources changed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from exo_ctrl import _jit_cache
+
+
+def _package(tmp_path: Path) -> Path:
+    root = tmp_path / "pkg"
+    (root / "sub" / "__pycache__").mkdir(parents=True)
+    (root / "__pycache__").mkdir()
+    (root / "a.py").write_text("x = 1\n")
+    (root / "sub" / "b.py").write_text("y = 2\n")
+    return root
+
+
+def _caches(root: Path) -> list[Path]:
+    paths = []
+    for folder in (root / "__pycache__", root / "sub" / "__pycache__"):
+        for name in ("k.f-1.py311.nbi", "k.f-1.py311.1.nbc"):
+            path = folder / name
+            path.write_bytes(b"cached")
+            paths.append(path)
+    return paths
+
+
+def test_unchanged_sources_keep_the_cache(tmp_path: Path) -> None:
+    root = _package(tmp_path)
+    assert _jit_cache.refresh(root) == 0  # first import: nothing cached yet, the stamp written
+    caches = _caches(root)
+    assert _jit_cache.refresh(root) == 0
+    assert all(p.exists() for p in caches)
+
+
+def test_a_changed_callee_module_deletes_every_cached_kernel(tmp_path: Path) -> None:
+    root = _package(tmp_path)
+    _jit_cache.refresh(root)
+    caches = _caches(root)
+    (root / "sub" / "b.py").write_text("y = 3\n")  # only the callee's module changes
+    assert _jit_cache.refresh(root) == len(caches)
+    assert not any(p.exists() for p in caches)
+    assert (root / "__pycache__" / _jit_cache.STAMP_NAME).read_text() == _jit_cache.source_hash(
+        root
+    )
+    (root / "sub" / "__pycache__" / "other.pyc").write_bytes(b"")  # not a kernel cache: kept
+    (root / "c.py").write_text("z = 0\n")  # a new module changes the hash too
+    assert _jit_cache.refresh(root) == 0
+    assert (root / "sub" / "__pycache__" / "other.pyc").exists()
+
+
+def test_the_hash_covers_paths_and_contents(tmp_path: Path) -> None:
+    root = _package(tmp_path)
+    before = _jit_cache.source_hash(root)
+    (root / "a.py").rename(root / "c.py")
+    assert _jit_cache.source_hash(root) != before

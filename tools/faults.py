@@ -1,0 +1,247 @@
+"""The fault-injection campaign: one fault at a time in the default run, detected or not.
+
+    .venv/bin/python tools/faults.py [--seeds N] [--controller pd|ct|qp] [--out DIR]
+
+For each fault of :data:`exo_ctrl.sim.faults.FAULT_KINDS` and each seed, the
+default scenario (standing, 1.2 s ramp-in, 3.6 s in all) runs with that one
+fault injected at a seeded time in [1.5, 2.5] s (after the ramp-in) on a
+seeded joint or cuff (:func:`plan_fault`).  Each run reports
+(:class:`FaultResult`): whether the supervisor detected it (its first
+violation at or after the onset), the time to detection and the channel, the
+state reached (normal, stopping, holding, power_cut), the worst cuff force
+after the onset (the plant's, the truth) and the worst joint excursion after
+the onset, max |q - q_ref| over the joints with q_ref the plan while normal
+and the hold posture (the angle read at the stop) after; and, with ``--out``,
+whether its recording holds every tick and the fault's event
+(:func:`recording_holds`).  ``belt_stop`` cannot be injected (no belt in the
+plant yet, issue 16) and is reported so.  Prints a Markdown table; exit 0.
+
+Importable: ``run_campaign(seeds=1, controller="pd") -> list[FaultResult]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from exo_ctrl import SimConfig, read_recording, simulate
+from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
+from exo_ctrl.record import RerunRecorder
+from exo_ctrl.sim.faults import FAULT_KINDS, Fault
+
+#: The window of the seeded onset [s]: after the default 1.2 s ramp-in, 1.1 s before the end.
+ONSET_WINDOW_S = (1.5, 2.5)
+
+#: Each kind's size and duration in the campaign (None: to the end), with why.
+#: noise burst: 5 mrad std (≈ 100 encoder counts, an EMI burst on the encoder
+#: line) for 0.1 s; bias step: 80 N·m (a zero shift of 22 % of a 360 N·m
+#: sensor's range, a damaged bridge); drift: 100 N·m/s (a strain gauge
+#: coming unglued); saturation: a rail at 20 N·m (an amplifier's gain fault,
+#: below what every joint carries in the gait); dropout: 30 ms of stale
+#: values; NaN: one corrupted frame; overrun: 20 ms of late commands.
+CAMPAIGN = {
+    "encoder_freeze": (None, None),
+    "encoder_dropout": (None, 0.03),
+    "noise_burst": (5e-3, 0.1),
+    "torque_bias_step": (80.0, None),
+    "torque_drift": (100.0, None),
+    "torque_saturation": (20.0, None),
+    "nan_reading": (None, 1e-3),
+    "control_overrun": ("seeded", 0.02),
+    "drive_open": (None, None),
+    "drive_short": (None, None),
+    "cuff_slip": (None, None),
+}
+
+#: Why a fault cannot be detected (or injected), by kind.
+UNDETECTABLE = {
+    "belt_stop": "not injectable: the plant has no treadmill belt yet (issue 16)",
+}
+
+#: Faults the supervisor does not detect, and why (the table's note).
+NOT_DETECTED = {
+    "cuff_slip": (
+        "not detectable here: 2 joint torques per leg cannot tell how its load shares "
+        "between its 2 cuffs"
+    ),
+}
+
+
+@dataclass
+class FaultResult:
+    """One run of the campaign (module docstring).
+
+    Attributes:
+        kind: the fault's kind.
+        label: kind and target.
+        seed: the seed.
+        at_s: onset [s] (NaN: not injected).
+        detected: the supervisor reported a violation at or after the onset.
+        detection_s: time from the onset to the first violation [s] (NaN: none).
+        channel: the first violation's quantity ("" if none).
+        state: the supervisor's final state ("" if not run).
+        worst_cuff_force_N: largest cuff force magnitude after the onset [N].
+        worst_excursion_rad: largest |q - q_ref| after the onset [rad].
+        ticks: ticks run.
+        recording_ok: the recording holds every tick and the fault event
+            (None: not recorded).
+        note: why not detected or not run.
+
+    """
+
+    kind: str
+    label: str
+    seed: int
+    at_s: float = math.nan
+    detected: bool = False
+    detection_s: float = math.nan
+    channel: str = ""
+    state: str = ""
+    worst_cuff_force_N: float = math.nan
+    worst_excursion_rad: float = math.nan
+    ticks: int = 0
+    recording_ok: bool | None = None
+    note: str = ""
+
+
+def plan_fault(kind: str, seed: int, dt: float = 1e-3) -> Fault:
+    """The campaign's fault of ``kind`` for ``seed``: onset, target and size drawn from it."""
+    rng = np.random.default_rng([FAULT_KINDS.index(kind), seed])
+    lo, hi = ONSET_WINDOW_S
+    at = round(rng.uniform(lo, hi) / dt) * dt
+    magnitude, duration = CAMPAIGN[kind]
+    target = str(rng.choice(CUFF_NAMES if kind == "cuff_slip" else JOINT_NAMES))
+    if kind == "control_overrun":
+        target = ""
+        magnitude = int(rng.integers(1, 6)) * dt  # 1-5 ms late
+    return Fault(kind, at, target, magnitude, duration, seed=seed)
+
+
+def analyse(result, fault: Fault) -> FaultResult:
+    """The campaign's figures of a run with ``fault`` (module docstring)."""
+    out = FaultResult(fault.kind, fault.label, fault.seed, at_s=fault.at_s)
+    out.state = result.safety_state or ""
+    out.ticks = int(result.t.shape[0])
+    after = [
+        e for e in result.events if e.get("kind") == "violation" and e["t"] >= fault.at_s - 1e-9
+    ]
+    if after:
+        out.detected = True
+        out.detection_s = after[0]["t"] - fault.at_s
+        out.channel = after[0]["quantity"]
+    s = result.signals
+    k0 = round(fault.at_s / result.config.dt)
+    force = np.linalg.norm(s["cuff_force"][k0:], axis=-1)
+    out.worst_cuff_force_N = float(force.max())
+    ref = s["q_des"].copy()
+    stopped = np.flatnonzero(s["safety_state"] != 0)
+    if stopped.size:
+        k_stop = stopped[0]
+        q_meas = s["q_meas"][: k_stop + 1]
+        hold = q_meas[-1].copy()
+        for j in range(4):  # the last finite reading, as the supervisor holds it
+            if not np.isfinite(hold[j]):
+                finite = q_meas[np.isfinite(q_meas[:, j]), j]
+                hold[j] = finite[-1] if finite.size else np.nan
+        ref[k_stop:] = hold
+    out.worst_excursion_rad = float(np.nanmax(np.abs(s["q"][k0:] - ref[k0:])))
+    return out
+
+
+def recording_holds(path: Path, n_ticks: int, fault: Fault) -> bool:
+    """Whether the recording at ``path`` holds every tick and the fault's onset event."""
+    back = read_recording(path)
+    has_event = any(
+        e.get("kind") == "fault" and abs(e["t"] - fault.at_s) < 1e-9 for e in back.events
+    )
+    return back.t.shape[0] == n_ticks and has_event
+
+
+def run_fault(
+    fault: Fault, controller: str = "pd", out: Path | None = None, **config: object
+) -> FaultResult:
+    """Run the default scenario with ``fault`` and analyse it (``config``: SimConfig overrides)."""
+    cfg = SimConfig(controller=controller, faults=(fault,), **config)
+    observers = []
+    path = None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        path = out / f"{fault.kind}_{fault.target or 'all'}_seed{fault.seed}.rrd"
+        observers.append(RerunRecorder(path))
+    result = simulate(cfg, observers=observers)
+    res = analyse(result, fault)
+    if not res.detected:
+        res.note = NOT_DETECTED.get(fault.kind, "")
+    if path is not None:
+        res.recording_ok = recording_holds(path, cfg.n_ticks, fault)
+    return res
+
+
+def run_campaign(
+    seeds: int = 1,
+    controller: str = "pd",
+    out: Path | None = None,
+    kinds: tuple[str, ...] = FAULT_KINDS,
+    progress: bool = False,
+) -> list[FaultResult]:
+    """Every fault of ``kinds`` × ``seeds`` seeds (module docstring)."""
+    results = []
+    total = len(kinds) * seeds
+    n = 0
+    for kind in kinds:
+        for seed in range(seeds):
+            n += 1
+            if progress:
+                print(f"[{n}/{total}] {kind} seed {seed}", file=sys.stderr, flush=True)
+            if kind in UNDETECTABLE:
+                results.append(FaultResult(kind, kind, seed, note=UNDETECTABLE[kind]))
+                continue
+            results.append(run_fault(plan_fault(kind, seed), controller, out))
+    return results
+
+
+def table(results: list[FaultResult]) -> str:
+    """The campaign as a Markdown table."""
+    head = (
+        "| fault | seed | onset [s] | detected | after [ms] | first channel | state "
+        "| worst cuff force [N] | worst excursion [rad] | recording |"
+    )
+    rows = [head, "|" + "---|" * 10]
+    for r in results:
+        if r.note and not r.ticks:
+            rows.append(f"| {r.label} | {r.seed} | – | no | – | {r.note} | – | – | – | – |")
+            continue
+        rec = {None: "–", True: "every tick + event", False: "INCOMPLETE"}[r.recording_ok]
+        after = f"{1e3 * r.detection_s:.0f}" if r.detected else "–"
+        rows.append(
+            f"| {r.label} | {r.seed} | {r.at_s:.3f} | {'yes' if r.detected else 'NO'} | {after} "
+            f"| {r.channel or r.note or '–'} | {r.state} | {r.worst_cuff_force_N:.0f} "
+            f"| {r.worst_excursion_rad:.3f} | {rec} |"
+        )
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the campaign and print its table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=1, help="seeds per fault (default 1)")
+    parser.add_argument("--controller", choices=("pd", "ct", "qp"), default="pd")
+    parser.add_argument("--out", type=Path, default=None, help="directory for the recordings")
+    args = parser.parse_args(argv)
+    if args.seeds < 1:
+        parser.error("--seeds must be >= 1")
+    results = run_campaign(args.seeds, args.controller, args.out, progress=True)
+    print(f"Fault campaign, controller {args.controller}, {args.seeds} seed(s) per fault:\n")
+    print(table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
