@@ -11,7 +11,7 @@ from exo_ctrl.model import BodyModel, default_urdf_path, load_body, load_human_p
 from exo_ctrl.model.urdfgen import BodyParams, write_urdf
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import JointTrajectory, plan_joints
-from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.plant.drive import MotorParams
 from exo_ctrl.sim import drive_for
 
 #: Thigh and shank of the "other lengths" exoskeleton [m].

@@ -26,7 +26,8 @@ import pinocchio as pin
 
 from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..plan.kinematics import JointTrajectory
-from ..plant.motor import MotorBank, MotorParams
+from ..plant.drive import MotorParams
+from ..plant.motor import MotorBank
 from .base import PDGains
 from .pd import PDController
 

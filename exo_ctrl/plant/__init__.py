@@ -7,15 +7,17 @@ from .cuffs import (
     CuffParams,
     CuffSet,
 )
+from .drive import (
+    MOTOR_PRESETS,
+    MotorParams,
+    consistency_warning,
+    motor_preset,
+)
 from .end_stops import (
     EndStopParams,
 )
 from .motor import (
-    MOTOR_PRESETS,
     MotorBank,
-    MotorParams,
-    consistency_warning,
-    motor_preset,
     motor_step,
 )
 from .patient import (

@@ -84,8 +84,9 @@ import pinocchio as pin
 from .. import _validate as v
 from .._jit import kernel
 from ..exceptions import InvalidParameter
+from .drive import MotorParams
 from .energy import book_drives
-from .motor import MotorParams, step_drives
+from .motor import step_drives
 
 __all__ = [
     "COMPLIANCE_FIELDS",

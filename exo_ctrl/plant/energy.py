@@ -13,7 +13,7 @@ change of magnetic energy, with Ī h = ∫I dt and, in closed form,
     ∫I² dt = h (I∞² + 2 I∞ d₀ φ + d₀² φ (1 + ε) / 2),   ε = e^{−h/τ_e}, φ = (1 − ε) / (h/τ_e).
 
 The motor's work is k_t Ī ω h (k_t = i_G k_m); the gearbox passes g = η^s
-of it to the joint (:mod:`exo_ctrl.plant.motor`: η motoring, 1/η braking),
+of it to the joint (:mod:`exo_ctrl.plant.drive`: η motoring, 1/η braking),
 so the mechanical work at the joint is g k_t Ī ω h and the gear loss
 (1 − g) k_t Ī ω h, never negative.  The back-EMF's and the motor's
 conversions agree, k_b ω Ī = k_t Ī ω, only for an energy-consistent motor,

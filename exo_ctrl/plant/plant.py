@@ -56,9 +56,10 @@ from ..exceptions import InvalidModel, InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .compliance import COMPLIANCE_FIELDS, CompliantJoint, Rotors, rotor_forces, rotor_kick
 from .cuffs import CUFF_FIELDS, CuffParams, CuffSet, forces_of
+from .drive import MotorParams
 from .end_stops import END_STOP_FIELDS, EndStopParams, end_stop_torques
 from .energy import book_drives
-from .motor import MotorBank, MotorParams, motor_fields, step_drives
+from .motor import MotorBank, motor_fields, step_drives
 
 __all__ = ["Plant"]
 

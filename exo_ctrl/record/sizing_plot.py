@@ -29,7 +29,7 @@ from .._io import atomic_write
 from ..exceptions import MissingDependency
 from ..model import JOINT_NAMES
 from ..plant import MotorParams
-from ..plant.motor import gear_factor
+from ..plant.drive import gear_factor
 
 __all__ = ["MAX_POINTS", "OperatingPoints", "write_torque_speed_plot"]
 
@@ -85,7 +85,7 @@ def envelope(motor: MotorParams, speed: np.ndarray) -> tuple[np.ndarray, np.ndar
     The motor's: upper = min(i_G k_m I_max, i_G k_m (U_max − k_b q̇) / R),
     lower likewise with −U_max (k_b = i_G/k_E, the back-EMF per joint
     speed); at the joint each times the gearbox's η^s (η motoring, 1/η
-    braking, :func:`exo_ctrl.plant.motor.gear_factor`).
+    braking, :func:`exo_ctrl.plant.drive.gear_factor`).
     """
     kt, kb = motor.torque_per_amp_Nm_per_A, motor.back_emf_V_per_rad_s
     cap = kt * motor.current_limit_A

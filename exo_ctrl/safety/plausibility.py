@@ -80,7 +80,7 @@ import numpy as np
 
 from .._jit import Status, kernel, record
 from ..plant import MotorParams
-from ..plant.motor import EFFICIENCY_SMOOTHING_RAD_S
+from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S
 from ..sensing import SensorParams
 
 __all__ = [
@@ -218,7 +218,7 @@ def plausibility_record(motor: MotorParams, sensors: SensorParams, dt: float) ->
 
 @kernel
 def _gear(lneta: float, inv_w: float, current: float, omega: float) -> float:
-    """η^s, s = sign(I) tanh(ω/ω_η) (:mod:`exo_ctrl.plant.motor`)."""
+    """η^s, s = sign(I) tanh(ω/ω_η) (:mod:`exo_ctrl.plant.drive`)."""
     th = math.tanh(omega * inv_w)
     s = th if current > 0.0 else (-th if current < 0.0 else 0.0)
     return math.exp(s * lneta)

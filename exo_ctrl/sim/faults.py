@@ -10,7 +10,7 @@ consults at two points, outside the components it corrupts:
 - between the controller and the supervisor: it delays the command (a
   control period overrun) and reports the command's age; and at a drive or
   cuff fault's onset it sets that drive's ``fault`` flag in the drives'
-  record (:data:`exo_ctrl.plant.motor.DRIVE_FAULTS`, honoured by
+  record (:data:`exo_ctrl.plant.drive.DRIVE_FAULTS`, honoured by
   ``step_drives``) or the cuff's ``slipped`` flag in the cuffs' record.
 
 A run without faults builds no injector and its tick is unchanged.
@@ -56,7 +56,7 @@ from .. import _validate as v
 from .._jit import record
 from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, JOINT_NAMES
-from ..plant.motor import OPEN_PHASE, SHORTED
+from ..plant.drive import OPEN_PHASE, SHORTED
 from ..sensing import SensorReadings
 
 __all__ = ["FAULT_KINDS", "INJECTABLE", "Fault", "FaultInjector", "faults_of"]

@@ -32,7 +32,7 @@ from exo_ctrl.model import (
 )
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import plan_joints
-from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.plant.drive import MotorParams
 from exo_ctrl.sim import SimConfig, simulate
 
 

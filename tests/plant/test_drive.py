@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.plant.motor import EFFICIENCY_SMOOTHING_RAD_S, MotorBank, MotorParams
+from exo_ctrl.plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
+from exo_ctrl.plant.motor import MotorBank
 
 K_E = 25.9  # rad/(V·s), paper Table I
 K_M = 1.0 / K_E  # N·m/A, the SI identity

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter
-from exo_ctrl.plant.motor import MotorBank, MotorParams
+from exo_ctrl.plant.drive import MotorParams
+from exo_ctrl.plant.motor import MotorBank
 
 # Paper Table I and the documented choices, typed independently of the module.
 L = 0.072e-3  # H

@@ -38,8 +38,8 @@ import pytest
 from exo_ctrl.exceptions import InvalidModel, InvalidParameter, SimulationDiverged
 from exo_ctrl.model import BodyModel, default_urdf_path, load_body
 from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.plant.drive import MotorParams
 from exo_ctrl.plant.end_stops import EndStopParams
-from exo_ctrl.plant.motor import MotorParams
 from exo_ctrl.plant.plant import Plant
 
 G = 9.81

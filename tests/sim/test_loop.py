@@ -15,7 +15,7 @@ from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES, BodyModel, BodyParams, write
 from exo_ctrl.plan.gait import GaitParams
 from exo_ctrl.plan.kinematics import plan_joints
 from exo_ctrl.plan.ramp import RampedGait
-from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.plant.drive import MotorParams
 from exo_ctrl.sensing.sensors import SensorParams
 from exo_ctrl.sim import (
     UNTIMED_TICKS,

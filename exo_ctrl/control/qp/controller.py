@@ -125,7 +125,7 @@ from ...exceptions import InvalidModel, InvalidParameter
 from ...model import BodyModel
 from ...plan.kinematics import JointTrajectory
 from ...plant.cuffs import CuffParams
-from ...plant.motor import MotorParams
+from ...plant.drive import MotorParams
 from ...sensing.readings import SensorReadings
 from ..base import PDGains
 from ..computed_torque import ComputedTorqueController

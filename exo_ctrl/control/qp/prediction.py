@@ -57,7 +57,7 @@ from ..._jit import Status, kernel, record
 from ...exceptions import InvalidParameter
 from ...model import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
 from ...plant.cuffs import CuffParams, CuffSet
-from ...plant.motor import MotorParams
+from ...plant.drive import MotorParams
 from .expm import NM, NZ, PS_BLOCK, copy_top, expm_top, mul_top
 
 __all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "horizon_fields"]

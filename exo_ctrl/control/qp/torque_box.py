@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..._jit import kernel
-from ...plant.motor import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
+from ...plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
 
 __all__ = ["TORQUE_BOX_FIELDS", "box_constants", "torque_box", "voltage"]
 

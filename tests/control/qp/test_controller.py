@@ -28,7 +28,7 @@ from exo_ctrl.control.qp import (
 )
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import BodyModel
-from exo_ctrl.plant.motor import MotorParams
+from exo_ctrl.plant.drive import MotorParams
 from exo_ctrl.sim import drive_for
 
 #: ρ, the brief's slack weight [(N·m)²/N²].
