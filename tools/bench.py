@@ -39,6 +39,7 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from exo_ctrl.plant import ContactParams
 from exo_ctrl.record import RerunRecorder
 from exo_ctrl.sim import Runner, SimConfig, build, simulate
 
@@ -93,6 +94,8 @@ def floor_calls(runner: Runner) -> list:
 SCENARIOS = {
     "pd": {"controller": "pd"},
     "ct": {"controller": "ct"},
+    # CT on the belt: the feet in contact, friction impulses (plant/contact.py).
+    "ct_contact": {"controller": "ct", "contact": ContactParams(enabled=True)},
     "qp": {"controller": "qp"},
     # The QP where its bound binds (tests/test_qp.py's spastic run).
     "qp_spastic": {
@@ -160,6 +163,7 @@ _COLD_RUN = """
 import time
 t0 = time.perf_counter()
 from exo_ctrl.sim import SimConfig, simulate
+from exo_ctrl.plant import BeltParams, ContactParams
 t1 = time.perf_counter()
 result = simulate(SimConfig(**{overrides!r}, duration_s=0.05))
 t2 = time.perf_counter()

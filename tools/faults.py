@@ -62,7 +62,8 @@ CAMPAIGN = {
 
 #: Why a fault cannot be detected (or injected), by kind.
 UNDETECTABLE = {
-    "belt_stop": "not injectable: the plant has no treadmill belt yet (issue 16)",
+    "belt_stop": "not injected yet: the belt exists behind --contact on (issue 16, first part); "
+    "its stop fault is next",
 }
 
 #: Faults the supervisor does not detect, and why (the table's note).

@@ -159,6 +159,15 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"drive energy balance: residual {residual:.2e} of the energy drawn"
             + (" (the drive model is not energy-consistent)" if residual > 1e-6 else "")
         )
+    if "slip_speed_rms_mps" in summary:
+        feet = ", ".join(f"{f} {x:.1f}" for f, x in summary["peak_ground_force_N"].items())
+        lines.append(
+            f"belt contact after the ramp-in: slip RMS {summary['slip_speed_rms_mps']:.4f} m/s "
+            f"(max {summary['slip_speed_max_mps']:.4f}), touchdown vertical "
+            f"{summary['touchdown_speed_mps']:.4f} m/s, horizontal "
+            f"{summary['touchdown_slip_mps']:.4f} m/s; peak ground force [N]: {feet}; "
+            f"belt speed error RMS {summary['belt_speed_error_rms_mps']:.4f} m/s"
+        )
     for event in summary["safety_events"][:5]:
         lines.append(f"safety: {event['message']}")
     if summary["safety_state"] != "normal":

@@ -8,12 +8,18 @@ from pathlib import Path
 
 from .. import _validate as v
 from ..control import PDGains
+from ..exceptions import InvalidParameter
 from ..model import SEXES, load_exo
-from ..plan import GaitParams
+from ..plan import EXERCISES, GaitParams
+from ..plan.exercise import CALIBRATION_DURATION_S
 from ..plant import (
+    MAX_MISALIGNMENT_M,
     MOTOR_PRESETS,
     PATIENT_TORQUES,
+    BeltParams,
     CompliantJoint,
+    ContactParams,
+    Misalignment,
     consistency_warning,
     motor_preset,
 )
@@ -51,6 +57,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="pd",
         help="pd (paper), ct (computed torque + PD) or qp (CT + PD through a QP under drive "
         "limits and cuff-force bounds) (default pd)",
+    )
+    p.add_argument(
+        "--exercise",
+        choices=EXERCISES,
+        default="gait",
+        help="gait, or calibration: the legs swing in the air from rest to rest for "
+        f"identification (exo-ctrl identify; default {CALIBRATION_DURATION_S:g} s) (default gait)",
     )
     span = p.add_mutually_exclusive_group()
     span.add_argument(
@@ -94,6 +107,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "slack (fitted in the exoskeleton's posture: the patient drops into them) "
         "(default equilibrium)",
     )
+    for joint in ("hip", "knee"):
+        p.add_argument(
+            f"--misalignment-{joint}",
+            default="0,0",
+            metavar="DX,DZ",
+            help=f"the true patient's {joint} axis offset from the exoskeleton's, forward and up "
+            f"with the legs straight [m], each within ±{MAX_MISALIGNMENT_M:g} (truth only: the "
+            "device's models stay aligned; default 0,0)",
+        )
     p.add_argument(
         "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
     )
@@ -131,6 +153,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the joint spring's damping [N·m·s/rad], with --joint-stiffness "
         f"(default {CompliantJoint().damping_Nm_s_per_rad:g})",
     )
+    _treadmill_options(p)
     p.add_argument(
         "--kp",
         type=float,
@@ -163,7 +186,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="truth|nominal|URDF",
         help="the patient model the device holds: truth (the --patient URDF itself: the ideal "
         "comparison), nominal (the measured leg lengths with de Leva's segment tables for the "
-        "patient's stature and mass) or a URDF file (default truth)",
+        "patient's stature and mass) or a URDF file, e.g. the identified patient that "
+        "exo-ctrl identify --out wrote (default truth)",
     )
     device.add_argument(
         "--controller-exo",
@@ -265,6 +289,8 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
     ramp_out = v.non_negative("ramp_out", args.ramp_out, "s")
     if args.duration is not None:
         duration = args.duration
+    elif args.exercise == "calibration":
+        duration = CALIBRATION_DURATION_S
     else:
         cycles = 2.0 if args.cycles is None else v.positive("cycles", args.cycles)
         lead = gait.period if ramp_in is None else ramp_in
@@ -289,6 +315,10 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         ramp_in_s=ramp_in,
         ramp_out_s=ramp_out,
         cuff_fit=args.cuff_fit,
+        misalignment=Misalignment(
+            _pair("misalignment_hip", args.misalignment_hip),
+            _pair("misalignment_knee", args.misalignment_knee),
+        ),
         control_rate_hz=args.rate,
         plant_substeps=args.substeps,
         patient_torque=args.patient_torque,
@@ -297,6 +327,8 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         estop_at_s=args.estop_at,
         cuff_force_limit_N=args.cuff_force_limit,
         joint_compliance=compliance,
+        contact=_contact_from(args),
+        exercise=args.exercise,
         belief=Belief(
             patient=args.controller_patient,
             exo=args.controller_exo,
@@ -305,6 +337,68 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
             patient_sex=args.patient_sex,
         ),
     )
+
+
+def _treadmill_options(p: argparse.ArgumentParser) -> None:
+    """The belt and foot–belt contact options (:mod:`exo_ctrl.plant.contact`)."""
+    c, b = ContactParams(), BeltParams()
+    g = p.add_argument_group("treadmill belt and foot contact")
+    g.add_argument(
+        "--contact",
+        choices=("on", "off"),
+        default="on" if c.enabled else "off",
+        help="the belt as a body with its own drive and the exoskeleton feet in Hunt–Crossley "
+        f"contact with friction on it (default {'on' if c.enabled else 'off'}: the feet in free "
+        "air, as the paper)",
+    )
+    g.add_argument(
+        "--friction",
+        type=float,
+        default=c.friction_coeff,
+        metavar="MU",
+        help=f"foot–belt friction coefficient μ [-] (default {c.friction_coeff:g}, a rubber sole)",
+    )
+    g.add_argument(
+        "--belt-height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="the belt's top below the hip joint [m] (default: the gait's hip height H_s, "
+        f"{GaitParams().hip_height:g} m by default)",
+    )
+    g.add_argument(
+        "--belt-mass",
+        type=float,
+        default=b.mass_kg,
+        metavar="KG",
+        help=f"belt + rollers + drive rotor as an equivalent mass [kg] (default {b.mass_kg:g})",
+    )
+    g.add_argument(
+        "--belt-bandwidth",
+        type=float,
+        default=b.bandwidth_hz,
+        metavar="HZ",
+        help=f"the belt speed controller's bandwidth [Hz] (default {b.bandwidth_hz:g})",
+    )
+
+
+def _contact_from(args: argparse.Namespace) -> ContactParams:
+    belt = BeltParams(
+        height_m=args.belt_height, mass_kg=args.belt_mass, bandwidth_hz=args.belt_bandwidth
+    )
+    return ContactParams(enabled=args.contact == "on", friction_coeff=args.friction, belt=belt)
+
+
+def _pair(name: str, text: str) -> tuple[float, float]:
+    """``"DX,DZ"`` as two floats [m] (range checked by :class:`~exo_ctrl.plant.Misalignment`)."""
+    allowed = f"two numbers DX,DZ in [-{MAX_MISALIGNMENT_M:g}, {MAX_MISALIGNMENT_M:g}] m"
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError(text)
+        return float(parts[0]), float(parts[1])
+    except ValueError:
+        raise InvalidParameter(name, text, allowed) from None
 
 
 def run(args: argparse.Namespace) -> int:

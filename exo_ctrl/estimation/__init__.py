@@ -8,7 +8,9 @@ Modules, in the order they build on each other:
 - :mod:`.observer`: :class:`CuffForceEstimator`, the live momentum observer;
 - :mod:`.series`: the observer along a logged series;
 - :mod:`.bias`: torque-sensor bias, its effect and its measurement;
-- :mod:`.csvlog`: sensor logs as CSV files.
+- :mod:`.csvlog`: sensor logs as CSV files;
+- :mod:`.identification` (with :mod:`.segment_fit`): the patient's segment
+  inertial parameters from a calibration run.
 """
 
 from ..exceptions import InvalidLog
@@ -21,6 +23,13 @@ from .cuff_geometry import (
     cuff_normal_components,
 )
 from .errors import EstimateErrors, EstimateErrorStats, normal_component_errors
+from .identification import (
+    CalibrationSamples,
+    Identification,
+    PriorSpread,
+    calibration_samples,
+    identify_patient,
+)
 from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
 from .series import EstimateSeries, estimate_series, first_order_filter
 
@@ -29,19 +38,24 @@ __all__ = [
     "CSV_REQUIRED_COLUMNS",
     "DEFAULT_GAIN_PER_S",
     "BiasEstimate",
+    "CalibrationSamples",
     "CuffForceEstimator",
     "CuffGeometry",
     "EstimateErrorStats",
     "EstimateErrors",
     "EstimateSeries",
+    "Identification",
     "InvalidLog",
+    "PriorSpread",
     "bias_effect_bound",
+    "calibration_samples",
     "cuff_components",
     "cuff_forces_from_torque",
     "cuff_normal_components",
     "estimate_bias",
     "estimate_series",
     "first_order_filter",
+    "identify_patient",
     "normal_component_errors",
     "read_csv_log",
     "write_csv_log",

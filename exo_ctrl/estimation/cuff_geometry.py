@@ -26,9 +26,12 @@ So
 knee are coaxial with the exoskeleton's (how the device is fitted to a
 patient, and what the computed-torque feedforward assumes) and the cuffs
 are isotropic spring–dampers, the shank cuff κ times as stiff as the thigh
-cuff (κ = 1: equal cuffs, as :class:`~exo_ctrl.plant.cuffs.CuffParams` models
-them).  The cuff forces then come from the relative rotations δφ₁, δφ₂ of
-the patient's thigh and shank about the common axes: to first order in δφ,
+cuff (κ = 1: equal cuffs, as ``CuffParams.isotropic()`` models them; the
+default truth's cuffs are softer in shear and break it on purpose, as does a
+misaligned patient, :mod:`exo_ctrl.plant.misalignment`: the estimator keeps
+its assumption, :mod:`.errors` measures what it costs).  The cuff forces
+then come from the relative rotations δφ₁, δφ₂ of the patient's thigh and
+shank about the common axes: to first order in δφ,
 f_t = F₁ a n_t and f_s = κ (F₁ l₁ n_k + F₂ c n_s) (n_k: normal of
 hip → knee) — when the thigh turns relative to the patient's thigh the
 knees separate and the shank cuff is pulled partly along the shank.  So

@@ -1,15 +1,30 @@
-r"""Errors of estimated cuff-force normal components against the simulated truth.
+r"""Errors of estimated cuff forces against the simulated truth.
 
-The estimate of a cuff's normal component f̂⊥ is compared with the normal
-component n(q) · f of the true force on the exoskeleton (n of
-:mod:`exo_ctrl.estimation.cuff_geometry`), per cuff in CUFF_NAMES order:
+**The headline: the whole force.**  Per cuff (CUFF_NAMES order) the estimated
+2-D force f̂ (every component the estimator gives, the ones it assumes
+included) is compared with the true force f on the exoskeleton:
+
+    RMS = √(mean |f̂ − f|²),   relative = RMS / √(mean |f|²)
+
+(``cuff_force_estimate_rms_error_N`` and ``cuff_force_estimate_rms_error_rel``
+in the summaries).  It counts the along-link components, which the joint
+torques cannot see (:mod:`.cuff_geometry`) and which are the largest on the
+shank: an estimator that is blind to them shows it here.
+
+**The normal component alone** (the figure before, kept under its precise
+names ``cuff_force_estimate_normal_rms_error_N`` and
+``cuff_force_estimate_normal_rms_over_peak``): the estimate f̂⊥ against
+n(q) · f (n of :mod:`exo_ctrl.estimation.cuff_geometry`),
 
     e = f̂⊥ − n(q) · f,   RMS = √(mean e²),   relative = RMS / max |n(q) · f|.
 
-The relative figure is given only where its denominator means something: a
-cuff whose true normal force never reaches :data:`REL_FLOOR_N` (1 N, below
-the torque sensors' noise seen through the lever arms) gets NaN, written as
-``null`` in JSON summaries.
+A relative figure is given only where its denominator means something: a
+cuff whose RMS true force (whole figure) or peak true normal force (normal
+figure) is below :data:`REL_FLOOR_N` (1 N, below the torque sensors' noise
+seen through the lever arms) gets NaN, written as ``null`` in JSON summaries.
+
+``cuff_force_estimate_unobservable`` lists, per cuff, the components the
+estimator cannot observe from the joint torques (:data:`UNOBSERVABLE`).
 
 :func:`normal_component_errors` compares whole series; :class:`EstimateErrorStats`
 keeps the same sums chunk by chunk while :func:`exo_ctrl.sim.loop.simulate`
@@ -20,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -29,10 +45,30 @@ from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, BodyModel
 from .cuff_geometry import GEOMETRY_FIELDS, _cuff_directions, _geometry, cuff_normal_components
 
-__all__ = ["REL_FLOOR_N", "EstimateErrorStats", "EstimateErrors", "normal_component_errors"]
+__all__ = [
+    "REL_FLOOR_N",
+    "UNOBSERVABLE",
+    "EstimateErrorStats",
+    "EstimateErrors",
+    "normal_component_errors",
+]
 
-#: Smallest peak true normal force [N] a relative error is given for (else NaN).
+#: Smallest true force [N] (RMS magnitude, or peak normal component) a relative error
+#: is given for (else NaN).
 REL_FLOOR_N = 1.0
+
+#: What the joint torques cannot observe, per cuff (:mod:`.cuff_geometry`): the
+#: thigh cuff's along-thigh force has no lever arm (the estimate assumes it
+#: zero); the shank cuff's along-shank force is seen only in a sum with the
+#: thigh's normal force (the estimate takes it from the assumption κ).
+UNOBSERVABLE: dict[str, list[str]] = {
+    cuff: [
+        "along the thigh (no lever arm: assumed 0)"
+        if cuff.endswith("thigh")
+        else "along the shank (seen only with the thigh's normal force: from the assumption κ)"
+    ]
+    for cuff in CUFF_NAMES
+}
 
 
 def _relative(rms: np.ndarray, peak: np.ndarray) -> np.ndarray:
@@ -42,17 +78,22 @@ def _relative(rms: np.ndarray, peak: np.ndarray) -> np.ndarray:
 
 @dataclass
 class EstimateErrors:
-    """Errors of estimated normal components against the truth, per cuff.
+    """Errors of an estimate against the truth, per cuff (module docstring).
 
     Attributes:
         rms_error_N: RMS of (estimate − true normal component) [N], (4,).
-        max_error_N: largest |estimate − true| [N], (4,).
+        max_error_N: largest |estimate − true| normal component [N], (4,).
         peak_true_N: peak |true normal component| [N], (4,).
         rms_error_rel: rms_error_N / peak_true_N [-], (4,); NaN where
-            peak_true_N < :data:`REL_FLOOR_N`.
+            peak_true_N < :data:`REL_FLOOR_N` (the normal figure).
         rows: number of rows compared.
         rms_true_N: RMS of the true normal component [N], (4,), or None
             where it is not kept (:class:`EstimateErrorStats`).
+        vector_rms_error_N: √(mean |f̂ − f|²) of the 2-D forces [N], (4,), or
+            None without the estimated forces.
+        vector_rms_true_N: √(mean |f|²) of the true forces [N], (4,), or None.
+        vector_rms_error_rel: their ratio [-], (4,), NaN where
+            vector_rms_true_N < :data:`REL_FLOOR_N`; or None.
 
     """
 
@@ -62,9 +103,17 @@ class EstimateErrors:
     rms_error_rel: np.ndarray
     rows: int
     rms_true_N: np.ndarray | None = None
+    vector_rms_error_N: np.ndarray | None = None
+    vector_rms_true_N: np.ndarray | None = None
+    vector_rms_error_rel: np.ndarray | None = None
 
-    def summary(self) -> dict[str, dict[str, float | None]]:
-        """``cuff_force_estimate_rms_error_N`` and ``…_rel``, keyed by cuff (NaN as None)."""
+    def summary(self) -> dict[str, Any]:
+        """The summary entries, keyed by cuff (NaN as None; module docstring).
+
+        ``cuff_force_estimate_rms_error_N``, ``…_rms_error_rel`` (whole force;
+        only with the estimated forces), ``…_normal_rms_error_N``,
+        ``…_normal_rms_over_peak`` and ``…_unobservable`` (a list: "cuff: component").
+        """
 
         def keyed(x: np.ndarray) -> dict[str, float | None]:
             return {
@@ -72,10 +121,16 @@ class EstimateErrors:
                 for c, val in zip(CUFF_NAMES, x, strict=True)
             }
 
-        return {
-            "cuff_force_estimate_rms_error_N": keyed(self.rms_error_N),
-            "cuff_force_estimate_rms_error_rel": keyed(self.rms_error_rel),
-        }
+        out: dict[str, Any] = {}
+        if self.vector_rms_error_N is not None and self.vector_rms_error_rel is not None:
+            out["cuff_force_estimate_rms_error_N"] = keyed(self.vector_rms_error_N)
+            out["cuff_force_estimate_rms_error_rel"] = keyed(self.vector_rms_error_rel)
+        out["cuff_force_estimate_normal_rms_error_N"] = keyed(self.rms_error_N)
+        out["cuff_force_estimate_normal_rms_over_peak"] = keyed(self.rms_error_rel)
+        out["cuff_force_estimate_unobservable"] = [
+            f"{c}: {what}" for c, x in UNOBSERVABLE.items() for what in x
+        ]
+        return out
 
 
 def normal_component_errors(
@@ -85,8 +140,9 @@ def normal_component_errors(
     exo: BodyModel | None = None,
     skip: int = 0,
     lag: int = 0,
+    force_est: np.ndarray | None = None,
 ) -> EstimateErrors:
-    """Compare estimated normal components with the true cuff forces.
+    """Compare estimated normal components (and forces) with the true cuff forces.
 
     Row k of the estimate is compared with the normal component of row
     k − ``lag`` of the truth, taken along the normals at q_exo row k.  In
@@ -103,6 +159,8 @@ def normal_component_errors(
         skip: estimate rows to leave out at the start (the observer's
             start-up, a few 1/K_O).
         lag: rows by which the estimate trails the truth.
+        force_est: estimated 2-D forces on the exoskeleton [N], (N, 4, 2), rows
+            as ``normal_est``: gives the whole-force figures (module docstring).
 
     Raises:
         InvalidParameter: fewer than one row is left to compare.
@@ -119,7 +177,7 @@ def normal_component_errors(
     err = est[start:n] - truth
     rms = np.sqrt(np.mean(err**2, axis=0))
     peak = np.max(np.abs(truth), axis=0)
-    return EstimateErrors(
+    out = EstimateErrors(
         rms_error_N=rms,
         max_error_N=np.max(np.abs(err), axis=0),
         peak_true_N=peak,
@@ -127,6 +185,13 @@ def normal_component_errors(
         rows=int(err.shape[0]),
         rms_true_N=np.sqrt(np.mean(truth**2, axis=0)),
     )
+    if force_est is not None:
+        true_f = force[start - lag : n - lag]
+        diff = np.asarray(force_est, dtype=float)[start:n] - true_f
+        out.vector_rms_error_N = np.sqrt(np.mean(np.sum(diff**2, axis=-1), axis=0))
+        out.vector_rms_true_N = np.sqrt(np.mean(np.sum(true_f**2, axis=-1), axis=0))
+        out.vector_rms_error_rel = _relative(out.vector_rms_error_N, out.vector_rms_true_N)
+    return out
 
 
 #: :class:`EstimateErrorStats`' record: the cuff geometry, the last row's true
@@ -137,6 +202,8 @@ _STATS_FIELDS = [
     ("sq_error_sum", np.float64, (4,)),
     ("max_error", np.float64, (4,)),
     ("peak_true", np.float64, (4,)),
+    ("sq_vector_error_sum", np.float64, (4,)),
+    ("sq_vector_true_sum", np.float64, (4,)),
 ]
 
 
@@ -173,44 +240,64 @@ class EstimateErrorStats:
         self._prev_force = self.record["prev_force"][0]  # the last row's, once a row was seen
         self._n = 0
 
-    def update(self, q: np.ndarray, cuff_force: np.ndarray, normal_est: np.ndarray) -> None:
-        """Add rows: q (n, 4) [rad], cuff_force (n, 4, 2) [N], normal_est (n, 4) [N]."""
+    def update(
+        self,
+        q: np.ndarray,
+        cuff_force: np.ndarray,
+        normal_est: np.ndarray,
+        force_est: np.ndarray,
+    ) -> None:
+        """Add rows: q (n, 4) [rad], cuff_force and force_est (n, 4, 2), normal_est (n, 4) [N]."""
         n = np.shape(q)[0]
         if n == 0:
             return
         # Truth paired with row i: the force of row i - 1 (the previous chunk's last).
         start = max(self.skip - self.rows, 0 if self.rows else 1)
         if start < n:
-            _error_sums(self.record, q, cuff_force, normal_est, start)
+            _error_sums(self.record, q, cuff_force, normal_est, force_est, start)
             self._n += n - start
         self._prev_force[:] = cuff_force[-1]
         self.rows += n
 
-    def preload(self, q: np.ndarray, cuff_force: np.ndarray, normal_est: np.ndarray) -> None:
+    def preload(
+        self,
+        q: np.ndarray,
+        cuff_force: np.ndarray,
+        normal_est: np.ndarray,
+        force_est: np.ndarray,
+    ) -> None:
         """Load the compiled kernel for rows of these arrays' types (before a timed run)."""
-        preload(_error_sums, self.record, q, cuff_force, normal_est, 0)
+        preload(_error_sums, self.record, q, cuff_force, normal_est, force_est, 0)
 
     def result(self) -> EstimateErrors:
         """The errors so far (zeros before any compared row, relative NaN then)."""
         sums = self.record[0]
-        rms = np.sqrt(sums["sq_error_sum"] / max(self._n, 1))
+        rows = max(self._n, 1)
+        rms = np.sqrt(sums["sq_error_sum"] / rows)
         peak = sums["peak_true"]
+        vector = np.sqrt(sums["sq_vector_error_sum"] / rows)
+        vector_true = np.sqrt(sums["sq_vector_true_sum"] / rows)
         return EstimateErrors(
             rms_error_N=rms,
             max_error_N=sums["max_error"].copy(),
             peak_true_N=peak.copy(),
             rms_error_rel=_relative(rms, peak),
             rows=self._n,
+            vector_rms_error_N=vector,
+            vector_rms_true_N=vector_true,
+            vector_rms_error_rel=_relative(vector, vector_true),
         )
 
-    def summary(self) -> dict[str, dict[str, float | None]]:
-        """``cuff_force_estimate_rms_error_N`` and ``…_rel`` keyed by cuff (NaN as None)."""
+    def summary(self) -> dict[str, Any]:
+        """The summary entries of :meth:`EstimateErrors.summary`."""
         return self.result().summary()
 
 
 @kernel
-def _error_sums(state, q, force, normal_est, start):
-    """Add rows start… to :class:`EstimateErrorStats`' sums (Σ e², max |e|, max |truth|).
+def _error_sums(state, q, force, normal_est, force_est, start):
+    """Add rows start… to :class:`EstimateErrorStats`' sums (Σ e², max |e|, max |truth| …).
+
+    Also the whole force's Σ |f̂ − f|² and Σ |f|².
 
     The truth of row i is the normal component n(q_i) · f_{i-1} of the
     previous row's force (``prev_force`` of the record for row 0), per cuff
@@ -237,5 +324,8 @@ def _error_sums(state, q, force, normal_est, start):
                 truth = -math.sin(psi) * fx + math.cos(psi) * fz
                 err = normal_est[r, c] - truth
                 st.sq_error_sum[c] += err * err
+                ex, ez = force_est[r, c, 0] - fx, force_est[r, c, 1] - fz
+                st.sq_vector_error_sum[c] += ex * ex + ez * ez
+                st.sq_vector_true_sum[c] += fx * fx + fz * fz
                 st.max_error[c] = max(st.max_error[c], abs(err))
                 st.peak_true[c] = max(st.peak_true[c], abs(truth))

@@ -1,5 +1,9 @@
-"""The gait plan: foot paths synchronised with the belt (paper §III) and the inverse kinematics."""
+"""The gait plan: foot paths synchronised with the belt (paper §III) and the inverse kinematics.
 
+Also the exercises other than the gait (:mod:`.exercise`: the calibration swing).
+"""
+
+from .exercise import EXERCISES, calibration_plan
 from .gait import (
     FootTrajectory,
     GaitParams,
@@ -18,6 +22,7 @@ from .ramp import Ramp, RampedGait, smoothstep
 from .rows import NO_TAIL, RowLayout, fill_rows, layout, plan_row
 
 __all__ = [
+    "EXERCISES",
     "NO_TAIL",
     "PLAN_BYTES_PER_SAMPLE",
     "FootTrajectory",
@@ -27,6 +32,7 @@ __all__ = [
     "Ramp",
     "RampedGait",
     "RowLayout",
+    "calibration_plan",
     "fill_rows",
     "forward_kinematics",
     "inverse_kinematics",

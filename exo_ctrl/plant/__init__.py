@@ -1,7 +1,14 @@
 """The simulated device, the truth: bodies, drives, cuffs, patient torques."""
 
+from .belt import (
+    BeltParams,
+)
 from .compliance import (
     CompliantJoint,
+)
+from .contact import (
+    ContactParams,
+    FootContact,
 )
 from .cuffs import (
     CuffParams,
@@ -15,6 +22,11 @@ from .drive import (
 )
 from .end_stops import (
     EndStopParams,
+)
+from .misalignment import (
+    MAX_MISALIGNMENT_M,
+    Misalignment,
+    misaligned_patient,
 )
 from .motor import (
     MotorBank,
@@ -32,12 +44,17 @@ from .plant import (
 )
 
 __all__ = [
+    "MAX_MISALIGNMENT_M",
     "MOTOR_PRESETS",
     "PATIENT_TORQUES",
+    "BeltParams",
     "CompliantJoint",
+    "ContactParams",
     "CuffParams",
     "CuffSet",
     "EndStopParams",
+    "FootContact",
+    "Misalignment",
     "MotorBank",
     "MotorParams",
     "PatientTorque",
@@ -46,6 +63,7 @@ __all__ = [
     "SpasticPatient",
     "consistency_warning",
     "make_patient_torque",
+    "misaligned_patient",
     "motor_preset",
     "motor_step",
 ]

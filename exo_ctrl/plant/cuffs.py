@@ -24,6 +24,40 @@ eight link rotations θ = S q_all and u = (cos θ, sin θ), every point's
 of the point forces F = Dᵀ f is Sᵀ ((Pᵀ F) ⊙ (-sin θ, cos θ)) summed over the
 two halves.  Tests check positions and Jacobians against Pinocchio's frame
 kinematics.
+
+**Normal and shear** (:class:`CuffParams`).  Soft tissue is much softer in
+shear, along the limb, than in compression, across it.  With u the unit
+direction of the exoskeleton link carrying the cuff (joint → cuff point) at
+the present angles, n = u turned by +90°, and the stretch split in the
+link's frame, s_n = n · Δp - r₀ₙ, s_u = u · Δp - r₀ᵤ (r₀ₙ, r₀ᵤ captured at
+the fit: the strap's slack offset turns with the link), the cuff stores
+
+    V = ½ k_u s_u² + V_n(s_n),   V_n = ½ k_n s_n²
+
+(bonded pads, no preload), and the force on the exoskeleton's cuff point is
+f = -σ_n n - σ_u u - C_n (n · Δṗ) n - C_u (u · Δṗ) u with σ_n = V_n'(s_n),
+σ_u = k_u s_u.  Because n and u turn with the exoskeleton's link, the
+spring also acts on that link with the moment M = σ_n (u · Δp) - σ_u (n · Δp)
+(−∂V/∂θ at fixed Δp; it balances the couple Δp × f of an anisotropic spring,
+and makes the spring conservative: :meth:`CuffSet.spring_energy` is its
+potential).  The damper is dissipative, f · Δṗ ≤ 0.
+
+**Preload.**  A strap tightened with preload P presses its two pads (the
+shell on one side of the limb, the strap on the other) on the limb with P
+each at the fit; each pad is a unilateral spring of stiffness k_n / 2 with
+compression δ₀ ± s_n, δ₀ = 2P / k_n, so
+
+    V_n = (k_n / 4) (max(0, δ₀ + s_n)² + max(0, δ₀ - s_n)²),
+
+σ_n = k_n s_n while both pads touch (|s_n| ≤ δ₀; the net force at the fit is
+zero, the pads' P each, :meth:`CuffSet.pad_forces`), and k_n / 2 with an
+offset beyond, where one pad lifts off.  P = 0 is the bonded cuff of the
+paper (no lift-off).
+
+Isotropic cuffs without preload (k_u = k_n, C_u = C_n, P = 0, as before the
+split) are computed as before: f = -K (Δp - r₀) - C Δṗ with r₀ fixed in the
+world and no moment (the same as the above when r₀ = 0, the fit of coinciding
+frames); the golden runs (tests/sim/test_golden.py) hold them.
 """
 
 from __future__ import annotations
@@ -43,30 +77,74 @@ __all__ = ["CuffParams", "CuffSet"]
 
 @dataclass(frozen=True)
 class CuffParams:
-    """Cuff spring–damper, the same for the four cuffs.
+    """Cuff spring–damper, the same for the four cuffs (module docstring).
 
     Attributes:
-        stiffness_N_per_m: K, paper Table I (c_H, c_S = 8 N/mm) [N/m].
-        damping_N_s_per_m: C, not in the paper; 100 N·s/m gives a damping
-            ratio of about 0.3 for the shank cuff mode of the default
+        stiffness_N_per_m: k_n, normal (across the link), paper Table I
+            (c_H, c_S = 8 N/mm) [N/m].
+        damping_N_s_per_m: C_n, normal, not in the paper; 100 N·s/m gives a
+            damping ratio of about 0.3 for the shank cuff mode of the default
             patient (chosen) [N·s/m].
+        shear_stiffness_N_per_m: k_u, along the link [N/m]; None: k_n
+            (isotropic).  Default 3700 N/m: Schiebl et al. 2025 (Sensors
+            25(15):4605, "Quantification of the mechanical properties in the
+            human–exoskeleton upper arm interface") measured translational
+            interface stiffnesses of 2.1–4.5 N/mm depending on the direction,
+            the softest along the limb; the paper's 8 N/mm across the link
+            scaled by that ratio, 2.1 / 4.5, is 3.7 N/mm.
+        shear_damping_N_s_per_m: C_u, along the link [N·s/m]; None: C_n.
+            Default 70 N·s/m: C_n scaled by √(k_u / k_n), the same damping
+            ratio (chosen).
+        preload_N: P, the strap's preload, the compressive force of each of
+            its two pads on the limb at the fit [N] (default 0: bonded pads,
+            no lift-off, the paper's linear cuff).
 
-    Both are stored as float.
+    All are stored as float.
 
     Raises:
         InvalidParameter: a field that is text, a bool or not finite;
-            stiffness <= 0 or damping < 0.
+            a stiffness <= 0, a damping or the preload < 0.
 
     """
 
     stiffness_N_per_m: float = 8000.0
     damping_N_s_per_m: float = 100.0
+    shear_stiffness_N_per_m: float | None = 3700.0
+    shear_damping_N_s_per_m: float | None = 70.0
+    preload_N: float = 0.0
 
     def __post_init__(self) -> None:
         k = v.positive("cuff stiffness", self.stiffness_N_per_m, "N/m")
         c = v.non_negative("cuff damping", self.damping_N_s_per_m, "N·s/m")
-        object.__setattr__(self, "stiffness_N_per_m", k)
-        object.__setattr__(self, "damping_N_s_per_m", c)
+        ks = self.shear_stiffness_N_per_m
+        cs = self.shear_damping_N_s_per_m
+        ks = k if ks is None else v.positive("cuff shear stiffness", ks, "N/m")
+        cs = c if cs is None else v.non_negative("cuff shear damping", cs, "N·s/m")
+        p = v.non_negative("cuff preload", self.preload_N, "N")
+        for name, value in (
+            ("stiffness_N_per_m", k),
+            ("damping_N_s_per_m", c),
+            ("shear_stiffness_N_per_m", ks),
+            ("shear_damping_N_s_per_m", cs),
+            ("preload_N", p),
+        ):
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def isotropic(
+        cls, stiffness_N_per_m: float = 8000.0, damping_N_s_per_m: float = 100.0
+    ) -> CuffParams:
+        """Equal normal and shear stiffness and damping, no preload (the cuffs before the split)."""
+        return cls(stiffness_N_per_m, damping_N_s_per_m, None, None, 0.0)
+
+    @property
+    def is_isotropic(self) -> bool:
+        """k_u = k_n, C_u = C_n and no preload: computed as before the split."""
+        return (
+            self.shear_stiffness_N_per_m == self.stiffness_N_per_m
+            and self.shear_damping_N_s_per_m == self.damping_N_s_per_m
+            and self.preload_N == 0.0
+        )
 
 
 class CuffSet:
@@ -102,6 +180,7 @@ class CuffSet:
         base = np.zeros((8, 2))
         vec = np.zeros((8, 8, 2))  # point i, rotation j -> link vector at q = 0
         sel = np.zeros((8, 8))  # rotation j = sel[j] @ q_all
+        along0 = np.zeros((4, 2))  # u of each cuff at q = 0 (exo cuff c turns with rotation c)
         for b, body in enumerate((exo, patient)):
             data = body.model.createData()
             pin.framesForwardKinematics(body.model, data, pin.neutral(body.model))
@@ -126,6 +205,9 @@ class CuffSet:
                     else:
                         vec[i, rot_thigh] = knee - hip
                         vec[i, rot_shank] = point - knee
+                    if b == 0:  # u at q = 0: the exo link's joint → cuff direction
+                        arm = point - (hip if link == "thigh" else knee)
+                        along0[c] = arm / max(float(np.hypot(arm[0], arm[1])), 1e-12)
         ax, az = vec[..., 0], vec[..., 1]
         # (x; z) of the 8 points = P (cos θ; sin θ) + p0, rows: 8 x then 8 z.
         self._P = np.block([[ax, -az], [az, ax]])
@@ -152,6 +234,18 @@ class CuffSet:
         c["dp"] = self._DP
         c["dpt"] = self._DPT
         c["k"], c["c"] = self._k, self._c
+        c["k_u"] = float(params.shear_stiffness_N_per_m)
+        c["c_u"] = float(params.shear_damping_N_s_per_m)
+        c["preload"] = float(params.preload_N)
+        c["split"] = not params.is_isotropic
+        c["dp0"] = self._Dp0
+        c["along0"] = along0
+        #: u of each cuff at q = 0, (4, 2): the exo link's joint → cuff direction.
+        self.along0 = self.record["along0"][0]
+        self._split = bool(c["split"])
+        #: r₀ in the link's frame, (s_n, s_u) offsets captured at the fit [m], (4,) each.
+        self.rest_normal = self.record["r0n"][0]
+        self.rest_along = self.record["r0u"][0]
         #: S, the rotation selection (8, 8): link rotation j = S[j] @ q_all.
         self.select = self.record["select"][0]
         # State and work arrays, allocated once.
@@ -196,11 +290,70 @@ class CuffSet:
         return np.stack((jac[:8], jac[8:]), axis=1).reshape(2, 4, 2, 8)
 
     def fit(self, q_all: np.ndarray) -> None:
-        """Fit the straps: make the present offsets the slack (zero-force) ones."""
+        """Fit the straps: make the present offsets the slack (zero-stretch) ones.
+
+        Isotropic cuffs keep r₀ in the world; split cuffs in the link's
+        frame (r₀ₙ = n · Δp, r₀ᵤ = u · Δp at the fit; module docstring).
+        """
         self._trig(np.asarray(q_all, dtype=float))
         self.rest_offset[:] = self._DP @ self._cs + self._Dp0
         np.subtract(self._Dp0, self.rest_offset, out=self._offset)
         np.multiply(self._offset, self._k, out=self._k_offset)
+        self.rest_normal[:] = 0.0
+        self.rest_along[:] = 0.0
+        normal, along = self.link_frame_offsets(q_all)
+        self.rest_normal[:] = normal
+        self.rest_along[:] = along
+
+    def directions(self, q_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """U and n of the four cuffs at q_all (the exo links' frames), each (4, 2)."""
+        self._trig(np.asarray(q_all, dtype=float))
+        cos, sin = self._cs[:4], self._cs[8:12]
+        ux = self.along0[:, 0] * cos - self.along0[:, 1] * sin
+        uz = self.along0[:, 1] * cos + self.along0[:, 0] * sin
+        return np.stack((ux, uz), axis=-1), np.stack((-uz, ux), axis=-1)
+
+    def link_frame_offsets(self, q_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(s_n, s_u), the stretch in the links' frames: n · Δp - r₀ₙ, u · Δp - r₀ᵤ [m], (4,)."""
+        u, n = self.directions(q_all)
+        dp = self._DP @ self._cs + self._Dp0
+        d = np.stack((dp[:4], dp[4:]), axis=-1)
+        return (
+            np.sum(n * d, axis=-1) - self.rest_normal,
+            np.sum(u * d, axis=-1) - self.rest_along,
+        )
+
+    def pad_forces(self, q_all: np.ndarray) -> np.ndarray:
+        """Compressive force of each cuff's two pads on the limb, (4, 2) [N] (module docstring).
+
+        Column 0: the pad the exoskeleton presses harder when it moves along
+        +n relative to the limb, (k_n / 2) max(0, δ₀ + s_n); column 1 the
+        other, (k_n / 2) max(0, δ₀ - s_n); δ₀ = 2P / k_n.  At the fit both are P.
+        """
+        s_n, _ = self.link_frame_offsets(q_all)
+        k = self._k
+        d0 = 2.0 * self.params.preload_N / k
+        return 0.5 * k * np.stack((np.maximum(d0 + s_n, 0.0), np.maximum(d0 - s_n, 0.0)), axis=-1)
+
+    def spring_energy(self, q_all: np.ndarray) -> float:
+        """Potential energy of the cuffs' springs at q_all [J], zero at the fit (module docstring).
+
+        Isotropic: ½ K |Δp - r₀|²; split: ½ k_u s_u² + V_n(s_n) - V_n(0).
+        """
+        if not self._split:
+            stretch = self.stretch(q_all)
+            return 0.5 * self._k * float(stretch @ stretch)
+        s_n, s_u = self.link_frame_offsets(q_all)
+        live = self.record["slipped"][0] == 0.0
+        k, pre = self._k, self.params.preload_N
+        if pre > 0.0:
+            d0 = 2.0 * pre / k
+            v_n = 0.25 * k * (np.maximum(d0 + s_n, 0.0) ** 2 + np.maximum(d0 - s_n, 0.0) ** 2)
+            v_n -= 0.5 * k * d0**2
+        else:
+            v_n = 0.5 * k * s_n**2
+        v_u = 0.5 * self.params.shear_stiffness_N_per_m * s_u**2
+        return float(np.sum((v_n + v_u)[live]))
 
     def stretch(self, q_all: np.ndarray) -> np.ndarray:
         """Cuff stretch Δp - r₀ (exo minus patient), x of the 4 cuffs then z [m], (8,)."""
@@ -228,7 +381,11 @@ class CuffSet:
 #: ``cs`` = (cos θ, sin θ), ``csr`` = (-sin θ, cos θ), ``y`` (16 each);
 #: ``slipped`` per cuff (CUFF_NAMES order; 1.0: the cuff has slipped off, it
 #: transmits no force, stiffness and damping zero; set only by fault
-#: injection, :mod:`exo_ctrl.sim.faults`).
+#: injection, :mod:`exo_ctrl.sim.faults`).  Split cuffs (normal and shear,
+#: module docstring; ``split`` true): ``k_u``, ``c_u`` the shear stiffness
+#: [N/m] and damping [N·s/m], ``preload`` P [N], ``dp0`` = D p₀ [m],
+#: ``along0`` u of each cuff at q = 0, ``r0n``, ``r0u`` the fit's offsets in
+#: the links' frames [m]; work row ``rel`` = (Δp, Δṗ) (x of the 4, z of the 4 each).
 CUFF_FIELDS = [
     ("select", np.float64, (8, 8)),
     ("dp", np.float64, (8, 16)),
@@ -242,6 +399,15 @@ CUFF_FIELDS = [
     ("csr", np.float64, (16,)),
     ("y", np.float64, (16,)),
     ("slipped", np.float64, (4,)),
+    ("k_u", np.float64),
+    ("c_u", np.float64),
+    ("preload", np.float64),
+    ("split", np.bool_),
+    ("dp0", np.float64, (8,)),
+    ("along0", np.float64, (4, 2)),
+    ("r0n", np.float64, (4,)),
+    ("r0u", np.float64, (4,)),
+    ("rel", np.float64, (16,)),
 ]
 
 
@@ -259,6 +425,9 @@ def cuff_forces(cuffs: np.ndarray, q_all: np.ndarray, v_all: np.ndarray) -> None
 @kernel
 def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
     """:func:`cuff_forces` on the record ``r`` itself (also a field of another record)."""
+    if r.split:
+        _split_forces(r, q_all, v_all)
+        return
     k, c = r.k, r.c
     select, dp, dpt, k_offset = r.select, r.dp, r.dpt, r.k_offset
     f, tau, cs, csr, y = r.f, r.tau, r.cs, r.csr, r.y
@@ -284,6 +453,84 @@ def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
         f[row] = acc - k_offset[row] if r.slipped[row % 4] == 0.0 else 0.0
     for i in range(8):
         tau[i] = 0.0
+    for j in range(16):
+        g = 0.0
+        for row in range(8):
+            g += dpt[j, row] * f[row]
+        g *= csr[j]
+        jj = j if j < 8 else j - 8
+        for i in range(8):
+            s = select[jj, i]
+            if s != 0.0:
+                tau[i] += s * g
+
+
+@kernel
+def _split_forces(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
+    """Forces of split cuffs (normal and shear, preload; module docstring), in place.
+
+    Δp = D P u + D p₀, Δṗ = D P w; per cuff u, n of its exo link, s_n, s_u,
+    σ_n, σ_u, f = -(σ_n + C_n n · Δṗ) n - (σ_u + C_u u · Δṗ) u; τ as the
+    isotropic cuffs' plus the moment M = σ_n (u · Δp) - σ_u (n · Δp) on each
+    cuff's exo link (rotation c of S).
+    """
+    select, dp, dpt = r.select, r.dp, r.dpt
+    f, tau, cs, csr, y, rel = r.f, r.tau, r.cs, r.csr, r.y, r.rel
+    for j in range(8):
+        th = 0.0
+        dth = 0.0
+        for i in range(8):
+            s = select[j, i]
+            if s != 0.0:
+                th += s * q_all[i]
+                dth += s * v_all[i]
+        cj, sj = np.cos(th), np.sin(th)
+        cs[j] = cj
+        cs[8 + j] = sj
+        csr[j] = -sj
+        csr[8 + j] = cj
+        y[j] = -sj * dth
+        y[8 + j] = cj * dth
+    for row in range(8):
+        acc = r.dp0[row]
+        rate = 0.0
+        for j in range(16):
+            acc += dp[row, j] * cs[j]
+            rate += dp[row, j] * y[j]
+        rel[row] = acc
+        rel[8 + row] = rate
+    kn, cn, ku, cu = r.k, r.c, r.k_u, r.c_u
+    d0 = 2.0 * r.preload / kn
+    for i in range(8):
+        tau[i] = 0.0
+    for c in range(4):
+        if r.slipped[c] != 0.0:
+            f[c] = 0.0
+            f[4 + c] = 0.0
+            continue
+        cc, sc = cs[c], cs[8 + c]
+        ux = r.along0[c, 0] * cc - r.along0[c, 1] * sc
+        uz = r.along0[c, 1] * cc + r.along0[c, 0] * sc
+        nx, nz = -uz, ux
+        dx, dz = rel[c], rel[4 + c]
+        pu = ux * dx + uz * dz
+        pn = nx * dx + nz * dz
+        s_n = pn - r.r0n[c]
+        s_u = pu - r.r0u[c]
+        if r.preload > 0.0:
+            sigma_n = 0.5 * kn * (max(d0 + s_n, 0.0) - max(d0 - s_n, 0.0))
+        else:
+            sigma_n = kn * s_n
+        sigma_u = ku * s_u
+        f_n = -sigma_n - cn * (nx * rel[8 + c] + nz * rel[12 + c])
+        f_u = -sigma_u - cu * (ux * rel[8 + c] + uz * rel[12 + c])
+        f[c] = f_n * nx + f_u * ux
+        f[4 + c] = f_n * nz + f_u * uz
+        moment = sigma_n * pu - sigma_u * pn
+        for i in range(8):
+            s = select[c, i]
+            if s != 0.0:
+                tau[i] += s * moment
     for j in range(16):
         g = 0.0
         for row in range(8):

@@ -41,6 +41,12 @@ gearbox and the link reads, drive_torque - i_G² J_rotor a (the rotor's
 inertia is on the motor side of the sensor).  With joint compliance
 (:mod:`exo_ctrl.plant.compliance`, off by default) each rotor is a body of its
 own behind a spring–damper and the sensor reads the spring's torque.
+
+With the belt and foot contact (:mod:`exo_ctrl.plant.contact`, off by
+default) the feet's normal forces join the mid-step forces, and on a step
+with a foot in contact the friction impulses are solved after ABA (one CRBA
+for the legs' mass matrices) and added to its accelerations before the kick.
+Without contact the step is the same arithmetic as before, bit for bit.
 """
 
 from __future__ import annotations
@@ -51,15 +57,17 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as _v
-from .._jit import Status, check, kernel, record, shared_dtype
+from .._jit import Status, check, kernel, record
 from ..exceptions import InvalidModel, InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
-from .compliance import COMPLIANCE_FIELDS, CompliantJoint, Rotors, rotor_forces, rotor_kick
-from .cuffs import CUFF_FIELDS, CuffParams, CuffSet, forces_of
+from .compliance import CompliantJoint, Rotors, rotor_forces, rotor_kick
+from .contact import ContactParams, FootContact, contact_commit, contact_forces, friction_impulse
+from .cuffs import CuffParams, CuffSet, forces_of
 from .drive import MotorParams
-from .end_stops import END_STOP_FIELDS, EndStopParams, end_stop_torques
+from .end_stops import EndStopParams, end_stop_torques
 from .energy import book_drives
-from .motor import MotorBank, motor_fields, step_drives
+from .motor import MotorBank, step_drives
+from .plant_record import plant_fields
 
 __all__ = ["Plant"]
 
@@ -85,6 +93,10 @@ class Plant:
             (:mod:`exo_ctrl.plant.end_stops`; default on).
         compliance: a spring–damper between each drive and its link
             (:mod:`exo_ctrl.plant.compliance`; default off: rigid).
+        contact: the belt and the foot–belt contact (:mod:`exo_ctrl.plant.contact`;
+            default off: the feet in free air).
+        belt_height_m: the belt's top below the hip [m] (the plan's H_s),
+            unless the contact's belt sets its own.
 
     Raises:
         InvalidModel: a body without exactly the four joints in JOINT_NAMES
@@ -104,6 +116,8 @@ class Plant:
         joint_losses: bool = True,
         end_stops: EndStopParams | None = None,
         compliance: CompliantJoint | None = None,
+        contact: ContactParams | None = None,
+        belt_height_m: float = 0.9,
     ) -> None:
         for body in (exo, patient):
             if not np.array_equal(body.q_index, np.arange(4)) or body.model.nq != 4:
@@ -180,6 +194,10 @@ class Plant:
         self._arm[:4] = self._arm_const
         self._arm[4:] = self.dt * self._b[4:]
         self.model.armature = self._arm
+        #: The belt and the feet on it (:mod:`exo_ctrl.plant.contact`).
+        self.contact = FootContact(exo, contact or ContactParams(), belt_height_m, r["contact"])
+        self._contact_on = self.contact.params.enabled
+        self._contact_any, self._contact_acc = r["contact"]["any"], r["contact"]["acc"][0]
         self.t = 0.0
         if self.motors is not None:
             self.motors.set_step(self.dt)
@@ -221,6 +239,7 @@ class Plant:
         self.drive_torque[:] = self.motors.torque_Nm if self.motors is not None else 0.0
         self.sensor_torque[:] = self.drive_torque
         self.rotors.reset()
+        self.contact.reset(self.contact.belt["v_set"][0])
 
     @property
     def cuff_force(self) -> np.ndarray:
@@ -256,15 +275,22 @@ class Plant:
             self.model.armature = self._arm
         # Kick: accelerations of both bodies at mid-step, damping implicit
         # through the armature.
-        acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
         self.t += self.dt
-        status = _kick_and_drift(self.record, acc)
+        status = _kick_and_drift(self.record, self._accelerations())
         while self._resolve[0]:  # a drive reached its current limit: at most 4 times
             self.model.armature = self._arm
-            acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
-            status = _kick_and_drift(self.record, acc)
+            status = _kick_and_drift(self.record, self._accelerations())
         if status:
             self._diverged()
+
+    def _accelerations(self) -> np.ndarray:
+        """ABA's accelerations at mid-step, with the feet's friction impulses if in contact."""
+        acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
+        if self._contact_on and self._contact_any[0]:
+            mass = pin.crba(self.model, self.data, self._q_mid)
+            friction_impulse(self.record, acc, mass)
+            return self._contact_acc
+        return acc
 
     @property
     def acceleration(self) -> np.ndarray:
@@ -305,59 +331,17 @@ class Plant:
             mass = np.triu(mass) + np.triu(mass, 1).T
             energy += 0.5 * float(v @ (mass + np.diag(arm)) @ v)
             energy += float(pin.computePotentialEnergy(model, data, q))
-        stretch = self.cuffs.stretch(self.q)
-        energy += 0.5 * self.cuff_params.stiffness_N_per_m * float(stretch @ stretch)
+        energy += self.cuffs.spring_energy(self.q)
         if self.end_stops.enabled:
             lower, upper = self.record["stop_lower"][0], self.record["stop_upper"][0]
             depth = np.maximum(self.q[:4] - upper, 0.0) + np.maximum(lower - self.q[:4], 0.0)
             energy += 0.5 * self.end_stops.stiffness_Nm_per_rad * float(depth @ depth)
+        if self._contact_on:  # the belt's kinetic energy, the contact springs' k δⁿ⁺¹ / (n + 1)
+            c = self.contact.record[0]
+            energy += 0.5 * float(c["belt"]["mass"] * c["belt"]["v"] ** 2)
+            n, depth = float(c["n"]), np.maximum(self.contact.penetration(self.q), 0.0)
+            energy += float(c["k"]) * float(np.sum(depth ** (n + 1.0))) / (n + 1.0)
         return energy + self.rotors.energy()  # with compliance, the rotors' and springs'
-
-
-#: Fields of the plant's record.  State and work per joint of [exo, patient]
-#: (8 each): ``q``, ``v`` [rad, rad/s], ``acc`` the last step's acceleration
-#: [rad/s²], ``q_mid``, ``v_mid`` the mid-step state, ``tau`` the joint
-#: torques at mid-step [N·m], ``armature`` the combined model's armature
-#: [kg·m²].  Per drive (4 each): ``drive_torque`` applied at the joint,
-#: ``sensor_torque`` read by the joint torque sensor, ``patient_torque``
-#: [N·m]; ``damping_m`` = h D_m of the drives, ``arm_base`` = i_G² J_rotor,
-#: ``arm_const`` = i_G² J_rotor + h b [kg·m²]; the last step's applied
-#: ``voltage`` [V] and mean ``current`` [A]; ``cuff_force`` on the
-#: exoskeleton, (x, z) per cuff [N].  Parameters: ``b`` joint damping
-#: [N·m·s/rad] and ``friction`` dry friction [N·m] (8 each), the step ``h``
-#: [s], ``has_friction``, ``has_motors``; ``armature_changed``: the last
-#: first half-step changed the exo armature (D_m changes only when a drive's
-#: current enters or leaves its limit); ``resolve``: the second half-step held
-#: a drive at its current limit and stepped nothing (solve the accelerations
-#: again).  :func:`plant_fields` adds the stops' and the compliance's fields,
-#: the drives' record ``motors`` and the cuffs' record ``cuffs``.
-def plant_fields() -> list[tuple]:
-    """The plant record's fields: PLANT_FIELDS, the stops', the drives' and the cuffs' records."""
-    return [
-        *PLANT_FIELDS,
-        *END_STOP_FIELDS,
-        *COMPLIANCE_FIELDS,
-        ("motors", shared_dtype(motor_fields(4), align=True)),
-        ("cuffs", shared_dtype(CUFF_FIELDS, align=True)),
-    ]
-
-
-_DRIVE_ROWS = (
-    "drive_torque", "sensor_torque", "patient_torque", "damping_m", "arm_base", "arm_const",
-    "voltage", "current", "effort",
-)  # fmt: skip
-PLANT_FIELDS = [
-    *((name, np.float64, (8,)) for name in ("q", "v", "acc", "q_mid", "v_mid", "tau", "armature")),
-    *((name, np.float64, (4,)) for name in _DRIVE_ROWS),
-    ("cuff_force", np.float64, (4, 2)),
-    ("b", np.float64, (8,)),
-    ("friction", np.float64, (8,)),
-    ("h", np.float64),
-    ("has_friction", np.bool_),
-    ("has_motors", np.bool_),
-    ("armature_changed", np.bool_),
-    ("resolve", np.bool_),
-]
 
 
 @kernel
@@ -392,6 +376,8 @@ def _drift_and_forces(
             t -= np.tanh(v[i] / FRICTION_SMOOTHING_RAD_S) * p.friction[i]
         tau[i] = t
     end_stop_torques(p, qm, vm, tau)
+    if p.contact.on:
+        contact_forces(p.contact, qm, vm, tau, h)
     if given:
         for j in range(4):
             p.patient_torque[j] = patient_torque_Nm[j]
@@ -488,6 +474,8 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
         p.current[j] = m.mean[j]
         p.cuff_force[j, 0] = f[j]
         p.cuff_force[j, 1] = f[4 + j]
+    if p.contact.on:
+        contact_commit(p.contact, p.h)
     half = 0.5 * p.h
     speed2 = 0.0
     for i in range(8):

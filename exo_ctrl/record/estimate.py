@@ -65,9 +65,13 @@ class OfflineEstimate:
     Attributes:
         source: the file estimated from.
         series: the estimate (normal components, forces, external torques).
-        errors: ``cuff_force_estimate_rms_error_N`` and ``…_rel`` keyed by
-            cuff, when the log holds the simulated cuff forces and outlasts
-            the observer's start-up (else empty); a relative figure whose
+        errors: when the log holds the simulated cuff forces and outlasts
+            the observer's start-up (else empty), keyed by cuff:
+            ``cuff_force_estimate_rms_error_N`` and ``…_rms_error_rel`` (the
+            whole 2-D force's RMS error, and over the RMS true force),
+            ``…_normal_rms_error_N`` and ``…_normal_rms_over_peak`` (the
+            normal component's, and over its peak), ``…_unobservable``
+            (:mod:`exo_ctrl.estimation.errors`); a relative figure whose
             denominator is below :data:`~exo_ctrl.estimation.errors.REL_FLOOR_N`
             is None.
         integrity: how whole the recording was (None for a CSV log).
@@ -102,21 +106,36 @@ class OfflineEstimate:
     def table(self) -> str:
         """The figures as a text table: peak estimate per cuff, and the errors where known.
 
+        Where the truth is known: the whole force's RMS error [N] and over the
+        RMS true force ("rel"), the normal component's RMS error over its peak
+        ("normal/peak"), and a line naming what the estimator cannot observe.
         A figure not given (a relative error below its floor) shows as "—".
         """
         summary = self.summary()
         errors = summary.get("cuff_force_estimate_rms_error_N", {})
         rel = summary.get("cuff_force_estimate_rms_error_rel", {})
+        normal = summary.get("cuff_force_estimate_normal_rms_over_peak", {})
         lines = [
             f"{'cuff':<13}{'peak normal est [N]':>20}"
-            + (f"{'rms err [N]':>13}{'rel':>9}" if errors else "")
+            + (f"{'rms err [N]':>13}{'rel':>9}{'normal/peak':>13}" if errors else "")
         ]
         for cuff, peak in summary["peak_cuff_normal_est_N"].items():
             line = f"{cuff:<13}{peak:>20.1f}"
             if errors:
                 line += _cell(errors.get(cuff), 13, "{:.2f}")
                 line += _cell(None if rel.get(cuff) is None else 100 * rel[cuff], 9, "{:.2f}%")
+                value = normal.get(cuff)
+                line += _cell(None if value is None else 100 * value, 13, "{:.2f}%")
             lines.append(line)
+        if errors:
+            lines.append(
+                "rms err, rel: the whole 2-D force against the RMS true force; normal/peak: the "
+                "normal component against its peak"
+            )
+            lines.append(
+                "unobservable from the joint torques: the thigh cuffs' along-thigh force "
+                "(assumed 0), the shank cuffs' along-shank force (from the assumption)"
+            )
         return "\n".join(lines)
 
 
@@ -242,7 +261,9 @@ def _from_recording(
                 f"(5 / K_O = {STARTUP_TIME_CONSTANTS / gain:.4g} s): no error figures"
             )
         else:
-            found = normal_component_errors(s["q"], truth, series.normal, body, skip=skip, lag=1)
+            found = normal_component_errors(
+                s["q"], truth, series.normal, body, skip=skip, lag=1, force_est=series.force
+            )
             errors = found.summary()
             notes += worse_than_none(path, found)
     notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)

@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model import CUFF_NAMES, JOINT_NAMES
+from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from ..sim import SimResult, schema
 
 __all__ = [
@@ -120,6 +120,8 @@ SERIES_COLORS = {
     "patient": (COLORS["series_patient"], "orange"),
     "command": (COLORS["series_command"], "green"),
     "applied": (COLORS["series_applied"], "blue"),
+    "left": ((0, 90, 180, 255), "blue"),
+    "right": ((240, 160, 40, 255), "orange"),
 }
 #: Human-friendly series of the per-joint signals: one entity per quantity and
 #: joint, signals/{quantity}/{joint}, whose components are these signals.
@@ -264,6 +266,20 @@ def layout(shapes: dict[str, tuple[int, ...]] | None = None) -> Layout:
                 magnitudes.append((x, z))
                 entity = f"signals/{name}/{cuff}"
                 out.append(Series(entity, names, colors, columns, unit, title, key))
+        elif label == "foot" and shape in ((2,), (2, 2)):  # the feet (left, right)
+            if shape == (2,):
+                colors, key = _colors(list(SIDES))
+                names = [f"{name} {side}" for side in SIDES]
+                out.append(
+                    Series(f"signals/{name}", names, colors, (off, off + 1), unit, title, key)
+                )
+            else:
+                colors, key = _colors(["x", "z"])
+                for f, side in enumerate(SIDES):
+                    names = [f"{side} foot {part} ({name})" for part in ("x", "z")]
+                    columns = (off + 2 * f, off + 2 * f + 1)
+                    entity = f"signals/{name}/{side}"
+                    out.append(Series(entity, names, colors, columns, unit, title, key))
         elif shape == (4,) and label in ("joint", "cuff"):
             items = CUFF_NAMES if label == "cuff" else JOINT_NAMES
             names = [f"{name} {item}" for item in items]

@@ -199,6 +199,9 @@ def log_scene_static(rec: rr.RecordingStream, gait: GaitParams, exo: BodyModel) 
     for cuff in CUFF_NAMES:
         arrows = rr.Arrows3D.from_fields(radii=0.006, colors=COLORS["force"])
         _static(rec, f"world/cuff_force/{cuff}", arrows)
+    for side in SIDES:  # the belt's force on each exoskeleton foot (zero without contact)
+        arrows = rr.Arrows3D.from_fields(radii=0.006, colors=COLORS["force"])
+        _static(rec, f"world/ground_force/{side}", arrows)
     data = exo.model.createData()
     pin.framesForwardKinematics(exo.model, data, pin.neutral(exo.model))
     hips = [data.oMi[exo.joint_ids[2 * s]].translation.copy() for s in range(2)]
@@ -241,6 +244,7 @@ def send_scene(
     cuff_force: np.ndarray,
     belt: dict[str, float],
     v_belt: float,
+    ground_force: np.ndarray | None = None,
 ) -> None:
     """Send the scene at the ticks ``ticks``, every entity in one record batch.
 
@@ -253,17 +257,19 @@ def send_scene(
         cuff_force: cuff forces on the exoskeleton (m, 4, 2) [N].
         belt: the belt's geometry from :func:`log_scene_static`.
         v_belt: belt speed [m/s]; its top moves backwards (-x).
+        ground_force: the belt's force on each exoskeleton foot (m, 2, 2) [N]
+            (x, z), drawn at the feet (None: not drawn).
 
     """
     m = ticks.shape[0]
     t = ticks * dt
     batch = EntityBatch(ticks, dt)
     one, two, three = list_offsets(m, 1), list_offsets(m, 2), list_offsets(m, 3)
-    exo_cuffs = np.zeros((m, 4, 3))
+    exo_cuffs, exo_feet = np.zeros((m, 4, 3)), np.zeros((m, 2, 3))
     for body, skeleton, q in bodies:
         legs, cuffs = skeleton.points(q)
         if body == "exo":
-            exo_cuffs = cuffs
+            exo_cuffs, exo_feet = cuffs, legs[:, :, 2]
         for s, side in enumerate(SIDES):
             base = f"world/{body}/{side}"
             batch.add(f"{base}/leg", _LINES, _strips(legs[:, s]), one)
@@ -274,6 +280,11 @@ def send_scene(
         vectors[:, [0, 2]] = FORCE_ARROW_M_PER_N * cuff_force[:, c]
         batch.add(f"world/cuff_force/{cuff}", _VECTORS, _vec3(vectors), one)
         batch.add(f"world/cuff_force/{cuff}", _ORIGINS, _vec3(exo_cuffs[:, c]), one)
+    for s, side in enumerate(SIDES if ground_force is not None else ()):
+        vectors = np.zeros((m, 3))
+        vectors[:, [0, 2]] = FORCE_ARROW_M_PER_N * ground_force[:, s]
+        batch.add(f"world/ground_force/{side}", _VECTORS, _vec3(vectors), one)
+        batch.add(f"world/ground_force/{side}", _ORIGINS, _vec3(exo_feet[:, s]), one)
     length = belt["length"]
     ns = max(1, int(length / _STRIPE_SPACING_M))
     x0 = (np.arange(ns) + 0.5) * (length / ns)

@@ -91,10 +91,10 @@ __all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder", "find_viewer", "spawn_viewe
 #: Default rate of the 3-D scene [Hz]: a display rate, far below the control rate.
 DEFAULT_SCENE_RATE_HZ = 50.0
 #: Estimated file size per tick [B], for the free-space check: the default
-#: run (2400 ticks at 1 kHz, 3-D scene at 50 Hz) writes 6.03 MB, 2514 B per
+#: run (3600 ticks at 1 kHz, 3-D scene at 50 Hz) writes 11.00 MB, 3057 B per
 #: tick with the fixed part (blueprint, parameters, geometry) spread over it;
-#: 4800 ticks write 11.71 MB (2363 B per tick beyond the first 2400).
-BYTES_PER_TICK_ESTIMATE = 2500
+#: 7200 ticks write 21.35 MB (2873 B per tick beyond the first 3600).
+BYTES_PER_TICK_ESTIMATE = 3050
 #: Longest wait for rerun to encode what was sent into memory [s]; a 2000-tick
 #: chunk takes milliseconds.  Past it rerun raises, which becomes a RecordingError.
 FLUSH_TIMEOUT_S = 10.0
@@ -468,7 +468,8 @@ class RerunRecorder:
         )
         shown = ticks[picked]
         force = signal(source, n, "cuff_force")[picked]
-        send_scene(rec, shown, self._dt, bodies, force, self._belt, v)
+        ground = signal(source, n, "ground_force")[picked]
+        send_scene(rec, shown, self._dt, bodies, force, self._belt, v, ground)
 
     # ------------------------------------------------------------------ end
 

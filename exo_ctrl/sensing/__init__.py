@@ -1,5 +1,9 @@
 """The sensors of the device and what they read."""
 
+from .belt_encoder import (
+    BeltEncoder,
+    BeltEncoderParams,
+)
 from .readings import (
     SensorReadings,
 )
@@ -9,6 +13,8 @@ from .sensors import (
 )
 
 __all__ = [
+    "BeltEncoder",
+    "BeltEncoderParams",
     "SensorParams",
     "SensorReadings",
     "Sensors",

@@ -13,7 +13,10 @@ it:
   stature, body mass and sex, with masses, centres of mass and radii of
   gyration from de Leva's tables
   (:func:`~exo_ctrl.model.nominal_patient`);
-- a URDF path: a model of the user's (e.g. identified).
+- a URDF path: a model of the user's, e.g. the identified patient that
+  ``exo-ctrl identify RUN.rrd --out PATIENT.urdf`` wrote from a calibration
+  run (``--controller-patient PATIENT.urdf``; the name ``"identified"``
+  alone is refused with that hint: the device holds the file the user names).
 
 The exoskeleton model is its URDF (default: the true one's file, loaded
 again), or another file, to study a device whose model is wrong.  Either
@@ -68,6 +71,13 @@ class Belief:
         if not isinstance(self.patient, str) or not self.patient:
             raise InvalidParameter(
                 "controller_patient", self.patient, "truth, nominal or a URDF path"
+            )
+        if self.patient == "identified":
+            raise InvalidParameter(
+                "controller_patient",
+                self.patient,
+                "truth, nominal or a URDF path",
+                "for an identified patient give the file exo-ctrl identify --out wrote",
             )
         if self.patient_sex not in SEXES:
             raise InvalidParameter("patient_sex", self.patient_sex, f"one of {', '.join(SEXES)}")

@@ -11,10 +11,18 @@ from ..control import PDGains
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S
 from ..exceptions import InvalidParameter
-from ..plan import PLAN_BYTES_PER_SAMPLE, GaitParams, Ramp, RowLayout, layout
-from ..plant import PATIENT_TORQUES, CompliantJoint, CuffParams, EndStopParams, MotorParams
+from ..plan import EXERCISES, PLAN_BYTES_PER_SAMPLE, GaitParams, Ramp, RowLayout, layout
+from ..plant import (
+    PATIENT_TORQUES,
+    CompliantJoint,
+    ContactParams,
+    CuffParams,
+    EndStopParams,
+    Misalignment,
+    MotorParams,
+)
 from ..safety import SafetyLimits
-from ..sensing import SensorParams
+from ..sensing import BeltEncoderParams, SensorParams
 from .belief import Belief
 from .faults import Fault, faults_of
 from .schema import log_dtype
@@ -75,11 +83,21 @@ class SimConfig:
             exceed it (measured in :mod:`exo_ctrl.control.qp.controller`).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
-        cuffs: cuff parameters.
+        cuffs: the true cuffs: normal and shear stiffness and damping, strap
+            preload (:class:`~exo_ctrl.plant.cuffs.CuffParams`; default
+            split, shear softer; ``CuffParams.isotropic()`` the cuffs before
+            the split).  The device's models (the QP's, the estimator's) take
+            the normal stiffness and damping and assume isotropic cuffs.
+        misalignment: the true patient's hip and knee axes offset from the
+            exoskeleton's, (DX, DZ) [m] each (:mod:`exo_ctrl.plant.misalignment`;
+            default coaxial).  Truth only: the device's models are aligned.
         end_stops: the exoskeleton joints' hard stops at the URDF limits
             (:mod:`exo_ctrl.plant.end_stops`).
         joint_compliance: a torsional spring–damper between each drive and
             its link (:mod:`exo_ctrl.plant.compliance`; default disabled: rigid).
+        contact: the treadmill belt with its drive and the foot–belt contact
+            (:mod:`exo_ctrl.plant.contact`; default off: the feet in free air).
+        belt_encoder: the belt-speed sensor (:mod:`exo_ctrl.sensing.belt_encoder`).
         duration_s: simulated time [s], ramps included.  Default 3.6 s: the
             default ramp-in (one 1.2 s gait period) and two gait cycles.
         ramp_in_s: the start's ramp from standing into the gait
@@ -113,6 +131,10 @@ class SimConfig:
             loaded anew: the ideal comparison).
         faults: faults to inject (:mod:`exo_ctrl.sim.faults`; default none),
             each with its onset within the run.
+        exercise: what the run does, one of :data:`~exo_ctrl.plan.EXERCISES`:
+            ``"gait"`` (default) or ``"calibration"``, the swing in the air
+            for identification (:mod:`exo_ctrl.plan.exercise`; the gait's
+            ramps and period then do not apply, the plan holds every tick).
 
     The arrays a run allocates from these numbers (the plan, the log chunk)
     are checked against the memory cap
@@ -129,8 +151,11 @@ class SimConfig:
     gains: PDGains = field(default_factory=PDGains)
     motor: MotorParams = field(default_factory=MotorParams)
     cuffs: CuffParams = field(default_factory=CuffParams)
+    misalignment: Misalignment = field(default_factory=Misalignment)
     end_stops: EndStopParams = field(default_factory=EndStopParams)
     joint_compliance: CompliantJoint = field(default_factory=CompliantJoint)
+    contact: ContactParams = field(default_factory=ContactParams)
+    belt_encoder: BeltEncoderParams = field(default_factory=BeltEncoderParams)
     duration_s: float = 3.6
     ramp_in_s: float | None = None
     ramp_out_s: float = 0.0
@@ -150,8 +175,11 @@ class SimConfig:
     estop_at_s: float | None = None
     belief: Belief = field(default_factory=Belief)
     faults: tuple[Fault, ...] = ()
+    exercise: str = "gait"
 
     def __post_init__(self) -> None:
+        if self.exercise not in EXERCISES:
+            raise InvalidParameter("exercise", self.exercise, f"one of {', '.join(EXERCISES)}")
         if self.controller not in CONTROLLERS:
             raise InvalidParameter(
                 "controller", self.controller, f"one of {', '.join(CONTROLLERS)}"
@@ -296,7 +324,12 @@ class SimConfig:
 
     @property
     def plan_layout(self) -> RowLayout:
-        """The rows of the joint plan and the ticks they serve (:func:`~exo_ctrl.plan.layout`)."""
+        """The rows of the joint plan and the ticks they serve (:func:`~exo_ctrl.plan.layout`).
+
+        The calibration exercise's plan holds every tick.
+        """
+        if self.exercise == "calibration":
+            return RowLayout(self.n_ticks)
         ramp = self.ramp
         return layout(
             self.n_ticks, self.dt, self.gait.period, ramp.ramp_in_s, ramp.ramp_out_s, ramp.end_s

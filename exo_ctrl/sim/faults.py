@@ -32,7 +32,7 @@ control_overrun    every drive gets the command ``magnitude`` [s] late (whole ti
 drive_open         the drive's phase open: no current, no torque
 drive_short        the drive's winding shorted: U = 0 whatever the command
 cuff_slip          the cuff slipped off: no force (stiffness and damping zero)
-belt_stop          the treadmill belt stops: NOT injectable (no belt in the plant)
+belt_stop          the treadmill belt stops: NOT injected yet (the belt exists behind contact)
 =================  ============================================================
 
 **Encoder faults and the speed.**  The device has no speed sensor: it
@@ -128,7 +128,7 @@ class Fault:
                 "fault kind",
                 self.kind,
                 f"one of {', '.join(INJECTABLE)}",
-                "the plant has no treadmill belt yet (issue 16), so it cannot stop",
+                "the belt stop is not injected yet: the belt exists behind contact (issue 16)",
             )
         if self.kind not in INJECTABLE:
             raise InvalidParameter("fault kind", self.kind, f"one of {', '.join(INJECTABLE)}")

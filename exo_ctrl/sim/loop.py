@@ -23,7 +23,7 @@ from .config import SimConfig
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
 from .setup import build
-from .summary import RunStats
+from .summary import RunStats, contact_stats
 from .tick import UNTIMED_TICKS, Runner
 
 __all__ = ["simulate"]
@@ -66,7 +66,7 @@ def simulate(
         belt_speed_mps=config.gait.belt_speed,
         exo_source=setup.exo.source,
         patient_source=setup.patient.source,
-        stats=RunStats(EstimateErrorStats(setup.exo, config.dt)),
+        stats=RunStats(EstimateErrorStats(setup.exo, config.dt), contact_stats(config)),
     )
     for obs in observers:
         obs.start(result)

@@ -31,7 +31,8 @@ class Signal:
         shape: shape of one row's value (``()`` for a scalar).
         unit: SI unit ("" for a count or a code).
         description: what it is.
-        labels: what the first axis indexes (``"joint"``, ``"cuff"`` or ""),
+        labels: what the first axis indexes (``"joint"``, ``"cuff"``, ``"foot"``
+            (left, right) or ""),
             the last axis of a (4, 2) signal being (x, z).
 
     """
@@ -81,6 +82,25 @@ SIGNALS: list[Signal] = [
     Signal("cuff_force_est", (4, 2), "N", "estimated cuff force on the exoskeleton (x, z)", "cuff"),
     Signal("qp_active", (), "", "QP controller: active constraints"),
     Signal("qp_failures", (), "", "QP controller: fallbacks so far"),
+    # The belt and the feet on it (contact on; zero otherwise), per foot (left, right).
+    Signal("ground_force", (2, 2), "N", "belt's force on each exoskeleton foot (x, z)", "foot"),
+    Signal(
+        "foot_slip", (2,), "m/s", "foot's speed relative to the belt surface, in contact", "foot"
+    ),
+    Signal("foot_penetration", (2,), "m", "foot point's depth below the belt's top", "foot"),
+    Signal("contact_state", (2,), "", "foot contact state (0 free / 1 stick / 2 slide)", "foot"),
+    Signal("normal_force_rate", (2,), "N/s", "rate of the belt's normal force on the foot", "foot"),
+    Signal(
+        "touchdown_velocity",
+        (2, 2),
+        "m/s",
+        "foot's velocity relative to the belt (x, z) at its last touchdown",
+        "foot",
+    ),
+    Signal("belt_speed", (), "m/s", "belt speed at the end of the tick (surface moves -x)"),
+    Signal("belt_speed_set", (), "m/s", "belt speed controller's set speed"),
+    Signal("belt_speed_meas", (), "m/s", "belt-speed encoder reading"),
+    Signal("belt_drive_force", (), "N", "belt drive's force at the belt surface"),
 ]
 
 

@@ -22,8 +22,8 @@ from ..control import (
 )
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
-from ..plan import NO_TAIL, JointTrajectory, RampedGait, plan_joints
-from ..plant import MotorParams, Plant, make_patient_torque
+from ..plan import NO_TAIL, JointTrajectory, RampedGait, calibration_plan, plan_joints
+from ..plant import MotorParams, Plant, make_patient_torque, misaligned_patient
 from ..plant.equilibrium import holding_torque, settle_patient
 from .belief import device_models
 from .config import SimConfig
@@ -49,6 +49,10 @@ class Setup:
     #: ``patient`` above are the truth the plant simulates.
     device_exo: BodyModel
     device_patient: BodyModel
+    #: The belt's set speed and its rate at each control tick, (n, 2):
+    #: σ(t_k) v_f [m/s] (the plan's, :meth:`~exo_ctrl.plan.RampedGait.belt_speed_at`)
+    #: and σ̇(t_k) v_f [m/s²]; with contact on.
+    belt_speed: np.ndarray | None = None
 
 
 def build(config: SimConfig) -> Setup:
@@ -60,9 +64,14 @@ def build(config: SimConfig) -> Setup:
 
     """
     exo = load_exo(config.exo)
-    patient = load_patient(config.patient)
+    fitted = load_patient(config.patient)  # as the device is fitted to it: coaxial
+    patient = misaligned_patient(fitted, config.misalignment)  # the truth
     rows = config.plan_layout
-    plan = plan_joints(RampedGait(config.gait, config.ramp), exo, rows.ticks() * config.dt)
+    if config.exercise == "calibration":
+        times = rows.ticks() * config.dt
+        plan = calibration_plan(exo, times, config.duration_s, config.gait.hip_height)
+    else:
+        plan = plan_joints(RampedGait(config.gait, config.ramp), exo, rows.ticks() * config.dt)
     if rows.period:
         tail = None if rows.tail == NO_TAIL else rows.tail
         plan = dataclasses.replace(
@@ -70,7 +79,7 @@ def build(config: SimConfig) -> Setup:
         )
     motor = drive_for(config.motor, exo)
     check_followable(config, plan, exo, patient, motor)
-    model_exo, model_patient = device_models(config.belief, config.exo, config.patient, patient)
+    model_exo, model_patient = device_models(config.belief, config.exo, config.patient, fitted)
     plant = Plant(
         exo,
         patient,
@@ -79,7 +88,13 @@ def build(config: SimConfig) -> Setup:
         cuffs=config.cuffs,
         end_stops=config.end_stops,
         compliance=config.joint_compliance,
+        contact=config.contact,
+        belt_height_m=config.gait.hip_height,
     )
+    belt_speed = None
+    if config.contact.enabled:
+        sigma = config.ramp.factor(np.arange(config.n_ticks) * config.dt)
+        belt_speed = np.stack(sigma[:2], axis=1) * config.gait.belt_speed
     controller: PDController
     if config.controller == "ct":
         controller = ComputedTorqueController(plan, model_exo, model_patient, motor, config.gains)
@@ -98,7 +113,9 @@ def build(config: SimConfig) -> Setup:
         )
     else:
         controller = PDController(plan, config.gains)
-    return Setup(config, exo, patient, plan, plant, controller, model_exo, model_patient)
+    return Setup(
+        config, exo, patient, plan, plant, controller, model_exo, model_patient, belt_speed
+    )
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
@@ -150,6 +167,8 @@ def start_on_plan(setup: Setup) -> None:
     limit = motor.current_limit_A
     i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -limit, limit)
     fit = config.cuff_fit == "slack"
+    if setup.belt_speed is not None:  # the belt runs at its first set speed
+        plant.contact.belt["v_set"] = setup.belt_speed[0, 0]
     plant.reset(q0, dq0, q_p, dq0, current_A=i0, fit_cuffs=fit)
 
 
@@ -194,7 +213,8 @@ def check_followable(
 
     """
     gait, ramp = config.gait, config.ramp
-    if config.dt > gait.period / SPEED_SAMPLES_PER_PERIOD:
+    calibration = config.exercise == "calibration"  # its plan holds every tick: checked as is
+    if not calibration and config.dt > gait.period / SPEED_SAMPLES_PER_PERIOD:
         spans = [(0.0, min(config.duration_s, ramp.ramp_in_s + gait.period))]
         if ramp.ramp_out_s > 0.0:
             spans.append((ramp.out_start_s, ramp.end_s))
@@ -228,7 +248,9 @@ def check_followable(
     _, j, limit, reason = worst
     at = float(t[np.argmax(dq[:, j])])
     remedy = "a longer period or a shorter step slows it"
-    if at < ramp.ramp_in_s or at > ramp.out_start_s:
+    if calibration:
+        remedy = "the calibration swing is too fast for this device"
+    elif at < ramp.ramp_in_s or at > ramp.out_start_s:
         which = "ramp-in" if at < ramp.ramp_in_s else "ramp-out"
         span = ramp.ramp_in_s if which == "ramp-in" else ramp.ramp_out_s
         remedy = f"in its {span:g} s {which}: a longer {which} or a shorter step slows it"

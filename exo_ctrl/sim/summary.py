@@ -9,10 +9,15 @@ import numpy as np
 
 from .._jit import kernel, preload
 from ..estimation import EstimateErrorStats
-from ..model import CUFF_NAMES, JOINT_NAMES
+from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .config import SimConfig
 
-__all__ = ["RunOutcome", "RunStats"]
+__all__ = ["ContactStats", "RunOutcome", "RunStats", "contact_stats"]
+
+#: A touchdown's peak normal-force rate is taken over this span after it [s].
+TOUCHDOWN_WINDOW_S = 0.05
+#: At most this many touchdowns are listed in a summary (the worst values cover all).
+MAX_TOUCHDOWNS_LISTED = 200
 
 
 class RunOutcome(Protocol):
@@ -40,8 +45,11 @@ class RunStats:
     Peaks are of absolute values; RMS values are over all ticks seen.
     """
 
-    def __init__(self, estimate: EstimateErrorStats | None = None) -> None:
+    def __init__(
+        self, estimate: EstimateErrorStats | None = None, contact: ContactStats | None = None
+    ) -> None:
         self.estimate = estimate
+        self.contact = contact
         self.ticks = 0
         # Running sums (Σ err², Σ τ², Σ i²) and peaks (|err|, |τ|, |i|, |U|,
         # |τ q̇|, cuff |f|, |q̇|), a row of 4 each: :func:`_accumulate`'s buffers.
@@ -51,14 +59,20 @@ class RunStats:
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
         if self.estimate is not None:
-            self.estimate.update(rows["q"], rows["cuff_force"], rows["cuff_normal_est"])
+            self.estimate.update(
+                rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"]
+            )
+        if self.contact is not None:
+            self.contact.update(rows, self.ticks)
         self.ticks += rows["q"].shape[0]
         _accumulate(*self._accumulate_args(rows))
 
     def preload(self, rows: dict[str, np.ndarray]) -> None:
         """Load the compiled kernels for rows of these arrays' types (before a timed run)."""
         if self.estimate is not None:
-            self.estimate.preload(rows["q"], rows["cuff_force"], rows["cuff_normal_est"])
+            self.estimate.preload(
+                rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"]
+            )
         preload(_accumulate, *self._accumulate_args(rows))
 
     def _accumulate_args(self, rows: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
@@ -85,8 +99,14 @@ class RunStats:
         ``wall_time_s``, ``real_time_factor`` (simulated / wall time of the
         ticks the wall clock covers, :attr:`SimResult.wall_time_s`); with
         live estimation ``cuff_force_estimate_rms_error_N`` and
-        ``cuff_force_estimate_rms_error_rel`` (keyed by cuff: RMS error of
-        the estimated normal component, and that over its peak true value).
+        ``cuff_force_estimate_rms_error_rel`` (keyed by cuff: RMS of the
+        whole 2-D force's error, and that over the RMS true force, null below
+        1 N), ``cuff_force_estimate_normal_rms_error_N`` and
+        ``cuff_force_estimate_normal_rms_over_peak`` (the normal component's
+        RMS error, and that over its peak true value) and
+        ``cuff_force_estimate_unobservable`` (per cuff, what the joint
+        torques cannot see; :mod:`exo_ctrl.estimation.errors`); with the belt
+        and contact, :meth:`ContactStats.summary`'s keys.
         """
         n = max(self.ticks, 1)
         sq_err, sq_tau, sq_current = self._sums
@@ -131,8 +151,122 @@ class RunStats:
         }
         if self.estimate is not None:
             out.update(self.estimate.summary())
+        if self.contact is not None:
+            out.update(self.contact.summary())
         out.update(result.energy)  # energy_J, energy_balance_residual_rel
         return out
+
+
+class ContactStats:
+    """The belt's and the feet's figures, chunk by chunk (contact on).
+
+    Slip and touchdowns count from tick ``from_tick`` on (the end of the
+    ramp-in: during it the plan's own stance foot slides by σ̇ x,
+    :mod:`exo_ctrl.plan.ramp`); forces and the belt's speed error over the
+    whole run.  A touchdown is a tick where a foot's contact state leaves 0.
+
+    Args:
+        from_tick: first tick of the slip and touchdown figures.
+        dt: control period Δt [s].
+
+    """
+
+    def __init__(self, from_tick: int, dt: float) -> None:
+        self.from_tick = int(from_tick)
+        self.dt = float(dt)
+        self._window = max(round(TOUCHDOWN_WINDOW_S / dt), 1)
+        self._slip_sq = 0.0
+        self._slip_n = 0
+        self._slip_max = 0.0
+        self._belt_sq = 0.0
+        self._belt_n = 0
+        self._peak_force = np.zeros(2)
+        self._last_state = np.zeros(2)
+        self._open: list[list[float]] = [[], []]  # per foot: [tick, ticks left, peak rate]
+        #: Touchdowns: tick, foot, speeds relative to the belt, peak normal-force rate.
+        self.touchdowns: list[dict[str, Any]] = []
+
+    def update(self, rows: dict[str, np.ndarray], first_tick: int) -> None:
+        """Add a chunk of rows whose first row is tick ``first_tick``."""
+        state, slip = rows["contact_state"], rows["foot_slip"]
+        n = state.shape[0]
+        start = min(max(self.from_tick - first_tick, 0), n)
+        late = state[start:] > 0.0
+        s = slip[start:][late]
+        self._slip_sq += float(s @ s)
+        self._slip_n += int(s.size)
+        if s.size:
+            self._slip_max = max(self._slip_max, float(np.max(np.abs(s))))
+        err = rows["belt_speed"] - rows["belt_speed_set"]
+        self._belt_sq += float(err @ err)
+        self._belt_n += n
+        force = np.hypot(rows["ground_force"][..., 0], rows["ground_force"][..., 1])
+        if n:
+            self._peak_force = np.maximum(self._peak_force, force.max(axis=0))
+        rate = np.abs(rows["normal_force_rate"])
+        for f in range(2):
+            self._extend(f, 0, rate[:, f])
+            on = state[:, f] > 0.0
+            before = np.concatenate(([self._last_state[f] > 0.0], on[:-1]))
+            for r in np.flatnonzero(on & ~before):
+                if first_tick + r < self.from_tick:
+                    continue
+                vx, vz = rows["touchdown_velocity"][r, f]
+                self.touchdowns.append(
+                    {"tick": first_tick + int(r), "t_s": (first_tick + int(r)) * self.dt,
+                     "foot": SIDES[f], "speed_x_mps": float(vx), "speed_z_mps": float(vz),
+                     "peak_normal_force_rate_N_per_s": 0.0}
+                )  # fmt: skip
+                self._open[f] = [len(self.touchdowns) - 1, self._window]
+                self._extend(f, int(r), rate[:, f])
+            if n:
+                self._last_state[f] = state[-1, f]
+
+    def _extend(self, foot: int, start: int, rate: np.ndarray) -> None:
+        """Carry foot ``foot``'s open touchdown window over ``rate[start:]``."""
+        if not self._open[foot]:
+            return
+        index, left = self._open[foot]
+        part = rate[start : start + int(left)]
+        if part.size:
+            event = self.touchdowns[index]
+            peak = max(event["peak_normal_force_rate_N_per_s"], float(part.max()))
+            event["peak_normal_force_rate_N_per_s"] = peak
+        left -= part.size
+        self._open[foot] = [index, left] if left > 0 else []
+
+    def summary(self) -> dict[str, Any]:
+        """The contact's summary keys.
+
+        ``slip_speed_rms_mps``, ``slip_speed_max_mps`` (both feet, in contact),
+        ``touchdown_speed_mps`` (worst vertical), ``touchdown_slip_mps`` (worst
+        horizontal, relative to the belt), ``touchdown_count``,
+        ``peak_normal_force_rate_N_per_s`` (worst within
+        :data:`TOUCHDOWN_WINDOW_S` of a touchdown), ``peak_ground_force_N``
+        (keyed by foot), ``belt_speed_error_rms_mps`` (belt - set speed) and
+        ``touchdowns`` (the first :data:`MAX_TOUCHDOWNS_LISTED`).
+        """
+        td = self.touchdowns
+        return {
+            "slip_speed_rms_mps": math.sqrt(self._slip_sq / max(self._slip_n, 1)),
+            "slip_speed_max_mps": self._slip_max,
+            "touchdown_speed_mps": max((abs(e["speed_z_mps"]) for e in td), default=0.0),
+            "touchdown_slip_mps": max((abs(e["speed_x_mps"]) for e in td), default=0.0),
+            "touchdown_count": len(td),
+            "peak_normal_force_rate_N_per_s": max(
+                (e["peak_normal_force_rate_N_per_s"] for e in td), default=0.0
+            ),
+            "peak_ground_force_N": _keyed(self._peak_force, SIDES),
+            "belt_speed_error_rms_mps": math.sqrt(self._belt_sq / max(self._belt_n, 1)),
+            "touchdowns": td[:MAX_TOUCHDOWNS_LISTED],
+        }
+
+
+def contact_stats(config: SimConfig) -> ContactStats | None:
+    """The contact figures of a run with the belt (from the end of its ramp-in), else None."""
+    if not config.contact.enabled:
+        return None
+    return ContactStats(math.ceil(config.ramp_in / config.dt - 1e-9), config.dt)
 
 
 @kernel

@@ -25,12 +25,13 @@ from .._jit import kernel, record
 from ..estimation import CuffForceEstimator
 from ..plant import make_patient_torque
 from ..safety import SafetyLimits, SafetySupervisor
-from ..sensing import Sensors
+from ..sensing import BeltEncoder, Sensors
+from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
 from .schema import log_dtype
 from .setup import Setup, start_on_plan
 
-__all__ = ["UNTIMED_TICKS", "Runner", "write_applied", "write_measured"]
+__all__ = ["UNTIMED_TICKS", "Runner", "write_applied", "write_contact", "write_measured"]
 
 #: Ticks at the start of a run left out of its wall time: they load (or,
 #: after an install, compile) the compiled kernels.
@@ -82,6 +83,13 @@ class Runner:
         )
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
+        #: The belt-speed sensor (read each tick with contact on).
+        self.belt_encoder = BeltEncoder(config.belt_encoder, config.dt)
+        self._belt = plant.contact.belt
+        self._belt_set, self._belt_rate = self._belt["v_set"], self._belt["a_set"]
+        self._belt_speed = setup.belt_speed  # the set speed per tick (None: contact off)
+        if setup.belt_speed is not None:
+            self.sensors.belt_speed = self.belt_encoder.speed
         self._substeps = config.plant_substeps
         self._dt = config.dt
         self.patient_model = make_patient_torque(config.patient_torque)
@@ -141,6 +149,10 @@ class Runner:
         read, truth, estimate, command, supervise, step = self._stages
         plant_rec, sensor_rec, est_rec, ctrl_rec, sup_rec = self._records
         readings = read(k, *truth)
+        if self._belt_speed is not None:
+            self._belt_set[0] = self._belt_speed[k, 0]
+            self._belt_rate[0] = self._belt_speed[k, 1]
+            read_belt(self.belt_encoder.record, k, self._belt)
         faults = self.faults
         if faults is not None:
             readings = faults.readings_at(k, readings)
@@ -157,6 +169,7 @@ class Runner:
         else:
             self._substep(u)
         write_applied(self.log, row, ctrl_rec, sup_rec, plant_rec)
+        write_contact(self.log, row, plant_rec, self.belt_encoder.record)
 
     def _substep(self, u: np.ndarray) -> None:
         """The plant's steps of a tick with substeps or a patient-torque model."""
@@ -226,3 +239,29 @@ def write_applied(log, row, controller, supervisor, plant):
         r.joint_deflection[j] = p.deflection[j]
         r.cuff_force[j, 0] = p.cuff_force[j, 0]
         r.cuff_force[j, 1] = p.cuff_force[j, 1]
+
+
+@kernel
+def write_contact(log, row, plant, encoder):
+    """The belt and the feet over [t_k, t_k+1) and the belt-speed reading, into log row ``row``.
+
+    ``plant``: its record (field ``contact``, :mod:`exo_ctrl.plant.contact`);
+    ``encoder``: the belt encoder's record (``speed``).  With contact off
+    every field is zero.
+    """
+    r = log[row]
+    c = plant[0].contact
+    b = c.belt
+    for f in range(2):
+        r.ground_force[f, 0] = c.ft[f]
+        r.ground_force[f, 1] = c.fn[f]
+        r.foot_slip[f] = c.slip[f]
+        r.foot_penetration[f] = c.pen[f]
+        r.contact_state[f] = c.state[f]
+        r.normal_force_rate[f] = c.fn_rate[f]
+        r.touchdown_velocity[f, 0] = c.td_vx[f]
+        r.touchdown_velocity[f, 1] = c.td_vz[f]
+    r.belt_speed = b.v
+    r.belt_speed_set = b.v_set
+    r.belt_speed_meas = encoder[0].speed
+    r.belt_drive_force = b.f_drive

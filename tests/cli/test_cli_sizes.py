@@ -221,16 +221,16 @@ def test_long_runs_with_a_periodic_plan_are_not_capped() -> None:
     assert config.plan_rows == 1200 + 1200
     with pytest.raises(InvalidParameter) as info:
         config.check_history()
-    rows = v.max_items(HISTORY_BYTES_PER_TICK)  # 744 B per tick with the joint deflection
+    rows = v.max_items(HISTORY_BYTES_PER_TICK)  # grows with every logged signal
     assert str(info.value) == (
-        f"duration must be at most {rows // 1000} s at 1000 Hz so that the history rows fit in "
+        f"duration must be at most {rows / 1000:.4g} s at 1000 Hz so that the history rows fit in "
         f"the 1 GiB memory cap (at most {rows:,} of {HISTORY_BYTES_PER_TICK} B each); got "
         f"100000.0 (100,000,000 history rows would need "
         f"{v.format_bytes(10**8 * HISTORY_BYTES_PER_TICK)}; "
         "simulate(keep_history=False) keeps none)"
     )
     # Just within the cap: one second less than the limit the message states.
-    SimConfig(duration_s=rows // 1000 - 1.0).check_history()
+    SimConfig(duration_s=rows // 1000 - 1.0).check_history()  # [s]
 
 
 def test_chunk_ticks_beyond_the_cap() -> None:

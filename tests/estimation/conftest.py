@@ -79,7 +79,7 @@ def run_closed_loop(
     torque_bias_Nm: np.ndarray | float = 0.0,
 ) -> Run:
     """Run the CT closed loop on the default gait with sensors and estimator in the loop."""
-    config = SimConfig(controller="ct", patient=patient, cuffs=cuffs or CuffParams())
+    config = SimConfig(controller="ct", patient=patient, cuffs=cuffs or CuffParams.isotropic())
     setup = build(config)
     plant = setup.plant
     start_on_plan(setup)  # as simulate() starts

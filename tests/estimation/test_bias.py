@@ -53,7 +53,7 @@ def test_bias_is_detected_from_a_zero_interaction_run_and_removed(
 ) -> None:
     """Walk with the straps open (cuffs of negligible stiffness): the mean of r is the bias."""
     beta = (1.0, -0.8, 0.5, 0.6)
-    open_straps = CuffParams(stiffness_N_per_m=1e-9, damping_N_s_per_m=0.0)
+    open_straps = CuffParams.isotropic(1e-9, 0.0)
     calib = closed_loop(SensorParams(torque_bias_Nm=beta), cuffs=open_straps)
     found = estimate_bias(calib.tau_ext[100:], calib.exo)
     print("\nzero-interaction run with default sensors and a bias:\n" + found.report())

@@ -232,7 +232,7 @@ def passive(exo, patient, damping: float, h: float) -> Plant:
         weightless(patient),
         dt=h,
         motors=OPEN_CIRCUIT,
-        cuffs=CuffParams(damping_N_s_per_m=0.0),
+        cuffs=CuffParams.isotropic(damping_N_s_per_m=0.0),
         joint_losses=False,
         end_stops=EndStopParams(enabled=False),
         compliance=CompliantJoint(K, damping, True),

@@ -90,7 +90,7 @@ def test_plant_puts_the_patients_hips_on_the_exoskeletons(exo, patient, human) -
 
 def test_positions_and_jacobians_match_pinocchio(pair) -> None:
     exo, pat, offset = pair
-    cuffs = CuffSet(exo, pat, CuffParams(), tuple(offset))
+    cuffs = CuffSet(exo, pat, CuffParams.isotropic(), tuple(offset))
     rng = np.random.default_rng(1)
     for _ in range(10):
         q_all = random_q(rng)
@@ -110,7 +110,7 @@ def test_positions_and_jacobians_match_pinocchio(pair) -> None:
 def test_zero_force_when_the_frames_coincide(exo, patient) -> None:
     # The default exoskeleton and patient have the same link lengths, cuff
     # distances and hips: at equal joint states the cuff frames coincide.
-    cuffs = CuffSet(exo, patient, CuffParams(), (0.0, 0.0))
+    cuffs = CuffSet(exo, patient, CuffParams.isotropic(), (0.0, 0.0))
     rng = np.random.default_rng(2)
     for _ in range(10):
         q = random_q(rng, 4)
@@ -130,7 +130,7 @@ def test_zero_force_when_the_frames_coincide(exo, patient) -> None:
 
 def test_fitting_makes_the_present_posture_slack(exo, human) -> None:
     offset = hip_offset(exo, human)
-    cuffs = CuffSet(exo, human, CuffParams(), tuple(offset))
+    cuffs = CuffSet(exo, human, CuffParams.isotropic(), tuple(offset))
     q = np.array([0.4, 0.9, -0.2, 0.3])
     q_all = np.concatenate((q, q))
     # The human's links differ from the exoskeleton's: unfitted, the straps pull.
@@ -143,7 +143,7 @@ def test_fitting_makes_the_present_posture_slack(exo, human) -> None:
 
 def test_spring_force_is_minus_k_times_the_stretch(pair) -> None:
     exo, pat, offset = pair
-    params = CuffParams(stiffness_N_per_m=8000.0, damping_N_s_per_m=100.0)
+    params = CuffParams.isotropic(8000.0, 100.0)
     cuffs = CuffSet(exo, pat, params, tuple(offset))
     rng = np.random.default_rng(3)
     fit_q = random_q(rng)
@@ -159,7 +159,7 @@ def test_spring_force_is_minus_k_times_the_stretch(pair) -> None:
 
 def test_damping_force_is_minus_c_times_the_relative_velocity(pair) -> None:
     exo, pat, offset = pair
-    params = CuffParams(stiffness_N_per_m=8000.0, damping_N_s_per_m=150.0)
+    params = CuffParams.isotropic(8000.0, 150.0)
     cuffs = CuffSet(exo, pat, params, tuple(offset))
     rng = np.random.default_rng(4)
     eps = 1e-6
@@ -179,7 +179,7 @@ def test_damping_force_is_minus_c_times_the_relative_velocity(pair) -> None:
 
 def test_forces_are_equal_and_opposite_through_the_frame_jacobians(pair) -> None:
     exo, pat, offset = pair
-    cuffs = CuffSet(exo, pat, CuffParams(), tuple(offset))
+    cuffs = CuffSet(exo, pat, CuffParams.isotropic(), tuple(offset))
     rng = np.random.default_rng(5)
     cuffs.fit(random_q(rng))
     for _ in range(5):
@@ -203,7 +203,7 @@ def spring_energy(exo, pat, offset, k, q_all, rest) -> float:
 
 def test_cuff_torque_is_minus_the_gradient_of_the_spring_energy(pair) -> None:
     exo, pat, offset = pair
-    params = CuffParams(stiffness_N_per_m=8000.0, damping_N_s_per_m=100.0)
+    params = CuffParams.isotropic(8000.0, 100.0)
     cuffs = CuffSet(exo, pat, params, tuple(offset))
     rng = np.random.default_rng(6)
     rest = random_q(rng)
@@ -226,7 +226,7 @@ def test_cuff_torque_is_minus_the_gradient_of_the_spring_energy(pair) -> None:
 
 def test_no_net_work_around_a_closed_loop_at_zero_speed_and_loss_with_damping(pair) -> None:
     exo, pat, offset = pair
-    params = CuffParams(stiffness_N_per_m=8000.0, damping_N_s_per_m=100.0)
+    params = CuffParams.isotropic(8000.0, 100.0)
     cuffs = CuffSet(exo, pat, params, tuple(offset))
     rng = np.random.default_rng(7)
     centre = random_q(rng)

@@ -250,7 +250,7 @@ def passive_plant(exo: BodyModel, patient: BodyModel, dt: float = 1e-3) -> Plant
         patient,
         dt=dt,
         motors=None,
-        cuffs=CuffParams(damping_N_s_per_m=0.0),
+        cuffs=CuffParams.isotropic(damping_N_s_per_m=0.0),
         joint_losses=False,
         # The hard stops are a non-smooth contact (test_end_stops.py): off here.
         end_stops=EndStopParams(enabled=False),

@@ -96,7 +96,10 @@ def test_truncated_recording_is_estimated_over_the_ticks_recovered_with_a_warnin
     ]
     assert [str(w.message) for w in caught] == est.warnings
     # The error figures are those of the recovered ticks, still meaningful.
-    assert all(0 < r < 0.2 for r in summary["cuff_force_estimate_rms_error_rel"].values())
+    # Still meaningful, though the default cuffs' softer shear costs the thigh
+    # estimate (the estimator assumes isotropic cuffs): about 30 % of its peak.
+    assert all(0 < r < 0.5 for r in summary["cuff_force_estimate_normal_rms_over_peak"].values())
+    assert all(0 < r < 1.0 for r in summary["cuff_force_estimate_rms_error_rel"].values())
 
 
 def test_whole_recording_is_complete(chunked: Path) -> None:
@@ -184,8 +187,12 @@ def test_relative_error_over_a_vanishing_force_is_not_given(tmp_path: Path) -> N
     assert '"left_thigh": null' in json.dumps(summary)
     assert est.warnings == []  # a true force below the floor is not judged
     rows = est.table().splitlines()
-    assert rows[0] == f"{'cuff':<13}{'peak normal est [N]':>20}{'rms err [N]':>13}{'rel':>9}"
-    for row, cuff in zip(rows[1:], CUFF_NAMES, strict=True):
+    assert (
+        rows[0]
+        == f"{'cuff':<13}{'peak normal est [N]':>20}{'rms err [N]':>13}{'rel':>9}"
+        + f"{'normal/peak':>13}"
+    )
+    for row, cuff in zip(rows[1:5], CUFF_NAMES, strict=True):
         assert row.startswith(cuff) and row.endswith(f"{'—':>9}")
         assert len(row) == len(rows[0])
 
@@ -199,7 +206,7 @@ def test_relative_floor_in_the_error_statistics() -> None:
     errors = normal_component_errors(q, force, np.full((5, 4), 0.5), skip=1, lag=1)
     assert np.isnan(errors.rms_error_rel[[0, 1, 3]]).all()
     assert errors.rms_error_rel[2] == pytest.approx(abs(0.5 - truth) / abs(truth), rel=1e-12)
-    summary = errors.summary()["cuff_force_estimate_rms_error_rel"]
+    summary = errors.summary()["cuff_force_estimate_normal_rms_over_peak"]
     assert summary["left_thigh"] is None and summary["right_thigh"] is not None
     assert REL_FLOOR_N == 1.0
 

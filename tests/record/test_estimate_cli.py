@@ -71,8 +71,12 @@ def test_vanishing_denominator_shows_a_dash_and_null(tmp_path: Path, capsys) -> 
     captured = capsys.readouterr()
     assert captured.err == ""
     rows = captured.out.splitlines()[1:]
-    assert rows[0] == f"{'cuff':<13}{'peak normal est [N]':>20}{'rms err [N]':>13}{'rel':>9}"
-    for row, cuff in zip(rows[1:], CUFF_NAMES, strict=True):
+    assert (
+        rows[0]
+        == f"{'cuff':<13}{'peak normal est [N]':>20}{'rms err [N]':>13}{'rel':>9}"
+        + f"{'normal/peak':>13}"
+    )
+    for row, cuff in zip(rows[1:5], CUFF_NAMES, strict=True):
         assert row.startswith(cuff) and row.endswith(" —") and len(row) == len(rows[0])
     rel = json.loads(summary.read_text())["cuff_force_estimate_rms_error_rel"]
     assert rel == dict.fromkeys(CUFF_NAMES)

@@ -42,6 +42,8 @@ def test_human_friendly_series_match_signals(short_run, entity_columns):
             entity, expected = f"{quantity}/left_knee", values[:, 1]
         elif shape == (4, 2):
             entity, part, expected = f"{name}/right_shank", 1, values[:, 3, 1]
+        elif shape == (2, 2):  # per foot (x, z)
+            entity, part, expected = f"{name}/right", 1, values[:, 1, 1]
         else:
             flat = values.reshape(values.shape[0], -1)
             entity, part, expected = name, flat.shape[1] - 1, flat[:, -1]

@@ -113,7 +113,7 @@ def test_scene_at_the_display_rate_series_at_every_tick(tmp_path, rate_hz, strid
             ticks.setdefault(chunk.entity_path, []).extend(batch.column("tick").to_pylist())
     scene = {e: sorted(t) for e, t in ticks.items() if e.startswith("/world/")}
     series = {e: sorted(t) for e, t in ticks.items() if e.startswith(("/raw/", "/signals/"))}
-    assert len(scene) == 2 * 2 * 3 + 4 + 1  # legs, joints, cuffs; arrows; stripes
+    assert len(scene) == 2 * 2 * 3 + 4 + 2 + 1  # legs, joints, cuffs; cuff, foot arrows; stripes
     for entity, shown in scene.items():
         assert shown == list(range(0, 300, stride)), entity
     assert len(series) >= 2 * 21

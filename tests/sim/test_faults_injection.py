@@ -164,7 +164,7 @@ def test_a_slipped_cuff_is_not_detected_and_why(results) -> None:
 
 def test_the_belt_stop_cannot_be_injected_yet() -> None:
     assert FAULT_KINDS[-1] == "belt_stop" and "belt_stop" not in INJECTABLE
-    with pytest.raises(InvalidParameter, match="no treadmill belt yet"):
+    with pytest.raises(InvalidParameter, match="the belt stop is not injected yet"):
         Fault("belt_stop", 2.0)
     row = campaign.run_campaign(kinds=("belt_stop",))[0]
     assert not row.detected and "issue 16" in row.note

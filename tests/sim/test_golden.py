@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from exo_ctrl.control import PDGains
-from exo_ctrl.plant import MotorParams
+from exo_ctrl.plant import CuffParams, MotorParams
 from exo_ctrl.sim import SimConfig, simulate
 
 #: What the golden runs were made with: the paper's printed drive constants
@@ -29,6 +29,7 @@ LEGACY = {
     "ramp_in_s": 0.0,
     "cuff_fit": "slack",
     "qp_estimate_bandwidth_per_s": 100.0,  # the estimator's own: the estimate as it is
+    "cuffs": CuffParams.isotropic(),  # the cuffs before normal and shear were split
 }
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "golden_runs.npz"

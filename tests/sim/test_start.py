@@ -101,6 +101,7 @@ def independent_equilibrium(
     q_exo: np.ndarray,
     stiffness: float,
     spastic: bool = False,
+    shear_stiffness: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(q_p, cuff forces on the exo (4, 2) [N]) minimising the patient's potential energy.
 
@@ -108,24 +109,38 @@ def independent_equilibrium(
     q_exo.  The patient's frames sit at p_p(q) + o, o aligning the hips, so a
     strap's stretch is Δp - r₀ = p_e(q_exo) - p_e(q_fit) - (p_p(q) - p_p(q_fit)):
     V(q) = Σ m g z + ½ K Σ |stretch|² (+ hypertonia).  No CuffSet involved.
+    With ``shear_stiffness`` k_u (q_exo = q_fit only) the stretch is split
+    along u (the exo link's joint → cuff direction at q_exo, fixed as the
+    exoskeleton stands still) and n: V = Σ m g z + ½ Σ (K (n · s)² + k_u (u · s)²).
     """
     data = patient.model.createData()
     exo_shift = xz_frames(exo, q_exo) - xz_frames(exo, q_fit)
     base = xz_frames(patient, q_fit)
+    stiff = np.full((4, 2, 2), np.eye(2) * stiffness)
+    if shear_stiffness is not None:
+        cuffs = xz_frames(exo, q_exo)
+        exo_data = exo.model.createData()
+        pin.forwardKinematics(exo.model, exo_data, q_exo)
+        for c in range(4):
+            joint = exo_data.oMi[exo.joint_ids[c]].translation[[0, 2]]
+            u = (cuffs[c] - joint) / np.linalg.norm(cuffs[c] - joint)
+            n = np.array([-u[1], u[0]])
+            stiff[c] = stiffness * np.outer(n, n) + shear_stiffness * np.outer(u, u)
 
     def stretch(q: np.ndarray) -> np.ndarray:
         return exo_shift - (xz_frames(patient, q) - base)
 
     def energy(q: np.ndarray) -> float:
         v = float(pin.computePotentialEnergy(patient.model, data, q))
-        v += 0.5 * stiffness * float(np.sum(stretch(q) ** 2))
+        s = stretch(q)
+        v += 0.5 * float(np.einsum("ci,cij,cj->", s, stiff, s))
         if spastic:
             v += hypertonia(q)[0]
         return v
 
     best = minimize(energy, q_exo, method="BFGS", options={"gtol": 1e-10, "xrtol": 1e-12})
     q = best.x
-    return q, -stiffness * stretch(q)
+    return q, -np.einsum("cij,cj->ci", stiff, stretch(q))
 
 
 @pytest.mark.parametrize("patient_torque", ["none", "spastic"])
@@ -139,7 +154,13 @@ def test_cuff_force_at_t0_is_the_static_equilibrium(
     q0, q_p = plant.q[:4].copy(), plant.q[4:].copy()
     assert np.all(plant.v == 0.0)  # at rest
     expected_q, expected_f = independent_equilibrium(
-        exo, patient, q0, q0, config.cuffs.stiffness_N_per_m, patient_torque == "spastic"
+        exo,
+        patient,
+        q0,
+        q0,
+        config.cuffs.stiffness_N_per_m,
+        patient_torque == "spastic",
+        config.cuffs.shear_stiffness_N_per_m,
     )
     force = plant.cuff_force.copy()
     print(patient_torque, "cuff forces at t = 0 [N]", np.round(np.linalg.norm(force, axis=1), 2))
@@ -161,6 +182,16 @@ def test_cuff_force_at_t0_is_the_static_equilibrium(
         for c, frame in enumerate(body.cuff_frame_ids):
             jac = pin.getFrameJacobian(body.model, data, frame, pin.LOCAL_WORLD_ALIGNED)
             tau = tau + sign * jac[[0, 2]].T @ force[c]
+            if body is exo:
+                # A split cuff also turns the exo link (cuffs.py): the moment
+                # M = σ_n s_u - σ_u s_n = (f·n)(f·u)(1/k_u - 1/k_n) with the fit's r₀ = 0,
+                # about -y (θ turns +x towards +z).
+                u = xz_frames(exo, q)[c] - data.oMi[exo.joint_ids[c]].translation[[0, 2]]
+                u /= np.linalg.norm(u)
+                n = np.array([-u[1], u[0]])
+                k_n, k_u = config.cuffs.stiffness_N_per_m, config.cuffs.shear_stiffness_N_per_m
+                moment = (force[c] @ n) * (force[c] @ u) * (1.0 / k_u - 1.0 / k_n)
+                tau = tau - jac[4] * moment
         acc = pin.aba(body.model, data, q, np.zeros(4), tau)
         np.testing.assert_allclose(acc, 0.0, atol=1e-6)
 

@@ -20,6 +20,7 @@ from exo_ctrl.control.qp import stated_margin
 from exo_ctrl.control.qp.margin import MIN_MARGIN, MODEL_ERROR_N
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.plan import GaitParams
+from exo_ctrl.plant import CuffParams
 from exo_ctrl.sim import SimConfig, simulate
 
 CORNERS = list(itertools.product((0.9, 1.5), (0.25, 0.45), (100.0, 150.0)))
@@ -34,6 +35,7 @@ def test_load_held_within_the_stated_margin(period, step, bound) -> None:
             patient_torque="spastic",
             cuff_force_limit_N=bound,
             safety=False,
+            cuffs=CuffParams.isotropic(),  # the QP's own cuff model (stated margins)
         ),
         keep_history=True,
     )

@@ -18,6 +18,7 @@ from exo_ctrl.control.qp.expm import PS_BLOCK, expm_top
 from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from exo_ctrl.plant import CuffParams
 from exo_ctrl.sim import Runner, SimConfig, build
 
 
@@ -213,7 +214,12 @@ def test_horizon_prediction_matches_the_plant_with_the_command_held(exo, patient
     """
     setup = build(
         SimConfig(
-            controller="ct", safety=False, patient_torque="spastic", ramp_in_s=0.0, cuff_fit="slack"
+            controller="ct",
+            safety=False,
+            patient_torque="spastic",
+            ramp_in_s=0.0,
+            cuff_fit="slack",
+            cuffs=CuffParams.isotropic(),  # the predictor's cuff model
         )
     )
     runner = Runner(setup)

@@ -1,0 +1,177 @@
+"""The treadmill belt: a body with its own speed, driven by a speed controller.
+
+The belt's surface moves backwards (-x) at the belt speed v_b [m/s] (v_b > 0
+when walking forwards).  Belt, rollers and the drive motor's rotor reflected
+to the belt surface are one equivalent mass m_b [kg]; the drive is a PI
+speed controller with a force limit at the belt surface,
+
+    F_d = clip(m_b a_set + K_p e + K_i ∫e dt, ±F_max),   e = v_set - v_b,
+    m_b dv_b/dt = F_d + Σ F_t,
+
+where F_t is the friction force of the belt on each foot in x (a foot that
+holds back against the belt feels F_t < 0 and slows the belt).  The integral
+stops while the force is at its limit (no wind-up).  The set speed v_set is
+the session's command (the plan's σ(t) v_f, :mod:`exo_ctrl.plan.ramp`), set
+per control tick with its rate a_set (the feedforward m_b a_set: without it
+the PI follows the 1.2 s ramp-in 3.6 cm/s late and overshoots by as much
+after it, a slip the feet would see).  A real treadmill's drive follows a
+commanded speed profile the same way (a profile generator with acceleration
+feedforward).  The belt's position x_b = ∫v_b dt is what the roller's
+encoder counts (:mod:`exo_ctrl.sensing.belt_encoder`).
+
+**Parameters** (chosen for a rehabilitation treadmill of the class under
+gait trainers, e.g. a 0.5 m × 1.5 m deck with a 2–3 kW drive; no source
+gives them, so each is an estimate and configurable):
+
+- ``mass_kg = 20``: a rubber belt of about 0.5 m × 3.2 m × 3 mm (≈ 6 kg),
+  two hollow steel rollers of ≈ 4 kg (their rotary inertia m r² / r² ≈ m at
+  the surface, ≈ 8 kg) and the motor's rotor through the belt transmission
+  (≈ 6 kg equivalent): the O(10–30 kg) of this class.
+- ``bandwidth_hz = 2``: ω_c = 2π f_c; K_p = m_b ω_c (251 N·s/m) and
+  K_i = m_b ω_c² / 4 (790 N/m).  The closed loop m_b s² + K_p s + K_i = 0 then
+  has a double pole at s = -ω_c / 2 (critically damped, time constant
+  2 / ω_c = 0.16 s): a heel strike's friction pulse slows the belt by
+  ∫F_t dt / m_b at first and the controller returns it within about 0.5 s.
+  Its static stiffness against a constant load is infinite (the integral);
+  with ``integral=False`` (P only) a load F slows it by F / K_p.
+- ``force_limit_N = 1000``: the drive's torque limit at the belt surface
+  (a 2.5 kW drive delivers 1000 N at 2.5 m/s).
+
+Integration, step h: the force is taken at the start of the step (explicit;
+K_p h / m_b = 0.013 at 1 ms, far inside the bound 2), the friction
+impulses of the feet over the step are added with the belt's inertia in the
+foot-contact solve (:mod:`exo_ctrl.plant.contact`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .. import _validate as v
+from .._jit import kernel, record
+
+__all__ = ["BELT_FIELDS", "BeltParams", "belt_commit", "belt_drive", "belt_response"]
+
+
+@dataclass(frozen=True)
+class BeltParams:
+    """The treadmill belt and its speed controller (module docstring).
+
+    Attributes:
+        height_m: the belt's top below the exoskeleton's hip joint [m]; None:
+            the plan's hip height H_s.
+        mass_kg: m_b, belt + rollers + rotor as an equivalent mass [kg].
+        bandwidth_hz: f_c of the speed controller [Hz]; K_p = m_b ω_c,
+            K_i = m_b ω_c² / 4.
+        force_limit_N: F_max, the drive's force limit at the belt surface [N].
+        integral: use the integral term (False: P only).
+
+    Raises:
+        InvalidParameter: a height, mass, bandwidth or force limit that is not
+            a finite number > 0.
+
+    """
+
+    height_m: float | None = None
+    mass_kg: float = 20.0
+    bandwidth_hz: float = 2.0
+    force_limit_N: float = 1000.0
+    integral: bool = True
+
+    def __post_init__(self) -> None:
+        if self.height_m is not None:
+            object.__setattr__(self, "height_m", v.positive("belt height", self.height_m, "m"))
+        object.__setattr__(self, "mass_kg", v.positive("belt mass", self.mass_kg, "kg"))
+        bw = v.positive("belt speed bandwidth", self.bandwidth_hz, "Hz")
+        object.__setattr__(self, "bandwidth_hz", bw)
+        f = v.positive("belt force limit", self.force_limit_N, "N")
+        object.__setattr__(self, "force_limit_N", f)
+
+    @property
+    def gains(self) -> tuple[float, float]:
+        """(K_p [N·s/m], K_i [N/m]) of the speed controller."""
+        w = 2.0 * math.pi * self.bandwidth_hz
+        return self.mass_kg * w, (self.mass_kg * w * w / 4.0 if self.integral else 0.0)
+
+    def into(self, belt: Any) -> None:
+        """Write the parameters into a record of :data:`BELT_FIELDS` (``belt = rec[0]``)."""
+        kp, ki = self.gains
+        belt["mass"] = self.mass_kg
+        belt["kp"], belt["ki"] = kp, ki
+        belt["f_max"] = self.force_limit_N
+
+    def new_record(self) -> np.ndarray:
+        """A record of :data:`BELT_FIELDS` with these parameters, the belt at rest."""
+        r = record(BELT_FIELDS)
+        self.into(r[0])
+        return r
+
+
+#: Fields of the belt's record.  Parameters: ``mass`` m_b [kg], ``kp`` [N·s/m],
+#: ``ki`` [N/m], ``f_max`` [N].  State: ``v`` belt speed v_b [m/s], ``x``
+#: belt travel [m], ``integral`` ∫e dt [m].  Input: ``v_set`` [m/s] and
+#: ``a_set`` its rate [m/s²].  Work of
+#: the step: ``f_drive`` F_d [N], ``v_free`` v_b + h F_d / m_b [m/s],
+#: ``v_next``, ``integral_next``: the state at the end of the step;
+#: ``f_feet`` Σ F_t over the last step [N].
+BELT_FIELDS = [
+    *((name, np.float64) for name in ("mass", "kp", "ki", "f_max", "v", "x", "integral")),
+    *(
+        (name, np.float64)
+        for name in ("v_set", "a_set", "f_drive", "v_free", "v_next", "integral_next")
+    ),
+    ("f_feet", np.float64),
+]
+
+
+@kernel
+def belt_drive(b: Any, h: float) -> None:
+    """The drive force of the step and the belt speed without the feet (``b``: a belt record)."""
+    e = b.v_set - b.v
+    integral = b.integral + e * h
+    f = b.mass * b.a_set + b.kp * e + b.ki * integral
+    if f > b.f_max:
+        f = b.f_max
+        integral = b.integral  # no wind-up at the limit
+    elif f < -b.f_max:
+        f = -b.f_max
+        integral = b.integral
+    b.f_drive = f
+    b.integral_next = integral
+    b.v_free = b.v + h * f / b.mass
+    b.v_next = b.v_free
+    b.f_feet = 0.0
+
+
+@kernel
+def belt_commit(b: Any, h: float) -> None:
+    """End of step: v_b, x_b and the integral take their new values (trapezoidal x_b)."""
+    b.x += 0.5 * h * (b.v + b.v_next)
+    b.v = b.v_next
+    b.integral = b.integral_next
+
+
+@kernel
+def belt_response(
+    belt: np.ndarray, v_set: float, load_N: np.ndarray, h: float, speed: np.ndarray
+) -> None:
+    """Step the belt record ``belt`` under a foot load, without feet (a check of the drive).
+
+    Each step k: the set speed ``v_set`` [m/s] (rate 0), the feet's friction
+    force on the belt ``load_N[k]`` [N] (the F_t of the module docstring: < 0
+    holds the belt back), step ``h`` [s]; the speed at the end of each step
+    into ``speed`` [m/s] (as long as ``load_N``).
+    """
+    b = belt[0]
+    b.v_set = v_set
+    b.a_set = 0.0
+    for k in range(load_N.shape[0]):
+        belt_drive(b, h)
+        b.v_next = b.v_free + h * load_N[k] / b.mass
+        b.f_feet = load_N[k]
+        belt_commit(b, h)
+        speed[k] = b.v
