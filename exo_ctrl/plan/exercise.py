@@ -44,8 +44,8 @@ import numpy as np
 
 from .. import _validate as v
 from ..exceptions import InvalidParameter
-from ..model import JOINT_NAMES, SIDES, BodyModel
-from .kinematics import JointTrajectory, forward_kinematics
+from ..model import SIDES, BodyModel
+from .kinematics import JointTrajectory, check_range, forward_kinematics
 from .ramp import smoothstep
 
 __all__ = [
@@ -140,7 +140,7 @@ def calibration_plan(
             q[:, j] = rest + e * x
             dq[:, j] = de * x + e * dx
             ddq[:, j] = dde * x + 2.0 * de * dx + e * ddx
-    _check_range(body, t, q)
+    check_range(body, t, q, "calibration")
     phi = np.empty((n, 4))
     feet = np.empty((n, 2, 2))
     feet_vel = np.empty((n, 2, 2))
@@ -163,18 +163,3 @@ def calibration_plan(
                 f"m, at t = {t[low]:.4g} s with the hips {hip_height_m:g} m above it",
             )
     return JointTrajectory(t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet, foot_vel=feet_vel)
-
-
-def _check_range(body: BodyModel, t: np.ndarray, q: np.ndarray) -> None:
-    """Refuse a planned angle outside the body's range of motion."""
-    lower, upper = body.position_limits
-    for j, name in enumerate(JOINT_NAMES):
-        out = np.flatnonzero((q[:, j] < lower[j]) | (q[:, j] > upper[j]))
-        if out.size:
-            i = out[np.argmax(np.maximum(lower[j] - q[out, j], q[out, j] - upper[j]))]
-            raise InvalidParameter(
-                f"{name} angle on the calibration",
-                round(float(q[i, j]), 4),
-                f"within the range of motion [{lower[j]:.4g}, {upper[j]:.4g}] rad of {body.source}",
-                f"at t = {t[i]:.4g} s",
-            )

@@ -213,15 +213,31 @@ def plan_joints(plan: GaitPlan | RampedGait, body: BodyModel, t: np.ndarray) -> 
         q[:, cols] = np.column_stack(leg.absolute_to_joint(p1, p2))
         dq[:, cols] = np.column_stack(leg.rates_to_joint(d1, d2))
         ddq[:, cols] = np.column_stack(leg.rates_to_joint(a1, a2))
+    check_range(body, t, q, "plan")
+    return JointTrajectory(t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet.pos, foot_vel=feet.vel)
+
+
+def check_range(body: BodyModel, t: np.ndarray, q: np.ndarray, what: str) -> None:
+    """Refuse a planned joint angle outside the body's URDF range of motion.
+
+    Args:
+        body: the body whose ``<limit lower upper>`` apply.
+        t: sample times [s], (N,).
+        q: planned joint angles [rad], (N, 4).
+        what: the motion's name in the message (``"plan"``, ``"calibration"``).
+
+    Raises:
+        InvalidParameter: the joint and sample furthest beyond its range.
+
+    """
     lower, upper = body.position_limits
     for j, name in enumerate(JOINT_NAMES):
         out = np.flatnonzero((q[:, j] < lower[j]) | (q[:, j] > upper[j]))
         if out.size:
             i = out[np.argmax(np.maximum(lower[j] - q[out, j], q[out, j] - upper[j]))]
             raise InvalidParameter(
-                f"{name} angle on the plan",
+                f"{name} angle on the {what}",
                 round(float(q[i, j]), 4),
                 f"within the range of motion [{lower[j]:.4g}, {upper[j]:.4g}] rad of {body.source}",
                 f"at t = {t[i]:.4g} s",
             )
-    return JointTrajectory(t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet.pos, foot_vel=feet.vel)

@@ -71,6 +71,7 @@ import pinocchio as pin
 from .. import _validate as v
 from .._jit import kernel, record
 from ..model import CUFF_NAMES, SIDES, BodyModel
+from .cuff_split import split_forces
 
 __all__ = ["CuffParams", "CuffSet"]
 
@@ -426,7 +427,7 @@ def cuff_forces(cuffs: np.ndarray, q_all: np.ndarray, v_all: np.ndarray) -> None
 def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
     """:func:`cuff_forces` on the record ``r`` itself (also a field of another record)."""
     if r.split:
-        _split_forces(r, q_all, v_all)
+        split_forces(r, q_all, v_all)
         return
     k, c = r.k, r.c
     select, dp, dpt, k_offset = r.select, r.dp, r.dpt, r.k_offset
@@ -453,84 +454,6 @@ def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
         f[row] = acc - k_offset[row] if r.slipped[row % 4] == 0.0 else 0.0
     for i in range(8):
         tau[i] = 0.0
-    for j in range(16):
-        g = 0.0
-        for row in range(8):
-            g += dpt[j, row] * f[row]
-        g *= csr[j]
-        jj = j if j < 8 else j - 8
-        for i in range(8):
-            s = select[jj, i]
-            if s != 0.0:
-                tau[i] += s * g
-
-
-@kernel
-def _split_forces(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
-    """Forces of split cuffs (normal and shear, preload; module docstring), in place.
-
-    Δp = D P u + D p₀, Δṗ = D P w; per cuff u, n of its exo link, s_n, s_u,
-    σ_n, σ_u, f = -(σ_n + C_n n · Δṗ) n - (σ_u + C_u u · Δṗ) u; τ as the
-    isotropic cuffs' plus the moment M = σ_n (u · Δp) - σ_u (n · Δp) on each
-    cuff's exo link (rotation c of S).
-    """
-    select, dp, dpt = r.select, r.dp, r.dpt
-    f, tau, cs, csr, y, rel = r.f, r.tau, r.cs, r.csr, r.y, r.rel
-    for j in range(8):
-        th = 0.0
-        dth = 0.0
-        for i in range(8):
-            s = select[j, i]
-            if s != 0.0:
-                th += s * q_all[i]
-                dth += s * v_all[i]
-        cj, sj = np.cos(th), np.sin(th)
-        cs[j] = cj
-        cs[8 + j] = sj
-        csr[j] = -sj
-        csr[8 + j] = cj
-        y[j] = -sj * dth
-        y[8 + j] = cj * dth
-    for row in range(8):
-        acc = r.dp0[row]
-        rate = 0.0
-        for j in range(16):
-            acc += dp[row, j] * cs[j]
-            rate += dp[row, j] * y[j]
-        rel[row] = acc
-        rel[8 + row] = rate
-    kn, cn, ku, cu = r.k, r.c, r.k_u, r.c_u
-    d0 = 2.0 * r.preload / kn
-    for i in range(8):
-        tau[i] = 0.0
-    for c in range(4):
-        if r.slipped[c] != 0.0:
-            f[c] = 0.0
-            f[4 + c] = 0.0
-            continue
-        cc, sc = cs[c], cs[8 + c]
-        ux = r.along0[c, 0] * cc - r.along0[c, 1] * sc
-        uz = r.along0[c, 1] * cc + r.along0[c, 0] * sc
-        nx, nz = -uz, ux
-        dx, dz = rel[c], rel[4 + c]
-        pu = ux * dx + uz * dz
-        pn = nx * dx + nz * dz
-        s_n = pn - r.r0n[c]
-        s_u = pu - r.r0u[c]
-        if r.preload > 0.0:
-            sigma_n = 0.5 * kn * (max(d0 + s_n, 0.0) - max(d0 - s_n, 0.0))
-        else:
-            sigma_n = kn * s_n
-        sigma_u = ku * s_u
-        f_n = -sigma_n - cn * (nx * rel[8 + c] + nz * rel[12 + c])
-        f_u = -sigma_u - cu * (ux * rel[8 + c] + uz * rel[12 + c])
-        f[c] = f_n * nx + f_u * ux
-        f[4 + c] = f_n * nz + f_u * uz
-        moment = sigma_n * pu - sigma_u * pn
-        for i in range(8):
-            s = select[c, i]
-            if s != 0.0:
-                tau[i] += s * moment
     for j in range(16):
         g = 0.0
         for row in range(8):

@@ -2,10 +2,9 @@
 
 The recorder is a :class:`~exo_ctrl.sim.SimObserver`.  Per chunk of rows it
 packs every signal of the log schema into one float64 vector
-(:class:`~.format.Layout`), sends each entity with one
-``send_columns`` call (no per-tick ``rr.log``), the 3-D scene at the scene
-rate only, and the time series at every tick.  The entity hierarchy is in
-:mod:`.format`.
+(:class:`~.format.Layout`), sends each entity with one ``send_columns`` call
+(no per-tick ``rr.log``), the 3-D scene at the scene rate only, and the time
+series at every tick.  The entity hierarchy is in :mod:`.format`.
 
 Failure safety.  Rerun encodes the recording into memory (a
 ``BinaryStream``, no file sink of its own); after :meth:`start`, each
