@@ -34,8 +34,11 @@ import contextlib
 import errno
 import fcntl
 import os
+import signal
 import subprocess
 import sys
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 from .._io import is_special
@@ -43,7 +46,7 @@ from ..exceptions import RecordingError
 from .rrd_footer import HEADER_SIZE, Manifests, end_of_stream, split_stream
 from .write_process import ANSWER, REQUEST
 
-__all__ = ["RrdFile"]
+__all__ = ["RrdFile", "signals_held"]
 
 #: Longest wait for the writer process to end after the file is closed [s].
 WRITER_EXIT_TIMEOUT_S = 10.0
@@ -94,6 +97,11 @@ class RrdFile:
         """
         if not data:
             return
+        with signals_held():
+            self._append(data)
+
+    def _append(self, data: bytes) -> None:
+        """:meth:`append` with SIGINT and SIGTERM held (the footer's state and the file agree)."""
         parts = split_stream(data)
         if self._header is not None and parts.header != self._header:
             raise RecordingError("rerun changed its stream header between two chunks")
@@ -230,3 +238,25 @@ def _read_exact(fd: int, n: int) -> bytes | None:
             return None
         data += block
     return data
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM in the main thread while a write and its footer state change.
+
+    The CLI turns both into exceptions raised wherever the main thread is
+    (``Terminated``, ``KeyboardInterrupt``); raised between the merged
+    footer's update and the write it describes, the next footer would name
+    bytes the file does not hold (``rerun rrd verify``: corrupt manifest).
+    Held, they are delivered as soon as the append is whole.  Elsewhere than
+    the main thread (the write-behind thread) no signal handler runs.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)

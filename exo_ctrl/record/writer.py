@@ -82,7 +82,7 @@ from .format import (
     layout,
     params_markdown,
 )
-from .rrd_file import RrdFile
+from .rrd_file import RrdFile, signals_held
 from .scene import Skeleton, log_scene_static, send_scene
 
 __all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder", "find_viewer", "spawn_viewer"]
@@ -94,8 +94,8 @@ DEFAULT_SCENE_RATE_HZ = 50.0
 #: tick with the fixed part (blueprint, parameters, geometry) spread over it;
 #: 7200 ticks write 21.35 MB (2873 B per tick beyond the first 3600).
 BYTES_PER_TICK_ESTIMATE = 3050
-#: Longest wait for rerun to encode what was sent into memory [s]; a 2000-tick
-#: chunk takes milliseconds.  Past it rerun raises, which becomes a RecordingError.
+#: Longest wait for rerun to encode what was sent [s] (a 2000-tick chunk takes
+#: milliseconds); past it rerun raises, which becomes a RecordingError.
 FLUSH_TIMEOUT_S = 10.0
 
 #: TextLog level of an event or final status by kind.
@@ -348,7 +348,8 @@ class RerunRecorder:
         stream, file = self._stream, self._file
         if stream is None or file is None:
             return
-        file.append(stream.read(flush=True, flush_timeout_sec=FLUSH_TIMEOUT_S))
+        with signals_held():  # what rerun hands over reaches the file whole
+            file.append(stream.read(flush=True, flush_timeout_sec=FLUSH_TIMEOUT_S))
 
     def _write_behind(self, ticks: int) -> None:
         """:meth:`_write` in a helper thread; ``ticks`` are on disk once it is done.
