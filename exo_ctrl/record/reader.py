@@ -31,6 +31,7 @@ from ..estimation import EstimateErrorStats
 from ..exceptions import ExoCtrlError, RecordingError
 from ..model import load_body
 from ..sim import RunStats, SimConfig, SimResult
+from ..sim.summary import contact_stats
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
 
 __all__ = ["RecordingIntegrity", "read_recording", "read_recording_integrity"]
@@ -210,10 +211,12 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
 
 def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
     """Running statistics as simulate() keeps them, so summary() matches the live run."""
+    contact = contact_stats(config)
     try:
-        return RunStats(EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt))
+        estimate = EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt)
     except (ExoCtrlError, TypeError):  # the model moved, or an older layout
-        return RunStats()
+        return RunStats(None, contact)
+    return RunStats(estimate, contact)
 
 
 def _load_chunks(path: Path) -> list:

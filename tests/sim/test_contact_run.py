@@ -13,7 +13,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 from exo_ctrl.plant import ContactParams
-from exo_ctrl.record import RerunRecorder
+from exo_ctrl.record import RerunRecorder, read_recording
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.setup import build
 from exo_ctrl.sim.tick import Runner
@@ -90,3 +90,8 @@ def test_without_contact_the_belt_signals_are_zero_and_with_it_recorded(tmp_path
     )
     entities = {c.entity_path for c in RrdReader(str(path)).stream().to_chunks()}
     assert {"/world/ground_force/left", "/world/ground_force/right"} <= entities
+    # The summary rebuilt from the recording has the live run's contact figures.
+    back = read_recording(path).summary()
+    live = on.summary()
+    for key in ("slip_speed_rms_mps", "touchdown_speed_mps", "peak_ground_force_N"):
+        assert back[key] == pytest.approx(live[key], rel=1e-12, abs=1e-15), key
