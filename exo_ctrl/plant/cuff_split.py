@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .._jit import kernel
+from .cuff_links import add_link_torques, link_turn
 
 __all__ = ["split_forces"]
 
@@ -28,21 +29,11 @@ def split_forces(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
     isotropic cuffs' plus the moment M = σ_n (u · Δp) - σ_u (n · Δp) on each
     cuff's exo link (rotation c of S).
     """
-    select, dp, dpt = r.select, r.dp, r.dpt
-    f, tau, cs, csr, y, rel = r.f, r.tau, r.cs, r.csr, r.y, r.rel
+    select, dp = r.select, r.dp
+    f, tau, cs, y, rel = r.f, r.tau, r.cs, r.y, r.rel
     for j in range(8):
-        th = 0.0
-        dth = 0.0
-        for i in range(8):
-            s = select[j, i]
-            if s != 0.0:
-                th += s * q_all[i]
-                dth += s * v_all[i]
-        cj, sj = np.cos(th), np.sin(th)
-        cs[j] = cj
-        cs[8 + j] = sj
-        csr[j] = -sj
-        csr[8 + j] = cj
+        dth = link_turn(r, q_all, v_all, j)
+        cj, sj = cs[j], cs[8 + j]
         y[j] = -sj * dth
         y[8 + j] = cj * dth
     for row in range(8):
@@ -85,13 +76,4 @@ def split_forces(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
             s = select[c, i]
             if s != 0.0:
                 tau[i] += s * moment
-    for j in range(16):
-        g = 0.0
-        for row in range(8):
-            g += dpt[j, row] * f[row]
-        g *= csr[j]
-        jj = j if j < 8 else j - 8
-        for i in range(8):
-            s = select[jj, i]
-            if s != 0.0:
-                tau[i] += s * g
+    add_link_torques(r)

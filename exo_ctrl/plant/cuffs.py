@@ -71,6 +71,7 @@ import pinocchio as pin
 from .. import _validate as v
 from .._jit import kernel, record
 from ..model import CUFF_NAMES, SIDES, BodyModel
+from .cuff_links import add_link_torques, link_turn
 from .cuff_split import split_forces
 
 __all__ = ["CuffParams", "CuffSet"]
@@ -430,21 +431,11 @@ def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
         split_forces(r, q_all, v_all)
         return
     k, c = r.k, r.c
-    select, dp, dpt, k_offset = r.select, r.dp, r.dpt, r.k_offset
-    f, tau, cs, csr, y = r.f, r.tau, r.cs, r.csr, r.y
+    dp, k_offset = r.dp, r.k_offset
+    f, tau, cs, y = r.f, r.tau, r.cs, r.y
     for j in range(8):
-        th = 0.0
-        dth = 0.0
-        for i in range(8):
-            s = select[j, i]
-            if s != 0.0:
-                th += s * q_all[i]
-                dth += s * v_all[i]
-        cj, sj = np.cos(th), np.sin(th)
-        cs[j] = cj
-        cs[8 + j] = sj
-        csr[j] = -sj
-        csr[8 + j] = cj
+        dth = link_turn(r, q_all, v_all, j)
+        cj, sj = cs[j], cs[8 + j]
         y[j] = -k * cj - c * (-sj * dth)
         y[8 + j] = -k * sj - c * (cj * dth)
     for row in range(8):
@@ -454,16 +445,7 @@ def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
         f[row] = acc - k_offset[row] if r.slipped[row % 4] == 0.0 else 0.0
     for i in range(8):
         tau[i] = 0.0
-    for j in range(16):
-        g = 0.0
-        for row in range(8):
-            g += dpt[j, row] * f[row]
-        g *= csr[j]
-        jj = j if j < 8 else j - 8
-        for i in range(8):
-            s = select[jj, i]
-            if s != 0.0:
-                tau[i] += s * g
+    add_link_torques(r)
 
 
 def _xz(p: np.ndarray) -> np.ndarray:
