@@ -14,17 +14,14 @@ import argparse
 import warnings
 from pathlib import Path
 
-from ..estimation import read_csv_log
 from ..estimation.identification import (
     DEFAULT_CUTOFF_HZ,
     body_model,
     calibration_samples,
     identify_patient,
 )
-from ..exceptions import InvalidParameter, RecordingError
-from ..model import SEXES, load_exo, nominal_patient, write_urdf
-from ..record import read_recording
-from ..record.estimate_checks import recorded_exo
+from ..model import SEXES, nominal_patient, write_urdf
+from ..record.estimate import read_sensor_log
 from ..sim.belief import PAPER_PATIENT
 from .common import check_outputs, write_json
 
@@ -95,27 +92,16 @@ def run(args: argparse.Namespace) -> int:
     """
     check_outputs(args, out="--out", summary="--summary")
     path = Path(args.file)
-    suffix = path.suffix.lower()
     height, mass, sex = args.height, args.mass, args.sex
-    if suffix == ".rrd":
-        result = read_recording(path)
-        for name in ("q_meas", "tau_sensor"):
-            if name not in result.signals:
-                raise RecordingError(f"{path}: no {name!r} in the recording (not a sensor log)")
-        config = result.config
-        exo, notes = recorded_exo(path, result.exo_source or config.exo or "", args.exo, False)
-        for note in notes:
-            warnings.warn(note, RuntimeWarning, stacklevel=2)
-        t, q, tau = result.t, result.signals["q_meas"], result.signals["tau_sensor"]
-        belief = config.belief
+    log = read_sensor_log(path, args.exo)
+    for note in log.notes:
+        warnings.warn(note, RuntimeWarning, stacklevel=2)
+    exo, t, q, tau = log.exo, log.t, log.q, log.tau
+    if log.result is not None:
+        belief = log.result.config.belief
         height = height if height is not None else belief.patient_height_m
         mass = mass if mass is not None else belief.patient_mass_kg
         sex = sex or belief.patient_sex
-    elif suffix == ".csv":
-        exo = load_exo(args.exo)
-        t, q, _, tau = read_csv_log(path)
-    else:
-        raise InvalidParameter("file", str(path), "a .rrd recording or a .csv log")
     height = PAPER_PATIENT["height_m"] if height is None else height
     mass = PAPER_PATIENT["mass_kg"] if mass is None else mass
     leg = exo.legs["left"]

@@ -52,7 +52,13 @@ from .estimate_checks import (
 from .format import TIME
 from .reader import RecordingIntegrity, read_recording_integrity
 
-__all__ = ["OfflineEstimate", "estimate_file", "write_estimate_recording"]
+__all__ = [
+    "OfflineEstimate",
+    "SensorLog",
+    "estimate_file",
+    "read_sensor_log",
+    "write_estimate_recording",
+]
 
 #: What the text table shows for a figure that is not given (None in JSON).
 NOT_GIVEN = "\u2014"
@@ -150,6 +156,84 @@ def _cell(value: float | None, width: int, fmt: str) -> str:
     return f"{NOT_GIVEN if value is None else fmt.format(value):>{width}}"
 
 
+@dataclass
+class SensorLog:
+    """A device's sensor readings from a recording or a CSV log, and the model they go with.
+
+    Attributes:
+        t: tick times [s], (N,).
+        q: encoder angles [rad], (N, 4).
+        dq: joint speeds [rad/s], (N, 4) (a CSV log without them: differentiated).
+        tau: joint torque sensor readings [N·m], (N, 4).
+        exo: the exoskeleton model the readings are interpreted with.
+        result: the recording read back (None for a CSV log): its config and
+            the simulated truth, where it holds them.
+        integrity: how whole the recording was (None for a CSV log).
+        notes: one-line warnings (an incomplete recording, another model).
+
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    exo: Any
+    result: Any = None
+    integrity: RecordingIntegrity | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def read_sensor_log(
+    path: str | os.PathLike[str],
+    exo: str | os.PathLike[str] | None = None,
+    allow_other_exo: bool = False,
+) -> SensorLog:
+    """Read the sensor readings of a recording (``.rrd``) or a CSV log, checked.
+
+    A recording must hold ``q_meas``, ``dq_meas`` and ``tau_sensor`` and at
+    least 2 ticks; an incomplete one gives its ticks recovered with a note;
+    its exoskeleton is the recorded one unless ``exo`` names another
+    (refused unless ``allow_other_exo``, :func:`~.estimate_checks.recorded_exo`).
+    A CSV log is read by :func:`~exo_ctrl.estimation.read_csv_log` with
+    ``exo`` (default: the committed exoskeleton).
+
+    Raises:
+        RecordingError: an unreadable recording, one without sensor readings
+            or of fewer than 2 ticks.
+        InvalidLog: a bad CSV log.
+        InvalidParameter: an unknown file type, or an ``exo`` other than the
+            recorded one.
+
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".csv":
+        t, q, dq, tau = read_csv_log(p)
+        return SensorLog(t, q, dq, tau, load_exo(exo))
+    if suffix != ".rrd":
+        raise InvalidParameter("file", str(p), "a .rrd recording or a .csv log")
+    result, integrity = read_recording_integrity(p)
+    s = result.signals
+    for name in ("q_meas", "dq_meas", "tau_sensor"):
+        if name not in s:
+            raise RecordingError(f"{p}: no {name!r} in the recording (not a sensor log)")
+    notes = []
+    if not integrity.complete:
+        notes.append(f"{p}: {integrity.describe()}; the estimate covers those")
+    n = result.t.size
+    if n < 2:
+        raise RecordingError(
+            f"cannot estimate from {p}: it holds {n} tick{'s' * (n != 1)}; "
+            "the observer needs at least 2"
+        )
+    config = result.config
+    body, model_notes = recorded_exo(p, result.exo_source or config.exo or "", exo, allow_other_exo)
+    notes += model_notes
+    return SensorLog(
+        result.t, s["q_meas"], s["dq_meas"], s["tau_sensor"], body, result, integrity, notes
+    )
+
+
 def estimate_file(
     path: str | os.PathLike[str],
     exo: str | os.PathLike[str] | None = None,
@@ -192,20 +276,16 @@ def estimate_file(
 
     """
     p = Path(path)
-    suffix = p.suffix.lower()
     if gain_per_s is not None:
         v.positive("gain", gain_per_s, "1/s")
-    if suffix == ".rrd":
-        return _warn(_from_recording(p, exo, gain_per_s, allow_other_exo))
-    if suffix == ".csv":
-        body = load_exo(exo)
-        t, q, dq, tau = read_csv_log(p)
-        gain = DEFAULT_GAIN_PER_S if gain_per_s is None else gain_per_s
-        series = estimate_series(t, q, dq, tau, body, gain_per_s=gain)
-        stiffness = CuffParams().stiffness_N_per_m
-        notes = beyond_cuff_stretch(p, _peaks(series), stiffness, body)
-        return _warn(OfflineEstimate(str(p), series, warnings=notes))
-    raise InvalidParameter("file", str(p), "a .rrd recording or a .csv log")
+    log = read_sensor_log(p, exo, allow_other_exo)
+    if log.result is not None:
+        return _warn(_from_recording(p, log, gain_per_s))
+    gain = DEFAULT_GAIN_PER_S if gain_per_s is None else gain_per_s
+    series = estimate_series(log.t, log.q, log.dq, log.tau, log.exo, gain_per_s=gain)
+    stiffness = CuffParams().stiffness_N_per_m
+    notes = beyond_cuff_stretch(p, _peaks(series), stiffness, log.exo)
+    return _warn(OfflineEstimate(str(p), series, warnings=notes))
 
 
 def _warn(estimate: OfflineEstimate) -> OfflineEstimate:
@@ -215,37 +295,15 @@ def _warn(estimate: OfflineEstimate) -> OfflineEstimate:
     return estimate
 
 
-def _from_recording(
-    path: Path,
-    exo: str | os.PathLike[str] | None,
-    gain_per_s: float | None,
-    allow_other_exo: bool,
-) -> OfflineEstimate:
-    result, integrity = read_recording_integrity(path)
-    s = result.signals
-    for name in ("q_meas", "dq_meas", "tau_sensor"):
-        if name not in s:
-            raise RecordingError(f"{path}: no {name!r} in the recording (not a sensor log)")
-    notes = []
-    if not integrity.complete:
-        notes.append(f"{path}: {integrity.describe()}; the estimate covers those")
-    n = result.t.size
-    if n < 2:
-        raise RecordingError(
-            f"cannot estimate from {path}: it holds {n} tick{'s' * (n != 1)}; "
-            "the observer needs at least 2"
-        )
-    config = result.config
-    body, model_notes = recorded_exo(
-        path, result.exo_source or config.exo or "", exo, allow_other_exo
-    )
-    notes += model_notes
+def _from_recording(path: Path, log: SensorLog, gain_per_s: float | None) -> OfflineEstimate:
+    result, body, notes = log.result, log.exo, list(log.notes)
+    s, n, config = result.signals, result.t.size, result.config
     gain = config.observer_gain_per_s if gain_per_s is None else gain_per_s
     series = estimate_series(
-        result.t,
-        s["q_meas"],
-        s["dq_meas"],
-        s["tau_sensor"],
+        log.t,
+        log.q,
+        log.dq,
+        log.tau,
         body,
         gain_per_s=gain,
         dt=config.dt,
@@ -267,7 +325,7 @@ def _from_recording(
             errors = found.summary()
             notes += worse_than_none(path, found)
     notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)
-    return OfflineEstimate(str(path), series, errors, integrity, notes)
+    return OfflineEstimate(str(path), series, errors, log.integrity, notes)
 
 
 def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[str]) -> Path:
