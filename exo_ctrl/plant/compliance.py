@@ -86,7 +86,7 @@ from .._jit import kernel
 from ..exceptions import InvalidParameter
 from .drive import MotorParams
 from .energy import book_drives
-from .motor import step_drives
+from .motor import drive_cap, hold_drive, step_drives
 
 __all__ = [
     "COMPLIANCE_FIELDS",
@@ -294,11 +294,7 @@ def rotor_kick(p: Any) -> None:
     m = p.motors
     h = p.h
     for j in range(4):
-        cap = m.kt * m.i_max * m.gear[j]
-        i_held = m.i_max
-        if cap > p.effort[j]:
-            cap = p.effort[j]
-            i_held = cap / (m.kt * m.gear[j])
+        cap, i_held = drive_cap(m, p.effort[j], j)
         spring = p.spring_torque[j]
         hd = p.damping_m[j]
         acc = (p.drive_torque[j] - spring) / (p.rotor_inertia[j] + hd)
@@ -308,12 +304,7 @@ def rotor_kick(p: Any) -> None:
             torque = sign * cap
             acc = (torque - spring) / p.rotor_inertia[j]
             p.damping_m[j] = 0.0
-            m.mean[j] = sign * i_held
-            m.current[j] = sign * i_held
-            m.torque[j] = torque
-            m.saturated[j] = 1.0
-            m.damping[j] = 0.0
-            m.held[j] = 1.0
+            hold_drive(m, j, torque, sign * i_held)
         p.drive_torque[j] = torque
         p.rotor_acc[j] = acc
         p.sensor_torque[j] = spring

@@ -52,7 +52,7 @@ from ..exceptions import InvalidParameter
 from .drive import EFFICIENCY_SMOOTHING_RAD_S, OPEN_PHASE, MotorParams, gear_factor
 from .energy import book_drives, energy_fields, energy_report
 
-__all__ = ["MotorBank", "motor_fields", "motor_step", "step_drives"]
+__all__ = ["MotorBank", "drive_cap", "hold_drive", "motor_fields", "motor_step", "step_drives"]
 
 
 def _read_only(a: NDArray) -> NDArray:
@@ -392,3 +392,28 @@ def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
         tau = mean * kt * g
         torque[j] = tau
         damping[j] = (0.0 if sat else d_unsat * g) - abs(tau) * lneta * (1.0 - th * th) * inv_w
+
+
+@kernel
+def drive_cap(m: Any, effort: float, j: int) -> tuple[float, float]:
+    """Drive j's torque cap at the joint and the current that holds it [N·m], [A].
+
+    The smaller of the drive's own, η^s i_G k_m I_max, and the joint's rated
+    ``effort``; the current is I_max, or what gives the effort through the
+    gear factor where the rating binds first (braking, or a big drive).
+    """
+    cap = m.kt * m.i_max * m.gear[j]
+    if cap > effort:
+        return effort, effort / (m.kt * m.gear[j])
+    return cap, m.i_max
+
+
+@kernel
+def hold_drive(m: Any, j: int, torque: float, current: float) -> None:
+    """Record drive j held at its cap: ``torque`` [N·m] from ``current`` [A], signed; no damping."""
+    m.mean[j] = current
+    m.current[j] = current
+    m.torque[j] = torque
+    m.saturated[j] = 1.0
+    m.damping[j] = 0.0
+    m.held[j] = 1.0

@@ -66,7 +66,7 @@ from .cuffs import CuffParams, CuffSet, forces_of
 from .drive import MotorParams
 from .end_stops import EndStopParams, end_stop_torques
 from .energy import book_drives
-from .motor import MotorBank, step_drives
+from .motor import MotorBank, drive_cap, hold_drive, step_drives
 from .plant_record import plant_fields
 
 __all__ = ["Plant"]
@@ -434,11 +434,7 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
         m = p.motors
         held = False
         for j in range(4):
-            cap = m.kt * m.i_max * m.gear[j]
-            i_held = m.i_max
-            if cap > p.effort[j]:  # the joint's rating binds first (braking, or a big drive)
-                cap = p.effort[j]
-                i_held = cap / (m.kt * m.gear[j])
+            cap, i_held = drive_cap(m, p.effort[j], j)
             linear = p.drive_torque[j] - p.damping_m[j] * acc_all[j]
             if abs(linear) > cap:
                 sign = 1.0 if linear > 0.0 else -1.0
@@ -447,12 +443,7 @@ def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
                 p.drive_torque[j] = limit
                 p.damping_m[j] = 0.0
                 p.armature[j] = p.arm_const[j]
-                m.mean[j] = sign * i_held
-                m.current[j] = sign * i_held
-                m.torque[j] = limit
-                m.saturated[j] = 1.0
-                m.damping[j] = 0.0
-                m.held[j] = 1.0
+                hold_drive(m, j, limit, sign * i_held)
                 held = True
         if held:
             p.resolve = True
