@@ -39,6 +39,7 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from exo_ctrl.estimation import CuffForceKalman
 from exo_ctrl.plant import ContactParams
 from exo_ctrl.record import RerunRecorder
 from exo_ctrl.sim import Runner, SimConfig, build, simulate
@@ -59,7 +60,8 @@ def floor_calls(runner: Runner) -> list:
     """The Pinocchio calls one tick makes, as zero-argument callables.
 
     Plant: one ABA of the model holding both bodies.  Estimator: CRBA and
-    nonLinearEffects of the exoskeleton.  CT: none (its
+    nonLinearEffects of the exoskeleton (the Kalman filter's: of the
+    exoskeleton and of the patient).  CT: none (its
     feedforward is tabulated along the plan when the controller is built).
     QP: the cuff model's CRBA and nonLinearEffects of the model holding both
     bodies.  Each is called with the present state.  (The QP's proxsuite
@@ -74,11 +76,25 @@ def floor_calls(runner: Runner) -> list:
         lambda: pin.aba(pm, pd, q, v, tau),
     ]
     est = runner.estimator
-    em, ed = est._model, est._data
-    calls += [
-        lambda: pin.crba(em, ed, qe),
-        lambda: pin.nonLinearEffects(em, ed, qe, ve),
-    ]
+    if isinstance(est, CuffForceKalman):  # both models at the last posterior
+        qp, vp = q[4:].copy(), v[4:].copy()
+        for (mm, md), (qq, vv) in zip(est.models, ((qe, ve), (qp, vp)), strict=True):
+            calls += [
+                lambda mm=mm, md=md, qq=qq: pin.crba(mm, md, qq),
+                lambda mm=mm, md=md, qq=qq, vv=vv: pin.nonLinearEffects(mm, md, qq, vv),
+            ]
+    else:
+        em, ed = est._model, est._data
+        calls += [
+            lambda: pin.crba(em, ed, qe),
+            lambda: pin.nonLinearEffects(em, ed, qe, ve),
+        ]
+    ff = getattr(setup.controller, "_ff", None)
+    if setup.online is not None and ff is not None:  # CT's feedforward row, every tick
+        row = (setup.plan.q[0].copy(), setup.plan.dq[0].copy(), setup.plan.ddq[0].copy())
+        calls.append(lambda: pin.rnea(ff._me, ff._de, *row))
+        if ff._mp is not None:
+            calls.append(lambda: pin.rnea(ff._mp, ff._dp, *row))
     model = getattr(setup.controller, "cuff_model", None)
     if model is not None:
         cm, cd = model.model, model.data
@@ -94,9 +110,15 @@ def floor_calls(runner: Runner) -> list:
 SCENARIOS = {
     "pd": {"controller": "pd"},
     "ct": {"controller": "ct"},
-    # CT on the belt: the feet in contact, friction impulses (plant/contact.py).
-    "ct_contact": {"controller": "ct", "contact": ContactParams(enabled=True)},
+    # CT on the belt: the feet in contact, friction impulses (plant/contact.py),
+    # the precomputed plan.
+    "ct_contact": {"controller": "ct", "contact": ContactParams(enabled=True), "sync": False},
+    # The same with the plan generated each tick from the measured belt speed
+    # (plan/online.py) and CT's feedforward row recomputed (two RNEA calls).
+    "ct_sync": {"controller": "ct", "contact": ContactParams(enabled=True), "sync": True},
     "qp": {"controller": "qp"},
+    # PD with the coupled model's Kalman filter as the estimator (estimation/kalman.py).
+    "pd_kalman": {"controller": "pd", "estimator": "kalman"},
     # The QP where its bound binds (tests/test_qp.py's spastic run).
     "qp_spastic": {
         "controller": "qp",

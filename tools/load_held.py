@@ -47,7 +47,7 @@ from exo_ctrl.estimation import DEFAULT_GAIN_PER_S
 from exo_ctrl.exceptions import ExoCtrlError
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.sim import Runner, SimConfig, build
-from exo_ctrl.sim.setup import drive_for
+from exo_ctrl.sim.belief import Belief
 
 PERIODS_S = (0.9, 1.05, 1.2, 1.35, 1.5)
 STEPS_M = (0.25, 0.30, 0.35, 0.40, 0.45)
@@ -64,6 +64,7 @@ def run_point(
     truth: bool = False,
     restored_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S,
     horizon_ticks: tuple[int, ...] = DEFAULT_HORIZON_TICKS,
+    controller_patient: str = "truth",
 ) -> dict:
     """One grid point: the real peak cuff force against the bound, and where it came.
 
@@ -79,6 +80,7 @@ def run_point(
         patient_torque="spastic",
         cuff_force_limit_N=bound_N,
         safety=False,
+        belief=Belief(controller_patient),
         **extra,
     )
     setup = build(config)
@@ -87,12 +89,12 @@ def run_point(
     ):
         setup.controller = QPController(
             setup.plan,
-            setup.exo,
-            setup.patient,
-            drive_for(config.motor, setup.exo),
+            setup.device_exo,
+            setup.device_patient,
+            setup.device_motor,
             config.gains,
             cuff_force_limit_N=bound_N,
-            cuffs=config.cuffs,
+            cuffs=config.belief.cuff_model,
             dt=config.dt,
             horizon_ticks=horizon_ticks,
             restored_bandwidth_per_s=restored_bandwidth_per_s,
@@ -145,6 +147,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", type=Path, default=None, help="write the points here")
     p.add_argument("--truth", action="store_true", help="true cuff forces, not the estimate")
     p.add_argument(
+        "--controller-patient",
+        default="truth",
+        metavar="truth|nominal|URDF",
+        help="the patient model the QP holds (default truth: the stated margin's model error "
+        "is the horizon model's given the true patient; nominal adds the patient model's error)",
+    )
+    p.add_argument(
         "--restored-bandwidth",
         type=float,
         default=None,
@@ -167,6 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.restored_bandwidth is None
         else args.restored_bandwidth,
         "horizon_ticks": tuple(round(h) for h in args.horizon_ms),  # 1 kHz: 1 tick = 1 ms
+        "controller_patient": args.controller_patient,
     }
     points = list(itertools.product(args.periods, args.steps, args.bounds))
     try:  # refuse bad input before any worker starts

@@ -168,8 +168,29 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{summary['touchdown_slip_mps']:.4f} m/s; peak ground force [N]: {feet}; "
             f"belt speed error RMS {summary['belt_speed_error_rms_mps']:.4f} m/s"
         )
+    if "device_belief" in summary:
+        lines.append(describe_belief(summary["device_belief"]))
     for event in summary["safety_events"][:5]:
         lines.append(f"safety: {event['message']}")
     if summary["safety_state"] != "normal":
         lines.append(f"safety supervisor ended in state {summary['safety_state']!r}")
     return "\n".join(lines)
+
+
+def describe_belief(belief: dict[str, Any]) -> str:
+    """One line on what the device held (the summary's ``device_belief``)."""
+    patient = belief["patient"]
+    if patient == "nominal":
+        patient = (
+            f"nominal ({belief['patient_height_m']:g} m, {belief['patient_mass_kg']:g} kg, "
+            f"{belief['patient_sex']}, de Leva's tables)"
+        )
+    elif patient == "truth":
+        patient = "the true patient (perfect knowledge: the ideal comparison)"
+    force = belief["safety_cuff_force"]
+    watched = "estimated" if force == "estimate" else "true (a force sensor per cuff: ideal)"
+    return (
+        f"device model: patient {patient}, cuffs {belief['cuffs']}, drive {belief['drive']}, "
+        f"estimator {belief['estimator']}, plan {belief.get('plan', 'precomputed')}; "
+        f"the supervisor watched the {watched} cuff forces"
+    )

@@ -8,9 +8,10 @@ from pathlib import Path
 
 from .. import _validate as v
 from ..control import PDGains
+from ..estimation import ESTIMATORS
 from ..exceptions import InvalidParameter
 from ..model import SEXES, load_exo
-from ..plan import EXERCISES, GaitParams
+from ..plan import EXERCISES, GaitParams, SpeedProfile
 from ..plan.exercise import CALIBRATION_DURATION_S
 from ..plant import (
     MAX_MISALIGNMENT_M,
@@ -19,6 +20,7 @@ from ..plant import (
     BeltParams,
     CompliantJoint,
     ContactParams,
+    CuffParams,
     Misalignment,
     consistency_warning,
     motor_preset,
@@ -182,18 +184,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     device.add_argument(
         "--controller-patient",
-        default="truth",
-        metavar="truth|nominal|URDF",
-        help="the patient model the device holds: truth (the --patient URDF itself: the ideal "
-        "comparison), nominal (the measured leg lengths with de Leva's segment tables for the "
-        "patient's stature and mass) or a URDF file, e.g. the identified patient that "
-        "exo-ctrl identify --out wrote (default truth)",
+        default="nominal",
+        metavar="nominal|truth|URDF",
+        help="the patient model the device holds: nominal (the measured leg lengths with de "
+        "Leva's segment tables for the patient's stature and mass), truth (the --patient URDF "
+        "itself: the ideal comparison) or a URDF file, e.g. the identified patient that "
+        "exo-ctrl identify --out wrote (default nominal)",
     )
     device.add_argument(
         "--controller-exo",
         default=None,
         metavar="URDF",
         help="the exoskeleton model the device holds (default: the --exo URDF)",
+    )
+    device.add_argument(
+        "--controller-cuffs",
+        choices=("isotropic", "split"),
+        default="isotropic",
+        help="the cuff model the QP and the kalman estimator hold: isotropic (the cuffs' "
+        "nominal 8 N/mm and 100 N·s/m in every direction) or split (the published normal and "
+        "shear stiffness of the cuff-tissue interface, the truth's default, "
+        "exo_ctrl/plant/cuffs.py) (default isotropic)",
     )
     device.add_argument(
         "--patient-height",
@@ -217,6 +228,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="male",
         help="which of de Leva's tables the nominal model takes (default male)",
     )
+    device.add_argument(
+        "--estimator",
+        choices=ESTIMATORS,
+        default="momentum",
+        help="the live cuff-force estimator: momentum (the momentum observer on the "
+        "exoskeleton's model) or kalman (a Kalman filter on the coupled exoskeleton-cuff-"
+        "patient model with the device's patient and cuff models) (default momentum)",
+    )
     p.add_argument(
         "--patient-torque",
         choices=PATIENT_TORQUES,
@@ -229,9 +248,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run without the safety supervisor (an --estop-at still acts)",
     )
     p.add_argument(
-        "--safety-estimate",
-        action="store_true",
-        help="the supervisor watches the estimated cuff forces, as on the device",
+        "--safety-force",
+        choices=("estimate", "truth"),
+        default="estimate",
+        help="the cuff forces the supervisor watches: estimate (from the joint torque sensors, "
+        "as on the device) or truth (the simulated forces: the ideal comparison, a force "
+        "sensor in every cuff) (default estimate)",
     )
     p.add_argument(
         "--estop-at",
@@ -323,11 +345,16 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         plant_substeps=args.substeps,
         patient_torque=args.patient_torque,
         safety=not args.no_safety,
-        safety_use_estimate=args.safety_estimate,
+        safety_use_estimate=args.safety_force == "estimate",
         estop_at_s=args.estop_at,
         cuff_force_limit_N=args.cuff_force_limit,
+        estimator=args.estimator,
         joint_compliance=compliance,
         contact=_contact_from(args),
+        speed_profile=None
+        if args.speed_profile is None
+        else SpeedProfile.parse(args.speed_profile),
+        sync=None if args.sync is None else args.sync == "on",
         exercise=args.exercise,
         belief=Belief(
             patient=args.controller_patient,
@@ -335,6 +362,7 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
             patient_height_m=args.patient_height,
             patient_mass_kg=args.patient_mass,
             patient_sex=args.patient_sex,
+            cuffs=CuffParams() if args.controller_cuffs == "split" else None,
         ),
     )
 
@@ -379,6 +407,22 @@ def _treadmill_options(p: argparse.ArgumentParser) -> None:
         default=b.bandwidth_hz,
         metavar="HZ",
         help=f"the belt speed controller's bandwidth [Hz] (default {b.bandwidth_hz:g})",
+    )
+    g.add_argument(
+        "--speed-profile",
+        default=None,
+        metavar="T1:V1,T2:V2,...",
+        help="the session's belt set speed, piecewise linear through the points [s:m/s] "
+        "(times increasing, speeds > 0; V1 before T1, the last speed after the last point; "
+        "needs --contact on; default: the gait's belt speed)",
+    )
+    g.add_argument(
+        "--sync",
+        choices=("on", "off"),
+        default=None,
+        help="plan online from the measured belt speed, step length and period adapting to it "
+        "(exo_ctrl/plan/online.py, adapt.py); off: the precomputed plan at the gait's belt speed "
+        "(default: on with --contact on and pd or ct, off otherwise)",
     )
 
 

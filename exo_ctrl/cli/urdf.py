@@ -6,15 +6,18 @@ import argparse
 from pathlib import Path
 
 from .. import _validate as v
+from .._io import check_output
 from ..exceptions import InvalidParameter
 from ..model import (
     DEFAULT_URDF_NAMES,
     SEXES,
     BodyParams,
+    draw_cohort,
     load_body,
     patient_from_anthropometry,
     write_urdf,
 )
+from ..model.cohort import MAX_COHORT
 from .common import check_outputs
 
 __all__ = ["register", "run"]
@@ -74,7 +77,33 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="male",
         help="which of de Leva's tables (default male, as the paper's patient)",
     )
-    p.add_argument("--out", required=True, metavar="PATH", help="output URDF file")
+    cohort = p.add_argument_group(
+        "virtual cohort (exo_ctrl/model/cohort.py; --kind patient with --height and --mass)"
+    )
+    cohort.add_argument(
+        "--cohort",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"write N true patients drawn around the one of --height, --mass, --sex "
+        f"(segment lengths, masses, centres of mass, radii of gyration), 1 to {MAX_COHORT}, "
+        "no unit (default: none, one patient)",
+    )
+    cohort.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        metavar="S",
+        help="the cohort's seed, an integer >= 0, no unit (default 0; with --cohort only)",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="PATH",
+        help="output URDF file (a directory: the body's default name in it); with --cohort "
+        "an existing directory (files patient_s{SEED}_{I}.urdf, I from 0, zero-padded to 3 "
+        "digits or more) or a pattern with {i} (e.g. cohort/p{i:02d}.urdf)",
+    )
     p.set_defaults(func=run)
 
 
@@ -99,6 +128,8 @@ def _base(args: argparse.Namespace) -> BodyParams:
 
 def run(args: argparse.Namespace) -> int:
     """Write the URDF; a cuff not given keeps its place as a fraction of its link."""
+    if args.cohort is not None or args.seed is not None:
+        return _run_cohort(args)
     if Path(args.out).is_dir():  # a directory: the body's default file name in it
         args.out = str(Path(args.out) / DEFAULT_URDF_NAMES[args.kind])
     check_outputs(args, out="--out")
@@ -121,5 +152,68 @@ def run(args: argparse.Namespace) -> int:
         print(
             "  an exoskeleton fitted to these legs (joints aligned): exo-ctrl urdf --kind exo "
             f"--thigh-length {thigh:.4g} --shank-length {shank:.4g} --out EXO.urdf"
+        )
+    return 0
+
+
+def _cohort_paths(out: str, n: int, seed: int) -> list[Path]:
+    """The cohort's output files: in a directory, or from a pattern with ``{i}``."""
+    if Path(out).is_dir():
+        width = max(3, len(str(n - 1)))
+        return [Path(out) / f"patient_s{seed}_{i:0{width}d}.urdf" for i in range(n)]
+    allowed = "an existing directory or a file pattern with {i} (e.g. cohort/p{i:02d}.urdf)"
+    if "{i" not in out:
+        raise InvalidParameter("--out", out, allowed, "--cohort writes one file per patient")
+    try:
+        paths = [Path(out.format(i=i)) for i in range(n)]
+    except (IndexError, KeyError, ValueError) as exc:
+        raise InvalidParameter("--out", out, allowed, f"the pattern fails: {exc}") from None
+    if len(set(paths)) < n:
+        raise InvalidParameter("--out", out, allowed, "two patients would share a file")
+    return paths
+
+
+def _run_cohort(args: argparse.Namespace) -> int:
+    """``--cohort N --seed S``: N patients around --height and --mass; every path checked first."""
+    if args.cohort is None:
+        raise InvalidParameter("--seed", args.seed, "given with --cohort only")
+    if args.kind != "patient":
+        raise InvalidParameter("--cohort", args.cohort, "given with --kind patient only")
+    if args.cohort < 1 or args.cohort > MAX_COHORT:
+        raise InvalidParameter("--cohort", args.cohort, f"an integer in [1, {MAX_COHORT}]")
+    seed = 0 if args.seed is None else args.seed
+    if seed < 0:
+        raise InvalidParameter("--seed", seed, "an integer >= 0")
+    for name, _ in _OPTIONS:
+        if getattr(args, name.replace("-", "_")) is not None:
+            raise InvalidParameter(
+                f"--{name}", getattr(args, name.replace("-", "_")), "unset with --cohort",
+                "the cohort draws the segments",
+            )  # fmt: skip
+    for option, value, what in (("--height", args.height, "a stature [m]"),
+                                ("--mass", args.mass, "a body mass [kg]")):  # fmt: skip
+        if value is None:
+            raise InvalidParameter(option, None, f"{what} given with --cohort")
+    paths = _cohort_paths(args.out, args.cohort, seed)
+    for path in paths:
+        check_output(path, "--out")
+    cohort = draw_cohort(
+        args.cohort,
+        seed,
+        v.finite("height", args.height, "m"),
+        v.finite("mass", args.mass, "kg"),
+        args.sex,
+    )
+    print(
+        f"cohort of {args.cohort} around de Leva's {args.sex} patient of {args.height:g} m, "
+        f"{args.mass:g} kg, seed {seed} (spreads: exo_ctrl/model/cohort.py)"
+    )
+    print(f"{'file':<40}{'thigh [m]':>10}{'shank [m]':>10}{'thigh [kg]':>11}{'shank [kg]':>11}")
+    for params, path in zip(cohort, paths, strict=True):
+        write_urdf(params, path)
+        load_body(path, name="patient")  # the project's URDF checks, on what was written
+        print(
+            f"{path!s:<40}{params.thigh_length:>10.4f}{params.shank_length:>10.4f}"
+            f"{params.thigh_mass:>11.3f}{params.shank_mass:>11.3f}"
         )
     return 0

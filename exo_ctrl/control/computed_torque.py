@@ -21,12 +21,15 @@ is built; a tick looks its row up, in the PD's kernel
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
+from .._jit import kernel
 from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..plan.kinematics import JointTrajectory
-from ..plant.drive import MotorParams
+from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
 from ..plant.motor import MotorBank
 from .base import PDGains
 from .pd import PDController
@@ -65,6 +68,36 @@ class ComputedTorqueController(PDController):
         self._motor = MotorBank(4, motor)
         self._torque_ff = feedforward_torque(plan, exo, patient, motor)
         self._u_ff = np.ascontiguousarray(self._motor.voltage_for(self._torque_ff, plan.dq))
+        self._ff: _Feedforward | None = None
+        self._models = (exo, patient, motor)
+
+    def refresh_row(self, row: int = 0) -> None:
+        """Recompute plan row ``row``'s feedforward after the plan's row changed in place.
+
+        For a plan generated each tick (:mod:`exo_ctrl.plan.online`): two
+        RNEA calls on the controller's own models and the drive model's
+        voltage, as the table was made.
+        """
+        ff = self._ff
+        if ff is None:
+            ff = self._ff = _Feedforward(*self._models)
+            m = self._models[2]
+            self._drive = np.array(
+                [
+                    m.resistance_ohm / m.torque_per_amp_Nm_per_A,
+                    m.back_emf_V_per_rad_s,
+                    math.log(m.gear_efficiency),
+                    EFFICIENCY_SMOOTHING_RAD_S,
+                    FRICTION_SMOOTHING_RAD_S,
+                ]
+            )
+            self._zero = np.zeros(4)
+        q, dq, ddq = self.plan.q[row], self.plan.dq[row], self.plan.ddq[row]
+        tau_e = pin.rnea(ff._me, ff._de, q, dq, ddq)
+        tau_p = pin.rnea(ff._mp, ff._dp, q, dq, ddq) if ff._mp is not None else self._zero
+        feedforward_row(
+            tau_e, tau_p, dq, ff._b, ff._fr, self._drive, self._torque_ff[row], self._u_ff[row]
+        )
 
     @property
     def torque_ff(self) -> np.ndarray:
@@ -75,6 +108,17 @@ class ComputedTorqueController(PDController):
     def torque_ff_table(self) -> np.ndarray:
         """Feedforward torque of every plan row [N·m], (rows, 4): a read-only view."""
         view = self._torque_ff.view()
+        view.flags.writeable = False
+        return view
+
+    @property
+    def voltage_ff_table(self) -> np.ndarray:
+        """Feedforward voltage of every plan row [V], (rows, 4): a read-only view.
+
+        Made through the controller's drive model
+        (:meth:`~exo_ctrl.plant.motor.MotorBank.voltage_for`).
+        """
+        view = self._u_ff.view()
         view.flags.writeable = False
         return view
 
@@ -123,3 +167,19 @@ def feedforward_torque(
     for k in range(n):
         ff.torque(plan.q[k], plan.dq[k], plan.ddq[k], out=out[k])
     return out
+
+
+@kernel
+def feedforward_row(tau_exo, tau_patient, dq, damping, friction, drive, tau_out, u_out):
+    """τ_ff (module docstring) from the two RNEA torques and U_ff through the drive model.
+
+    ``drive``: (R / k_t [Ω·A/(N·m)], i_G / k_E [V·s/rad], ln η, ω_η [rad/s],
+    ε [rad/s]); U = R τ / (k_t η^s) + (i_G / k_E) q̇*, s = sign(τ) tanh(q̇*/ω_η)
+    (:meth:`~exo_ctrl.plant.motor.MotorBank.voltage_for`).
+    """
+    for j in range(4):
+        v = dq[j]
+        tau = tau_exo[j] + tau_patient[j] + damping[j] * v + friction[j] * np.tanh(v / drive[4])
+        tau_out[j] = tau
+        s = np.sign(tau) * np.tanh(v / drive[3])
+        u_out[j] = drive[0] * tau / np.exp(s * drive[2]) + drive[1] * v

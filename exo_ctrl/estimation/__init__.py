@@ -6,6 +6,9 @@ Modules, in the order they build on each other:
   cuff force, the map between external joint torques and cuff forces;
 - :mod:`.errors`: errors of an estimate against the simulated truth;
 - :mod:`.observer`: :class:`CuffForceEstimator`, the live momentum observer;
+- :mod:`.kalman`: :class:`CuffForceKalman`, a Kalman filter on the coupled
+  exoskeleton–cuff–patient model (the device's patient and cuff models),
+  its compiled step in :mod:`.kalman_step`;
 - :mod:`.series`: the observer along a logged series;
 - :mod:`.bias`: torque-sensor bias, its effect and its measurement;
 - :mod:`.csvlog`: sensor logs as CSV files;
@@ -30,22 +33,27 @@ from .identification import (
     calibration_samples,
     identify_patient,
 )
+from .kalman import COMPONENTS, ESTIMATORS, CuffForceKalman, KalmanNoise
 from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
 from .series import EstimateSeries, estimate_series, first_order_filter
 
 __all__ = [
+    "COMPONENTS",
     "CSV_DQ_COLUMNS",
     "CSV_REQUIRED_COLUMNS",
     "DEFAULT_GAIN_PER_S",
+    "ESTIMATORS",
     "BiasEstimate",
     "CalibrationSamples",
     "CuffForceEstimator",
+    "CuffForceKalman",
     "CuffGeometry",
     "EstimateErrorStats",
     "EstimateErrors",
     "EstimateSeries",
     "Identification",
     "InvalidLog",
+    "KalmanNoise",
     "PriorSpread",
     "bias_effect_bound",
     "calibration_samples",

@@ -8,10 +8,13 @@
 - :mod:`~exo_ctrl.model.combined`: one model of both bodies (plant, QP).
 - :mod:`~exo_ctrl.model.body_params` and :mod:`~exo_ctrl.model.urdfgen`:
   the parameters of a generated body and its URDF.
+- :mod:`~exo_ctrl.model.anthropometry` and :mod:`~exo_ctrl.model.cohort`:
+  patients from height and mass, and a seeded virtual cohort around them.
 """
 
 from .anthropometry import SEXES, nominal_patient, patient_from_anthropometry
 from .body_params import BodyParams, SegmentInertia, segment_inertia
+from .cohort import CohortPatient, CohortSpread, benchmark_cohort, draw_cohort, fitted_exo
 from .combined import combined_model
 from .geometry import LegGeometry
 from .loader import (
@@ -35,11 +38,16 @@ __all__ = [
     "SIDES",
     "BodyModel",
     "BodyParams",
+    "CohortPatient",
+    "CohortSpread",
     "LegGeometry",
     "SegmentInertia",
+    "benchmark_cohort",
     "build_urdf",
     "combined_model",
     "default_urdf_path",
+    "draw_cohort",
+    "fitted_exo",
     "human_urdf_path",
     "load_body",
     "load_exo",

@@ -1,8 +1,12 @@
 """The gait plan: foot paths synchronised with the belt (paper §III) and the inverse kinematics.
 
-Also the exercises other than the gait (:mod:`.exercise`: the calibration swing).
+Also the exercises other than the gait (:mod:`.exercise`: the calibration swing),
+a session's belt-speed profile (:mod:`.profile`), the gait's adaptation to the
+belt speed (:mod:`.adapt`) and the gait generated online from the measured
+belt speed (:mod:`.online`).
 """
 
+from .adapt import SpeedAdaptation, max_step_length
 from .exercise import EXERCISES, calibration_plan
 from .gait import (
     FootTrajectory,
@@ -18,6 +22,8 @@ from .kinematics import (
     joint_rates,
     plan_joints,
 )
+from .online import OnlineGait
+from .profile import SpeedProfile
 from .ramp import Ramp, RampedGait, smoothstep
 from .rows import NO_TAIL, RowLayout, fill_rows, layout, plan_row
 
@@ -29,9 +35,12 @@ __all__ = [
     "GaitParams",
     "GaitPlan",
     "JointTrajectory",
+    "OnlineGait",
     "Ramp",
     "RampedGait",
     "RowLayout",
+    "SpeedAdaptation",
+    "SpeedProfile",
     "calibration_plan",
     "fill_rows",
     "forward_kinematics",
@@ -39,6 +48,7 @@ __all__ = [
     "joint_accelerations",
     "joint_rates",
     "layout",
+    "max_step_length",
     "plan_joints",
     "plan_row",
     "smoothstep",

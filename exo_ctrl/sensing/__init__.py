@@ -4,6 +4,10 @@ from .belt_encoder import (
     BeltEncoder,
     BeltEncoderParams,
 )
+from .current_sensor import (
+    CurrentSensor,
+    CurrentSensorParams,
+)
 from .readings import (
     SensorReadings,
 )
@@ -15,6 +19,8 @@ from .sensors import (
 __all__ = [
     "BeltEncoder",
     "BeltEncoderParams",
+    "CurrentSensor",
+    "CurrentSensorParams",
     "SensorParams",
     "SensorReadings",
     "Sensors",

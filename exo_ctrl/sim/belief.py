@@ -18,9 +18,24 @@ it:
   run (``--controller-patient PATIENT.urdf``; the name ``"identified"``
   alone is refused with that hint: the device holds the file the user names).
 
+The default is ``"nominal"``: a real device does not know its patient's
+segment inertias.  ``"truth"`` stays available for the ideal comparison, and
+a figure made with it says so.
+
 The exoskeleton model is its URDF (default: the true one's file, loaded
-again), or another file, to study a device whose model is wrong.  Either
-way the device's models are objects of their own, never the plant's.
+again), or another file, to study a device whose model is wrong.
+
+The drive model is the installed drive's datasheet (default: the nominal
+values of :attr:`~exo_ctrl.sim.config.SimConfig.motor`, a parameter set of
+its own, so that a true drive that differs from its datasheet, e.g. a
+winding warmer than 25 °C, can be studied by giving the device the nominal
+one).  The cuff model is the cuffs' nominal stiffness and damping as a
+bench measures them, isotropic (default :meth:`CuffParams.isotropic`: the
+paper's 8 N/mm, 100 N·s/m): the device cannot know how much softer the
+patient's soft tissue is in shear than across the link
+(:class:`~exo_ctrl.plant.cuffs.CuffParams`, the truth's split cuffs).
+
+Either way the device's models are objects of their own, never the plant's.
 """
 
 from __future__ import annotations
@@ -32,6 +47,7 @@ from pathlib import Path
 from .. import _validate as v
 from ..exceptions import InvalidParameter
 from ..model import SEXES, BodyModel, load_exo, load_patient, nominal_patient, write_urdf
+from ..plant import CuffParams, MotorParams
 
 __all__ = ["PAPER_PATIENT", "PATIENT_BELIEFS", "Belief", "device_models"]
 
@@ -55,17 +71,25 @@ class Belief:
         patient_mass_kg: the patient's body mass for the nominal model [kg]
             (None: the paper's 80 kg, for the default patient only).
         patient_sex: ``"female"`` or ``"male"``: which table.
+        motor: the drive's datasheet the device holds (None: the nominal
+            values of the run's drive, ``SimConfig.motor``).
+        cuffs: the cuff model the device holds (None:
+            :meth:`~exo_ctrl.plant.cuffs.CuffParams.isotropic`, the cuffs'
+            nominal 8 N/mm and 100 N·s/m in every direction).
 
     Raises:
-        InvalidParameter: an unknown sex, a height or mass not > 0.
+        InvalidParameter: an unknown sex, a height or mass not > 0, a motor
+            or cuffs that are not parameter sets.
 
     """
 
-    patient: str = "truth"
+    patient: str = "nominal"
     exo: str | None = None
     patient_height_m: float | None = None
     patient_mass_kg: float | None = None
     patient_sex: str = "male"
+    motor: MotorParams | None = None
+    cuffs: CuffParams | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.patient, str) or not self.patient:
@@ -85,6 +109,25 @@ class Belief:
             v.positive("patient_height", self.patient_height_m, "m")
         if self.patient_mass_kg is not None:
             v.positive("patient_mass", self.patient_mass_kg, "kg")
+        if self.motor is not None and not isinstance(self.motor, MotorParams):
+            raise InvalidParameter("belief motor", self.motor, "a MotorParams or None")
+        if self.cuffs is not None and not isinstance(self.cuffs, CuffParams):
+            raise InvalidParameter("belief cuffs", self.cuffs, "a CuffParams or None")
+
+    @property
+    def cuff_model(self) -> CuffParams:
+        """The cuffs the device believes in (``cuffs``, or the nominal isotropic cuffs)."""
+        return self.cuffs if self.cuffs is not None else CuffParams.isotropic()
+
+    def motor_model(self, installed: MotorParams) -> MotorParams:
+        """The drive the device believes in: ``motor``, or the installed drive's datasheet.
+
+        Args:
+            installed: the run's drive (``SimConfig.motor``): its nominal values
+                are the datasheet's.
+
+        """
+        return self.motor if self.motor is not None else installed
 
 
 def device_models(
@@ -116,7 +159,9 @@ def device_models(
             missing,
             None,
             "given for a nominal model of a patient other than the paper's",
-            "the device's nominal patient is built from the stature and body mass",
+            "the device's nominal patient is built from the stature and body mass "
+            "(--patient-height M --patient-mass KG); --controller-patient truth gives the "
+            "device the true patient instead (the ideal comparison)",
         )
     height = height if height is not None else PAPER_PATIENT["height_m"]
     mass = mass if mass is not None else PAPER_PATIENT["mass_kg"]

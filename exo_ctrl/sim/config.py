@@ -9,9 +9,17 @@ from typing import Any
 from .. import _validate as v
 from ..control import PDGains
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
-from ..estimation import DEFAULT_GAIN_PER_S
+from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
 from ..exceptions import InvalidParameter
-from ..plan import EXERCISES, PLAN_BYTES_PER_SAMPLE, GaitParams, Ramp, RowLayout, layout
+from ..plan import (
+    EXERCISES,
+    PLAN_BYTES_PER_SAMPLE,
+    GaitParams,
+    Ramp,
+    RowLayout,
+    SpeedProfile,
+    layout,
+)
 from ..plant import (
     PATIENT_TORQUES,
     CompliantJoint,
@@ -22,7 +30,7 @@ from ..plant import (
     MotorParams,
 )
 from ..safety import SafetyLimits
-from ..sensing import BeltEncoderParams, SensorParams
+from ..sensing import BeltEncoderParams, CurrentSensorParams, SensorParams
 from .belief import Belief
 from .faults import Fault, faults_of
 from .schema import log_dtype
@@ -98,6 +106,13 @@ class SimConfig:
         contact: the treadmill belt with its drive and the foot–belt contact
             (:mod:`exo_ctrl.plant.contact`; default off: the feet in free air).
         belt_encoder: the belt-speed sensor (:mod:`exo_ctrl.sensing.belt_encoder`).
+        speed_profile: the session's belt set speed over time
+            (:mod:`exo_ctrl.plan.profile`, or its text ``"T1:V1,..."``; None: the
+            gait's v_f); with contact on.
+        sync: plan online from the measured belt speed (:mod:`exo_ctrl.plan.online`,
+            the gait adapting to the speed by :mod:`exo_ctrl.plan.adapt`);
+            None: on with contact on (:attr:`synced`).  Off: the precomputed
+            plan, which assumes the gait's v_f whatever the belt does.
         duration_s: simulated time [s], ramps included.  Default 3.6 s: the
             default ramp-in (one 1.2 s gait period) and two gait cycles.
         ramp_in_s: the start's ramp from standing into the gait
@@ -115,20 +130,30 @@ class SimConfig:
         sensors: encoder and joint torque sensor models (defaults: real
             hardware, :mod:`exo_ctrl.sensing.sensors`); ``SensorParams.ideal()`` for
             perfect readings.
+        current_sensor: the drives' current sensors the supervisor reads
+            (:mod:`exo_ctrl.sensing.current_sensor`).
         observer_gain_per_s: bandwidth K_O of the momentum observer [1/s].
         cuff_stiffness_ratio: the estimator's assumption on how the cuffs
             share load (:mod:`exo_ctrl.estimation.observer`).
+        estimator: the live cuff-force estimator, ``"momentum"`` (the
+            momentum observer, :mod:`exo_ctrl.estimation.observer`) or
+            ``"kalman"`` (the filter on the coupled model with the device's
+            patient and cuff models, :mod:`exo_ctrl.estimation.kalman`).
         patient_torque: patient joint torques, ``"none"`` (paper §VI) or
             ``"spastic"`` (:mod:`exo_ctrl.plant.patient`).
         safety: run the safety supervisor (:mod:`exo_ctrl.safety.supervisor`).
         safety_limits: its limits.
         safety_use_estimate: the supervisor watches the estimated cuff
-            forces (as a real device must) instead of the simulated ones.
+            forces, as a real device must (default); False: the true
+            (simulated) ones, the ideal comparison of a device with a force
+            sensor in every cuff.
         estop_at_s: emergency stop at this time [s] (None: none); at most
             the time of the last control tick, (n_ticks - 1) Δt.
         belief: the models the controller, the estimator and the supervisor
-            hold (:mod:`exo_ctrl.sim.belief`; default: the true URDFs,
-            loaded anew: the ideal comparison).
+            hold (:mod:`exo_ctrl.sim.belief`; default: the nominal patient
+            from the paper's stature and mass, the exoskeleton URDF, the
+            drive's datasheet, the nominal isotropic cuffs;
+            ``Belief("truth")`` is the ideal comparison).
         faults: faults to inject (:mod:`exo_ctrl.sim.faults`; default none),
             each with its onset within the run.
         exercise: what the run does, one of :data:`~exo_ctrl.plan.EXERCISES`:
@@ -164,18 +189,22 @@ class SimConfig:
     plant_substeps: int = 1
     chunk_ticks: int = 2000
     sensors: SensorParams = field(default_factory=SensorParams)
+    current_sensor: CurrentSensorParams = field(default_factory=CurrentSensorParams)
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
+    estimator: str = "momentum"
     cuff_force_limit_N: float = 120.0
     qp_estimate_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S
     patient_torque: str = "none"
     safety: bool = True
     safety_limits: SafetyLimits = field(default_factory=SafetyLimits)
-    safety_use_estimate: bool = False
+    safety_use_estimate: bool = True
     estop_at_s: float | None = None
     belief: Belief = field(default_factory=Belief)
     faults: tuple[Fault, ...] = ()
     exercise: str = "gait"
+    speed_profile: SpeedProfile | None = None
+    sync: bool | None = None
 
     def __post_init__(self) -> None:
         if self.exercise not in EXERCISES:
@@ -197,6 +226,8 @@ class SimConfig:
                 "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_TORQUES)}"
             )
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
+        if self.estimator not in ESTIMATORS:
+            raise InvalidParameter("estimator", self.estimator, f"one of {', '.join(ESTIMATORS)}")
         v.positive("qp_estimate_bandwidth", self.qp_estimate_bandwidth_per_s, "1/s")
         if self.cuff_fit not in CUFF_FITS:
             raise InvalidParameter("cuff_fit", self.cuff_fit, f"one of {', '.join(CUFF_FITS)}")
@@ -211,6 +242,7 @@ class SimConfig:
                 raise InvalidParameter(
                     "fault at_s", fault.at_s, f"in [0, {(self.n_ticks - 1) * self.dt:g}] s"
                 )
+        self._check_sync()
         self._check_plan_size()
         chunk = min(self.chunk_ticks, max(self.n_ticks, 1))
         v.allocation(
@@ -221,6 +253,51 @@ class SimConfig:
             what="log chunk rows",
             limit="smaller",
         )
+
+    def _check_sync(self) -> None:
+        """Refuse a speed profile without the belt, and sync where it does not apply."""
+        profile = self.speed_profile
+        if isinstance(profile, str):  # "T1:V1,..." (a sweep's value)
+            profile = SpeedProfile.parse(profile)
+        elif isinstance(profile, dict) and set(profile) == {"times", "speeds"}:  # to_dict's form
+            profile = SpeedProfile(tuple(profile["times"]), tuple(profile["speeds"]))
+        object.__setattr__(self, "speed_profile", profile)
+        if profile is not None:
+            if not isinstance(profile, SpeedProfile):
+                raise InvalidParameter(
+                    "speed_profile", profile, "a SpeedProfile, its text T1:V1,... or None"
+                )
+            if not self.contact.enabled:
+                raise InvalidParameter(
+                    "speed_profile", profile.text(), "unset without the belt (contact on)"
+                )
+        if self.sync not in (None, True, False):
+            raise InvalidParameter("sync", self.sync, "True, False or None")
+        if not self.synced:
+            return
+        why = None
+        if not self.contact.enabled:
+            why = "the belt's speed is measured with contact on only"
+        elif self.exercise != "gait":
+            why = f"the {self.exercise} exercise has no gait"
+        elif self.controller == "qp":
+            why = "the QP's prediction follows a precomputed plan; use pd or ct"
+        elif self.ramp_out_s > 0.0:
+            why = "a ramp-out with the synchronised plan is not supported"
+        if why is not None:
+            raise InvalidParameter("sync", "on", "off here", why)
+
+    @property
+    def synced(self) -> bool:
+        """Whether the plan follows the measured belt (``sync``, default: contact on, a gait)."""
+        if self.sync is None:
+            return (
+                self.contact.enabled
+                and self.exercise == "gait"
+                and self.controller != "qp"
+                and self.ramp_out_s == 0.0
+            )
+        return bool(self.sync)
 
     def _check_estop(self) -> None:
         """Refuse an e-stop time no control tick reaches (it would be ignored)."""
@@ -330,6 +407,8 @@ class SimConfig:
         """
         if self.exercise == "calibration":
             return RowLayout(self.n_ticks)
+        if self.synced:  # one row, overwritten every tick (exo_ctrl.plan.online)
+            return RowLayout(rows=1, period=1)
         ramp = self.ramp
         return layout(
             self.n_ticks, self.dt, self.gait.period, ramp.ramp_in_s, ramp.ramp_out_s, ramp.end_s

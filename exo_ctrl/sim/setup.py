@@ -22,11 +22,19 @@ from ..control import (
 )
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
-from ..plan import NO_TAIL, JointTrajectory, RampedGait, calibration_plan, plan_joints
+from ..plan import (
+    NO_TAIL,
+    JointTrajectory,
+    OnlineGait,
+    RampedGait,
+    calibration_plan,
+    plan_joints,
+)
 from ..plant import MotorParams, Plant, make_patient_torque, misaligned_patient
 from ..plant.equilibrium import holding_torque, settle_patient
 from .belief import device_models
 from .config import SimConfig
+from .sync import online_gait, set_speeds
 
 __all__ = ["Setup", "build", "check_followable", "drive_for", "start_on_plan"]
 
@@ -49,10 +57,18 @@ class Setup:
     #: ``patient`` above are the truth the plant simulates.
     device_exo: BodyModel
     device_patient: BodyModel
+    #: The drive the device believes in (its datasheet, capped as
+    #: :func:`drive_for` caps it for the device's exoskeleton URDF): the
+    #: controller's and the supervisor's motor model, a parameter set of its
+    #: own; the plant's drive is ``plant.motor_params``.
+    device_motor: MotorParams
     #: The belt's set speed and its rate at each control tick, (n, 2):
     #: σ(t_k) v_f [m/s] (the plan's, :meth:`~exo_ctrl.plan.RampedGait.belt_speed_at`)
     #: and σ̇(t_k) v_f [m/s²]; with contact on.
     belt_speed: np.ndarray | None = None
+    #: The online gait generator whose one-row plan is ``plan`` (``config.synced``;
+    #: :mod:`exo_ctrl.sim.sync`), stepped by the tick with the belt encoder's reading.
+    online: OnlineGait | None = None
 
 
 def build(config: SimConfig) -> Setup:
@@ -67,19 +83,27 @@ def build(config: SimConfig) -> Setup:
     fitted = load_patient(config.patient)  # as the device is fitted to it: coaxial
     patient = misaligned_patient(fitted, config.misalignment)  # the truth
     rows = config.plan_layout
+    motor = drive_for(config.motor, exo)
+    online = None
     if config.exercise == "calibration":
         times = rows.ticks() * config.dt
         plan = calibration_plan(exo, times, config.duration_s, config.gait.hip_height)
-    else:
+    elif not config.synced:
         plan = plan_joints(RampedGait(config.gait, config.ramp), exo, rows.ticks() * config.dt)
-    if rows.period:
+    if rows.period and not config.synced:
         tail = None if rows.tail == NO_TAIL else rows.tail
         plan = dataclasses.replace(
             plan, period_ticks=rows.period, lead_ticks=rows.lead, tail_tick=tail
         )
-    motor = drive_for(config.motor, exo)
-    check_followable(config, plan, exo, patient, motor)
+    if not config.synced:  # the online plan's speeds are checked by online_gait
+        check_followable(config, plan, exo, patient, motor)
     model_exo, model_patient = device_models(config.belief, config.exo, config.patient, fitted)
+    if config.synced:  # generated each tick from the measured belt speed (sim/sync.py)
+        online = online_gait(config, exo, patient, motor, model_exo, check_followable)
+        plan = online.plan
+    # The device's drive: its datasheet, a parameter set of its own (a copy
+    # when it is the installed drive's nominal values).
+    model_motor = drive_for(dataclasses.replace(config.belief.motor_model(config.motor)), model_exo)
     plant = Plant(
         exo,
         patient,
@@ -95,18 +119,22 @@ def build(config: SimConfig) -> Setup:
     if config.contact.enabled:
         sigma = config.ramp.factor(np.arange(config.n_ticks) * config.dt)
         belt_speed = np.stack(sigma[:2], axis=1) * config.gait.belt_speed
+        if config.speed_profile is not None:  # σ(t) v(t) of the session's profile
+            belt_speed = set_speeds(config, sigma[:2])
     controller: PDController
     if config.controller == "ct":
-        controller = ComputedTorqueController(plan, model_exo, model_patient, motor, config.gains)
+        controller = ComputedTorqueController(
+            plan, model_exo, model_patient, model_motor, config.gains
+        )
     elif config.controller == "qp":
         controller = QPController(
             plan,
             model_exo,
             model_patient,
-            motor,
+            model_motor,
             config.gains,
             cuff_force_limit_N=config.cuff_force_limit_N,
-            cuffs=config.cuffs,
+            cuffs=config.belief.cuff_model,
             dt=config.dt,
             estimate_gain_per_s=config.observer_gain_per_s,
             restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
@@ -114,7 +142,17 @@ def build(config: SimConfig) -> Setup:
     else:
         controller = PDController(plan, config.gains)
     return Setup(
-        config, exo, patient, plan, plant, controller, model_exo, model_patient, belt_speed
+        config,
+        exo,
+        patient,
+        plan,
+        plant,
+        controller,
+        model_exo,
+        model_patient,
+        model_motor,
+        belt_speed,
+        online,
     )
 
 

@@ -8,8 +8,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from .._jit import kernel, preload
-from ..estimation import EstimateErrorStats
+from ..estimation import COMPONENTS, EstimateErrorStats
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
+from .belief import PAPER_PATIENT
 from .config import SimConfig
 
 __all__ = ["ContactStats", "RunOutcome", "RunStats", "contact_stats"]
@@ -105,8 +106,11 @@ class RunStats:
         ``cuff_force_estimate_normal_rms_over_peak`` (the normal component's
         RMS error, and that over its peak true value) and
         ``cuff_force_estimate_unobservable`` (per cuff, what the joint
-        torques cannot see; :mod:`exo_ctrl.estimation.errors`); with the belt
-        and contact, :meth:`ContactStats.summary`'s keys.
+        torques cannot see; :mod:`exo_ctrl.estimation.errors`; with the
+        Kalman filter, the components its models supply); with the belt
+        and contact, :meth:`ContactStats.summary`'s keys; ``device_belief``
+        (:func:`device_belief`: what the controller, the estimator and the
+        supervisor held, so that a figure made with perfect knowledge says so).
         """
         n = max(self.ticks, 1)
         sq_err, sq_tau, sq_current = self._sums
@@ -149,8 +153,17 @@ class RunStats:
                 for j, joint in enumerate(JOINT_NAMES)
             },
         }
+        out["device_belief"] = device_belief(result.config)
         if self.estimate is not None:
             out.update(self.estimate.summary())
+            if result.config.estimator == "kalman":
+                # The filter estimates every component; these come from its models.
+                out["cuff_force_estimate_unobservable"] = [
+                    f"{cuff}: {part}: {how}"
+                    for cuff, parts in COMPONENTS.items()
+                    for part, how in parts.items()
+                    if "model" in how
+                ]
         if self.contact is not None:
             out.update(self.contact.summary())
         out.update(result.energy)  # energy_J, energy_balance_residual_rel
@@ -291,3 +304,32 @@ def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks):
             fx, fz = cuff_force[r, j, 0], cuff_force[r, j, 1]
             peaks[5, j] = max(peaks[5, j], math.sqrt(fx * fx + fz * fz))
             peaks[6, j] = max(peaks[6, j], abs(dq[r, j]))
+
+
+def device_belief(config: SimConfig) -> dict[str, Any]:
+    """What the device held in a run (:mod:`exo_ctrl.sim.belief`), for its summary.
+
+    Keys: ``patient`` (``"truth"``: perfect knowledge, the ideal comparison;
+    ``"nominal"``; or the URDF path), ``patient_height_m``,
+    ``patient_mass_kg``, ``patient_sex`` (the nominal model's, None for the
+    others), ``exo`` (the URDF the device holds, None: the true one's file),
+    ``drive`` (``"datasheet"``: the installed drive's nominal values, or
+    ``"given"``), ``cuffs`` (``"isotropic"``, the nominal default, or
+    ``"given"``), ``estimator``, ``plan`` (``"synchronised"`` with the
+    measured belt, or ``"precomputed"``) and ``safety_cuff_force`` (``"estimate"``,
+    or ``"truth"``: the plant's forces, a sensor per cuff).
+    """
+    b = config.belief
+    nominal = b.patient == "nominal"
+    return {
+        "patient": b.patient,
+        "patient_height_m": (b.patient_height_m or PAPER_PATIENT["height_m"]) if nominal else None,
+        "patient_mass_kg": (b.patient_mass_kg or PAPER_PATIENT["mass_kg"]) if nominal else None,
+        "patient_sex": b.patient_sex if nominal else None,
+        "exo": b.exo,
+        "drive": "datasheet" if b.motor is None else "given",
+        "cuffs": "isotropic" if b.cuffs is None else "given",
+        "estimator": config.estimator,
+        "plan": "synchronised" if config.synced else "precomputed",
+        "safety_cuff_force": "estimate" if config.safety_use_estimate else "truth",
+    }

@@ -22,10 +22,11 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import kernel, record
-from ..estimation import CuffForceEstimator
+from ..estimation import CuffForceEstimator, CuffForceKalman
+from ..plan.online import online_step
 from ..plant import make_patient_torque
 from ..safety import SafetyLimits, SafetySupervisor
-from ..sensing import BeltEncoder, Sensors
+from ..sensing import BeltEncoder, CurrentSensor, Sensors
 from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
 from .schema import log_dtype
@@ -75,12 +76,22 @@ class Runner:
         self.log = np.zeros(self.chunk, dtype=log_dtype())
         self.buf = {name: self.log[name] for name in self.log.dtype.names}
         self.sensor_model = Sensors(config.sensors, config.dt)
-        self.estimator = CuffForceEstimator(
-            setup.device_exo,
-            config.dt,
-            config.observer_gain_per_s,
-            stiffness_ratio=config.cuff_stiffness_ratio,
-        )
+        self.estimator: CuffForceEstimator | CuffForceKalman
+        if config.estimator == "kalman":  # the coupled model's filter (estimation/kalman.py)
+            self.estimator = CuffForceKalman(
+                setup.device_exo,
+                setup.device_patient,
+                config.dt,
+                cuffs=config.belief.cuff_model,
+                sensors=config.sensors,
+            )
+        else:
+            self.estimator = CuffForceEstimator(
+                setup.device_exo,
+                config.dt,
+                config.observer_gain_per_s,
+                stiffness_ratio=config.cuff_stiffness_ratio,
+            )
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
         #: The belt-speed sensor (read each tick with contact on).
@@ -97,6 +108,8 @@ class Runner:
         self._q_p, self._v_p = plant.q[4:], plant.v[4:]
         self._q_e, self._v_e = plant.q[:4], plant.v[:4]
         self._mean_current = plant.motors.mean_current_A
+        #: The drives' current sensors (the supervisor's current readings).
+        self.current_sensor = CurrentSensor(config.current_sensor)
         self.supervisor: SafetySupervisor | None = None
         if config.safety or config.estop_at_s is not None:
             limits = config.safety_limits if config.safety else _NO_LIMITS
@@ -104,7 +117,7 @@ class Runner:
                 limits,
                 setup.device_exo,
                 setup.device_patient,
-                plant.motor_params,
+                setup.device_motor,
                 config.dt,
                 estop_at_s=config.estop_at_s,
                 use_estimate=config.safety_use_estimate,
@@ -114,6 +127,8 @@ class Runner:
         sup = self.supervisor
         self._sup_force = None
         if sup is not None:
+            # The estimate, as on the device; the plant's true forces only
+            # when asked for (the ideal comparison: a force sensor per cuff).
             self._sup_force = self.sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
         #: The run's fault injector (:mod:`exo_ctrl.sim.faults`; None: no faults).
         self.faults: FaultInjector | None = None
@@ -133,6 +148,9 @@ class Runner:
             setup.controller.record,
             sup.record if sup is not None else record(_NO_SUPERVISOR),
         )
+        #: The online gait generator (synchronised plan; None: precomputed).
+        self._online = setup.online
+        self._refresh = getattr(setup.controller, "refresh_row", None) if setup.online else None
         start_on_plan(setup)
         # The stages' per-tick methods and arguments, looked up once.
         self._stages = (
@@ -153,6 +171,8 @@ class Runner:
             self._belt_set[0] = self._belt_speed[k, 0]
             self._belt_rate[0] = self._belt_speed[k, 1]
             read_belt(self.belt_encoder.record, k, self._belt)
+            if self._online is not None:
+                self._plan_tick(k, row)
         faults = self.faults
         if faults is not None:
             readings = faults.readings_at(k, readings)
@@ -163,7 +183,8 @@ class Runner:
         if faults is not None:
             u, age = faults.command_at(k, u)
         if supervise is not None:
-            u = supervise(k, k * self._dt, readings, self._sup_force, self._mean_current, u, age)
+            current = self.current_sensor.read(self._mean_current)
+            u = supervise(k, k * self._dt, readings, self._sup_force, current, u, age)
         if step is not None:
             step(u)
         else:
@@ -180,12 +201,39 @@ class Runner:
                 tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
             plant.step(u, tau_p)
 
+    def _plan_tick(self, k: int, row: int) -> None:
+        """The synchronised plan's row for tick ``k`` from the belt encoder's reading, logged.
+
+        CT's feedforward row is recomputed from the new targets.
+        """
+        gen = self._online
+        if online_step(gen.record, k, self.belt_encoder.speed[0]):
+            gen.step(k, float(self.belt_encoder.speed[0]))  # raises with the reason
+        write_plan(self.log, row, gen.record)
+        if self._refresh is not None:
+            self._refresh()
+
     def fill_plan(self, start: int, rows: int) -> None:
-        """Copy the planned rows ``start:start+rows`` into the log."""
+        """Copy the planned rows ``start:start+rows`` into the log.
+
+        A synchronised plan's rows are logged by the tick (:meth:`_plan_tick`).
+        """
+        if self._online is not None:
+            return
         plan = self.setup.plan
         index = plan.rows(start, rows)
         self.buf["q_des"][:rows] = plan.q[index]
         self.buf["dq_des"][:rows] = plan.dq[index]
+
+
+@kernel
+def write_plan(log, row, generator):
+    """The synchronised plan's q*, q̇* (``generator``: its record, ``out``) into log row ``row``."""
+    r = log[row]
+    o = generator[0].out
+    for j in range(4):
+        r.q_des[j] = o[j]
+        r.dq_des[j] = o[4 + j]
 
 
 @kernel

@@ -33,6 +33,7 @@ from .._progress import Progress
 from ..exceptions import ExoCtrlError, InvalidParameter, SweepError
 from ..model import BodyParams, urdf_xml, write_urdf
 from ..sim import SimConfig, simulate
+from ..sim.belief import PAPER_PATIENT
 from .journal import FINISHED_STATUSES, Journal, read_previous
 from .outputs import SweepPaths, empty_outputs, flatten
 from .parameters import PARAMETERS, default_patient
@@ -112,11 +113,20 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
         info = PARAMETERS.get(name)
         if info is not None:
             groups[info.target][info.attribute] = value
-    patient = base.patient
+    patient, belief = base.patient, base.belief
     if base.patient is None and groups["patient"]:
         patient = _patient_urdf(groups["patient"], cache_dir)
+        if patient is not None and belief.patient == "nominal":
+            # The swept patients vary the paper's patient's segments: the
+            # clinic's stature and body mass stay the paper's unless given.
+            belief = dataclasses.replace(
+                belief,
+                patient_height_m=belief.patient_height_m or PAPER_PATIENT["height_m"],
+                patient_mass_kg=belief.patient_mass_kg or PAPER_PATIENT["mass_kg"],
+            )
     return dataclasses.replace(
         base,
+        belief=belief,
         gait=dataclasses.replace(base.gait, **groups["gait"]),
         patient=patient,
         controller=values.get("controller", base.controller),

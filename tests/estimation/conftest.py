@@ -44,6 +44,7 @@ from exo_ctrl.model import CUFF_NAMES, BodyModel
 from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.sensing.sensors import SensorParams, Sensors
 from exo_ctrl.sim import SimConfig, build, start_on_plan
+from exo_ctrl.sim.belief import Belief
 
 DT = 1e-3
 SKIP_S = 0.05
@@ -79,12 +80,17 @@ def run_closed_loop(
     torque_bias_Nm: np.ndarray | float = 0.0,
 ) -> Run:
     """Run the CT closed loop on the default gait with sensors and estimator in the loop."""
-    config = SimConfig(controller="ct", patient=patient, cuffs=cuffs or CuffParams.isotropic())
+    config = SimConfig(
+        controller="ct",
+        patient=patient,
+        cuffs=cuffs or CuffParams.isotropic(),
+        belief=Belief("truth"),  # the figures of these tests: CT knowing its patient
+    )
     setup = build(config)
     plant = setup.plant
     start_on_plan(setup)  # as simulate() starts
     sensors = Sensors(sensor_params, config.dt)
-    estimator = CuffForceEstimator(setup.exo, config.dt, gain, torque_bias_Nm)
+    estimator = CuffForceEstimator(setup.device_exo, config.dt, gain, torque_bias_Nm)
     torque_model = None
     torque_buf = np.zeros(4)
     if patient_torque is not None:

@@ -237,7 +237,11 @@ def test_ct_with_identified_model_tracks_at_least_as_well(models: dict, noisy: d
     shows (nominal 30 % above truth), and the identified model must do at
     least as well as the nominal and within 5 % of the truth.
     """
-    beliefs = {"truth": Belief(), "nominal": NOMINAL, "identified": Belief(patient=noisy["path"])}
+    beliefs = {
+        "truth": Belief("truth"),
+        "nominal": NOMINAL,
+        "identified": Belief(patient=noisy["path"]),
+    }
     rms = {}
     for label, sensors in (("default", SensorParams()), ("ideal", SensorParams.ideal())):
         rms[label] = {

@@ -94,13 +94,13 @@ def test_jump_stuck_and_age_channels() -> None:
 )
 def test_no_false_alarm_on_the_default_runs(kwargs) -> None:
     """No plausibility channel is violated on the default runs (the spastic run is stopped
-    by its cuff force alone, and the hold that follows trips nothing)."""
+    by its estimated cuff force alone, and the hold that follows trips nothing)."""
     result = simulate(SimConfig(**kwargs))
     names = ("drive model residual", "encoder step", "equal torque readings", "command age")
     bad = [e for e in result.events if str(e.get("quantity", "")).startswith(names)]
     assert bad == []
     if "patient_torque" in kwargs:
         assert result.safety_state == "holding"
-        assert result.events[0]["quantity"].startswith("cuff force")
+        assert result.events[0]["quantity"].startswith("estimated cuff force")
     else:
         assert result.safety_state == "normal"

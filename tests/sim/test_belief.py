@@ -9,6 +9,7 @@ printed); bad inputs are refused with exact messages.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -29,12 +30,53 @@ def _thigh_mass(body) -> float:
     return float(model.inertias[model.getJointId("left_hip")].mass)
 
 
-def test_the_device_never_holds_the_plants_objects() -> None:
-    setup = build(SimConfig(controller="ct"))
+@pytest.mark.parametrize("controller", ["ct", "qp"])
+def test_the_device_never_holds_the_plants_objects(controller: str) -> None:
+    setup = build(SimConfig(controller=controller, belief=Belief("truth")))
     assert setup.device_exo is not setup.exo and setup.device_patient is not setup.patient
     assert setup.device_exo.model is not setup.exo.model
     assert setup.device_patient.source == setup.patient.source  # truth: the same file, anew
     assert _thigh_mass(setup.device_patient) == _thigh_mass(setup.patient)
+    # The drive: the datasheet as a parameter set of its own, equal in value.
+    assert setup.device_motor is not setup.plant.motor_params
+    assert setup.device_motor == setup.plant.motor_params
+    controller_obj = setup.controller
+    if controller == "qp":
+        # The QP's cuffs are the nominal isotropic cuffs, not the truth's split ones.
+        model = controller_obj.cuff_model
+        assert model.stiffness == 8000.0 and model.damping == 100.0
+
+
+def test_the_default_device_holds_the_nominal_patient() -> None:
+    """The default belief is what a clinic knows, not the truth (design.md §2)."""
+    config = SimConfig(controller="ct")
+    assert config.belief.patient == "nominal" and config.safety_use_estimate
+    setup = build(config)
+    assert _thigh_mass(setup.device_patient) == pytest.approx(0.1416 * 80.0, rel=1e-9)
+    assert _thigh_mass(setup.patient) == pytest.approx(11.3, rel=1e-12)
+
+
+def test_a_drive_model_off_its_datasheet_changes_the_feedforward_not_the_plant() -> None:
+    """The device's drive model is its own: a winding 20 % more resistive in the model.
+
+    CT's feedforward voltage is U = R τ/(i_G k_m) + (back-EMF): with the
+    model's R 20 % higher the tabulated voltage's resistive part is 20 %
+    higher, the plant's drive unchanged.
+    """
+    base = SimConfig(controller="ct", belief=Belief("truth"))
+    true_motor = base.motor
+    hot = dataclasses.replace(true_motor, resistance_ohm=1.2 * true_motor.resistance_ohm)
+    right = build(base)
+    wrong = build(dataclasses.replace(base, belief=Belief("truth", motor=hot)))
+    assert wrong.plant.motor_params == right.plant.motor_params
+    assert wrong.device_motor.resistance_ohm == pytest.approx(1.2 * true_motor.resistance_ohm)
+    tau = right.controller.torque_ff_table
+    np.testing.assert_array_equal(tau, wrong.controller.torque_ff_table)  # torque: no drive in it
+    u_right = right.controller.voltage_ff_table
+    du = wrong.controller.voltage_ff_table - u_right
+    back_emf = true_motor.back_emf_V_per_rad_s * right.plan.dq
+    np.testing.assert_allclose(du, 0.2 * (u_right - back_emf), rtol=1e-9, atol=1e-9)
+    assert np.max(np.abs(du)) > 0.1  # V
 
 
 def test_a_nominal_patient_has_the_tables_masses_on_the_true_lengths() -> None:
@@ -53,7 +95,7 @@ def test_a_nominal_patient_has_the_tables_masses_on_the_true_lengths() -> None:
 
 
 def test_pd_holds_no_model_so_the_belief_changes_nothing() -> None:
-    truth = simulate(SimConfig(**SHORT))
+    truth = simulate(SimConfig(belief=Belief("truth"), **SHORT))
     nominal = simulate(SimConfig(belief=Belief(patient="nominal"), **SHORT))
     for name in ("q", "voltage", "cuff_force"):
         np.testing.assert_array_equal(truth.signals[name], nominal.signals[name])
@@ -72,12 +114,12 @@ def test_computed_torque_with_the_nominal_patient(tmp_path: Path) -> None:
     rigid model holds (the cuffs' compliance, the sensors), not the patient's
     inertia.  A model with twice the true thigh mass does track worse.
     """
-    truth_setup = build(SimConfig(controller="ct"))
+    truth_setup = build(SimConfig(controller="ct", belief=Belief("truth")))
     nominal_setup = build(SimConfig(controller="ct", belief=Belief(patient="nominal")))
     gap = np.abs(truth_setup.controller.torque_ff_table - nominal_setup.controller.torque_ff_table)
     assert gap.max() > 1.0  # N·m: the model is what CT's feedforward is made of
     heavy = write_urdf(BodyParams.patient_default(thigh_mass=22.6), tmp_path / "heavy.urdf")
-    truth = simulate(SimConfig(controller="ct", **SHORT))
+    truth = simulate(SimConfig(controller="ct", belief=Belief("truth"), **SHORT))
     nominal = simulate(SimConfig(controller="ct", belief=Belief(patient="nominal"), **SHORT))
     wrong = simulate(SimConfig(controller="ct", belief=Belief(patient=str(heavy)), **SHORT))
     pd = simulate(SimConfig(**SHORT))
@@ -106,7 +148,9 @@ def test_a_nominal_model_of_another_patient_needs_its_height_and_mass(tmp_path: 
         build(SimConfig(patient=str(other), belief=Belief(patient="nominal")))
     assert str(info.value) == (
         "patient_height must be given for a nominal model of a patient other than the paper's; "
-        "got None (the device's nominal patient is built from the stature and body mass)"
+        "got None (the device's nominal patient is built from the stature and body mass "
+        "(--patient-height M --patient-mass KG); --controller-patient truth gives the device "
+        "the true patient instead (the ideal comparison))"
     )
     setup = build(
         SimConfig(

@@ -17,6 +17,7 @@ import pytest
 from exo_ctrl.control import PDGains
 from exo_ctrl.plant import CuffParams, MotorParams
 from exo_ctrl.sim import SimConfig, simulate
+from exo_ctrl.sim.belief import Belief
 
 #: What the golden runs were made with: the paper's printed drive constants
 #: and its gains (the defaults before the drive was made energy-consistent),
@@ -30,6 +31,9 @@ LEGACY = {
     "cuff_fit": "slack",
     "qp_estimate_bandwidth_per_s": 100.0,  # the estimator's own: the estimate as it is
     "cuffs": CuffParams.isotropic(),  # the cuffs before normal and shear were split
+    # What the device held then: the true patient, the true cuff forces.
+    "belief": Belief("truth"),
+    "safety_use_estimate": False,
 }
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "golden_runs.npz"

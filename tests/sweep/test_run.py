@@ -14,6 +14,7 @@ from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES, BodyParams, urdf_xml, write_
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant import CuffParams, MotorParams
 from exo_ctrl.sim import SimConfig, simulate
+from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sweep import (
     OUTPUT_COLUMNS,
     SweepInterrupted,
@@ -86,6 +87,8 @@ def test_row_equals_independent_simulation(tmp_path, make_spec, serial, duration
         motor=MotorParams(gear_ratio=40.0),
         cuffs=CuffParams(stiffness_N_per_m=6000.0),
         duration_s=duration,
+        # The device's nominal patient: the swept segments of the paper's 1.75 m, 80 kg patient.
+        belief=Belief(patient_height_m=1.75, patient_mass_kg=80.0),
     )
     summary = simulate(config, keep_history=False).summary()
     keys = [

@@ -22,6 +22,7 @@ from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant import CuffParams
 from exo_ctrl.sim import SimConfig, simulate
+from exo_ctrl.sim.belief import Belief
 
 CORNERS = list(itertools.product((0.9, 1.5), (0.25, 0.45), (100.0, 150.0)))
 
@@ -36,6 +37,7 @@ def test_load_held_within_the_stated_margin(period, step, bound) -> None:
             cuff_force_limit_N=bound,
             safety=False,
             cuffs=CuffParams.isotropic(),  # the QP's own cuff model (stated margins)
+            belief=Belief("truth"),  # and its patient: the margin's model error assumes it
         ),
         keep_history=True,
     )

@@ -1,0 +1,232 @@
+"""The compiled step of :class:`~exo_ctrl.estimation.kalman.CuffForceKalman`.
+
+The prediction, covariance propagation and update of the filter on the
+coupled exoskeleton–cuff–patient model, per leg, in place on the filter's
+record; the model, the linearisation and the notation are
+:mod:`exo_ctrl.estimation.kalman`'s module docstring.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._jit import Status, kernel
+from ..plant.cuffs import forces_of
+
+__all__ = [
+    "cuff_jacobian",
+    "kalman_outputs",
+    "kalman_step",
+    "leg_covariance",
+    "leg_model",
+    "leg_update",
+]
+
+
+@kernel
+def kalman_outputs(state, cuffs):
+    """The device's cuff forces at the step's midpoint (q − ½ h v, v): f, n · f, u · f, J_eᵀ f."""
+    st = state[0]
+    cr = cuffs[0]
+    for i in range(8):
+        st.q_mid[i] = st.q[i] - 0.5 * st.h * st.v[i]
+    forces_of(cr, st.q_mid, st.v)
+    for c in range(4):
+        fx, fz = cr.f[c], cr.f[4 + c]
+        cc, sc = cr.cs[c], cr.cs[8 + c]
+        ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
+        uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc
+        st.cuff_force[c, 0] = fx
+        st.cuff_force[c, 1] = fz
+        st.cuff_normal[c] = -uz * fx + ux * fz
+        st.cuff_along[c] = ux * fx + uz * fz
+        st.tau_ext[c] = cr.tau[c]
+
+
+@kernel
+def cuff_jacobian(cuffs, jd):
+    """J_Δ = ∂(p_e − p_p)/∂q_all (rows x of the 4 cuffs, then z), after a force call."""
+    cr = cuffs[0]
+    for row in range(8):
+        for i in range(8):
+            jd[row, i] = 0.0
+        for j in range(8):
+            g = cr.dp[row, j] * cr.csr[j] + cr.dp[row, 8 + j] * cr.csr[8 + j]
+            if g != 0.0:
+                for i in range(8):
+                    s = cr.select[j, i]
+                    if s != 0.0:
+                        jd[row, i] += g * s
+
+
+@kernel
+def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas):
+    """One prediction and update of both legs in place (module docstring), then the outputs.
+
+    ``mass_*``, ``nle_*``: M and n of the exoskeleton's link model and of the
+    patient model at the last posterior.  Returns a :class:`Status` value:
+    OK; WRONG_LENGTH (nothing done); NOT_FINITE when the state became
+    non-finite (the caller restarts the filter).
+    """
+    if q_meas.shape[0] != 4 or tau_meas.shape[0] != 4:
+        return Status.WRONG_LENGTH.value
+    st = state[0]
+    cr = cuffs[0]
+    h = st.h
+    forces_of(cr, st.q, st.v)  # cuff forces and their generalised torques at the prior
+    cuff_jacobian(cuffs, st.jd)
+    minv, kq, kv, acc = st.minv, st.kq, st.kv, st.acc
+    for s in range(2):
+        joints = st.joints[s]
+        leg_model(st, cr, s, mass_e, nle_e, mass_p, nle_p, tau_meas, minv, kq, kv, acc)
+        leg_covariance(st, s, minv, kq, kv)
+        for m in range(4):  # semi-implicit Euler of the nonlinear model
+            g = joints[m]
+            st.v[g] += h * acc[m]
+            st.q[g] += h * st.v[g]
+        if math.isfinite(q_meas[2 * s]) and math.isfinite(q_meas[2 * s + 1]):
+            leg_update(st, s, q_meas)
+        else:
+            st.skipped += 1
+    for i in range(8):
+        if not (math.isfinite(st.q[i]) and math.isfinite(st.v[i])):
+            return Status.NOT_FINITE.value
+    kalman_outputs(state, cuffs)
+    return Status.OK.value
+
+
+@kernel
+def leg_model(st, cr, s, mass_e, nle_e, mass_p, nle_p, tau_meas, minv, kq, kv, acc):
+    """Leg s: M⁻¹ (4 × 4, block diagonal), the cuffs' ∂τ/∂q and ∂τ/∂v, the accelerations."""
+    joints = st.joints[s]
+    a, b = 2 * s, 2 * s + 1
+    if math.isfinite(tau_meas[a]) and math.isfinite(tau_meas[b]):
+        st.tau_hold[a] = tau_meas[a]
+        st.tau_hold[b] = tau_meas[b]
+    for i in range(4):
+        for j in range(4):
+            minv[i, j] = 0.0
+            kq[i, j] = 0.0
+            kv[i, j] = 0.0
+    det_e = mass_e[a, a] * mass_e[b, b] - mass_e[a, b] * mass_e[b, a]
+    det_p = mass_p[a, a] * mass_p[b, b] - mass_p[a, b] * mass_p[b, a]
+    minv[0, 0], minv[0, 1] = mass_e[b, b] / det_e, -mass_e[a, b] / det_e
+    minv[1, 0], minv[1, 1] = -mass_e[b, a] / det_e, mass_e[a, a] / det_e
+    minv[2, 2], minv[2, 3] = mass_p[b, b] / det_p, -mass_p[a, b] / det_p
+    minv[3, 2], minv[3, 3] = -mass_p[b, a] / det_p, mass_p[a, a] / det_p
+    # −J_Δᵀ K_c J_Δ and −J_Δᵀ C_c J_Δ over the leg's two cuffs, links' frames held.
+    for c in (a, b):
+        cc, sc = cr.cs[c], cr.cs[8 + c]
+        ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
+        uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc
+        nx, nz = -uz, ux
+        for i in range(4):
+            gi = joints[i]
+            ji_n = nx * st.jd[c, gi] + nz * st.jd[4 + c, gi]
+            ji_u = ux * st.jd[c, gi] + uz * st.jd[4 + c, gi]
+            for j in range(4):
+                gj = joints[j]
+                jj_n = nx * st.jd[c, gj] + nz * st.jd[4 + c, gj]
+                jj_u = ux * st.jd[c, gj] + uz * st.jd[4 + c, gj]
+                kq[i, j] -= cr.k * ji_n * jj_n + cr.k_u * ji_u * jj_u
+                kv[i, j] -= cr.c * ji_n * jj_n + cr.c_u * ji_u * jj_u
+    eps = st.friction_smoothing
+    force = st.gen_force
+    for m in range(4):
+        g = joints[m]
+        kv[m, m] -= st.damping[g]
+        w = st.v[g]
+        f = cr.tau[g] - st.damping[g] * w - st.friction[g] * math.tanh(w / eps)
+        if m < 2:
+            f += st.tau_hold[g] - st.torque_bias[g] - nle_e[g]
+        else:
+            f += st.d[g - 4] - nle_p[g - 4]
+        force[m] = f
+    for i in range(4):
+        x = 0.0
+        for j in range(4):
+            x += minv[i, j] * force[j]
+        acc[i] = x
+
+
+@kernel
+def leg_covariance(st, s, minv, kq, kv):
+    """F and Q of leg s (module docstring), then P⁻ = F P Fᵀ + Q in place."""
+    h = st.h
+    F, Q, P, W = st.F[s], st.Q[s], st.cov[s], st.work
+    for i in range(10):
+        for j in range(10):
+            F[i, j] = 1.0 if i == j else 0.0
+            Q[i, j] = 0.0
+    for i in range(4):
+        for j in range(4):
+            aq = 0.0
+            av = 0.0
+            for m in range(4):
+                aq += minv[i, m] * kq[m, j]
+                av += minv[i, m] * kv[m, j]
+            F[4 + i, j] = h * aq
+            F[4 + i, 4 + j] += h * av
+            F[i, j] += h * h * aq
+            F[i, 4 + j] = h * (F[4 + i, 4 + j])
+        for j in range(2):
+            F[4 + i, 8 + j] = h * minv[i, 2 + j]
+            F[i, 8 + j] = h * h * minv[i, 2 + j]
+    # Q = G Σ Gᵀ, G = [h² M⁻¹; h M⁻¹]; Σ = diag(var_exo, var_exo, var_patient, var_patient).
+    for i in range(4):
+        for j in range(4):
+            x = 0.0
+            for m in range(4):
+                var = st.var_exo if m < 2 else st.var_patient
+                x += minv[i, m] * var * minv[j, m]
+            Q[i, j] = h**4 * x
+            Q[i, 4 + j] = h**3 * x
+            Q[4 + i, j] = h**3 * x
+            Q[4 + i, 4 + j] = h * h * x
+    Q[8, 8] = Q[9, 9] = h * st.var_rate
+    for i in range(10):  # W = F P
+        for j in range(10):
+            x = 0.0
+            for m in range(10):
+                x += F[i, m] * P[m, j]
+            W[i, j] = x
+    for i in range(10):  # P = W Fᵀ + Q, symmetric
+        for j in range(i, 10):
+            x = Q[i, j]
+            for m in range(10):
+                x += W[i, m] * F[j, m]
+            P[i, j] = x
+            P[j, i] = x
+
+
+@kernel
+def leg_update(st, s, q_meas):
+    """The Kalman update of leg s with its two encoder angles (H = [I 0 0 0 0], R = σ_q² I)."""
+    P, W = st.cov[s], st.work
+    joints = st.joints[s]
+    s00 = P[0, 0] + st.var_q
+    s01 = P[0, 1]
+    s11 = P[1, 1] + st.var_q
+    det = s00 * s11 - s01 * s01
+    i00, i01, i11 = s11 / det, -s01 / det, s00 / det
+    y0 = q_meas[2 * s] - st.q[joints[0]]
+    y1 = q_meas[2 * s + 1] - st.q[joints[1]]
+    for i in range(10):  # gain K = P Hᵀ S⁻¹ in W[:, 0:2]
+        W[i, 0] = P[i, 0] * i00 + P[i, 1] * i01
+        W[i, 1] = P[i, 0] * i01 + P[i, 1] * i11
+    for i in range(10):
+        dx = W[i, 0] * y0 + W[i, 1] * y1
+        if i < 4:
+            st.q[joints[i]] += dx
+        elif i < 8:
+            st.v[joints[i - 4]] += dx
+        else:
+            st.d[2 * s + i - 8] += dx
+    for j in range(10):  # rows 0 and 1 of P (H P), kept before P changes
+        W[j, 2] = P[0, j]
+        W[j, 3] = P[1, j]
+    for i in range(10):  # P = P − K H P, kept symmetric
+        for j in range(i, 10):
+            x = P[i, j] - W[i, 0] * W[j, 2] - W[i, 1] * W[j, 3]
+            P[i, j] = x
+            P[j, i] = x

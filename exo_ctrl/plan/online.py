@@ -1,0 +1,424 @@
+r"""The gait generated tick by tick, synchronised with the measured belt speed.
+
+The precomputed plan (:mod:`exo_ctrl.plan.gait`) assumes the belt runs at
+v_f; when it slows under a foot's load, or a session changes its speed
+(:mod:`exo_ctrl.plan.profile`), the stance foot of that plan slides.  This
+generator plans each control tick from the belt encoder's reading v̂ and
+writes the joint targets into a one-row plan that the controllers read
+(row rule period 1: every tick reads row 0).
+
+**Phase.**  One phase τ ∈ [0, 1) per cycle (left leg; the right leg τ + ½),
+advanced at the rate r = 1 / T(v) of the adaptation law
+(:mod:`exo_ctrl.plan.adapt`), v the session's set speed v(t) (the profile,
+not ramped).  The cadence follows the commanded speed, which is smooth
+(piecewise linear), not the encoder's reading, which is quantised
+(3.8 mm/s) and dips at every touchdown: those dips are taken up by the
+step length instead (below), where they cost nothing.  Segments as the
+paper's: swing A → B on [0, τ_B), stance on [τ_B, τ_D), swing D → A on
+[τ_D, 1), τ_B = (1 - β)/2, τ_D = (1 + β)/2.
+
+**Stance foot** (x forward, relative to the hip): ẋ = -v̄, x integrated
+from the measured speed v̂ low-passed to v̄ (time constant
+:data:`FILTER_S`), z = -H_s.  It moves with the belt by construction; the
+filter keeps the encoder's quantum (3.8 mm/s a count over its 10 ms window)
+out of the planned velocity, at the cost of a lag of :data:`FILTER_S` (2 mm/s
+while the belt accelerates at 0.1 m/s²).
+
+**Swing foot, x**: a cubic re-solved every tick from the foot's present
+(x, ẋ) to its segment's end point in the time the phase leaves: D → A ends
+at the top (0, v̄ / k_v), A → B at touchdown (L / 2, -v̄), with the step
+L = v̄ β T(v) the stance will cover at the measured speed (filtered: the
+encoder's quantum would otherwise jolt the targets at the end of a segment,
+where the cubic's curvature goes as 1 / d²).  Position and velocity carry over from the
+present, so the paths are C¹ by construction; a cubic re-solved from a
+point of itself to the same end is itself, so at a steady speed it is the
+paper's path (k_v keeps its shape).  **Swing foot, z**: the paper's lift
+cubic in phase, scaled by the ramp-in factor σ(t) (:mod:`exo_ctrl.plan.ramp`),
+z = -H_s + σ Z(τ), with ż, z̈ by the chain rule through ṙ.
+
+**Start.**  At t = 0 the left foot is at A, the right at mid-stance, both
+at x = 0.  With a ramp-in the belt starts at rest and the step L = v̄ β T
+grows with the belt's speed: the gait ramps in with the belt and no foot
+slides (the precomputed ramp's stance feet slide up to 0.27 m/s).
+
+**Inverse kinematics** is the closed form of
+:mod:`exo_ctrl.plan.kinematics`, in the same compiled kernel.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import Status, kernel, record
+from ..exceptions import InvalidParameter, SimulationDiverged
+from ..model import SIDES, BodyModel
+from .adapt import SpeedAdaptation
+from .kinematics import JointTrajectory
+from .profile import SpeedProfile, profile_at
+
+__all__ = ["FILTER_S", "FREEZE_S", "MAX_PROFILE_POINTS", "ONLINE_FIELDS", "OnlineGait"]
+
+#: Points of a speed profile the generator holds (its record's arrays).
+MAX_PROFILE_POINTS = 256
+
+#: Time constant of the low-pass on the measured belt speed [s].
+FILTER_S = 0.02
+
+#: The last time of a swing segment in which its end point is no longer
+#: updated [s] (:func:`_swing`).
+FREEZE_S = 0.02
+
+#: Fields of the generator's record.  Parameters: ``dt`` [s], ``law`` (s_0,
+#: v_0, a, s_max, β) (:meth:`~exo_ctrl.plan.adapt.SpeedAdaptation.kernel_params`),
+#: ``kv``, ``H``, ``h`` [m], ``ramp_in`` T_r [s], ``filt`` [s]; per leg ``l1``,
+#: ``l2`` [m], ``s_h``, ``s_k``, ``phi1_0``, ``phi2_0``.  State: ``phase`` τ of
+#: each leg (the right leg's τ + ½), ``rate`` r [1/s], ``vbar`` v̄ [m/s], ``w``
+#: the touchdown point's speed [m/s], per
+#: leg ``x``, ``dx``, ``ddx`` [m, m/s, m/s²], the swing's end ``xe``, ``dxe``
+#: [m, m/s] and its segment ``seg`` (0 A → B, 2 D → A).  Diagnostics: ``fail_leg``,
+#: ``fail_r`` [m] (an unreachable point).  The profile: ``n_prof`` points
+#: ``prof_t`` [s], ``prof_v`` [m/s].  ``out``: row 0 of the plan, q, q̇, q̈, φ
+#: (4 each), foot position and velocity (2 × 2 each), flat.
+ONLINE_FIELDS = [
+    ("dt", np.float64),
+    ("law", np.float64, (5,)),
+    *((name, np.float64) for name in ("kv", "H", "h", "ramp_in", "filt")),
+    *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
+    ("phase", np.float64, (2,)),
+    *((name, np.float64) for name in ("rate", "vbar", "w")),
+    *((name, np.float64, (2,)) for name in ("x", "dx", "ddx", "xe", "dxe")),
+    ("seg", np.int64, (2,)),
+    ("fail_leg", np.int64),
+    ("fail_r", np.float64),
+    ("n_prof", np.int64),
+    ("prof_t", np.float64, (MAX_PROFILE_POINTS,)),
+    ("prof_v", np.float64, (MAX_PROFILE_POINTS,)),
+    ("out", np.float64, (24,)),
+]
+
+
+class OnlineGait:
+    """The synchronised gait generator (module docstring) and its one-row plan.
+
+    Args:
+        law: step length and period for a speed (:class:`~exo_ctrl.plan.adapt.SpeedAdaptation`).
+        profile: the session's set speed (None: the law's reference speed throughout).
+        body: the model whose legs' geometry the inverse kinematics uses
+            (the device's exoskeleton model).
+        dt: control period Δt [s].
+        ramp_in_s: T_r of the lift's ramp-in [s] (0: none).
+
+    Attributes:
+        plan: the one-row plan the controllers read (overwritten each tick).
+
+    """
+
+    def __init__(
+        self,
+        law: SpeedAdaptation,
+        profile: SpeedProfile | None,
+        body: BodyModel,
+        dt: float,
+        ramp_in_s: float = 0.0,
+    ) -> None:
+        self.law = law
+        gait = law.reference
+        self.profile = profile or SpeedProfile.constant(gait.belt_speed)
+        times, speeds = self.profile.arrays()
+        if times.size > MAX_PROFILE_POINTS:
+            raise InvalidParameter(
+                "speed_profile", self.profile.text(), f"at most {MAX_PROFILE_POINTS} points"
+            )
+        self.record = record(ONLINE_FIELDS)
+        g = self.record[0]
+        g["n_prof"] = times.size
+        g["prof_t"][: times.size], g["prof_v"][: times.size] = times, speeds
+        self._times, self._speeds = times, speeds
+        g["dt"], g["law"] = float(dt), law.kernel_params()
+        g["kv"], g["H"], g["h"] = gait.shape_coeff, gait.hip_height, gait.lift_height
+        g["ramp_in"], g["filt"] = float(ramp_in_s), FILTER_S
+        for i, side in enumerate(SIDES):
+            leg = body.legs[side]
+            g["l1"][i], g["l2"][i] = leg.thigh_length, leg.shank_length
+            g["s_h"][i], g["s_k"][i] = leg.sign_hip, leg.sign_knee
+            g["phi1_0"][i], g["phi2_0"][i] = leg.phi1_zero, leg.phi2_zero
+        out = self.record["out"][0]  # the plan's arrays are views of the record's row
+        self.plan = JointTrajectory(
+            t=np.zeros(1),
+            q=out[0:4].reshape(1, 4),
+            dq=out[4:8].reshape(1, 4),
+            ddq=out[8:12].reshape(1, 4),
+            phi=out[12:16].reshape(1, 4),
+            foot_pos=out[16:20].reshape(1, 2, 2),
+            foot_vel=out[20:24].reshape(1, 2, 2),
+            period_ticks=1,
+        )
+        self.start(self.belt_speed(0.0)[0])
+
+    def belt_speed(self, t: float) -> tuple[float, float]:
+        """The belt's set speed σ(t) v(t) [m/s] and its rate [m/s²] at time ``t`` [s]."""
+        sig, dsig, _ = _ramp(t, float(self.record[0]["ramp_in"]))
+        v, a = profile_at(self._times, self._speeds, t)
+        return sig * v, dsig * v + sig * a
+
+    def start(self, belt_speed_mps: float) -> None:
+        """Row 0 at t = 0 with the belt at ``belt_speed_mps`` [m/s] (module docstring).
+
+        Raises:
+            SimulationDiverged: a foot point out of the leg's reach.
+
+        """
+        status = online_start(self.record, belt_speed_mps)
+        self._check(status, 0.0)
+
+    def step(self, k: int, belt_speed_mps: float) -> None:
+        """Advance to tick ``k`` ≥ 1 with the measured belt speed [m/s]; row 0 gets its targets.
+
+        Tick 0 is the start (:meth:`start`): nothing to do.
+
+        Raises:
+            SimulationDiverged: a foot point out of the leg's reach.
+
+        """
+        status = online_step(self.record, k, belt_speed_mps)
+        if status:
+            self._check(status, k * float(self.record[0]["dt"]))
+
+    def _check(self, status: int, t: float) -> None:
+        if status == Status.OK:
+            return
+        g = self.record[0]
+        leg = int(g["fail_leg"])
+        raise SimulationDiverged(
+            t,
+            f"{SIDES[leg]} foot's planned distance from the hip [m]",
+            float(g["fail_r"]),
+            float(g["l1"][leg] + g["l2"][leg]),
+        )
+
+
+# ---------------------------------------------------------------------- kernels
+
+
+@kernel
+def _ramp(t: float, t_r: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """σ, σ̇ [1/s], σ̈ [1/s²] of the quintic ramp-in over ``t_r`` (1, 0, 0 without one)."""
+    if t_r <= 0.0 or t >= t_r:
+        return 1.0, 0.0, 0.0
+    if t <= 0.0:
+        return 0.0, 0.0, 0.0
+    u = t / t_r
+    w = 1.0 - u
+    return (
+        u**3 * (10.0 - 15.0 * u + 6.0 * u * u),
+        30.0 * (u * w) ** 2 / t_r,
+        (60.0 * u * w * (1.0 - 2.0 * u) / (t_r * t_r)),
+    )
+
+
+@kernel
+def _rate(law: np.ndarray, v: float, a: float) -> tuple[float, float]:  # pragma: no cover
+    """The phase rate r = 1 / T(v) [1/s] and ṙ = dr/dv · v̇ [1/s²] (:mod:`exo_ctrl.plan.adapt`)."""
+    s = law[0] * (v / law[1]) ** law[2]
+    expo = 1.0 - law[2]
+    if s >= law[3]:
+        s = law[3]
+        expo = 1.0
+    r = law[4] * v / s
+    return r, expo * r / v * a
+
+
+@kernel
+def _cubic(
+    x0: float, dx0: float, x1: float, dx1: float, d: float, u: float
+) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """Position, velocity, acceleration at ``u`` of the cubic on [0, d] meeting (x0, x1, ẋ0, ẋ1)."""
+    if d <= 0.0:
+        return x1, dx1, 0.0
+    delta = x1 - x0
+    k2 = (3.0 * delta - (2.0 * dx0 + dx1) * d) / (d * d)
+    k3 = (-2.0 * delta + (dx0 + dx1) * d) / (d * d * d)
+    return (
+        x0 + u * (dx0 + u * (k2 + u * k3)),
+        dx0 + u * (2.0 * k2 + 3.0 * k3 * u),
+        2.0 * k2 + 6.0 * k3 * u,
+    )
+
+
+@kernel
+def _lift(tau: float, half: float, h: float) -> tuple[float, float, float]:  # pragma: no cover
+    """Z(τ), dZ/dτ, d²Z/dτ² of the swing's lift (0 in stance); ``half`` = τ_B = (1 - β)/2."""
+    if tau < half:  # A -> B: h down to 0
+        u = tau / half
+        return (
+            h * (1.0 - 3.0 * u * u + 2.0 * u**3),
+            h * 6.0 * u * (u - 1.0) / half,
+            (h * (12.0 * u - 6.0) / (half * half)),
+        )
+    if tau >= 1.0 - half:  # D -> A: 0 up to h
+        u = (tau - (1.0 - half)) / half
+        return (
+            h * (3.0 * u * u - 2.0 * u**3),
+            h * 6.0 * u * (1.0 - u) / half,
+            (h * (6.0 - 12.0 * u) / (half * half)),
+        )
+    return 0.0, 0.0, 0.0
+
+
+@kernel
+def _target(g, tau: float, r: float) -> tuple[float, float]:  # pragma: no cover - compiled
+    """The end (x, ẋ) of the swing segment τ is in: top (0, v̄/k_v) or touchdown (L/2, -v̄)."""
+    beta = g.law[4]
+    if tau >= 0.5 * (1.0 + beta):
+        return 0.0, g.vbar / g.kv
+    return 0.5 * g.vbar * beta / r, -g.vbar
+
+
+@kernel
+def _swing(g, leg: int, tau: float, r: float, d: float, u: float):  # pragma: no cover - compiled
+    """(x, ẋ, ẍ) at ``u`` of the cubic from the leg's (x, ẋ) to its segment's end in ``d`` s.
+
+    The end point is the target now moved on at its present speed w for the
+    ``d`` seconds left (the touchdown point moves while the step grows,
+    L = v̄ β / r; w = ``g.w``), so that re-solving each tick does not chase
+    it; in the last :data:`FREEZE_S` of a segment the end stays as it was
+    (the cubic then is followed as solved: its curvature grows as 1 / d²).
+    """
+    seg = 0 if tau < 0.5 * (1.0 - g.law[4]) else 2
+    if d > FREEZE_S or g.seg[leg] != seg:
+        xt, dxt = _target(g, tau, r)
+        g.xe[leg] = xt + (g.w * d if seg == 0 else 0.0)
+        g.dxe[leg] = dxt
+        g.seg[leg] = seg
+    return _cubic(g.x[leg], g.dx[leg], g.xe[leg], g.dxe[leg], d, u)
+
+
+@kernel
+def _advance(g, leg: int, tau: float, r: float, v: float, h: float) -> float:  # pragma: no cover
+    """Move leg ``leg``'s x over ``h`` seconds of phase rate ``r`` from phase ``tau``; new τ."""
+    beta = g.law[4]
+    t_b, t_d = 0.5 * (1.0 - beta), 0.5 * (1.0 + beta)
+    rem = h
+    while rem > 0.0:
+        end = t_b if tau < t_b else (t_d if tau < t_d else 1.0)
+        d = (end - tau) / r
+        stance = t_b <= tau < t_d
+        if d > rem:  # the step ends inside the segment
+            if stance:
+                g.x[leg] -= v * rem
+                g.dx[leg] = -v
+            else:
+                x, dx, ddx = _swing(g, leg, tau, r, d, rem)
+                g.x[leg], g.dx[leg], g.ddx[leg] = x, dx, ddx
+            return tau + rem * r
+        if stance:
+            g.x[leg] -= v * d
+            g.dx[leg] = -v
+        else:
+            x, dx, ddx = _swing(g, leg, tau, r, d, d)
+            g.x[leg], g.dx[leg], g.ddx[leg] = x, dx, ddx
+        rem -= d
+        tau = 0.0 if end >= 1.0 else end
+    if not t_b <= tau < t_d:  # ended on a boundary into a swing: its cubic's acceleration
+        end = t_b if tau < t_b else 1.0
+        g.ddx[leg] = _swing(g, leg, tau, r, (end - tau) / r, 0.0)[2]
+    return tau
+
+
+@kernel
+def _write_leg(g, leg, tau, r, dr, a_belt, t) -> int:  # pragma: no cover - compiled
+    """The foot's acceleration, lift and the inverse kinematics into row 0; 0 or a status."""
+    beta = g.law[4]
+    half = 0.5 * (1.0 - beta)
+    x, dx = g.x[leg], g.dx[leg]
+    ddx = g.ddx[leg]  # swing: the acceleration of the cubic it followed, at its end
+    if half <= tau < 1.0 - half:
+        ddx = -a_belt
+    sig, dsig, ddsig = _ramp(t, g.ramp_in)
+    zz, z1, z2 = _lift(tau, half, g.h)
+    z = -g.H + sig * zz
+    dz = dsig * zz + sig * z1 * r
+    ddz = ddsig * zz + 2.0 * dsig * z1 * r + sig * (z2 * r * r + z1 * dr)
+    out = g.out
+    out[16 + 2 * leg], out[17 + 2 * leg] = x, z
+    out[20 + 2 * leg], out[21 + 2 * leg] = dx, dz
+    l1, l2 = g.l1[leg], g.l2[leg]
+    r2 = x * x + z * z
+    dist = math.sqrt(r2)
+    if not (abs(l1 - l2) < dist < l1 + l2):
+        g.fail_leg = leg
+        g.fail_r = dist
+        return Status.DIVERGED.value
+    cos_a = min(max((l1 * l1 - l2 * l2 + r2) / (2.0 * l1 * dist), -1.0), 1.0)
+    cos_g = min(max((l1 * l1 + l2 * l2 - r2) / (2.0 * l1 * l2), -1.0), 1.0)
+    p1 = math.atan2(z, x) + math.acos(cos_a)
+    p2 = p1 - (math.pi - math.acos(cos_g))
+    s1, c1, s2, c2 = math.sin(p1), math.cos(p1), math.sin(p2), math.cos(p2)
+    det = l1 * l2 * (c1 * s2 - s1 * c2)
+    d1 = (l2 * c2 * dx + l2 * s2 * dz) / det
+    d2 = (-l1 * c1 * dx - l1 * s1 * dz) / det
+    ax = ddx + l1 * c1 * d1 * d1 + l2 * c2 * d2 * d2
+    az = ddz + l1 * s1 * d1 * d1 + l2 * s2 * d2 * d2
+    a1 = (l2 * c2 * ax + l2 * s2 * az) / det
+    a2 = (-l1 * c1 * ax - l1 * s1 * az) / det
+    j = 2 * leg
+    out[12 + j], out[13 + j] = p1, p2
+    two_pi = 2.0 * math.pi
+    out[j] = (math.pi - (math.pi - (p1 - g.phi1_0[leg])) % two_pi) / g.s_h[leg]
+    rel = (p2 - p1) - (g.phi2_0[leg] - g.phi1_0[leg])
+    out[j + 1] = (math.pi - (math.pi - rel) % two_pi) / g.s_k[leg]
+    out[4 + j], out[5 + j] = d1 / g.s_h[leg], (d2 - d1) / g.s_k[leg]
+    out[8 + j], out[9 + j] = a1 / g.s_h[leg], (a2 - a1) / g.s_k[leg]
+    return Status.OK.value
+
+
+@kernel
+def online_start(state: np.ndarray, v0: float) -> int:  # pragma: no cover - compiled
+    """Row 0 of t = 0 (module docstring), the belt at ``v0`` [m/s]; a :class:`Status` value."""
+    g = state[0]
+    n = g.n_prof
+    v_ref, a_ref = profile_at(g.prof_t[:n], g.prof_v[:n], 0.0)
+    r, dr = _rate(g.law, v_ref, a_ref)
+    g.rate, g.vbar = r, v0
+    g.phase[0], g.phase[1] = 0.0, 0.5
+    g.x[0], g.dx[0] = 0.0, v0 / g.kv
+    g.x[1], g.dx[1] = 0.0, -v0
+    sig, dsig, _ = _ramp(0.0, g.ramp_in)
+    a_belt = dsig * v_ref + sig * a_ref
+    g.w = 0.5 * g.law[4] * (a_belt - v0 * dr / r) / r
+    g.seg[0], g.seg[1] = -1, -1
+    g.ddx[0] = _swing(g, 0, 0.0, r, 0.5 * (1.0 - g.law[4]) / r, 0.0)[2]
+    for leg in range(2):
+        status = _write_leg(g, leg, g.phase[leg], r, dr, a_belt, 0.0)
+        if status:
+            return status
+    return Status.OK.value
+
+
+@kernel
+def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no cover - compiled
+    """Advance from tick k - 1 to k with the measured speed ``v_meas`` [m/s]; row 0's targets."""
+    if k <= 0:
+        return Status.OK.value
+    g = state[0]
+    t = k * g.dt
+    n = g.n_prof
+    v_ref, a_ref = profile_at(g.prof_t[:n], g.prof_v[:n], t)
+    r, dr = _rate(g.law, v_ref, a_ref)
+    r_mid = 0.5 * (g.rate + r)
+    g.vbar += (v_meas - g.vbar) * g.dt / (g.filt + g.dt)
+    sig, dsig, _ = _ramp(t, g.ramp_in)
+    a_belt = dsig * v_ref + sig * a_ref
+    # dL/2/dt of the touchdown point L/2 = v̄ β / (2 r), with v̄' the planned belt rate
+    g.w = 0.5 * g.law[4] * (a_belt - g.vbar * dr / r) / r
+    for leg in range(2):
+        tau = _advance(g, leg, g.phase[leg], r_mid, g.vbar, g.dt)
+        g.phase[leg] = 0.0 if tau >= 1.0 else tau
+    g.rate = r
+    for leg in range(2):
+        status = _write_leg(g, leg, g.phase[leg], r, dr, a_belt, t)
+        if status:
+            return status
+    return Status.OK.value
