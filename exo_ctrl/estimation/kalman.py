@@ -82,8 +82,8 @@ import pinocchio as pin
 
 from .. import _validate as v
 from .._jit import Status, check, record
-from ..exceptions import ExoCtrlError, InvalidModel
-from ..model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel
+from ..exceptions import ExoCtrlError
+from ..model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..plant.cuffs import CuffParams, CuffSet
 from ..plant.equilibrium import settle_patient
 from ..sensing.readings import SensorReadings
@@ -246,12 +246,7 @@ class CuffForceKalman:
         torque_bias_Nm: np.ndarray | float = 0.0,
     ) -> None:
         for body in (exo, patient):
-            if not np.array_equal(body.q_index, np.arange(4)) or body.model.nq != 4:
-                raise InvalidModel(
-                    body.source,
-                    "",
-                    f"the estimator needs exactly the joints {JOINT_NAMES} in order",
-                )
+            body.require_legs_only("the estimator")
         self.dt = v.positive("dt", dt, "s")
         self.noise = noise if noise is not None else KalmanNoise()
         sensors = sensors if sensors is not None else SensorParams()

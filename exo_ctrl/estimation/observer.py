@@ -71,8 +71,8 @@ import pinocchio as pin
 
 from .. import _validate as v
 from .._jit import Status, check, kernel, record
-from ..exceptions import InvalidModel, InvalidParameter
-from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel
+from ..exceptions import InvalidParameter
+from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..sensing.readings import SensorReadings
 from .cuff_geometry import GEOMETRY_FIELDS, CuffGeometry, _cuff_directions
 
@@ -159,10 +159,7 @@ class CuffForceEstimator:
         torque_bias_Nm: np.ndarray | float = 0.0,
         stiffness_ratio: float = 1.0,
     ) -> None:
-        if not np.array_equal(exo.q_index, np.arange(4)) or exo.model.nq != 4:
-            raise InvalidModel(
-                exo.source, "", f"the estimator needs exactly the joints {JOINT_NAMES} in order"
-            )
+        exo.require_legs_only("the estimator")
         self.dt = v.positive("dt", dt, "s")
         self.gain_per_s = v.positive("gain", gain_per_s, "1/s")
         bias = np.broadcast_to(np.asarray(torque_bias_Nm, dtype=float), (4,))

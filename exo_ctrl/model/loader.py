@@ -113,6 +113,21 @@ class BodyModel:
         """Mass of the moving links (thighs and shanks with what is fixed to them) [kg]."""
         return float(sum(self.model.inertias[j].mass for j in self.joint_ids))
 
+    def require_legs_only(self, who: str) -> None:
+        """Refuse a model whose q is not exactly the four leg joints in JOINT_NAMES order.
+
+        Args:
+            who: what needs it, for the message (``"the plant"``, ``"the estimator"``).
+
+        Raises:
+            InvalidModel: other joints, or the leg joints in another order.
+
+        """
+        if not np.array_equal(self.q_index, np.arange(4)) or self.model.nq != 4:
+            raise InvalidModel(
+                self.source, "", f"{who} needs exactly the joints {JOINT_NAMES} in that order"
+            )
+
     def to_model_q(self, q: np.ndarray) -> np.ndarray:
         """Joint vector in JOINT_NAMES order → the model's own q ordering."""
         out = np.zeros(self.model.nq)

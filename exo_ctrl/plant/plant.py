@@ -58,7 +58,7 @@ import pinocchio as pin
 
 from .. import _validate as _v
 from .._jit import Status, check, kernel, record
-from ..exceptions import InvalidModel, InvalidParameter
+from ..exceptions import InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
 from .compliance import CompliantJoint, Rotors, rotor_forces, rotor_kick
 from .contact import ContactParams, FootContact, contact_commit, contact_forces, friction_impulse
@@ -120,12 +120,7 @@ class Plant:
         belt_height_m: float = 0.9,
     ) -> None:
         for body in (exo, patient):
-            if not np.array_equal(body.q_index, np.arange(4)) or body.model.nq != 4:
-                raise InvalidModel(
-                    body.source,
-                    "",
-                    f"the plant needs exactly the joints {JOINT_NAMES} in that order",
-                )
+            body.require_legs_only("the plant")
         if not (math.isfinite(dt) and dt > 0):
             raise InvalidParameter("dt", dt, "> 0 s")
         self.exo = exo
