@@ -70,7 +70,7 @@ from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant.misalignment import Misalignment
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
-from exo_ctrl.sweep.run import _InlineExecutor, _pool, _stop_pool
+from exo_ctrl.sweep.run import InlineExecutor, local_pool, stop_pool
 
 #: The controllers compared, in the table's order.
 CONTROLLERS = ("pd", "ct_nominal", "ct_identified", "qp")
@@ -286,7 +286,7 @@ def run_benchmark(
     start = time.perf_counter()
     bar = Progress(len(tasks), "robustness", enabled=progress)
     results: dict[tuple[int, str], dict[str, Any]] = {}
-    executor = _InlineExecutor() if workers == 1 else _pool(min(workers, len(tasks)))
+    executor = InlineExecutor() if workers == 1 else local_pool(min(workers, len(tasks)))
     clean = False
     with tempfile.TemporaryDirectory(prefix="exo_ctrl_robustness_") as folder:
         try:
@@ -306,8 +306,8 @@ def run_benchmark(
                 bar.update(len(results), f"{len(results)}/{len(tasks)} runs, {failed} failed")
             clean = True
         finally:
-            if not isinstance(executor, _InlineExecutor):
-                _stop_pool(executor, now=not clean)
+            if not isinstance(executor, InlineExecutor):
+                stop_pool(executor, now=not clean)
             bar.close(len(results))
     bench.runs = [results[(p.index, c)] for p, c in tasks]
     bench.wall_time_s = time.perf_counter() - start

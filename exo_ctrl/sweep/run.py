@@ -48,7 +48,15 @@ from .report import (
 )
 from .spec import SweepSpec, SweepTask
 
-__all__ = ["SweepInterrupted", "config_for", "run_point", "run_sweep"]
+__all__ = [
+    "InlineExecutor",
+    "SweepInterrupted",
+    "config_for",
+    "local_pool",
+    "run_point",
+    "run_sweep",
+    "stop_pool",
+]
 
 _TABLE_EVERY_S = 30.0  # rewrite the table at least this often during a sweep [s]
 
@@ -205,10 +213,11 @@ def _watch_parent(parent_pid: int) -> None:
     os._exit(1)
 
 
-class _InlineExecutor(cf.Executor):
+class InlineExecutor(cf.Executor):
     """Runs each submitted call at once in this process (``workers = 1``)."""
 
     def submit(self, fn, /, *args, **kwargs):
+        """Run ``fn(*args, **kwargs)`` now; its result or exception in a done future."""
         future: cf.Future = cf.Future()
         try:
             future.set_result(fn(*args, **kwargs))
@@ -217,7 +226,7 @@ class _InlineExecutor(cf.Executor):
         return future
 
 
-def _pool(workers: int) -> cf.ProcessPoolExecutor:
+def local_pool(workers: int) -> cf.ProcessPoolExecutor:
     """A local process pool of ``workers`` spawned interpreters."""
     # spawn: a clean interpreter per worker (fork after pyarrow/rerun threads
     # exist can deadlock); workers ignore Ctrl-C, the parent handles it, and
@@ -230,7 +239,7 @@ def _pool(workers: int) -> cf.ProcessPoolExecutor:
     )
 
 
-def _stop_pool(pool: cf.Executor, now: bool) -> None:
+def stop_pool(pool: cf.Executor, now: bool) -> None:
     """Shut an owned pool down; ``now``: cancel queued runs and kill running ones."""
     if not now:
         pool.shutdown(wait=True)
@@ -307,11 +316,11 @@ def run_sweep(
     owned = None
     if executor is None and todo:
         n = min(workers or os.cpu_count() or 1, len(todo))
-        executor = owned = _InlineExecutor() if n == 1 else _pool(n)
+        executor = owned = InlineExecutor() if n == 1 else local_pool(n)
         workers = n
     window = 2 * workers if workers else max(len(todo), 1)
     if progress:
-        where = "in this process" if isinstance(executor, _InlineExecutor) else "on "
+        where = "in this process" if isinstance(executor, InlineExecutor) else "on "
         if where == "on ":
             where += f"{workers} workers" if workers else "the given executor"
         print(
@@ -330,7 +339,7 @@ def run_sweep(
     finally:
         state.journal.close()
         if owned is not None:
-            _stop_pool(owned, now=not clean)
+            stop_pool(owned, now=not clean)
         state.bar.close(state.done, state.note())
         table = state.save_table()
     if interrupted:
