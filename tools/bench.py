@@ -95,6 +95,14 @@ def floor_calls(runner: Runner) -> list:
         calls.append(lambda: pin.rnea(ff._me, ff._de, *row))
         if ff._mp is not None:
             calls.append(lambda: pin.rnea(ff._mp, ff._dp, *row))
+    modes = getattr(setup.controller, "_m", None)  # an interaction mode's exoskeleton model
+    if modes is not None:
+        md = setup.controller._d
+        calls.append(lambda: pin.nonLinearEffects(modes, md, qe, ve))
+    own = runner.patient_model  # the active patient's feedforward (plant side)
+    if hasattr(own, "_pm"):
+        qp4, vp4, ap4 = q[4:].copy(), v[4:].copy(), np.zeros(4)
+        calls.append(lambda: pin.rnea(own._pm, own._pd, qp4, vp4, ap4))
     model = getattr(setup.controller, "cuff_model", None)
     if model is not None:
         cm, cd = model.model, model.data
@@ -119,6 +127,12 @@ SCENARIOS = {
     "qp": {"controller": "qp"},
     # PD with the coupled model's Kalman filter as the estimator (estimation/kalman.py).
     "pd_kalman": {"controller": "pd", "estimator": "kalman"},
+    # Interaction modes (control/modes) with the active patient (plant/patient_active.py:
+    # one RNEA per plant step in the truth, in the floor), and PD with that patient.
+    # (A passive patient drops out of a transparent device: the supervisor holds.)
+    "pd_active": {"controller": "pd", "patient_torque": "active"},
+    "transparent": {"mode": "transparent", "patient_torque": "active"},
+    "aan": {"mode": "aan", "patient_torque": "active"},
     # The QP where its bound binds (tests/test_qp.py's spastic run).
     "qp_spastic": {
         "controller": "qp",

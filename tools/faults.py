@@ -13,8 +13,12 @@ after the onset (the plant's, the truth) and the worst joint excursion after
 the onset, max |q - q_ref| over the joints with q_ref the plan while normal
 and the hold posture (the angle read at the stop) after; and, with ``--out``,
 whether its recording holds every tick and the fault's event
-(:func:`recording_holds`).  ``belt_stop`` cannot be injected (no belt in the
-plant yet, issue 16) and is reported so.  Prints a Markdown table; exit 0.
+(:func:`recording_holds`).  ``belt_stop`` runs with the belt (contact on),
+twice: with the plan synchronised with the measured belt speed (sync on, not
+with the QP) and with the precomputed plan (sync off); for it the table also
+gives the feet's slip on the stopped belt after the onset (the largest slip
+speed and the distance slid, both feet, in contact).  Prints a Markdown
+table; exit 0.
 
 Importable: ``run_campaign(seeds=1, controller="pd") -> list[FaultResult]``.
 """
@@ -33,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from exo_ctrl import SimConfig, read_recording, simulate
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
+from exo_ctrl.plant import ContactParams
 from exo_ctrl.record import RerunRecorder
 from exo_ctrl.sim.faults import FAULT_KINDS, Fault
 
@@ -45,7 +50,8 @@ ONSET_WINDOW_S = (1.5, 2.5)
 #: sensor's range, a damaged bridge); drift: 100 N·m/s (a strain gauge
 #: coming unglued); saturation: a rail at 20 N·m (an amplifier's gain fault,
 #: below what every joint carries in the gait); dropout: 30 ms of stale
-#: values; NaN: one corrupted frame; overrun: 20 ms of late commands.
+#: values; NaN: one corrupted frame; overrun: 20 ms of late commands;
+#: belt stop: braked at the belt drive's force limit (1000 N), to the end.
 CAMPAIGN = {
     "encoder_freeze": (None, None),
     "encoder_dropout": (None, 0.03),
@@ -58,13 +64,17 @@ CAMPAIGN = {
     "drive_open": (None, None),
     "drive_short": (None, None),
     "cuff_slip": (None, None),
+    "belt_stop": (None, None),
 }
 
-#: Why a fault cannot be detected (or injected), by kind.
-UNDETECTABLE = {
-    "belt_stop": "not injected yet: the belt exists behind --contact on (issue 16, first part); "
-    "its stop fault is next",
-}
+#: Why a fault cannot be detected (or injected), by kind (none at present).
+UNDETECTABLE: dict[str, str] = {}
+
+#: The runs of a belt fault: (label, SimConfig overrides); sync on is left out with the QP.
+BELT_VARIANTS = (
+    ("sync on", {"contact": ContactParams(enabled=True), "sync": True}),
+    ("sync off", {"contact": ContactParams(enabled=True), "sync": False}),
+)
 
 #: Faults the supervisor does not detect, and why (the table's note).
 NOT_DETECTED = {
@@ -94,6 +104,11 @@ class FaultResult:
         recording_ok: the recording holds every tick and the fault event
             (None: not recorded).
         note: why not detected or not run.
+        variant: the run's variant (``"sync on"``, ``"sync off"`` for the belt; "").
+        slip_max_mps: largest slip speed of a foot on the belt after the onset
+            [m/s] (NaN: no belt).
+        slip_distance_m: distance the feet slid on the belt after the onset,
+            ∫ (|s_L| + |s_R|) dt over the ticks in contact [m] (NaN: no belt).
 
     """
 
@@ -110,6 +125,9 @@ class FaultResult:
     ticks: int = 0
     recording_ok: bool | None = None
     note: str = ""
+    variant: str = ""
+    slip_max_mps: float = math.nan
+    slip_distance_m: float = math.nan
 
 
 def plan_fault(kind: str, seed: int, dt: float = 1e-3) -> Fault:
@@ -119,6 +137,8 @@ def plan_fault(kind: str, seed: int, dt: float = 1e-3) -> Fault:
     at = round(rng.uniform(lo, hi) / dt) * dt
     magnitude, duration = CAMPAIGN[kind]
     target = str(rng.choice(CUFF_NAMES if kind == "cuff_slip" else JOINT_NAMES))
+    if kind == "belt_stop":
+        target = ""
     if kind == "control_overrun":
         target = ""
         magnitude = int(rng.integers(1, 6)) * dt  # 1-5 ms late
@@ -153,6 +173,10 @@ def analyse(result, fault: Fault) -> FaultResult:
                 hold[j] = finite[-1] if finite.size else np.nan
         ref[k_stop:] = hold
     out.worst_excursion_rad = float(np.nanmax(np.abs(s["q"][k0:] - ref[k0:])))
+    if result.config.contact.enabled:
+        slip = np.abs(s["foot_slip"][k0:]) * (s["contact_state"][k0:] > 0)
+        out.slip_max_mps = float(slip.max())
+        out.slip_distance_m = float(slip.sum() * result.config.dt)
     return out
 
 
@@ -166,18 +190,30 @@ def recording_holds(path: Path, n_ticks: int, fault: Fault) -> bool:
 
 
 def run_fault(
-    fault: Fault, controller: str = "pd", out: Path | None = None, **config: object
+    fault: Fault,
+    controller: str = "pd",
+    out: Path | None = None,
+    variant: str = "",
+    **config: object,
 ) -> FaultResult:
-    """Run the default scenario with ``fault`` and analyse it (``config``: SimConfig overrides)."""
+    """Run the default scenario with ``fault`` and analyse it (``config``: SimConfig overrides).
+
+    ``variant``: the run's label beside the fault's (``"sync on"``; in the
+    recording's name).
+    """
     cfg = SimConfig(controller=controller, faults=(fault,), **config)
     observers = []
     path = None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        path = out / f"{fault.kind}_{fault.target or 'all'}_seed{fault.seed}.rrd"
+        tag = f"_{variant.replace(' ', '_')}" if variant else ""
+        path = out / f"{fault.kind}_{fault.target or 'all'}{tag}_seed{fault.seed}.rrd"
         observers.append(RerunRecorder(path))
     result = simulate(cfg, observers=observers)
     res = analyse(result, fault)
+    res.variant = variant
+    if variant:
+        res.label = f"{res.label} ({variant})"
     if not res.detected:
         res.note = NOT_DETECTED.get(fault.kind, "")
     if path is not None:
@@ -194,17 +230,21 @@ def run_campaign(
 ) -> list[FaultResult]:
     """Every fault of ``kinds`` × ``seeds`` seeds (module docstring)."""
     results = []
-    total = len(kinds) * seeds
-    n = 0
-    for kind in kinds:
-        for seed in range(seeds):
-            n += 1
-            if progress:
-                print(f"[{n}/{total}] {kind} seed {seed}", file=sys.stderr, flush=True)
-            if kind in UNDETECTABLE:
-                results.append(FaultResult(kind, kind, seed, note=UNDETECTABLE[kind]))
-                continue
-            results.append(run_fault(plan_fault(kind, seed), controller, out))
+    belt = [(name, over) for name, over in BELT_VARIANTS if controller != "qp" or not over["sync"]]
+    runs = [
+        (kind, seed, variant)
+        for kind in kinds
+        for seed in range(seeds)
+        for variant in (belt if kind == "belt_stop" else [("", {})])
+    ]
+    for n, (kind, seed, (name, over)) in enumerate(runs, 1):
+        if progress:
+            what = f"{kind} {name}".strip()
+            print(f"[{n}/{len(runs)}] {what} seed {seed}", file=sys.stderr, flush=True)
+        if kind in UNDETECTABLE:
+            results.append(FaultResult(kind, kind, seed, note=UNDETECTABLE[kind]))
+            continue
+        results.append(run_fault(plan_fault(kind, seed), controller, out, name, **over))
     return results
 
 
@@ -212,19 +252,23 @@ def table(results: list[FaultResult]) -> str:
     """The campaign as a Markdown table."""
     head = (
         "| fault | seed | onset [s] | detected | after [ms] | first channel | state "
-        "| worst cuff force [N] | worst excursion [rad] | recording |"
+        "| worst cuff force [N] | worst excursion [rad] | feet slip on the belt: max [m/s], "
+        "slid [mm] | recording |"
     )
-    rows = [head, "|" + "---|" * 10]
+    rows = [head, "|" + "---|" * 11]
     for r in results:
         if r.note and not r.ticks:
-            rows.append(f"| {r.label} | {r.seed} | – | no | – | {r.note} | – | – | – | – |")
+            rows.append(f"| {r.label} | {r.seed} | – | no | – | {r.note} | – | – | – | – | – |")
             continue
         rec = {None: "–", True: "every tick + event", False: "INCOMPLETE"}[r.recording_ok]
         after = f"{1e3 * r.detection_s:.0f}" if r.detected else "–"
+        slip = "–"
+        if math.isfinite(r.slip_max_mps):
+            slip = f"{r.slip_max_mps:.2f}, {1e3 * r.slip_distance_m:.0f}"
         rows.append(
             f"| {r.label} | {r.seed} | {r.at_s:.3f} | {'yes' if r.detected else 'NO'} | {after} "
             f"| {r.channel or r.note or '–'} | {r.state} | {r.worst_cuff_force_N:.0f} "
-            f"| {r.worst_excursion_rad:.3f} | {rec} |"
+            f"| {r.worst_excursion_rad:.3f} | {slip} | {rec} |"
         )
     return "\n".join(rows)
 

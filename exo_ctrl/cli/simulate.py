@@ -16,7 +16,6 @@ from ..plan.exercise import CALIBRATION_DURATION_S
 from ..plant import (
     MAX_MISALIGNMENT_M,
     MOTOR_PRESETS,
-    PATIENT_TORQUES,
     BeltParams,
     CompliantJoint,
     ContactParams,
@@ -25,6 +24,7 @@ from ..plant import (
     consistency_warning,
     motor_preset,
 )
+from ..plant.patient_active import PATIENT_KINDS
 from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
 from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
 from ..record.writer import find_viewer
@@ -38,6 +38,7 @@ from .common import (
     gait_params_from,
     write_json,
 )
+from .modes_options import add_mode_options, mode_config_from
 
 __all__ = ["register", "run", "sim_config"]
 
@@ -238,10 +239,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--patient-torque",
-        choices=PATIENT_TORQUES,
+        choices=PATIENT_KINDS,
         default="none",
-        help="patient joint torques: none (paper §VI) or spastic (default none)",
+        help="patient joint torques: none (paper §VI), spastic, or active (their own gait "
+        "with a delay and a strength: the active patient options) (default none)",
     )
+    add_mode_options(p)
     p.add_argument(
         "--no-safety",
         action="store_true",
@@ -356,6 +359,7 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         else SpeedProfile.parse(args.speed_profile),
         sync=None if args.sync is None else args.sync == "on",
         exercise=args.exercise,
+        **mode_config_from(args),
         belief=Belief(
             patient=args.controller_patient,
             exo=args.controller_exo,

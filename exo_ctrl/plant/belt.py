@@ -37,6 +37,19 @@ gives them, so each is an estimate and configurable):
 - ``force_limit_N = 1000``: the drive's torque limit at the belt surface
   (a 2.5 kW drive delivers 1000 N at 2.5 m/s).
 
+**The brake** (a fault, :mod:`exo_ctrl.sim.faults`' ``belt_stop``: a jammed
+roller, or the treadmill's own emergency stop).  While the record's
+``brake`` flag is set, the speed controller is out and a brake of force
+limit F_br (``f_brake`` [N], by default the drive's F_max) holds the belt
+surface at rest whatever the set speed: it applies the force that brings
+the belt to rest within the step, F = -m_b v_b / h, clipped to ±F_br.  While
+the clip binds the belt decelerates at (F_br + Σ F_t) / m_b (F_br / m_b =
+50 m/s² with the defaults and no foot on it: 0.58 m/s stops in 12 ms); once
+it is at rest it stays there (static friction of the brake): the feet's
+friction impulses are solved against a fixed belt, and the brake takes up
+their force as long as it stays within F_br (else the belt slips at the
+limit).  The integral is frozen while braked.
+
 Integration, step h: the force is taken at the start of the step (explicit;
 K_p h / m_b = 0.013 at 1 ms, far inside the bound 2), the friction
 impulses of the feet over the step are added with the belt's inertia in the
@@ -54,7 +67,14 @@ import numpy as np
 from .. import _validate as v
 from .._jit import kernel, record
 
-__all__ = ["BELT_FIELDS", "BeltParams", "belt_commit", "belt_drive", "belt_response"]
+__all__ = [
+    "BELT_FIELDS",
+    "BeltParams",
+    "belt_commit",
+    "belt_drive",
+    "belt_response",
+    "brake_holds",
+]
 
 
 @dataclass(frozen=True)
@@ -103,6 +123,7 @@ class BeltParams:
         belt["mass"] = self.mass_kg
         belt["kp"], belt["ki"] = kp, ki
         belt["f_max"] = self.force_limit_N
+        belt["f_brake"] = self.force_limit_N
 
     def new_record(self) -> np.ndarray:
         """A record of :data:`BELT_FIELDS` with these parameters, the belt at rest."""
@@ -117,7 +138,11 @@ class BeltParams:
 #: ``a_set`` its rate [m/s²].  Work of
 #: the step: ``f_drive`` F_d [N], ``v_free`` v_b + h F_d / m_b [m/s],
 #: ``v_next``, ``integral_next``: the state at the end of the step;
-#: ``f_feet`` Σ F_t over the last step [N].
+#: ``f_feet`` Σ F_t over the last step [N].  The brake (a fault): ``brake``
+#: its flag (0 off), ``f_brake`` F_br [N]; of the step, ``f_stop`` the
+#: brake's force before the feet [N], ``held`` 1 while it holds the belt at
+#: rest, ``inv_m`` the belt's 1/m_b in the feet's friction solve [1/kg] (0
+#: while held: a fixed belt).
 BELT_FIELDS = [
     *((name, np.float64) for name in ("mass", "kp", "ki", "f_max", "v", "x", "integral")),
     *(
@@ -125,6 +150,7 @@ BELT_FIELDS = [
         for name in ("v_set", "a_set", "f_drive", "v_free", "v_next", "integral_next")
     ),
     ("f_feet", np.float64),
+    *((name, np.float64) for name in ("brake", "f_brake", "f_stop", "held", "inv_m")),
 ]
 
 
@@ -145,6 +171,30 @@ def belt_drive(b: Any, h: float) -> None:
     b.v_free = b.v + h * f / b.mass
     b.v_next = b.v_free
     b.f_feet = 0.0
+    b.held = 0.0
+    b.inv_m = 1.0 / b.mass
+    if b.brake != 0.0:
+        _brake(b, h)
+
+
+@kernel
+def _brake(b: Any, h: float) -> None:
+    """The braked belt's step (module docstring): F = clip(-m_b v_b / h, ±F_br), the PI out."""
+    f = -b.mass * b.v / h
+    b.integral_next = b.integral
+    if abs(f) <= b.f_brake:
+        b.f_stop = f
+        b.f_drive = f
+        b.v_free = 0.0
+        b.v_next = 0.0
+        b.held = 1.0  # at rest: the feet push against a fixed belt
+        b.inv_m = 0.0
+        return
+    f = b.f_brake if f > 0.0 else -b.f_brake
+    b.f_stop = f
+    b.f_drive = f
+    b.v_free = b.v + h * f / b.mass
+    b.v_next = b.v_free
 
 
 @kernel
@@ -171,7 +221,30 @@ def belt_response(
     b.a_set = 0.0
     for k in range(load_N.shape[0]):
         belt_drive(b, h)
-        b.v_next = b.v_free + h * load_N[k] / b.mass
+        if b.held != 0.0 and brake_holds(b, load_N[k], h):
+            b.v_next = 0.0
+        else:
+            b.v_next = b.v_free + h * load_N[k] / b.mass
         b.f_feet = load_N[k]
         belt_commit(b, h)
         speed[k] = b.v
+
+
+@kernel
+def brake_holds(b: Any, f_feet: float, h: float) -> bool:
+    """Whether the brake holding the belt at rest also takes up the feet's force ``f_feet`` [N].
+
+    Yes when |f_stop - f_feet| ≤ F_br (``f_drive`` becomes that force); no:
+    the brake slips at its limit, ``f_drive`` = ±F_br, ``v_free`` the
+    speed it leaves without the feet and ``inv_m`` = 1/m_b (the belt moves).
+    """
+    f = b.f_stop - f_feet
+    if abs(f) <= b.f_brake:
+        b.f_drive = f
+        b.inv_m = 0.0
+        return True
+    f = b.f_brake if f > 0.0 else -b.f_brake
+    b.f_drive = f
+    b.v_free = b.v + h * f / b.mass
+    b.inv_m = 1.0 / b.mass
+    return False

@@ -72,7 +72,7 @@ from .. import _validate as v
 from .._jit import kernel, record, shared_dtype
 from ..exceptions import InvalidParameter
 from ..model import SIDES, BodyModel
-from .belt import BELT_FIELDS, BeltParams, belt_commit, belt_drive
+from .belt import BELT_FIELDS, BeltParams, belt_commit, belt_drive, brake_holds
 
 __all__ = ["CONTACT_FIELDS", "ContactParams", "FootContact"]
 
@@ -211,6 +211,8 @@ class FootContact:
         b = c["belt"]
         b["v"] = b["v_set"] = b["v_next"] = b["v_free"] = float(belt_speed_mps)
         b["x"] = b["integral"] = b["integral_next"] = 0.0
+        b["brake"] = b["held"] = 0.0
+        b["inv_m"] = 1.0 / b["mass"]
 
     def feet(self, q: np.ndarray) -> np.ndarray:
         """World (x, z) of the two exo foot points at joint angles ``q`` (≥ 4) [m], (2, 2)."""
@@ -284,7 +286,9 @@ def friction_impulse(plant: np.ndarray, acc_in: np.ndarray, mass: np.ndarray) ->
     c = p.contact
     b = c.belt
     h = p.h
-    inv_mb = 1.0 / b.mass
+    held = b.held != 0.0  # braked at rest (plant.belt): the feet push on a fixed belt
+    v_free = 0.0 if held else b.v_free
+    inv_mb = 0.0 if held else 1.0 / b.mass
     for i in range(8):
         c.acc[i] = acc_in[i]
     for leg in range(2):
@@ -300,7 +304,26 @@ def friction_impulse(plant: np.ndarray, acc_in: np.ndarray, mass: np.ndarray) ->
         c.g[leg, 0], c.g[leg, 1] = g0, g1
         c.w[leg] = j0 * g0 + j1 * g1
         vx = j0 * (p.v[i] + h * acc_in[i]) + j1 * (p.v[i + 1] + h * acc_in[i + 1])
-        c.s_free[leg] = vx + b.v_free
+        c.s_free[leg] = vx + v_free
+    _sweeps(c, inv_mb, h)
+    total = c.imp[0] + c.imp[1]
+    if held and not brake_holds(b, total / h, h):  # the feet overpower the brake
+        inv_mb = b.inv_m
+        for leg in range(2):
+            c.s_free[leg] += b.v_free
+        _sweeps(c, inv_mb, h)
+        total = c.imp[0] + c.imp[1]
+    for leg in range(2):
+        i = 2 * leg
+        c.acc[i] += c.g[leg, 0] * c.imp[leg] / h
+        c.acc[i + 1] += c.g[leg, 1] * c.imp[leg] / h
+    b.v_next = 0.0 if held and inv_mb == 0.0 else b.v_free + total * inv_mb
+    b.f_feet = total / h
+
+
+@kernel
+def _sweeps(c: Any, inv_mb: float, h: float) -> None:
+    """Projected Gauss–Seidel on the feet's impulses (module docstring); 1/m_b = ``inv_mb``."""
     for _ in range(SWEEPS):
         for leg in range(2):
             if c.fn[leg] <= 0.0:
@@ -313,20 +336,13 @@ def friction_impulse(plant: np.ndarray, acc_in: np.ndarray, mass: np.ndarray) ->
             elif new < -bound:
                 new = -bound
             c.imp[leg] = new
-    total = c.imp[0] + c.imp[1]
-    for leg in range(2):
-        i = 2 * leg
-        c.acc[i] += c.g[leg, 0] * c.imp[leg] / h
-        c.acc[i + 1] += c.g[leg, 1] * c.imp[leg] / h
-    b.v_next = b.v_free + total * inv_mb
-    b.f_feet = total / h
 
 
 @kernel
 def contact_commit(c: Any, h: float) -> None:
     """End of step: the belt's new state, each foot's force, slip and contact state."""
     b = c.belt
-    inv_mb = 1.0 / b.mass
+    inv_mb = b.inv_m  # 1/m_b, or 0 while a brake holds the belt (plant.belt)
     total = c.imp[0] + c.imp[1]
     for leg in range(2):
         fn = c.fn[leg]

@@ -4,6 +4,9 @@
   against the models and the drive;
 - :mod:`.monitor`: the compiled per-tick monitor (which channel exceeds its
   limit, by how much) and its record;
+- :mod:`.plausibility`, :mod:`.belt_monitor`: whether the readings can be
+  true (drive model, encoder step, stuck sensor, command age; the belt's
+  measured speed against its set speed);
 - :mod:`.supervisor`: :class:`SafetySupervisor`, the state machine and the
   controlled stop (hold with gravity compensation, ramp, power cut), events.
 """

@@ -19,8 +19,9 @@ VOLTAGE    |U| - DBL_MAX        V (finiteness only, the command)
 Four more groups, the plausibility monitors (drive model residual, encoder
 step, torque sensor unchanged, command age), are written into the rows after
 these by :func:`exo_ctrl.safety.plausibility.plausibility` before this
-kernel runs; it counts them in ``worst`` and ``passed`` like its own (44
-channels in all).
+kernel runs, and a last one, the belt's speed against its set speed (one
+channel; :mod:`exo_ctrl.safety.belt_monitor`), with the belt; it counts them
+in ``worst`` and ``passed`` like its own (48 channels in all).
 
 A channel is violated when ``not e <= 0``: e > 0, or e NaN (a NaN reading),
 or e = +inf (an infinite one).  The tick's ``worst`` is the sum of the
@@ -62,14 +63,15 @@ __all__ = [
 ]
 
 #: Channel groups: the rows of the record's ``excess`` and ``limit``.  The
-#: last four (drive, jump, stuck, age) are the plausibility monitors'
-#: (:mod:`exo_ctrl.safety.plausibility`), written before this kernel runs
+#: last five (drive, jump, stuck, age; belt) are the plausibility monitors'
+#: (:mod:`exo_ctrl.safety.plausibility`) and the belt monitor's
+#: (:mod:`exo_ctrl.safety.belt_monitor`), written before this kernel runs
 #: (their limits +DBL_MAX, never violated, unless the supervisor sets them).
 CUFF, UPPER, LOWER, SPEED, CURRENT, TORQUE, VOLTAGE = range(7)
 #: The groups' names, in row order.
 GROUPS = (
     "cuff", "upper", "lower", "speed", "current", "torque", "voltage",
-    "drive", "jump", "stuck", "age",
+    "drive", "jump", "stuck", "age", "belt",
 )  # fmt: skip
 #: Groups of the limit monitor itself (this kernel writes their excesses).
 LIMIT_GROUPS = 7
@@ -239,15 +241,22 @@ class Channel:
 
 
 def channels(
-    limits: ResolvedLimits, use_estimate: bool, plausible: np.ndarray | None = None
+    limits: ResolvedLimits,
+    use_estimate: bool,
+    plausible: np.ndarray | None = None,
+    belt_limit: float | None = None,
 ) -> tuple[Channel, ...]:
-    """The 44 channels in the order of the record's ``excess`` flattened (group-major).
+    """The 48 channels in the order of the record's ``excess`` flattened (group-major).
 
     Args:
         limits: the resolved limits (reported in the events).
         use_estimate: the cuff forces are estimates (``"estimated cuff force ..."``).
         plausible: the plausibility groups' limits, (4, 4)
             (:func:`~exo_ctrl.safety.plausibility.plausibility_limits`; None: DBL_MAX).
+        belt_limit: the belt speed deviation's limit [m/s]
+            (:mod:`~exo_ctrl.safety.belt_monitor`; None: DBL_MAX, no belt).
+            Its group's one channel is ``"belt speed deviation"``; the
+            other three are never written.
 
     """
     force = "estimated cuff force" if use_estimate else "cuff force"
@@ -269,8 +278,11 @@ def channels(
         ("equal torque readings", "", plausible[2], JOINT_NAMES),
         ("command age", "s", plausible[3], JOINT_NAMES),
     )
+    big = np.finfo(float).max
+    belt = (big if belt_limit is None else float(belt_limit), big, big, big)
+    table += (("belt speed deviation", "m/s", belt, ("", "unused 1", "unused 2", "unused 3")),)
     return tuple(
-        Channel(g, f"{name} {label}", unit, float(lim[i]))
+        Channel(g, f"{name} {label}".strip(), unit, float(lim[i]))
         for g, (name, unit, lim, labels) in enumerate(table)
         for i, label in enumerate(labels)
     )

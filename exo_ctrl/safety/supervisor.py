@@ -5,7 +5,10 @@ tick it checks what the device can measure — joint angles, speeds and torques
 from the sensors, cuff forces (measured, or estimated from the joint torques),
 drive currents — and the controller's command against :class:`SafetyLimits`
 (:mod:`exo_ctrl.safety.limits`), in one call of the compiled monitor
-(:mod:`exo_ctrl.safety.monitor`).  While nothing is wrong it returns the
+(:mod:`exo_ctrl.safety.monitor`), after the plausibility monitors
+(:mod:`exo_ctrl.safety.plausibility`) and, with the belt, the belt monitor
+(the encoder's belt speed against the set speed,
+:mod:`exo_ctrl.safety.belt_monitor`).  While nothing is wrong it returns the
 controller's command unchanged (and allocates no array).  Its state is one
 record, :attr:`SafetySupervisor.record`, whose ``state`` field the log reads.
 
@@ -69,7 +72,8 @@ from .. import _validate as v
 from .._jit import Status, check
 from ..model import JOINT_NAMES, BodyModel
 from ..plant import MotorParams
-from ..sensing import SensorParams, SensorReadings
+from ..sensing import BeltEncoder, SensorParams, SensorReadings
+from .belt_monitor import BELT, BELT_DEVIATION_MPS, belt_monitor, belt_monitor_record
 from .limits import STATES, SafetyLimits, resolve_limits
 from .monitor import LIMIT_GROUPS, channels, monitor, monitor_record
 from .plausibility import plausibility, plausibility_limits, plausibility_record
@@ -103,6 +107,11 @@ class SafetySupervisor:
         compliant_drives: the joints are compliant (the torque sensors read
             a spring, :mod:`exo_ctrl.plant.compliance`): the rigid drive
             model's check is off, the other monitors stay.
+        belt_set_speed: the treadmill's set speed per control tick, (n, 2)
+            [m/s, m/s²] (the command the device knows; None: no belt).
+        belt_encoder: the belt encoder whose reading (``speed``, filled in
+            place each tick) the belt monitor compares with the set speed
+            (:mod:`exo_ctrl.safety.belt_monitor`; None: no belt monitor).
 
     Attributes:
         state: ``"normal"``, ``"stopping"``, ``"holding"`` or ``"power_cut"``.
@@ -140,6 +149,8 @@ class SafetySupervisor:
         sensors: SensorParams | None = None,
         plausibility_checks: bool = True,
         compliant_drives: bool = False,
+        belt_set_speed: np.ndarray | None = None,
+        belt_encoder: BeltEncoder | None = None,
     ) -> None:
         self.dt = v.positive("dt", dt, "s")
         self.estop_at_s = (
@@ -173,10 +184,19 @@ class SafetySupervisor:
             # default PD run), so that check is off; the others stay.
             self.plausibility_limits[0] = np.finfo(float).max
         if self._checks:
-            self.record["limit"][0][LIMIT_GROUPS:] = self.plausibility_limits
+            self.record["limit"][0][LIMIT_GROUPS:BELT] = self.plausibility_limits
         self._u_sent = self.plausibility_record["u_prev"][0]
+        #: The belt monitor's set speeds, reading and record (None: no belt).
+        self._belt: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        belt_limit = None
+        if belt_set_speed is not None and belt_encoder is not None:
+            set_speed = np.ascontiguousarray(belt_set_speed, dtype=float)
+            window = int(belt_encoder.record["window"][0])
+            self._belt = (set_speed, belt_encoder.speed, belt_monitor_record(window))
+            belt_limit = BELT_DEVIATION_MPS
+            self.record["limit"][0][BELT, 0] = belt_limit
         self._channels = channels(
-            resolved, self.use_estimate, self.record["limit"][0][LIMIT_GROUPS:]
+            resolved, self.use_estimate, self.record["limit"][0][LIMIT_GROUPS:BELT], belt_limit
         )
         self._passed = self.record["passed"]  # read once per tick
         self._u_start = np.zeros(4)
@@ -231,7 +251,6 @@ class SafetySupervisor:
             InvalidParameter: an input of the wrong shape (named).
 
         """
-        del k
         q, dq, tau = sensors.q, sensors.dq, sensors.tau
         f, current, u = cuff_force, current_A, u_cmd
         if not (
@@ -243,6 +262,8 @@ class SafetySupervisor:
             f = v.array("cuff_force", f, (4, 2))
         if self._checks:
             plausibility(q, dq, tau, u, command_age_s, self.plausibility_record, self.record)
+        if self._belt is not None:
+            belt_monitor(k, *self._belt, self.record)
         status = monitor(f, q, dq, tau, current, u, t, self.record)
         if status:
             self._refuse(status, f, q, dq, tau, current, u)

@@ -8,6 +8,7 @@ from typing import Any
 
 from .. import _validate as v
 from ..control import PDGains
+from ..control.modes import MODES, ModeParams
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
 from ..exceptions import InvalidParameter
@@ -21,7 +22,6 @@ from ..plan import (
     layout,
 )
 from ..plant import (
-    PATIENT_TORQUES,
     CompliantJoint,
     ContactParams,
     CuffParams,
@@ -29,10 +29,11 @@ from ..plant import (
     Misalignment,
     MotorParams,
 )
+from ..plant.patient_active import PATIENT_KINDS, ActiveParams
 from ..safety import SafetyLimits
 from ..sensing import BeltEncoderParams, CurrentSensorParams, SensorParams
 from .belief import Belief
-from .faults import Fault, faults_of
+from .faults import BELT_STOP_NEEDS, Fault, faults_of
 from .schema import log_dtype
 
 __all__ = [
@@ -139,8 +140,17 @@ class SimConfig:
             momentum observer, :mod:`exo_ctrl.estimation.observer`) or
             ``"kalman"`` (the filter on the coupled model with the device's
             patient and cuff models, :mod:`exo_ctrl.estimation.kalman`).
-        patient_torque: patient joint torques, ``"none"`` (paper §VI) or
-            ``"spastic"`` (:mod:`exo_ctrl.plant.patient`).
+        patient_torque: patient joint torques, ``"none"`` (paper §VI),
+            ``"spastic"`` (:mod:`exo_ctrl.plant.patient`) or ``"active"``
+            (:mod:`exo_ctrl.plant.patient_active`: their own gait, strength,
+            delay; spastic on top with ``patient_active.spastic``).
+        patient_active: the active patient's parameters (with
+            ``patient_torque="active"``).
+        mode: the interaction mode, one of :data:`~exo_ctrl.control.modes.MODES`:
+            ``"tracking"`` (default: the controller's position control),
+            ``"guidance"``, ``"transparent"`` or ``"aan"``
+            (:mod:`exo_ctrl.control.modes.controller`).
+        modes: the modes' parameters (G, K_f, aan's f, g, bins, soft PD).
         safety: run the safety supervisor (:mod:`exo_ctrl.safety.supervisor`).
         safety_limits: its limits.
         safety_use_estimate: the supervisor watches the estimated cuff
@@ -205,6 +215,9 @@ class SimConfig:
     exercise: str = "gait"
     speed_profile: SpeedProfile | None = None
     sync: bool | None = None
+    mode: str = "tracking"
+    modes: ModeParams = field(default_factory=ModeParams)
+    patient_active: ActiveParams = field(default_factory=ActiveParams)
 
     def __post_init__(self) -> None:
         if self.exercise not in EXERCISES:
@@ -221,10 +234,11 @@ class SimConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise InvalidParameter(name, value, "an integer >= 1")
-        if self.patient_torque not in PATIENT_TORQUES:
+        if self.patient_torque not in PATIENT_KINDS:
             raise InvalidParameter(
-                "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_TORQUES)}"
+                "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_KINDS)}"
             )
+        self._check_mode()
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
         if self.estimator not in ESTIMATORS:
             raise InvalidParameter("estimator", self.estimator, f"one of {', '.join(ESTIMATORS)}")
@@ -242,6 +256,8 @@ class SimConfig:
                 raise InvalidParameter(
                     "fault at_s", fault.at_s, f"in [0, {(self.n_ticks - 1) * self.dt:g}] s"
                 )
+            if fault.kind == "belt_stop" and not self.contact.enabled:
+                raise InvalidParameter("fault kind", fault.kind, BELT_STOP_NEEDS)
         self._check_sync()
         self._check_plan_size()
         chunk = min(self.chunk_ticks, max(self.n_ticks, 1))
@@ -253,6 +269,27 @@ class SimConfig:
             what="log chunk rows",
             limit="smaller",
         )
+
+    def _check_mode(self) -> None:
+        """Refuse an unknown mode, and a mode or an active patient where they do not apply."""
+        if self.mode not in MODES:
+            raise InvalidParameter("mode", self.mode, f"one of {', '.join(MODES)}")
+        if self.patient_torque == "active" and self.exercise != "gait":
+            raise InvalidParameter(
+                "patient_torque", "active", "none or spastic", "the active patient walks a gait"
+            )
+        if self.mode == "tracking":
+            return
+        if self.exercise != "gait":
+            raise InvalidParameter("mode", self.mode, "tracking", "the calibration swing tracks")
+        if self.mode == "aan" and (not self.plan_periodic or self.synced):
+            raise InvalidParameter(
+                "mode",
+                "aan",
+                "tracking, guidance or transparent here",
+                "assist-as-needed learns per phase of a precomputed periodic plan (a period of "
+                "a whole number of ticks, sync off)",
+            )
 
     def _check_sync(self) -> None:
         """Refuse a speed profile without the belt, and sync where it does not apply."""

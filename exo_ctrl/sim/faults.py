@@ -11,7 +11,8 @@ consults at two points, outside the components it corrupts:
   control period overrun) and reports the command's age; and at a drive or
   cuff fault's onset it sets that drive's ``fault`` flag in the drives'
   record (:data:`exo_ctrl.plant.drive.DRIVE_FAULTS`, honoured by
-  ``step_drives``) or the cuff's ``slipped`` flag in the cuffs' record.
+  ``step_drives``) or the cuff's ``slipped`` flag in the cuffs' record,
+  or at a belt stop the belt's ``brake`` flag (:mod:`exo_ctrl.plant.belt`).
 
 A run without faults builds no injector and its tick is unchanged.
 
@@ -32,7 +33,10 @@ control_overrun    every drive gets the command ``magnitude`` [s] late (whole ti
 drive_open         the drive's phase open: no current, no torque
 drive_short        the drive's winding shorted: U = 0 whatever the command
 cuff_slip          the cuff slipped off: no force (stiffness and damping zero)
-belt_stop          the treadmill belt stops: NOT injected yet (the belt exists behind contact)
+belt_stop          the treadmill belt stops (a jammed roller, the treadmill's own
+                   e-stop): a brake of ``magnitude`` [N] (None: the belt drive's
+                   force limit F_max) holds it at rest whatever the set speed;
+                   with contact on only (the belt exists there)
 =================  ============================================================
 
 **Encoder faults and the speed.**  The device has no speed sensor: it
@@ -59,7 +63,7 @@ from ..model import CUFF_NAMES, JOINT_NAMES
 from ..plant.drive import OPEN_PHASE, SHORTED
 from ..sensing import SensorReadings
 
-__all__ = ["FAULT_KINDS", "INJECTABLE", "Fault", "FaultInjector", "faults_of"]
+__all__ = ["BELT_STOP_NEEDS", "FAULT_KINDS", "INJECTABLE", "Fault", "FaultInjector", "faults_of"]
 
 #: Every fault of the campaign (issue 19), in its order.
 FAULT_KINDS = (
@@ -77,8 +81,8 @@ FAULT_KINDS = (
     "belt_stop",
 )
 
-#: The faults the plant can take (``belt_stop`` waits for the belt, issue 16).
-INJECTABLE = FAULT_KINDS[:-1]
+#: The faults the plant can take (all; ``belt_stop`` with contact on only).
+INJECTABLE = FAULT_KINDS
 
 _ENCODER = ("encoder_freeze", "encoder_dropout", "noise_burst")
 _NEEDS_MAGNITUDE = ("noise_burst", "torque_bias_step", "torque_drift", "torque_saturation")
@@ -88,7 +92,11 @@ _UNITS = {
     "torque_drift": "N·m/s",
     "torque_saturation": "N·m",
     "control_overrun": "s",
+    "belt_stop": "N",
 }
+
+#: What a ``belt_stop`` needs (the message of its refusal without the belt).
+BELT_STOP_NEEDS = "a fault of a part the run models: the belt exists with contact on only"
 
 #: Fields of the injector's readings record (what :func:`~exo_ctrl.sim.tick.write_measured`
 #: logs): ``q`` [rad], ``dq`` [rad/s], ``tau`` [N·m].
@@ -103,9 +111,10 @@ class Fault:
         kind: one of :data:`INJECTABLE`.
         at_s: onset [s] (the first control tick at or after it).
         target: a joint (JOINT_NAMES), a cuff (CUFF_NAMES) for ``cuff_slip``,
-            ``""`` for ``control_overrun`` (every drive).
+            ``""`` for ``control_overrun`` (every drive) and ``belt_stop``.
         magnitude: the kind's size in its unit (table); None for the kinds
             without one.  ``control_overrun``: the delay [s], at least one tick.
+            ``belt_stop``: the brake's force limit [N] (None: the belt drive's).
         duration_s: how long it lasts [s] (None: to the end of the run).
         seed: seed of a noise burst's noise.
 
@@ -123,20 +132,14 @@ class Fault:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if self.kind == "belt_stop":
-            raise InvalidParameter(
-                "fault kind",
-                self.kind,
-                f"one of {', '.join(INJECTABLE)}",
-                "the belt stop is not injected yet: the belt exists behind contact (issue 16)",
-            )
         if self.kind not in INJECTABLE:
             raise InvalidParameter("fault kind", self.kind, f"one of {', '.join(INJECTABLE)}")
         object.__setattr__(self, "at_s", v.non_negative("fault at_s", self.at_s, "s"))
         names = CUFF_NAMES if self.kind == "cuff_slip" else JOINT_NAMES
-        if self.kind == "control_overrun":
+        if self.kind in ("control_overrun", "belt_stop"):
             if self.target != "":
-                raise InvalidParameter("fault target", self.target, '"" (every drive)')
+                what = "every drive" if self.kind == "control_overrun" else "the belt"
+                raise InvalidParameter("fault target", self.target, f'"" ({what})')
         elif self.target not in names:
             raise InvalidParameter("fault target", self.target, f"one of {', '.join(names)}")
         if self.kind in _NEEDS_MAGNITUDE or self.kind == "control_overrun":
@@ -149,7 +152,10 @@ class Fault:
                 size = v.positive("fault magnitude", size, _UNITS[self.kind])
             object.__setattr__(self, "magnitude", size)
         elif self.magnitude is not None:
-            raise InvalidParameter("fault magnitude", self.magnitude, f"None for {self.kind}")
+            if self.kind != "belt_stop":
+                raise InvalidParameter("fault magnitude", self.magnitude, f"None for {self.kind}")
+            brake = v.positive("fault magnitude", self.magnitude, "N")
+            object.__setattr__(self, "magnitude", brake)
         if self.duration_s is not None:
             object.__setattr__(
                 self, "duration_s", v.positive("fault duration_s", self.duration_s, "s")
@@ -208,6 +214,8 @@ class FaultInjector:
         velocity_filter_hz: the sensors' speed filter cut-off f_v [Hz].
         motors: the plant's drives' record (its ``fault`` field is set).
         cuffs: the plant's cuffs' record (its ``slipped`` field is set).
+        belt: the plant's belt record (its ``brake`` and ``f_brake`` fields
+            are set; None: no belt, contact off).
 
     Attributes:
         readings: the corrupted readings the device sees (a new object; its
@@ -225,6 +233,7 @@ class FaultInjector:
         velocity_filter_hz: float,
         motors: np.ndarray | None,
         cuffs: np.ndarray,
+        belt: np.ndarray | None = None,
     ) -> None:
         self.faults = faults
         self.dt = float(dt)
@@ -234,6 +243,9 @@ class FaultInjector:
         self.readings = SensorReadings(q=r["q"][0], dq=r["dq"][0], tau=r["tau"][0])
         self._motor_fault = None if motors is None else motors["fault"][0]
         self._slipped = cuffs["slipped"][0]
+        self._belt = belt
+        if belt is None and any(f.kind == "belt_stop" for f in faults):
+            raise InvalidParameter("fault kind", "belt_stop", BELT_STOP_NEEDS)
         self._windows = [f.ticks(self.dt, n_ticks) for f in faults]
         self._index = [
             CUFF_NAMES.index(f.target)
@@ -333,6 +345,11 @@ class FaultInjector:
             self._motor_fault[j] = code if value else 0.0
         elif f.kind == "cuff_slip":
             self._slipped[j] = 1.0 if value else 0.0
+        elif f.kind == "belt_stop" and self._belt is not None:
+            b = self._belt
+            if value:
+                b["f_brake"] = b["f_max"][0] if f.magnitude is None else f.magnitude
+            b["brake"] = 1.0 if value else 0.0
 
     def _onset(self, i: int, k: int) -> None:
         f = self.faults[i]

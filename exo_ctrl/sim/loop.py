@@ -20,6 +20,7 @@ from ..estimation import EstimateErrorStats
 from ..exceptions import SimulationDiverged, Terminated
 from ..model import JOINT_NAMES
 from .config import SimConfig
+from .interaction import interaction_stats
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
 from .setup import build
@@ -66,8 +67,14 @@ def simulate(
         belt_speed_mps=config.gait.belt_speed,
         exo_source=setup.exo.source,
         patient_source=setup.patient.source,
-        stats=RunStats(EstimateErrorStats(setup.exo, config.dt), contact_stats(config)),
+        stats=RunStats(
+            EstimateErrorStats(setup.exo, config.dt),
+            contact_stats(config),
+            interaction_stats(config),
+        ),
     )
+    if config.mode == "aan":  # the support level per cycle, for the interaction block
+        result.stats.support = setup.controller.support_history
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)

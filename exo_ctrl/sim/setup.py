@@ -20,6 +20,7 @@ from ..control import (
     QPController,
     feedforward_torque,
 )
+from ..control.modes import InteractionController
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..plan import (
@@ -30,13 +31,21 @@ from ..plan import (
     calibration_plan,
     plan_joints,
 )
-from ..plant import MotorParams, Plant, make_patient_torque, misaligned_patient
+from ..plant import MotorParams, PatientTorque, Plant, make_patient_torque, misaligned_patient
 from ..plant.equilibrium import holding_torque, settle_patient
+from ..plant.patient_active import ActivePatient
 from .belief import device_models
 from .config import SimConfig
 from .sync import online_gait, set_speeds
 
-__all__ = ["Setup", "build", "check_followable", "drive_for", "start_on_plan"]
+__all__ = [
+    "Setup",
+    "build",
+    "check_followable",
+    "drive_for",
+    "patient_torque_for",
+    "start_on_plan",
+]
 
 #: Samples per gait period (at least) of the speed check of :func:`check_followable`.
 SPEED_SAMPLES_PER_PERIOD = 1000
@@ -141,6 +150,16 @@ def build(config: SimConfig) -> Setup:
         )
     else:
         controller = PDController(plan, config.gains)
+    if config.mode != "tracking":  # an interaction mode on the device's models
+        controller = InteractionController(  # type: ignore[assignment]
+            config.mode,
+            config.modes,
+            plan,
+            model_exo,
+            model_motor,
+            tracking=controller if config.mode == "guidance" else None,
+            dt=config.dt,
+        )
     return Setup(
         config,
         exo,
@@ -196,7 +215,7 @@ def start_on_plan(setup: Setup) -> None:
     q0, dq0 = plan.q[0], plan.dq[0]
     q_p = q0
     if config.cuff_fit == "equilibrium":
-        own = make_patient_torque(config.patient_torque)
+        own = patient_torque_for(config, setup.patient)
         q_p = settle_patient(plant.cuffs, setup.patient.model, q0, own)
     if config.ramp_in > 0.0:
         tau0 = holding_torque(plant.cuffs, setup.exo.model, q0, q_p)
@@ -208,6 +227,26 @@ def start_on_plan(setup: Setup) -> None:
     if setup.belt_speed is not None:  # the belt runs at its first set speed
         plant.contact.belt["v_set"] = setup.belt_speed[0, 0]
     plant.reset(q0, dq0, q_p, dq0, current_A=i0, fit_cuffs=fit)
+
+
+def patient_torque_for(config: SimConfig, patient: BodyModel) -> PatientTorque | None:
+    """The patient's own joint torques of a run (``config.patient_torque``), a new instance.
+
+    Args:
+        config: the run.
+        patient: the TRUE patient model (the active patient's own legs).
+
+    """
+    if config.patient_torque == "active":
+        return ActivePatient(
+            config.patient_active,
+            patient,
+            config.gait,
+            config.ramp_in,
+            config.duration_s,
+            config.dt / config.plant_substeps,
+        )
+    return make_patient_torque(config.patient_torque)
 
 
 def check_followable(

@@ -12,6 +12,7 @@ from ..estimation import COMPONENTS, EstimateErrorStats
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .belief import PAPER_PATIENT
 from .config import SimConfig
+from .interaction import InteractionStats
 
 __all__ = ["ContactStats", "RunOutcome", "RunStats", "contact_stats"]
 
@@ -47,10 +48,17 @@ class RunStats:
     """
 
     def __init__(
-        self, estimate: EstimateErrorStats | None = None, contact: ContactStats | None = None
+        self,
+        estimate: EstimateErrorStats | None = None,
+        contact: ContactStats | None = None,
+        interaction: InteractionStats | None = None,
     ) -> None:
         self.estimate = estimate
         self.contact = contact
+        #: The ``interaction`` block's sums (:mod:`exo_ctrl.sim.interaction`), and
+        #: aan's support level per cycle (the controller's list, filled as it runs).
+        self.interaction = interaction
+        self.support: list[float] | None = None
         self.ticks = 0
         # Running sums (Σ err², Σ τ², Σ i²) and peaks (|err|, |τ|, |i|, |U|,
         # |τ q̇|, cuff |f|, |q̇|), a row of 4 each: :func:`_accumulate`'s buffers.
@@ -65,6 +73,8 @@ class RunStats:
             )
         if self.contact is not None:
             self.contact.update(rows, self.ticks)
+        if self.interaction is not None:
+            self.interaction.update(rows, self.ticks)
         self.ticks += rows["q"].shape[0]
         _accumulate(*self._accumulate_args(rows))
 
@@ -166,6 +176,8 @@ class RunStats:
                 ]
         if self.contact is not None:
             out.update(self.contact.summary())
+        if self.interaction is not None:
+            out["interaction"] = self.interaction.summary(self.support)
         out.update(result.energy)  # energy_J, energy_balance_residual_rel
         return out
 

@@ -24,13 +24,13 @@ import numpy as np
 from .._jit import kernel, record
 from ..estimation import CuffForceEstimator, CuffForceKalman
 from ..plan.online import online_step
-from ..plant import make_patient_torque
+from ..plant import PatientTorque
 from ..safety import SafetyLimits, SafetySupervisor
 from ..sensing import BeltEncoder, CurrentSensor, Sensors
 from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
 from .schema import log_dtype
-from .setup import Setup, start_on_plan
+from .setup import Setup, patient_torque_for, start_on_plan
 
 __all__ = ["UNTIMED_TICKS", "Runner", "write_applied", "write_contact", "write_measured"]
 
@@ -103,7 +103,7 @@ class Runner:
             self.sensors.belt_speed = self.belt_encoder.speed
         self._substeps = config.plant_substeps
         self._dt = config.dt
-        self.patient_model = make_patient_torque(config.patient_torque)
+        self.patient_model: PatientTorque | None = patient_torque_for(config, setup.patient)
         self._tau_p = np.zeros(4)
         self._q_p, self._v_p = plant.q[4:], plant.v[4:]
         self._q_e, self._v_e = plant.q[:4], plant.v[:4]
@@ -123,6 +123,8 @@ class Runner:
                 use_estimate=config.safety_use_estimate,
                 sensors=config.sensors,
                 compliant_drives=config.joint_compliance.enabled,
+                belt_set_speed=setup.belt_speed if config.safety else None,
+                belt_encoder=self.belt_encoder,
             )
         sup = self.supervisor
         self._sup_force = None
@@ -140,6 +142,7 @@ class Runner:
                 config.sensors.velocity_filter_hz,
                 plant.record["motors"] if plant.motors is not None else None,
                 plant.record["cuffs"],
+                self._belt if setup.belt_speed is not None else None,
             )
         self._records = (
             plant.record,

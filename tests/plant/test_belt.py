@@ -75,3 +75,42 @@ def test_bad_belt_parameters_are_refused() -> None:
         BeltParams(mass_kg=0)
     with pytest.raises(InvalidParameter, match="belt height must be > 0 m"):
         BeltParams(height_m=-0.1)
+
+
+def braked(params: BeltParams, v0: float, load: np.ndarray, f_brake: float | None = None):
+    """The belt from v0 with its brake on (set speed v0: the brake ignores it)."""
+    rec = params.new_record()
+    rec["v"] = v0
+    rec["brake"] = 1.0
+    if f_brake is not None:
+        rec["f_brake"] = f_brake
+    speed = np.zeros_like(load)
+    belt_response(rec, v0, load, H, speed)
+    return speed, rec
+
+
+def test_the_brake_stops_the_belt_at_f_max_over_m_b_and_holds_it_at_rest() -> None:
+    """While the limit binds v(t) = v0 - (F_br / m_b) t exactly (explicit steps of a constant
+    force); the last step takes what is left, and then the belt stays at rest, whatever the set
+    speed, against a load the brake can take."""
+    params = BeltParams()
+    a = params.force_limit_N / params.mass_kg  # 50 m/s²
+    v0 = 0.583
+    speed, rec = braked(params, v0, np.zeros(100))
+    n = math.floor(v0 / (a * H))  # 11 full steps at the limit
+    np.testing.assert_allclose(speed[:n], v0 - a * H * np.arange(1, n + 1), rtol=0, atol=1e-14)
+    assert np.all(speed[n:] == 0.0)
+    assert rec["held"][0] == 1.0 and rec["integral"][0] == 0.0  # the PI is out
+    # At rest against a 600 N pull (< F_br): the brake takes it all, the belt stays.
+    speed, rec = braked(params, 0.0, np.full(50, -600.0))
+    assert np.all(speed == 0.0) and rec["f_drive"][0] == 600.0
+
+
+def test_a_load_beyond_the_brake_drags_the_belt_at_the_force_difference() -> None:
+    """A stated braking force of 200 N against a 300 N pull: the brake slips at its limit and
+    the belt accelerates at (300 - 200) / m_b from rest."""
+    params = BeltParams()
+    speed, rec = braked(params, 0.0, np.full(100, -300.0), f_brake=200.0)
+    expected = -(300.0 - 200.0) / params.mass_kg * H * np.arange(1, 101)
+    np.testing.assert_allclose(speed, expected, rtol=1e-12, atol=1e-15)
+    assert rec["f_drive"][0] == 200.0

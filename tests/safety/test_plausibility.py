@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from exo_ctrl.plant import MotorParams
+from exo_ctrl.plant import ContactParams, MotorParams
 from exo_ctrl.safety import ResolvedLimits, monitor_record
 from exo_ctrl.safety.plausibility import (
     AGE,
@@ -30,7 +30,7 @@ LIMITS = ResolvedLimits(*(np.full(4, 1e9) for _ in range(5)))
 
 def fresh(sensors: SensorParams) -> tuple[np.ndarray, np.ndarray]:
     mon = monitor_record(LIMITS, math.inf)
-    mon["limit"][0][DRIVE:] = plausibility_limits(MOTOR, sensors, DT, np.full(4, 6.0))
+    mon["limit"][0][DRIVE : AGE + 1] = plausibility_limits(MOTOR, sensors, DT, np.full(4, 6.0))
     return plausibility_record(MOTOR, sensors, DT), mon
 
 
@@ -82,6 +82,9 @@ def test_jump_stuck_and_age_channels() -> None:
     assert plausibility_limits(MOTOR, SensorParams.ideal(), DT, np.ones(4))[2, 0] > 1e300
 
 
+ON = ContactParams(enabled=True)
+
+
 @pytest.mark.parametrize(
     "kwargs",
     [
@@ -89,14 +92,38 @@ def test_jump_stuck_and_age_channels() -> None:
         {"controller": "ct"},
         {"controller": "qp"},
         {"controller": "pd", "patient_torque": "spastic"},
+        {"controller": "pd", "contact": ON},
+        {"controller": "pd", "contact": ON, "sync": False},
+        {"controller": "ct", "contact": ON},
+        {"controller": "ct", "contact": ON, "sync": False},
+        {"controller": "qp", "contact": ON},
+        {"controller": "pd", "patient_torque": "spastic", "contact": ON},
     ],
-    ids=["pd", "ct", "qp", "spastic"],
+    ids=[
+        "pd",
+        "ct",
+        "qp",
+        "spastic",
+        "pd-contact",
+        "pd-contact-nosync",
+        "ct-contact",
+        "ct-contact-nosync",
+        "qp-contact",
+        "spastic-contact",
+    ],
 )
 def test_no_false_alarm_on_the_default_runs(kwargs) -> None:
-    """No plausibility channel is violated on the default runs (the spastic run is stopped
-    by its estimated cuff force alone, and the hold that follows trips nothing)."""
+    """No plausibility channel, nor the belt monitor with the belt, is violated on the default
+    runs (the spastic run is stopped by its estimated cuff force alone, and the hold that
+    follows, its feet held on the running belt, trips nothing)."""
     result = simulate(SimConfig(**kwargs))
-    names = ("drive model residual", "encoder step", "equal torque readings", "command age")
+    names = (
+        "drive model residual",
+        "encoder step",
+        "equal torque readings",
+        "command age",
+        "belt speed deviation",
+    )
     bad = [e for e in result.events if str(e.get("quantity", "")).startswith(names)]
     assert bad == []
     if "patient_torque" in kwargs:

@@ -27,6 +27,10 @@ Bounds (the default drive, sensors and supervisor; Δt = 1 ms):
   20 N·m rail reads 10 equal values once the joint carries more than 20 N·m
   for 10 ms, which every joint does in every gait cycle: within one cycle,
   1.2 s.
+- The belt stop (with the belt, contact on): braked at the drive's 1000 N, the belt
+  decelerates at (1000 ± F_feet) / 20 kg and rests from then on; the belt monitor trips
+  within its bound (exo_ctrl/safety/belt_monitor.py: the threshold plus a quantum over
+  the deceleration, the encoder's window and the persistence: 22 ms).
 - The state.  Every detected fault starts the controlled stop, which holds;
   an open drive cannot hold its joint, so that hold fails and the power is
   cut (a shorted hip may fail its hold too: seed 2 of the campaign).
@@ -54,7 +58,9 @@ import pytest
 
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import JOINT_NAMES
+from exo_ctrl.plant import ContactParams
 from exo_ctrl.safety import ISO_TS_15066_CUFF_FORCE_N
+from exo_ctrl.safety.belt_monitor import detection_bound_s
 from exo_ctrl.sim import SimConfig, build, simulate
 from exo_ctrl.sim.faults import FAULT_KINDS, INJECTABLE, Fault
 
@@ -88,7 +94,8 @@ def normal():
 
 @pytest.fixture(scope="module")
 def results():
-    return {kind: campaign.run_fault(campaign.plan_fault(kind, 0)) for kind in INJECTABLE}
+    kinds = [kind for kind in INJECTABLE if kind != "belt_stop"]  # the belt's: below
+    return {kind: campaign.run_fault(campaign.plan_fault(kind, 0)) for kind in kinds}
 
 
 @pytest.mark.parametrize("kind", list(DETECTION_S))
@@ -162,12 +169,62 @@ def test_a_slipped_cuff_is_not_detected_and_why(results) -> None:
     assert np.all(result.signals["cuff_force"][k0:, c] == 0.0)
 
 
-def test_the_belt_stop_cannot_be_injected_yet() -> None:
-    assert FAULT_KINDS[-1] == "belt_stop" and "belt_stop" not in INJECTABLE
-    with pytest.raises(InvalidParameter, match="the belt stop is not injected yet"):
-        Fault("belt_stop", 2.0)
-    row = campaign.run_campaign(kinds=("belt_stop",))[0]
-    assert not row.detected and "issue 16" in row.note
+def test_the_belt_stop_is_refused_without_the_belt() -> None:
+    message = (
+        "fault kind must be a fault of a part the run models: the belt exists with contact "
+        "on only; got 'belt_stop'"
+    )
+    with pytest.raises(InvalidParameter) as info:
+        SimConfig(faults=(Fault("belt_stop", 2.0),))
+    assert str(info.value) == message
+    with pytest.raises(InvalidParameter, match='fault target must be "" \\(the belt\\)'):
+        Fault("belt_stop", 2.0, "left_hip")
+    with pytest.raises(InvalidParameter, match="fault magnitude must be > 0 N"):
+        Fault("belt_stop", 2.0, magnitude=-5.0)
+    assert FAULT_KINDS[-1] == "belt_stop" and "belt_stop" in INJECTABLE
+
+
+def test_the_brake_stops_the_belt_within_the_analytic_time_and_holds_it() -> None:
+    """Braked at F_max = 1000 N, the 20 kg belt decelerates at (F_max ± F_feet) / m_b, F_feet
+    the feet's friction on it (logged), so it is at rest within v0 m_b / (F_max - F_feet) of
+    the onset (plus the step it ends in), and stays at rest to the end of the run."""
+    belt = ContactParams().belt
+    fault = Fault("belt_stop", 2.0)
+    result = simulate(SimConfig(contact=ContactParams(enabled=True), faults=(fault,)))
+    s = result.signals
+    k0 = 2000
+    v0 = s["belt_speed"][k0 - 1]
+    feet = np.abs(s["ground_force"][k0:, :, 0].sum(axis=1))
+    at_limit = np.flatnonzero(np.abs(s["belt_drive_force"][k0:]) == belt.force_limit_N)
+    f_feet = feet[: at_limit[-1] + 1].max()
+    t_rest = v0 * belt.mass_kg / (belt.force_limit_N - f_feet)
+    n_rest = math.ceil(t_rest / 1e-3 - 1e-9)
+    print(f"belt at {v0:.3f} m/s: at rest after {at_limit.size + 1} steps (bound {t_rest:.4f} s)")
+    assert np.all(s["belt_speed"][k0 + n_rest :] == 0.0)
+    decel = -np.diff(s["belt_speed"][k0 - 1 : k0 + at_limit[-1] + 1]) / 1e-3
+    a_lo = (belt.force_limit_N - f_feet) / belt.mass_kg
+    a_hi = (belt.force_limit_N + f_feet) / belt.mass_kg
+    assert np.all((decel >= a_lo - 1e-9) & (decel <= a_hi + 1e-9))
+    assert np.all(s["belt_speed_set"][k0:] > 0.5)  # whatever the set speed
+    assert result.events[0]["kind"] == "fault" and result.events[0]["quantity"] == "belt_stop"
+
+
+@pytest.mark.parametrize("variant", ["sync on", "sync off"])
+def test_the_belt_stop_is_detected_held_and_recorded(variant, tmp_path) -> None:
+    """Detected by the belt monitor within its derived bound, then the controlled stop holds;
+    the recording holds every tick and the fault; the cuffs stay within their limits."""
+    over = dict(campaign.BELT_VARIANTS)[variant]
+    fault = campaign.plan_fault("belt_stop", 0)
+    r = campaign.run_fault(fault, "pd", tmp_path, variant, **over)
+    bound = detection_bound_s(0.583, 45.0, 10, 1e-3, 3.8e-5)
+    assert r.detected and r.channel == "belt speed deviation", r
+    assert 0.0 < r.detection_s <= bound + 1e-9
+    assert r.state == "holding" and r.ticks == 3600 and r.recording_ok is True
+    assert r.worst_cuff_force_N <= max(ISO_TS_15066_CUFF_FORCE_N)
+    assert r.worst_excursion_rad <= HOLD_EXCURSION_RAD
+    # The feet slide at most at the belt's speed (0.58 m/s), for at most the detection and
+    # the hold's 0.2 s ramp (the joints coast on the old command): 0.6 m/s × 0.25 s.
+    assert r.slip_max_mps <= 0.6 and r.slip_distance_m <= 0.6 * 0.25
 
 
 def test_the_recording_holds_every_tick_and_the_fault_event(tmp_path) -> None:

@@ -1,0 +1,342 @@
+r"""Interaction modes: guidance, transparent and assist-as-needed, behind the one interface.
+
+Each mode is a :class:`~exo_ctrl.control.base.Controller` (plan and sensor
+readings in, drive voltages out) built on the device's own models (the
+exoskeleton URDF it holds, the drive's datasheet): never the plant's.  All
+three share the **free command**, the voltage that makes the exoskeleton
+carry itself and follow the patient's push:
+
+.. math::
+
+    τ_{free} = n(q, \dot q) + b\,\dot q + f_c \tanh(\dot q / ε) + K_f\,\hat τ_{int} + F(φ),
+    \qquad U_{free} = \frac{R\,τ_{free}}{k_t\,η^{s}} + \frac{i_G}{k_E}\dot q,
+
+- n(q, q̇): the exoskeleton's gravity, Coriolis and centrifugal torques
+  (Pinocchio's ``nonLinearEffects`` on the device's exoskeleton model, in
+  place); b, f_c: its URDF joint
+  damping and friction (ε: :data:`~exo_ctrl.model.FRICTION_SMOOTHING_RAD_S`);
+- the drive's own dynamics: its back-EMF (i_G / k_E) q̇ (208 N·m·s/rad of
+  damping with the default drive if left alone), q̇ here the encoder's
+  difference through a first-order filter of ``speed_filter_hz`` (150 Hz:
+  the sensors' 30 Hz speed lags 5 ms, and 208 N·m·s/rad × 5 ms is an
+  inertia of 1.1 kg·m² the patient would feel), and its
+  gearbox efficiency η^s, s = sign(τ) tanh(q̇ / ω_η), as
+  :meth:`~exo_ctrl.plant.motor.MotorBank.voltage_for`;
+- inertia: by force feedback on the ESTIMATED interaction torque
+  τ̂_int = Σ J_cᵀ f̂_c (``readings.cuff_force_est`` through the cuff lever
+  arms of the device's exoskeleton model, :class:`~exo_ctrl.estimation.cuff_geometry.CuffGeometry`):
+  with M q̈ = τ_int + K_f τ_int the patient feels the exoskeleton's
+  inertia (links and reflected rotor inertia) divided by 1 + K_f, and the
+  interaction force falls by that factor (no acceleration is measured);
+- F(φ): the assist-as-needed support (``aan`` only).
+
+The modes (``mode`` of :class:`~exo_ctrl.control.modes.params.ModeParams`):
+
+- ``transparent`` (patient-in-charge): U = U_free with F = 0.
+- ``guidance`` G ∈ [0, 1]: U = G U_track + (1 − G) U_free, U_track the
+  tracking controller's command (PD, CT or QP).  In torque,
+  τ = G (k_t/R)(k_p e + k_d ė − (i_G/k_E) q̇) + (1 − G) τ_free (+ G τ_ff for
+  CT): the tracking impedance, its back-EMF damping included, scaled by G
+  around the plan, and the free share by 1 − G.  G = 1 gives U_track
+  exactly (1·U + 0·U_free: bit-equal), G = 0 gives ``transparent``.
+- ``aan`` (assist-as-needed, Emken et al. 2007): U = U_soft + U_free with
+  K_f = 0, U_soft a soft PD on the plan (``aan_kp``, ``aan_kd``) and the
+  support F(φ) per phase bin of the plan's gait period, learned cycle by
+  cycle from the tracking error e = q* − q:
+
+  .. math::  F_{k+1}(φ) = f\,F_k(φ) + g\,\bar e_k(φ),\qquad 0 ≤ f < 1,
+
+  ē_k(φ) the mean error over the bin's ticks in cycle k; a bin is updated
+  when the plan leaves it, and the support a tick applies is its bin's
+  from the cycles before.  Support rises while the patient fails to follow
+  and fades by f per cycle (time constant −1/ln f cycles) once the error is
+  gone.  Outside the gait's periodic rows (the ramps) the support is zero
+  and nothing is learned.
+
+All per-tick arithmetic is one compiled kernel (:func:`mode_command`),
+plus one Pinocchio call (gravity) and, for guidance and aan, the tracking
+controller's own compiled tick.
+
+Reference:
+    Emken JL, Benitez R, Reinkensmeyer DJ (2007). Human-robot cooperative
+    movement training: learning a novel sensory motor transformation during
+    walking with robotic assistance-as-needed. J NeuroEng Rehabil 4:8.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..._jit import check, kernel, record
+from ...estimation.cuff_geometry import GEOMETRY_FIELDS, CuffGeometry
+from ...exceptions import InvalidParameter
+from ...model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ...plan.kinematics import JointTrajectory
+from ...plan.rows import plan_row
+from ...plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
+from ...sensing.readings import SensorReadings
+from ..base import COMMAND_FIELDS, PDGains
+from ..pd import PDController
+from .params import ModeParams
+
+__all__ = ["MODE_FIELDS", "InteractionController", "mode_command"]
+
+_CODES = {"guidance": 1, "transparent": 2, "aan": 3}
+
+#: The modes' part of the record (after COMMAND_FIELDS): the mode code, G,
+#: K_f; the drive model (R/k_t [Ω·A/(N·m)], i_G/k_E [V·s/rad], ln η,
+#: ω_η [rad/s]); the exoskeleton's damping [N·m·s/rad] and friction [N·m];
+#: the cuff geometry; the plan's row rule; aan's f, g [N·m/rad], its bin of
+#: the last tick, error sum and count in it, completed cycles and support
+#: level (RMS of F over the table [N·m]); what the last tick computed:
+#: τ̂_int, τ_free, the support applied [N·m], U_free [V].
+MODE_FIELDS: list[tuple[Any, ...]] = [
+    ("mode", np.int64),
+    ("guidance", np.float64),
+    ("force_gain", np.float64, (4,)),
+    ("drive", np.float64, (4,)),
+    ("damping", np.float64, (4,)),
+    ("friction", np.float64, (4,)),
+    *GEOMETRY_FIELDS,
+    ("lead", np.int64),
+    ("period", np.int64),
+    ("tail", np.int64),
+    ("forget", np.float64),
+    ("learn", np.float64, (4,)),
+    ("bin", np.int64),
+    ("err_sum", np.float64, (4,)),
+    ("err_count", np.int64),
+    ("cycles", np.int64),
+    ("support_rms", np.float64),
+    ("tau_int_est", np.float64, (4,)),
+    ("tau_free", np.float64, (4,)),
+    ("tau_support", np.float64, (4,)),
+    ("u_free", np.float64, (4,)),
+    ("speed_alpha", np.float64),
+    ("dt", np.float64),
+    ("q_prev", np.float64, (4,)),
+    ("speed", np.float64, (4,)),
+    ("started", np.int64),
+]
+
+
+class InteractionController:
+    """An interaction mode (module docstring) behind the controller interface.
+
+    Args:
+        mode: ``"guidance"``, ``"transparent"`` or ``"aan"``.
+        params: the modes' parameters.
+        plan: the joint plan (its rows as the tracking controller's).
+        exo: the exoskeleton model the DEVICE holds.
+        motor: the drive the device believes in.
+        tracking: the tracking controller (guidance: blended with; None for
+            the others).
+        dt: the control period Δt [s] (the torque loop's integration step).
+
+    Attributes:
+        record: COMMAND_FIELDS and :data:`MODE_FIELDS`.
+        support: aan's support table F, (bins, 4) [N·m] (zero for the others).
+        support_history: aan's support level (RMS of F [N·m]) after each cycle.
+
+    """
+
+    def __init__(
+        self,
+        mode: str,
+        params: ModeParams,
+        plan: JointTrajectory,
+        exo: BodyModel,
+        motor: MotorParams,
+        tracking: PDController | None = None,
+        dt: float = 1e-3,
+    ) -> None:
+        self.name = mode
+        self.plan = plan
+        self.params = params
+        if mode == "aan":
+            tracking = PDController(plan, PDGains(kp=params.aan_kp, kd=params.aan_kd))
+        self._tracking = tracking
+        self.record = rec = record(COMMAND_FIELDS + MODE_FIELDS)
+        s = rec[0]
+        s["mode"] = _CODES[mode]
+        s["guidance"] = params.guidance if mode == "guidance" else 0.0
+        s["force_gain"] = 0.0 if mode == "aan" else params.force_gain
+        s["drive"] = (
+            motor.resistance_ohm / motor.torque_per_amp_Nm_per_A,
+            motor.back_emf_V_per_rad_s,
+            math.log(motor.gear_efficiency),
+            EFFICIENCY_SMOOTHING_RAD_S,
+        )
+        s["damping"], s["friction"] = exo.damping, exo.friction
+        CuffGeometry.from_body(exo).fill(rec)
+        s["lead"], s["period"], s["tail"] = plan.row_rule
+        s["forget"] = params.aan_forgetting
+        s["learn"] = params.aan_gain
+        s["bin"] = -1
+        s["dt"] = dt
+        s["speed_alpha"] = 1.0 - math.exp(-2.0 * math.pi * params.speed_filter_hz * dt)
+        self.support = np.zeros((params.aan_bins if mode == "aan" else 1, 4))
+        self.support_history: list[float] = []
+        self._m = pin.Model(exo.model)
+        self._d = self._m.createData()
+        self._q_des = plan.q
+        self._zero = np.zeros(4)
+        self._u = rec["u_cmd"][0]
+        self._aan = mode == "aan"
+        if tracking is not None and hasattr(tracking, "refresh_row"):
+            self.refresh_row = tracking.refresh_row
+
+    def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
+        """Drive voltages [V] for tick k: a view of ``record["u_cmd"]``.
+
+        Raises:
+            InvalidParameter: readings not of 4 joint values or a cuff-force
+                estimate not (4, 2), or a tick beyond the plan.
+
+        """
+        q, dq, force = sensors.q, sensors.dq, sensors.cuff_force_est
+        if force is None:
+            raise InvalidParameter(
+                "sensors.cuff_force_est", None, "the estimated cuff forces, (4, 2) [N]"
+            )
+        u_track = self._zero
+        if self._tracking is not None:
+            u_track = self._tracking.command(k, sensors)
+        g = pin.nonLinearEffects(self._m, self._d, q, dq)
+        status = mode_command(
+            self.record,
+            k,
+            u_track,
+            g,
+            q,
+            dq,
+            force,
+            self.support,
+            self._q_des,
+        )
+        if status:
+            check(
+                status,
+                f"{type(self).__name__}.command",
+                shapes={"cuff_force_est": (4, 2)},
+                sensors_q=q,
+                sensors_dq=dq,
+                cuff_force_est=force,
+            )
+        if self._aan and self.record["cycles"][0] > len(self.support_history):
+            self.support_history.append(float(self.record["support_rms"][0]))
+        return self._u
+
+    @property
+    def active_constraints(self) -> int:
+        """Active QP bounds in the last tick (0: no QP)."""
+        return int(self.record["active_constraints"][0])
+
+    @property
+    def failures(self) -> int:
+        """QP fallbacks so far (0: no QP)."""
+        return int(self.record["failures"][0])
+
+
+@kernel
+def _cross(rx, rz, fx, fz):  # pragma: no cover - compiled
+    """R × f in the x–z plane (positive from +x towards +z)."""
+    return rx * fz - rz * fx
+
+
+@kernel
+def mode_command(state, k, u_track, g, q, dq, f_est, support, q_des):  # pragma: no cover
+    """One tick of a mode (module docstring) into ``state[0].u_cmd`` [V]; returns a status.
+
+    ``u_track``: the tracking (guidance) or soft PD (aan) command [V];
+    ``g``: the exoskeleton's gravity and velocity torques at (q, q̇) [N·m]; ``f_est``: the
+    estimated cuff forces on the exoskeleton (4, 2) [N]; ``support``: aan's
+    table F (bins, 4) [N·m], updated in place; ``q_des``: the plan's angles.
+    """
+    if q.shape[0] != 4 or dq.shape[0] != 4 or u_track.shape[0] != 4:
+        return 1
+    if f_est.shape[0] != 4 or f_est.shape[1] != 2:
+        return 1
+    for j in range(4):
+        if not (np.isfinite(q[j]) and np.isfinite(dq[j])):
+            return 2
+    s = state[0]
+    # The joint speed for the drive's back-EMF: the encoder's difference through
+    # a faster first-order filter than the sensors' (less lag, more noise).
+    for j in range(4):
+        if s.started == 0:
+            s.speed[j] = dq[j]
+        else:
+            raw = (q[j] - s.q_prev[j]) / s.dt
+            s.speed[j] += s.speed_alpha * (raw - s.speed[j])
+        s.q_prev[j] = q[j]
+    # τ̂_int = Σ J_cᵀ f̂_c per leg.
+    for leg in range(2):
+        sh, sk = s.sign_hip[leg], s.sign_knee[leg]
+        turn = sh * q[2 * leg]
+        pt = s.thigh_dir0[leg] + turn
+        pk = s.knee_dir0[leg] + turn
+        ps = s.shank_dir0[leg] + turn + sk * q[2 * leg + 1]
+        a, l1, c = s.thigh_arm[leg], s.knee_arm[leg], s.shank_arm[leg]
+        ftx, ftz = f_est[2 * leg, 0], f_est[2 * leg, 1]
+        fsx, fsz = f_est[2 * leg + 1, 0], f_est[2 * leg + 1, 1]
+        rsx, rsz = c * np.cos(ps), c * np.sin(ps)
+        knee = _cross(rsx, rsz, fsx, fsz)
+        hip = _cross(a * np.cos(pt), a * np.sin(pt), ftx, ftz) + _cross(
+            l1 * np.cos(pk) + rsx, l1 * np.sin(pk) + rsz, fsx, fsz
+        )
+        s.tau_int_est[2 * leg] = sh * hip
+        s.tau_int_est[2 * leg + 1] = sk * knee
+    s.started = 1
+    # aan: the support of this tick's phase bin, and learning from its error.
+    b = -1
+    if s.mode == 3 and s.period > 0:
+        row = plan_row(k, s.lead, s.period, s.tail)
+        if s.lead <= row < s.lead + s.period:
+            b = (row - s.lead) * support.shape[0] // s.period
+        if b != s.bin:
+            if s.bin >= 0 and s.err_count > 0:
+                for j in range(4):
+                    mean = s.err_sum[j] / s.err_count
+                    support[s.bin, j] = s.forget * support[s.bin, j] + s.learn[j] * mean
+                if b < s.bin:  # back to the cycle's start: one more cycle learned
+                    total = 0.0
+                    for i in range(support.shape[0]):
+                        for j in range(4):
+                            total += support[i, j] * support[i, j]
+                    s.support_rms = np.sqrt(total / (4 * support.shape[0]))
+                    s.cycles += 1
+            s.bin = b
+            s.err_count = 0
+            for j in range(4):
+                s.err_sum[j] = 0.0
+        if b >= 0:
+            s.err_count += 1
+            for j in range(4):
+                s.err_sum[j] += q_des[row, j] - q[j]
+    dr = s.drive
+    blend = s.guidance
+    for j in range(4):
+        w = s.speed[j]
+        sup = support[b, j] if b >= 0 else 0.0
+        s.tau_support[j] = sup
+        tau = (
+            g[j]
+            + s.damping[j] * w
+            + s.friction[j] * np.tanh(w / FRICTION_SMOOTHING_RAD_S)
+            + s.force_gain[j] * s.tau_int_est[j]
+            + sup
+        )
+        s.tau_free[j] = tau
+        sign = np.sign(tau) * np.tanh(w / dr[3])
+        u_free = dr[0] * tau / np.exp(sign * dr[2]) + dr[1] * w
+        s.u_free[j] = u_free
+        if s.mode == 3:
+            s.u_cmd[j] = u_track[j] + u_free
+        else:
+            s.u_cmd[j] = blend * u_track[j] + (1.0 - blend) * u_free
+    return 0
