@@ -3,6 +3,8 @@
     .venv/bin/python tools/load_held.py [--periods 0.9,1.05,...] [--steps 0.25,...]
         [--bounds 100,125,150] [--duration S] [--workers 2] [--json PATH]
         [--truth] [--restored-bandwidth W] [--horizon-ms 5,10,20,30,40]
+        [--controller-patient nominal|truth|URDF] [--controller-cuffs split|isotropic]
+        [--cuffs split|isotropic] [--estimator momentum|kalman]
 
 Runs every (period, step length, bound) of the grid (default: the brief's
 5 × 5 × 3) with the spastic patient, the safety supervisor off, the QP
@@ -10,7 +12,11 @@ controller and the default duration, in parallel over processes, and prints
 per point the real (elastic) peak cuff force over the bound, which cuff,
 when, the steepest rise of the real force in the 50 ms before the peak
 [N/ms], the QP's fallbacks and the margin stated for that point
-(:func:`exo_ctrl.control.qp.stated_margin`); then the worst point.  Exit 0
+(:func:`exo_ctrl.control.qp.stated_margin`); then the worst point.  By
+default the truth's cuffs are split (normal and shear apart, the default
+plant) and the QP holds the device's default patient model (nominal) with
+the split cuff model; ``--controller-patient``, ``--controller-cuffs`` and
+``--cuffs`` change them.  Exit 0
 if every point holds within its stated margin, 1 if one does not (or a run
 did not complete), 2 on bad input.
 
@@ -43,15 +49,18 @@ from exo_ctrl._progress import Progress
 from exo_ctrl.control.qp import QPController, stated_margin
 from exo_ctrl.control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from exo_ctrl.control.qp.prediction import DEFAULT_HORIZON_TICKS
-from exo_ctrl.estimation import DEFAULT_GAIN_PER_S
+from exo_ctrl.estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
 from exo_ctrl.exceptions import ExoCtrlError
 from exo_ctrl.plan import GaitParams
+from exo_ctrl.plant import CuffParams
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
 
 PERIODS_S = (0.9, 1.05, 1.2, 1.35, 1.5)
 STEPS_M = (0.25, 0.30, 0.35, 0.40, 0.45)
 BOUNDS_N = (100.0, 125.0, 150.0)
+#: The cuff parameter sets by name (the truth's and the device's).
+CUFFS = {"split": CuffParams(), "isotropic": CuffParams.isotropic()}
 #: The window before the peak in which the force's steepest rise is taken [s].
 RISE_WINDOW_S = 0.05
 
@@ -64,14 +73,20 @@ def run_point(
     truth: bool = False,
     restored_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S,
     horizon_ticks: tuple[int, ...] = DEFAULT_HORIZON_TICKS,
-    controller_patient: str = "truth",
+    controller_patient: str = "nominal",
+    controller_cuffs: str = "split",
+    cuffs: str = "split",
+    estimator: str = "momentum",
 ) -> dict:
     """One grid point: the real peak cuff force against the bound, and where it came.
 
     The run is :func:`exo_ctrl.sim.simulate`'s tick loop (``Runner.tick``)
     on the configuration; only with a diagnostic option is the controller
     built here with it, and with ``truth`` the controller's force estimate
-    replaced by the plant's cuff forces.
+    replaced by the plant's cuff forces.  ``cuffs``: the truth's cuffs,
+    ``controller_cuffs`` the device's cuff model (``split``:
+    :class:`CuffParams`, the published normal and shear values;
+    ``isotropic``: :meth:`CuffParams.isotropic`).
     """
     extra = {} if duration_s is None else {"duration_s": duration_s}
     config = SimConfig(
@@ -80,7 +95,9 @@ def run_point(
         patient_torque="spastic",
         cuff_force_limit_N=bound_N,
         safety=False,
-        belief=Belief(controller_patient),
+        cuffs=CUFFS[cuffs],
+        estimator=estimator,
+        belief=Belief(controller_patient, cuffs=CUFFS[controller_cuffs]),
         **extra,
     )
     setup = build(config)
@@ -123,7 +140,9 @@ def run_point(
         "phase": float((k_peak * config.dt - config.ramp_in) / period_s % 1.0),
         "rise_N_per_ms": float(rise.max() / (config.dt * 1e3)) if rise.size else 0.0,
         "qp_failures": int(setup.controller.failures),
-        "margin": stated_margin(period_s, bound_N),
+        "margin": stated_margin(
+            period_s, bound_N, estimator, true_patient=controller_patient == "truth"
+        ),
     }
 
 
@@ -148,10 +167,25 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--truth", action="store_true", help="true cuff forces, not the estimate")
     p.add_argument(
         "--controller-patient",
-        default="truth",
+        default="nominal",
         metavar="truth|nominal|URDF",
-        help="the patient model the QP holds (default truth: the stated margin's model error "
-        "is the horizon model's given the true patient; nominal adds the patient model's error)",
+        help="the patient model the QP holds (default nominal, the device's default; "
+        "truth: the ideal comparison)",
+    )
+    p.add_argument(
+        "--controller-cuffs",
+        default="split",
+        choices=tuple(CUFFS),
+        help="the QP's cuff model (default split: normal and shear apart, as the truth's)",
+    )
+    p.add_argument(
+        "--estimator",
+        default="momentum",
+        choices=ESTIMATORS,
+        help="the live cuff-force estimator (default momentum, the device's default)",
+    )
+    p.add_argument(
+        "--cuffs", default="split", choices=tuple(CUFFS), help="the truth's cuffs (default split)"
     )
     p.add_argument(
         "--restored-bandwidth",
@@ -177,6 +211,9 @@ def main(argv: list[str] | None = None) -> int:
         else args.restored_bandwidth,
         "horizon_ticks": tuple(round(h) for h in args.horizon_ms),  # 1 kHz: 1 tick = 1 ms
         "controller_patient": args.controller_patient,
+        "controller_cuffs": args.controller_cuffs,
+        "cuffs": args.cuffs,
+        "estimator": args.estimator,
     }
     points = list(itertools.product(args.periods, args.steps, args.bounds))
     try:  # refuse bad input before any worker starts

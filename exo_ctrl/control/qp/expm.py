@@ -24,7 +24,7 @@ import numpy as np
 
 from ..._jit import kernel
 
-__all__ = ["NM", "NZ", "PS_BLOCK", "TAYLOR_ORDER", "copy_top", "expm_top", "mul_top"]
+__all__ = ["NM", "NZ", "PS_BLOCK", "TAYLOR_ORDER", "copy_top", "expm_top", "mul_top", "power_rows"]
 
 #: Entries of a leg's state z = (δ, u_e, u_p, τ, 1).
 NZ = 9
@@ -134,3 +134,15 @@ def expm_top(
     for _ in range(s):
         mul_top(out, out, 1.0, tmp)
         copy_top(tmp, out)
+
+
+@kernel
+def power_rows(
+    sv: np.ndarray, sv_tmp: np.ndarray, squares: np.ndarray, n: int, k: int
+) -> None:  # pragma: no cover - compiled
+    """``sv`` ← ``sv`` times e^{FΔ 2^j} for every set bit j ≥ k of n (``squares[j]``)."""
+    while n >> k > 0:
+        if (n >> k) & 1 == 1:
+            mul_top(sv, squares[k], 1.0, sv_tmp)
+            copy_top(sv_tmp, sv)
+        k += 1

@@ -11,7 +11,9 @@ cuff load is
 
     s = -G^{-1} J^T \hat f, \qquad C \dot δ = s - K δ
 
-(isotropic spring–damper, exact), so
+(isotropic spring–damper, exact; split cuffs, normal and shear apart:
+G_K δ + G_C δ̇ = −Jᵀ f̂, filtered the same way with matrices,
+:mod:`~exo_ctrl.control.qp.split_cuffs`), so
 
 - δ̂ is s/K through a first-order filter of time constant C/K (12.5 ms
   with the defaults), discretised exactly (zero-order hold of s):
@@ -54,16 +56,19 @@ from ..._jit import Status, check, kernel, record
 from ...estimation import DEFAULT_GAIN_PER_S
 from ...exceptions import InvalidParameter
 from .prediction import CuffHorizonModel
+from .split_cuffs import filter_leg
 
 __all__ = ["OBSERVER_FIELDS", "CuffStateObserver", "observe", "shorten_lag"]
 
-#: The fields of a :class:`CuffStateObserver`'s record: K [N/m], C [N·s/m],
-#: h [s], the filter factors a_δ and a_d, δ̂ [rad], δ̂̇ [rad/s], the last
-#: v̂_p [rad/s], d̂ [N·m]; ``first`` is 1 until the first update (no speed
-#: difference yet), then 0; ``observed`` whether the last update took its
-#: estimate (False: not finite, the state was left as it was).  The lead–lag
-#: on f̂: 1/a_o and a_f, the last f̂ and f̃ [N] (module docstring, "The
-#: estimate's lag, shortened").
+#: The fields of a :class:`CuffStateObserver`'s record: K [N/m], C [N·s/m]
+#: (isotropic cuffs; split cuffs take the cuff model's G_K and G_C,
+#: :mod:`~exo_ctrl.control.qp.split_cuffs`), h [s], the filter factors a_δ
+#: and a_d, δ̂ [rad], δ̂̇ [rad/s], the last v̂_p [rad/s], d̂ [N·m]; ``first``
+#: is 1 until the first update (no speed difference yet), then 0;
+#: ``observed`` whether the last update took its estimate (False: not
+#: finite, the state was left as it was).  The lead–lag on f̂: 1/a_o and
+#: a_f, the last f̂ and f̃ [N] (module docstring, "The estimate's lag,
+#: shortened").
 OBSERVER_FIELDS: list[tuple[Any, ...]] = [
     ("stiffness", np.float64),
     ("damping", np.float64),
@@ -114,21 +119,26 @@ def observe(
             fr = force[2 * leg + r // 2, r % 2]
             r1 += j0 * fr
             r2 += j1 * fr
-        dg = g11 * g22 - g12 * g12
-        # s = -G⁻¹ Jᵀ f̂
-        s1 = -(g22 * r1 - g12 * r2) / dg
-        s2 = -(g11 * r2 - g12 * r1) / dg
-        delta[i0] += a_delta * (s1 / stiff - delta[i0])
-        delta[i0 + 1] += a_delta * (s2 / stiff - delta[i0 + 1])
-        dd1 = (s1 - stiff * delta[i0]) / damp_c
-        dd2 = (s2 - stiff * delta[i0 + 1]) / damp_c
+        if m.split:  # G_K δ + G_C δ̇ = g = −Jᵀ f̂; the patient's cuff load is g
+            load1, load2 = -r1, -r2
+            dd1, dd2 = filter_leg(o, m, leg, load1, load2)
+        else:
+            dg = g11 * g22 - g12 * g12
+            # s = -G⁻¹ Jᵀ f̂
+            s1 = -(g22 * r1 - g12 * r2) / dg
+            s2 = -(g11 * r2 - g12 * r1) / dg
+            delta[i0] += a_delta * (s1 / stiff - delta[i0])
+            delta[i0 + 1] += a_delta * (s2 / stiff - delta[i0 + 1])
+            dd1 = (s1 - stiff * delta[i0]) / damp_c
+            dd2 = (s2 - stiff * delta[i0 + 1]) / damp_c
+            load1, load2 = g11 * s1 + g12 * s2, g12 * s1 + g22 * s2
         ddelta[i0], ddelta[i0 + 1] = dd1, dd2
         vp1, vp2 = omega[i0] - dd1, omega[i0 + 1] - dd2
         if o.first == 0.0:
             a1 = (vp1 - vp_prev[i0]) / h
             a2 = (vp2 - vp_prev[i0 + 1]) / h
-            e1 = mp[i0, i0] * a1 + mp[i0, i0 + 1] * a2 + hp[i0] - (g11 * s1 + g12 * s2)
-            e2 = mp[i0, i0 + 1] * a1 + mp[i0 + 1, i0 + 1] * a2 + hp[i0 + 1] - (g12 * s1 + g22 * s2)
+            e1 = mp[i0, i0] * a1 + mp[i0, i0 + 1] * a2 + hp[i0] - load1
+            e2 = mp[i0, i0 + 1] * a1 + mp[i0 + 1, i0 + 1] * a2 + hp[i0 + 1] - load2
             dist[i0] += a_dist * (e1 - dist[i0])
             dist[i0 + 1] += a_dist * (e2 - dist[i0 + 1])
         vp_prev[i0], vp_prev[i0 + 1] = vp1, vp2
@@ -177,8 +187,9 @@ class CuffStateObserver:
     :attr:`record`.
 
     Args:
-        stiffness: K [N/m].
-        damping: C [N·s/m], > 0.
+        stiffness: K [N/m] (isotropic cuffs; for split cuffs, those of the
+            model handed to :meth:`update`, its G_K and G_C, are used).
+        damping: C [N·s/m], > 0 (likewise).
         dt: control period [s].
         disturbance_bandwidth_per_s: bandwidth ω_d of the d̂ filter [1/s], ≥ 0
             (0: d̂ = 0).

@@ -6,7 +6,9 @@ about half a cuff period.  Per leg (hip, knee; the legs do not couple), with
 δ = q_exo − q_patient the patient's lag behind the exoskeleton, J the
 patient's cuff Jacobians (rows thigh x, z, shank x, z; 4×2), G = JᵀJ, and
 the cuffs isotropic spring–dampers with the joint axes aligned (as fitted),
-the cuff forces on the exoskeleton are, to first order in δ,
+the cuff forces on the exoskeleton are, to first order in δ (split cuffs,
+normal and shear apart: :mod:`~exo_ctrl.control.qp.split_cuffs`, with
+G_K = Jᵀ𝒦J for K G, G_C = Jᵀ𝒞J for C G and f = −𝒦J δ − 𝒞J δ̇),
 
 .. math::
 
@@ -39,10 +41,11 @@ of n's other binary digits.  All in compiled kernels
 
 Accuracy (tests/control/qp/test_prediction.py): against the plant
 (nonlinear, elastic cuffs, drive current dynamics) stepped 40 ms with the
-voltage held, given the true δ, δ̇: ≤ 4.6 N on forces up to 155 N.
-Neglected: the drive's electrical time constant (0.7 ms), the change of M,
-h, J over 40 ms, the speed dependence of the Coriolis and friction torques,
-the cuff's nonlinearity in δ.
+voltage held, given the true δ, δ̇: ≤ 4.9 N (isotropic), 5.5 N (split) on
+forces up to 150 N; 19.2 N with the nominal patient model.  Neglected: the
+drive's electrical time constant (0.7 ms), the change of M, h, J over 40 ms,
+the speed dependence of the Coriolis and friction torques, the cuff's
+nonlinearity in δ.
 """
 
 from __future__ import annotations
@@ -58,7 +61,8 @@ from ...exceptions import InvalidParameter
 from ...model import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
 from ...plant.cuffs import CuffParams, CuffSet
 from ...plant.drive import MotorParams
-from .expm import NM, NZ, PS_BLOCK, copy_top, expm_top, mul_top
+from .expm import NM, NZ, PS_BLOCK, expm_top, mul_top, power_rows
+from .split_cuffs import split_gains, split_rows
 
 __all__ = ["DEFAULT_HORIZON_TICKS", "CuffHorizonModel", "horizon_fields"]
 
@@ -73,15 +77,20 @@ def horizon_fields(n_points: int, n_squares: int) -> list[tuple[Any, ...]]:
     and friction [N·m] per joint), the cuff points' ``points`` P and
     ``select`` S (:class:`~exo_ctrl.plant.cuffs.CuffSet`; P: rows x then z of
     its 8 points, columns cos θ then sin θ), ``damp_e`` D + b_e
-    and ``damp_p`` b_p [N·m·s/rad], ``stiffness`` K [N/m], ``damping`` C
-    [N·s/m], ``block`` Δ [s] and ``powers`` n_i = t_i/Δ.  The linearisation:
+    and ``damp_p`` b_p [N·m·s/rad], ``stiffness`` K = k_n [N/m], ``damping``
+    C = C_n [N·s/m], ``shear_stiffness`` k_u [N/m], ``shear_damping`` C_u
+    [N·s/m], ``split`` (k_u ≠ k_n or C_u ≠ C_n: :mod:`~exo_ctrl.control.qp.split_cuffs`),
+    ``along0`` (the exoskeleton links' directions u at q = 0, per cuff),
+    ``block`` Δ [s] and ``powers`` n_i = t_i/Δ.  The linearisation:
     ``q_all``, ``v_all`` (the state both bodies are evaluated at), the mass
-    matrices, bias torques and cuff Jacobians.  The prediction ``A``, ``b``;
+    matrices, bias torques and cuff Jacobians; for split cuffs also W_K, W_C
+    (``wk``, ``wc``, [N/rad], [N·s/rad]) and G_K, G_C (``gk``, ``gc``,
+    [N·m/rad], [N·m·s/rad]) per leg.  The prediction ``A``, ``b``;
     then the scratch of :func:`predict`: ``f`` (rows 0–5 of F Δ), ``ge``,
     ``gp`` (the generalised forces on the exoskeleton and the patient per
-    column of z), ``sv``, ``sv_tmp`` (the s rows of a power of e^{FΔ}),
-    ``x_powers``, ``tmp`` (:func:`~exo_ctrl.control.qp.expm.expm_top`'s),
-    ``squares`` (e^{FΔ 2^k}, k < ``n_squares``).
+    column of z), ``sv``, ``sv_tmp`` (the s rows of a power of e^{FΔ};
+    ``sv4``, ``sv4_tmp``: its δ and δ̇ rows, split cuffs), ``x_powers``,
+    ``tmp`` (:func:`~exo_ctrl.control.qp.expm.expm_top`'s), ``squares`` (e^{FΔ 2^k}, k < n_squares).
     """
     f8 = np.float64
     return [
@@ -92,6 +101,10 @@ def horizon_fields(n_points: int, n_squares: int) -> list[tuple[Any, ...]]:
         ("damp_p", f8, (4,)),
         ("stiffness", f8),
         ("damping", f8),
+        ("shear_stiffness", f8),
+        ("shear_damping", f8),
+        ("split", np.bool_),
+        ("along0", f8, (4, 2)),
         ("block", f8),
         ("powers", np.int64, (n_points,)),
         ("q_all", f8, (8,)),
@@ -101,6 +114,10 @@ def horizon_fields(n_points: int, n_squares: int) -> list[tuple[Any, ...]]:
         ("bias_exo", f8, (4,)),
         ("bias_patient", f8, (4,)),
         ("jac", f8, (2, 4, 2)),
+        ("wk", f8, (2, 4, 2)),
+        ("wc", f8, (2, 4, 2)),
+        ("gk", f8, (2, 2, 2)),
+        ("gc", f8, (2, 2, 2)),
         ("A", f8, (8 * n_points, 4)),
         ("b", f8, (8 * n_points,)),
         ("f", f8, (NM, NZ)),
@@ -108,6 +125,8 @@ def horizon_fields(n_points: int, n_squares: int) -> list[tuple[Any, ...]]:
         ("gp", f8, (2, NZ)),
         ("sv", f8, (2, NZ)),
         ("sv_tmp", f8, (2, NZ)),
+        ("sv4", f8, (4, NZ)),
+        ("sv4_tmp", f8, (4, NZ)),
         ("x_powers", f8, (PS_BLOCK, NM, NZ)),
         ("tmp", f8, (NM, NZ)),
         ("squares", f8, (n_squares, NM, NZ)),
@@ -170,6 +189,8 @@ def gather(
                         cos_t, sin_t = math.cos(theta), math.sin(theta)
                         acc += s * (points[row, 8 + j] * cos_t - points[row, j] * sin_t)
                 jac[leg, 2 * k + axis, col] = acc
+    if m.split:
+        split_gains(m, q)
 
 
 @kernel
@@ -186,8 +207,9 @@ def predict(
     damp_e, damp_p = m.damp_e, m.damp_p
     stiff, damp_c, dt_block = m.stiffness, m.damping, m.block
     # As plain C arrays (``[:]``), the type of a slice of ``squares``: one
-    # compiled version of mul_top and copy_top for every call.
+    # compiled version of mul_top and copy_top for every call (sv4: split cuffs).
     f, ge, gp, sv, sv_tmp, squares = m.f[:], m.ge[:], m.gp[:], m.sv[:], m.sv_tmp[:], m.squares
+    sv4, sv4_tmp, split = m.sv4[:], m.sv4_tmp[:], m.split
     n_pts = powers.shape[0]
     n_sq = squares.shape[0]  # squares e^{FΔ 2^k}, k < n_sq: the bit length of the largest power
     for r in range(a_out.shape[0]):
@@ -199,11 +221,17 @@ def predict(
         # 2x2 blocks: exo mass (with armature), patient mass, G = J^T J.
         m11, m12, m22 = me[i0, i0], me[i0, i0 + 1], me[i0 + 1, i0 + 1]
         p11, p12, p22 = mp[i0, i0], mp[i0, i0 + 1], mp[i0 + 1, i0 + 1]
-        g11 = g12 = g22 = 0.0
-        for r in range(4):
-            g11 += jac[leg, r, 0] * jac[leg, r, 0]
-            g12 += jac[leg, r, 0] * jac[leg, r, 1]
-            g22 += jac[leg, r, 1] * jac[leg, r, 1]
+        if split:  # G_K, G_C (split_cuffs)
+            k11, k12, k22 = m.gk[leg, 0, 0], m.gk[leg, 0, 1], m.gk[leg, 1, 1]
+            c11, c12, c22 = m.gc[leg, 0, 0], m.gc[leg, 0, 1], m.gc[leg, 1, 1]
+        else:  # K G, C G
+            g11 = g12 = g22 = 0.0
+            for r in range(4):
+                g11 += jac[leg, r, 0] * jac[leg, r, 0]
+                g12 += jac[leg, r, 0] * jac[leg, r, 1]
+                g22 += jac[leg, r, 1] * jac[leg, r, 1]
+            k11, k12, k22 = stiff * g11, stiff * g12, stiff * g22
+            c11, c12, c22 = damp_c * g11, damp_c * g12, damp_c * g22
         de = m11 * m22 - m12 * m12
         dp = p11 * p22 - p12 * p12
         ie11, ie12, ie22 = m22 / de, -m12 / de, m11 / de
@@ -215,11 +243,12 @@ def predict(
             for c in range(NZ):
                 ge[r, c] = 0.0
                 gp[r, c] = 0.0
-        gm = ((g11, g12), (g12, g22))
+        km = ((k11, k12), (k12, k22))
+        cm = ((c11, c12), (c12, c22))
         for r in range(2):
             for c in range(2):
-                gk = stiff * gm[r][c]
-                gc = damp_c * gm[r][c]
+                gk = km[r][c]
+                gc = cm[r][c]
                 ge[r, c] = -gk
                 ge[r, 2 + c] = -gc
                 ge[r, 4 + c] = gc
@@ -253,15 +282,18 @@ def predict(
             while (n >> k) & 1 == 0:
                 k += 1
             sq = squares[k]
+            if split:  # rows δ and δ̇ = u_e − u_p; f = −W_K δ − W_C δ̇
+                for r in range(2):
+                    for c in range(NZ):
+                        sv4[r, c] = sq[r, c]
+                        sv4[2 + r, c] = sq[2 + r, c] - sq[4 + r, c]
+                power_rows(sv4, sv4_tmp, squares, n, k + 1)
+                split_rows(m, leg, p, sv4, delta, ddelta)
+                continue
             for r in range(2):
                 for c in range(NZ):
                     sv[r, c] = stiff * sq[r, c] + damp_c * (sq[2 + r, c] - sq[4 + r, c])
-            k += 1
-            while n >> k > 0:
-                if (n >> k) & 1 == 1:
-                    mul_top(sv, squares[k], 1.0, sv_tmp)
-                    copy_top(sv_tmp, sv)
-                k += 1
+            power_rows(sv, sv_tmp, squares, n, k + 1)
             for r in range(2):
                 s_t0 = sv[r, 6]
                 s_t1 = sv[r, 7]
@@ -303,7 +335,9 @@ class CuffHorizonModel:
         exo: the exoskeleton model the controller believes in.
         patient: the patient model the controller believes in.
         motor: the drive (reflected rotor inertia, back-EMF damping).
-        cuffs: the cuffs' stiffness K and damping C (default: CuffParams()).
+        cuffs: the cuff model: normal stiffness K and damping C, and along
+            the link k_u, C_u (default :meth:`CuffParams.isotropic`, the
+            device's default model; split cuffs: :mod:`~exo_ctrl.control.qp.split_cuffs`).
         dt: control period [s], finite and > 0.
         horizon_ticks: the horizon points t_i = n_i Δt, increasing integers in
             [1, 1000].
@@ -325,6 +359,10 @@ class CuffHorizonModel:
         mass_patient: patient mass matrix, (4, 4) [kg·m²].
         bias_exo: h_e, exoskeleton bias torques at the measured state [N·m].
         bias_patient: h_p, patient bias torques at the measured state [N·m].
+        gk, gc: G_K = Jᵀ𝒦J [N·m/rad] and G_C = Jᵀ𝒞J [N·m·s/rad] per leg, (2, 2, 2)
+            (split cuffs only; :mod:`~exo_ctrl.control.qp.split_cuffs`).
+        wk, wc: W_K = 𝒦J [N/rad] and W_C = 𝒞J [N·s/rad] per leg, (2, 4, 2)
+            (split cuffs only).
 
     Raises:
         InvalidParameter: a bad dt or horizon.
@@ -340,7 +378,7 @@ class CuffHorizonModel:
         dt: float = 1e-3,
         horizon_ticks: tuple[int, ...] = DEFAULT_HORIZON_TICKS,
     ) -> None:
-        cuffs = cuffs or CuffParams()
+        cuffs = cuffs or CuffParams.isotropic()
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise InvalidParameter("dt", dt, "a finite control period > 0 s")
         try:
@@ -368,6 +406,10 @@ class CuffHorizonModel:
         self.back_emf_damping = kt * kb / r
         self.stiffness = float(cuffs.stiffness_N_per_m)
         self.damping = float(cuffs.damping_N_s_per_m)
+        self.shear_stiffness = float(cuffs.shear_stiffness_N_per_m)
+        self.shear_damping = float(cuffs.shear_damping_N_s_per_m)
+        #: Normal and shear apart (split_cuffs), else the isotropic arithmetic.
+        self.split = (self.shear_stiffness, self.shear_damping) != (self.stiffness, self.damping)
         self.record = record(horizon_fields(len(ticks), powers[-1].bit_length()))
         m = self.record[0]
         m["losses"] = np.stack((exo.damping, exo.friction, patient.damping, patient.friction))
@@ -376,12 +418,15 @@ class CuffHorizonModel:
         m["damp_e"] = self.back_emf_damping + exo.damping
         m["damp_p"] = patient.damping
         m["stiffness"], m["damping"], m["block"] = self.stiffness, self.damping, block * dt
+        m["shear_stiffness"], m["shear_damping"] = self.shear_stiffness, self.shear_damping
+        m["split"], m["along0"] = self.split, cuff_set.along0
         m["powers"] = powers
         view = self._view
         self.q_all, self.v_all = view("q_all"), view("v_all")
         self.A, self.b, self.jac = view("A"), view("b"), view("jac")
         self.mass_exo, self.mass_patient = view("mass_exo"), view("mass_patient")
         self.bias_exo, self.bias_patient = view("bias_exo"), view("bias_patient")
+        self.gk, self.gc, self.wk, self.wc = view("gk"), view("gc"), view("wk"), view("wc")
 
     def _view(self, name: str) -> np.ndarray:
         return self.record[name][0]
@@ -449,10 +494,7 @@ class CuffHorizonModel:
 
 def _fours(**values: object) -> list[np.ndarray]:
     """Each value as a float64 array of 4 entries (InvalidParameter naming one that is not)."""
-    out = []
     for name, value in values.items():
-        a = np.asarray(value, dtype=float)
-        if a.shape != (4,):
+        if np.shape(np.asarray(value, dtype=float)) != (4,):
             raise InvalidParameter(name, value, "an array of shape (4,)")
-        out.append(a)
-    return out
+    return [np.asarray(a, dtype=float) for a in values.values()]

@@ -10,7 +10,7 @@ from exo_ctrl.control.qp import (
     CuffStateObserver,
 )
 from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.plant.cuffs import CuffParams
+from exo_ctrl.plant.cuffs import CuffParams, CuffSet
 
 
 def test_observer_recovers_deflection_and_rate_from_the_cuff_law(exo, patient, motor, plan):
@@ -34,6 +34,61 @@ def test_observer_recovers_deflection_and_rate_from_the_cuff_law(exo, patient, m
     np.testing.assert_allclose(obs.delta, delta, atol=1e-5, rtol=0)
     np.testing.assert_allclose(obs.ddelta, rate, atol=8e-4, rtol=0)
     np.testing.assert_array_equal(obs.disturbance, 0.0)  # bandwidth 0
+
+
+def test_observer_recovers_deflection_and_rate_from_the_split_cuff_law(exo, patient, motor, plan):
+    """f_c = −𝒦_c J_c δ − 𝒞_c J_c δ̇, 𝒦_c = k_n n nᵀ + k_u u uᵀ (n, u from the plant's
+    CuffSet at the state): the observer with the split cuff model recovers δ and δ̇ as
+    the isotropic one does from the isotropic law; with the isotropic model it does not."""
+    cuffs = CuffParams()  # the truth's: 8000/3700 N/m, 100/70 N·s/m
+    model = CuffHorizonModel(exo, patient, motor, cuffs)
+    args = (cuffs.stiffness_N_per_m, cuffs.damping_N_s_per_m, 1e-3, 0.0)
+    split, iso = CuffStateObserver(*args), CuffStateObserver(*args)
+    iso_model = CuffHorizonModel(exo, patient, motor, CuffParams.isotropic())
+    q = plan.q[300]
+    model.linearise(q, np.zeros(4))
+    iso_model.linearise(q, np.zeros(4))
+    along, normal = CuffSet(exo, patient, cuffs).directions(np.concatenate((q, q)))
+    kn, ku = cuffs.stiffness_N_per_m, cuffs.shear_stiffness_N_per_m
+    cn, cu = cuffs.damping_N_s_per_m, cuffs.shear_damping_N_s_per_m
+    for n in range(400):
+        t = n * 1e-3
+        delta = 2e-3 * np.array([np.sin(8 * t), np.cos(5 * t), np.sin(3 * t), 1.0])
+        rate = 2e-3 * np.array([8 * np.cos(8 * t), -5 * np.sin(5 * t), 3 * np.cos(3 * t), 0.0])
+        force = np.zeros((4, 2))
+        for c in range(4):
+            leg, k = divmod(c, 2)
+            jc = model.jac[leg, 2 * k : 2 * k + 2]
+            dp, dv = jc @ delta[2 * leg : 2 * leg + 2], jc @ rate[2 * leg : 2 * leg + 2]
+            u, nn = along[c], normal[c]
+            force[c] = -(kn * (nn @ dp) + cn * (nn @ dv)) * nn - (ku * (u @ dp) + cu * (u @ dv)) * u
+        split.update(model, force, np.zeros(4))
+        iso.update(iso_model, force, np.zeros(4))
+    # The zero-order hold's lag as in the isotropic test: h/2 · max|δ̇| = 8e-6 rad,
+    # δ̂̇ within the fastest rate, (K/C) = 80 1/s, times that.
+    np.testing.assert_allclose(split.delta, delta, atol=1e-5, rtol=0)
+    np.testing.assert_allclose(split.ddelta, rate, atol=8e-4, rtol=0)
+    assert np.abs(iso.delta - delta).max() > 10 * 1e-5  # the isotropic law misreads the cuffs
+
+
+def test_split_filter_reduces_to_the_isotropic_one(exo, patient, motor, plan):
+    """k_u = k_n, C_u = C_n: the matrix filter e^{−hA}, A = G_C⁻¹G_K = (K/C) I, is the
+    isotropic a_δ: the same δ̂, δ̂̇ and d̂ to rounding."""
+    cuffs = CuffParams.isotropic()
+    models = [CuffHorizonModel(exo, patient, motor, cuffs) for _ in range(2)]
+    models[1].record["split"] = True  # the split kernels on isotropic parameters
+    observers = [CuffStateObserver(8000.0, 100.0, 1e-3, 30.0) for _ in range(2)]
+    rng = np.random.default_rng(2)
+    for n in range(200):
+        q, dq = plan.q[300 + n], plan.dq[300 + n]
+        force = rng.normal(0.0, 40.0, (4, 2))
+        for model, obs in zip(models, observers, strict=True):
+            model.linearise(q, dq)
+            obs.update(model, force, dq)
+    iso, split = observers
+    for name in ("delta", "ddelta", "disturbance"):
+        ref = getattr(iso, name)
+        np.testing.assert_allclose(getattr(split, name), ref, rtol=0, atol=1e-9 * np.abs(ref).max())
 
 
 def test_bad_horizon_and_observer_parameters_are_refused(exo, patient, motor) -> None:

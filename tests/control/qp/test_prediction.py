@@ -19,7 +19,9 @@ from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from exo_ctrl.plant import CuffParams
+from exo_ctrl.plant.cuffs import CuffSet
 from exo_ctrl.sim import Runner, SimConfig, build
+from exo_ctrl.sim.belief import Belief
 
 
 def kernel_expm(f: np.ndarray) -> np.ndarray:
@@ -62,8 +64,26 @@ def dense_prediction(
     ddelta: np.ndarray,
     dist: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """A, b from z(t) = e^{F t} z(0) on the 17 states (δ, u_e, u_p, τ, 1) of all four joints."""
-    k, c = model.stiffness, model.damping
+    """A, b from z(t) = e^{F t} z(0) on the 17 states (δ, u_e, u_p, τ, 1) of all four joints.
+
+    The cuffs' stiffness and damping per cuff, 𝒦_c = k_n n nᵀ + k_u u uᵀ
+    (and 𝒞_c), with n, u the exoskeleton links' directions from the
+    plant's :meth:`CuffSet.directions` at the linearisation state; the
+    joint-space stiffness Jᵀ𝒦J (K JᵀJ for isotropic cuffs) and the forces
+    f = −𝒦J δ − 𝒞J δ̇ (−J (K δ + C δ̇)).
+    """
+    cuffs = CuffParams(model.stiffness, model.damping, model.shear_stiffness, model.shear_damping)
+    along, normal = CuffSet(exo, patient, cuffs).directions(model.q_all)
+    stiff, damp = np.zeros((8, 8)), np.zeros((8, 8))  # block diagonal, cuff c at rows 2c, 2c+1
+    for cuff in range(4):
+        u, n = along[cuff], normal[cuff]
+        rows = slice(2 * cuff, 2 * cuff + 2)
+        stiff[rows, rows] = cuffs.stiffness_N_per_m * np.outer(n, n) + (
+            cuffs.shear_stiffness_N_per_m * np.outer(u, u)
+        )
+        damp[rows, rows] = cuffs.damping_N_s_per_m * np.outer(n, n) + (
+            cuffs.shear_damping_N_s_per_m * np.outer(u, u)
+        )
 
     def per_leg(m: np.ndarray) -> np.ndarray:
         sym = np.triu(m) + np.triu(m, 1).T  # the upper triangle is the valid one
@@ -71,9 +91,9 @@ def dense_prediction(
         out[:2, :2], out[2:, 2:] = sym[:2, :2], sym[2:, 2:]
         return out
 
-    jac = np.zeros((8, 4))  # f = -jac s, rows leg 0 (thigh x, z, shank x, z), leg 1
+    jac = np.zeros((8, 4))  # Δp = jac δ, rows leg 0 (thigh x, z, shank x, z), leg 1
     jac[:4, :2], jac[4:, 2:] = model.jac[0], model.jac[1]
-    g = jac.T @ jac
+    g_k, g_c = jac.T @ stiff @ jac, jac.T @ damp @ jac
     me_inv = np.linalg.inv(per_leg(model.mass_exo))
     mp_inv = np.linalg.inv(per_leg(model.mass_patient))
     d_e = np.diag(model.back_emf_damping + exo.damping)
@@ -83,27 +103,29 @@ def dense_prediction(
     f = np.zeros((17, 17))
     f[d, ue], f[d, up] = eye, -eye
     # M_e' u̇_e = τ − h_e − (D + b_e) u_e − G (K δ + C (u_e − u_p))
-    f[ue, d] = me_inv @ (-k * g)
-    f[ue, ue] = me_inv @ (-d_e - c * g)
-    f[ue, up] = me_inv @ (c * g)
+    f[ue, d] = me_inv @ (-g_k)
+    f[ue, ue] = me_inv @ (-d_e - g_c)
+    f[ue, up] = me_inv @ g_c
     f[ue, tau] = me_inv
     f[ue, one] = me_inv @ -model.bias_exo
     # M_p u̇_p = −h_p + d − b_p u_p + G (K δ + C (u_e − u_p))
-    f[up, d] = mp_inv @ (k * g)
-    f[up, ue] = mp_inv @ (c * g)
-    f[up, up] = mp_inv @ (-d_p - c * g)
+    f[up, d] = mp_inv @ g_k
+    f[up, ue] = mp_inv @ g_c
+    f[up, up] = mp_inv @ (-d_p - g_c)
     f[up, one] = mp_inv @ (dist - model.bias_patient)
     z0 = np.zeros(17)
     z0[d], z0[up], z0[one] = delta, -ddelta, 1.0
     a_ref, b_ref = [], []
     for t in model.horizon_s:
         phi = expm(f * t)
-        s = k * phi[d] + c * (phi[ue] - phi[up])  # s = K δ + C (u_e − u_p), rows of e^{Ft}
-        a_ref.append(-jac @ s[:, tau])
-        b_ref.append(-jac @ (s @ z0))
+        # f = −𝒦 J δ − 𝒞 J (u_e − u_p), rows of e^{Ft}
+        rows = -stiff @ jac @ phi[d] - damp @ jac @ (phi[ue] - phi[up])
+        a_ref.append(rows[:, tau])
+        b_ref.append(rows @ z0)
     return np.vstack(a_ref), np.concatenate(b_ref)
 
 
+@pytest.mark.parametrize("cuffs", [CuffParams.isotropic(), CuffParams()], ids=["iso", "split"])
 @pytest.mark.parametrize(
     "ticks",
     [
@@ -113,8 +135,11 @@ def dense_prediction(
         (6, 1000),  # Δ = 2: powers 3 and 500 (1 s: the slow modes only)
     ],
 )
-def test_prediction_matches_dense_matrix_exponentials(exo, patient, motor, plan, ticks) -> None:
-    model = CuffHorizonModel(exo, patient, motor, horizon_ticks=ticks)
+def test_prediction_matches_dense_matrix_exponentials(
+    exo, patient, motor, plan, ticks, cuffs
+) -> None:
+    model = CuffHorizonModel(exo, patient, motor, cuffs, horizon_ticks=ticks)
+    assert model.split == (not cuffs.is_isotropic)
     rng = np.random.default_rng(len(ticks))
     for _ in range(8):
         k = int(rng.integers(0, 1200))
@@ -198,19 +223,55 @@ def test_linearisation_refuses_readings_of_the_wrong_length(exo, patient, motor)
 
 # --------------------------------------------------------------------------- horizon prediction
 
-#: Stated error bound of the horizon prediction against the plant with the
-#: voltage held, given the true cuff state [N]: measured ≤ 4.6 N (3 % of the
-#: 150 N bound) on the spastic run's states; asserted at 6 N.
+#: Error bound of the horizon prediction against the plant with the voltage
+#: held, given the true cuff state and the true patient [N]: measured 4.9 N on
+#: the spastic run's states with isotropic cuffs and model, 5.5 N with the split
+#: cuffs and the split model (exo_ctrl.control.qp.margin.MODEL_ERROR_N); asserted
+#: at 6 N.  The isotropic model on the split cuffs is off by 73 N (printed, not
+#: asserted: the model a device must not hold when the cuffs are split).
 PREDICTION_TOL_N = 6.0
+#: The same with the nominal patient model instead of the true one [N]:
+#: measured 19.2 N (MODEL_ERROR_N + PATIENT_MODEL_ERROR_N = 19.3 N in the
+#: margin); asserted at 21 N.
+NOMINAL_TOL_N = 21.0
+
+ISO, SPLIT = CuffParams.isotropic(), CuffParams()
 
 
-def test_horizon_prediction_matches_the_plant_with_the_command_held(exo, patient, motor) -> None:
+def patient_model_error(
+    held: BodyModel, true: BodyModel, q: np.ndarray, v: np.ndarray, a: np.ndarray
+) -> np.ndarray:
+    """d = ID_held(q, q̇, q̈) − ID_true(q, q̇, q̈) [N·m]: the patient torque the held model needs."""
+    out = np.zeros(4)
+    for sign, body in ((1.0, held), (-1.0, true)):
+        data = body.model.createData()
+        losses = body.damping * v + body.friction * np.tanh(v / FRICTION_SMOOTHING_RAD_S)
+        out += sign * (pin.rnea(body.model, data, q, v, a) + losses)
+    return out
+
+
+@pytest.mark.parametrize(
+    ("truth", "belief", "held", "tol"),
+    [
+        (ISO, ISO, "truth", PREDICTION_TOL_N),
+        (SPLIT, SPLIT, "truth", PREDICTION_TOL_N),
+        (SPLIT, ISO, "truth", None),
+        (SPLIT, SPLIT, "nominal", NOMINAL_TOL_N),
+    ],
+    ids=["iso", "split", "split-truth-iso-model", "split-nominal-patient"],
+)
+def test_horizon_prediction_matches_the_plant_with_the_command_held(
+    exo, patient, motor, truth: CuffParams, belief: CuffParams, held: str, tol: float | None
+) -> None:
     """f(t_i) = A τ + b against the elastic plant stepped with U(τ) held for 40 ms.
 
     States from a CT run with the spastic patient (cuff forces up to ~155 N);
     the predictor gets the true deflection δ = q_e − q_p and δ̇ (its own
     estimate of them is the observer's job, tested below) and d = 0 (the
-    held run applies no patient torque).
+    held run applies no patient torque); the plant's cuffs ``truth``, the
+    predictor's ``belief``, its patient model the true one or the nominal
+    one (``held``: de Leva's for the paper's 1.75 m, 80 kg man, the device's
+    default).
     """
     setup = build(
         SimConfig(
@@ -219,21 +280,25 @@ def test_horizon_prediction_matches_the_plant_with_the_command_held(exo, patient
             patient_torque="spastic",
             ramp_in_s=0.0,
             cuff_fit="slack",
-            cuffs=CuffParams.isotropic(),  # the predictor's cuff model
+            cuffs=truth,
+            belief=Belief(held),
         )
     )
     runner = Runner(setup)
     plant, drive = setup.plant, setup.plant.motor_params
-    model = CuffHorizonModel(exo, patient, drive)
+    model = CuffHorizonModel(exo, setup.device_patient, drive, belief)
     rng = np.random.default_rng(0)
-    worst, peak = 0.0, 0.0
+    worst, peak = np.zeros(len(model.horizon_ticks)), 0.0
     for k in range(600):
         runner.tick(k, k % runner.chunk)
         if k % 50 != 49:
             continue
         q, v, acc = plant.q.copy(), plant.v.copy(), plant.acceleration.copy()
         tau = rng.uniform(-60.0, 60.0, 4)
-        model.update(q[:4], v[:4], q[:4] - q[4:], v[:4] - v[4:], np.zeros(4))
+        # The patient model's error as the torque that explains the truth's
+        # motion at this state, held (what the observer's d̂ converges to).
+        dist = patient_model_error(setup.device_patient, patient, q[4:], v[4:], acc[4:])
+        model.update(q[:4], v[:4], q[:4] - q[4:], v[:4] - v[4:], dist)
         pred = model.forces(tau)
         u = drive.resistance_ohm / drive.torque_per_amp_Nm_per_A * tau + (
             drive.back_emf_V_per_rad_s * v[:4]
@@ -256,11 +321,15 @@ def test_horizon_prediction_matches_the_plant_with_the_command_held(exo, patient
         # Back to the run's state (the cuffs stay fitted where they were).
         plant.reset(q[:4], v[:4], q[4:], v[4:], current_A=current, fit_cuffs=False)
         plant.acceleration[:] = acc
-        worst = max(worst, float(np.abs(pred - np.array(true)).max()))
+        worst = np.maximum(worst, np.abs(pred - np.array(true)).max(axis=(1, 2)))
         peak = max(peak, float(np.abs(np.array(true)).max()))
-    print(f"\nhorizon prediction: worst error {worst:.2f} N on forces up to {peak:.1f} N")
+    print(
+        f"\nhorizon prediction: worst error {worst.max():.2f} N on forces up to {peak:.1f} N "
+        f"({', '.join(f'{e:.1f}' for e in worst)} N at {model.horizon_ticks} ms)"
+    )
     assert peak > 100.0  # the states do load the cuffs
-    assert worst <= PREDICTION_TOL_N
+    if tol is not None:
+        assert worst.max() <= tol
 
 
 def test_horizon_prediction_is_affine_and_per_leg(exo, patient, motor, plan) -> None:
@@ -288,3 +357,24 @@ def test_horizon_prediction_is_affine_and_per_leg(exo, patient, motor, plan) -> 
         a = model.A.reshape(-1, 4, 2, 4)  # (point, cuff, xz, joint)
         np.testing.assert_array_equal(a[:, :2, :, 2:], 0.0)
         np.testing.assert_array_equal(a[:, 2:, :, :2], 0.0)
+
+
+def test_split_arithmetic_reduces_to_the_isotropic_one(exo, patient, motor, plan) -> None:
+    """With k_u = k_n and C_u = C_n the split path (𝒦 = K I: G_K = K JᵀJ, f = −K J δ − C J δ̇)
+    gives the isotropic path's A and b to rounding; the isotropic cuffs themselves take the
+    isotropic arithmetic (the golden runs, bit-equal)."""
+    iso = CuffHorizonModel(exo, patient, motor, CuffParams.isotropic())
+    forced = CuffHorizonModel(exo, patient, motor, CuffParams.isotropic())
+    assert not iso.split
+    forced.record["split"] = True  # the split kernels on isotropic parameters
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        k = int(rng.integers(0, 1200))
+        args = (rng.normal(0, 2e-3, 4), rng.normal(0, 0.05, 4), rng.normal(0, 5, 4))
+        for model in (iso, forced):
+            model.update(plan.q[k], plan.dq[k], *args)
+        np.testing.assert_allclose(
+            forced.gk, iso.stiffness * np.einsum("lri,lrj->lij", *[iso.jac] * 2)
+        )
+        np.testing.assert_allclose(forced.A, iso.A, rtol=0, atol=1e-12 * np.abs(iso.A).max())
+        np.testing.assert_allclose(forced.b, iso.b, rtol=0, atol=1e-12 * np.abs(iso.b).max())
