@@ -8,13 +8,12 @@ from typing import Any
 
 from .. import _validate as v
 from ..control import PDGains
-from ..control.modes import MODES, ModeParams
+from ..control.modes import ModeParams
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
 from ..exceptions import InvalidParameter
 from ..plan import (
     EXERCISES,
-    PLAN_BYTES_PER_SAMPLE,
     GaitParams,
     Ramp,
     RowLayout,
@@ -32,7 +31,9 @@ from ..plant import (
 from ..plant.patient_active import PATIENT_KINDS, ActiveParams
 from ..safety import SafetyLimits
 from ..sensing import BeltEncoderParams, CurrentSensorParams, SensorParams
+from . import config_checks as checks
 from .belief import Belief
+from .config_checks import PLAN_ROW_BYTES
 from .faults import BELT_STOP_NEEDS, Fault, faults_of
 from .schema import log_dtype
 
@@ -53,10 +54,6 @@ CONTROLLERS = ("pd", "ct", "qp")
 #: then drops into them).
 CUFF_FITS = ("equilibrium", "slack")
 
-#: Memory per row of a run's joint plan [bytes]: its time (8 B), the plan
-#: (:data:`~exo_ctrl.plan.PLAN_BYTES_PER_SAMPLE`) and the computed-torque
-#: tables of feedforward torque and voltage (4 + 4 numbers).
-PLAN_ROW_BYTES = 8 + PLAN_BYTES_PER_SAMPLE + 2 * 4 * 8
 
 #: Memory per row of the log chunk [bytes]: the log row (every signal of
 #: :mod:`exo_ctrl.sim.schema`) and, when the planned rows are copied into it,
@@ -238,7 +235,7 @@ class SimConfig:
             raise InvalidParameter(
                 "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_KINDS)}"
             )
-        self._check_mode()
+        checks.check_mode(self)
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
         if self.estimator not in ESTIMATORS:
             raise InvalidParameter("estimator", self.estimator, f"one of {', '.join(ESTIMATORS)}")
@@ -247,9 +244,9 @@ class SimConfig:
             raise InvalidParameter("cuff_fit", self.cuff_fit, f"one of {', '.join(CUFF_FITS)}")
         Ramp(0.0, self.ramp_out_s, self.duration_s)  # refuses a bad or too long ramp-out
         if self.ramp_in_s is not None:
-            self._check_ramp_in()
+            checks.check_ramp_in(self)
         if self.estop_at_s is not None:
-            self._check_estop()
+            checks.check_estop(self)
         object.__setattr__(self, "faults", faults_of(self.faults))
         for fault in self.faults:
             if fault.at_s > (self.n_ticks - 1) * self.dt:
@@ -259,7 +256,7 @@ class SimConfig:
             if fault.kind == "belt_stop" and not self.contact.enabled:
                 raise InvalidParameter("fault kind", fault.kind, BELT_STOP_NEEDS)
         self._check_sync()
-        self._check_plan_size()
+        checks.check_plan_size(self)
         chunk = min(self.chunk_ticks, max(self.n_ticks, 1))
         v.allocation(
             "chunk_ticks",
@@ -270,59 +267,15 @@ class SimConfig:
             limit="smaller",
         )
 
-    def _check_mode(self) -> None:
-        """Refuse an unknown mode, and a mode or an active patient where they do not apply."""
-        if self.mode not in MODES:
-            raise InvalidParameter("mode", self.mode, f"one of {', '.join(MODES)}")
-        if self.patient_torque == "active" and self.exercise != "gait":
-            raise InvalidParameter(
-                "patient_torque", "active", "none or spastic", "the active patient walks a gait"
-            )
-        if self.mode == "tracking":
-            return
-        if self.exercise != "gait":
-            raise InvalidParameter("mode", self.mode, "tracking", "the calibration swing tracks")
-        if self.mode == "aan" and (not self.plan_periodic or self.synced):
-            raise InvalidParameter(
-                "mode",
-                "aan",
-                "tracking, guidance or transparent here",
-                "assist-as-needed learns per phase of a precomputed periodic plan (a period of "
-                "a whole number of ticks, sync off)",
-            )
-
     def _check_sync(self) -> None:
-        """Refuse a speed profile without the belt, and sync where it does not apply."""
+        """Normalise the speed profile (text or plain data: a sweep's, ``to_dict``'s form)."""
         profile = self.speed_profile
         if isinstance(profile, str):  # "T1:V1,..." (a sweep's value)
             profile = SpeedProfile.parse(profile)
         elif isinstance(profile, dict) and set(profile) == {"times", "speeds"}:  # to_dict's form
             profile = SpeedProfile(tuple(profile["times"]), tuple(profile["speeds"]))
         object.__setattr__(self, "speed_profile", profile)
-        if profile is not None:
-            if not isinstance(profile, SpeedProfile):
-                raise InvalidParameter(
-                    "speed_profile", profile, "a SpeedProfile, its text T1:V1,... or None"
-                )
-            if not self.contact.enabled:
-                raise InvalidParameter(
-                    "speed_profile", profile.text(), "unset without the belt (contact on)"
-                )
-        if self.sync not in (None, True, False):
-            raise InvalidParameter("sync", self.sync, "True, False or None")
-        if not self.synced:
-            return
-        why = None
-        if not self.contact.enabled:
-            why = "the belt's speed is measured with contact on only"
-        elif self.exercise != "gait":
-            why = f"the {self.exercise} exercise has no gait"
-        elif self.controller == "qp":
-            why = "the QP's prediction follows a precomputed plan; use pd or ct"
-        elif self.ramp_out_s > 0.0:
-            why = "a ramp-out with the synchronised plan is not supported"
-        if why is not None:
-            raise InvalidParameter("sync", "on", "off here", why)
+        checks.check_sync(self)
 
     @property
     def synced(self) -> bool:
@@ -335,76 +288,6 @@ class SimConfig:
                 and self.ramp_out_s == 0.0
             )
         return bool(self.sync)
-
-    def _check_estop(self) -> None:
-        """Refuse an e-stop time no control tick reaches (it would be ignored)."""
-        v.non_negative("estop_at", self.estop_at_s, "s")
-        last = (self.n_ticks - 1) * self.dt  # the time of the last tick, as the loop has it
-        if self.estop_at_s <= last:
-            return
-        if self.n_ticks == 0:
-            raise InvalidParameter(
-                "estop_at", self.estop_at_s, "unset", f"a {self.duration_s:g} s run has no tick"
-            )
-        raise InvalidParameter(
-            "estop_at",
-            self.estop_at_s,
-            f"in [0, {last:g}] s, within the run",
-            f"the run lasts {self.duration_s:g} s; its last control tick is at t = {last:g} s",
-        )
-
-    def _check_ramp_in(self) -> None:
-        """Refuse a ramp-in time that is not a number >= 0 or does not fit in the run."""
-        t_in = v.non_negative("ramp_in", self.ramp_in_s, "s")
-        room = self.duration_s - self.ramp_out_s
-        if t_in > room:
-            out = self.ramp_out_s
-            raise InvalidParameter(
-                "ramp_in",
-                self.ramp_in_s,
-                f"at most {max(room, 0.0):g} s, within the run",
-                f"the run lasts {self.duration_s:g} s"
-                + (f", of which the ramp-out takes the last {out:g} s" if out else ""),
-            )
-
-    def _check_plan_size(self) -> None:
-        """Refuse a plan beyond the memory cap, naming the period, a ramp or the duration."""
-        rows = self.plan_rows
-        most = v.max_items(PLAN_ROW_BYTES)
-        rate = self.control_rate_hz
-        lay = self.plan_layout
-        if lay.period:
-            # The rows of each time the user can shorten; the default ramp-in is one period.
-            parts = {
-                "period": lay.period,
-                "ramp_in": lay.lead,
-                "ramp_out": rows - lay.lead - lay.period,
-            }
-            if self.ramp_in_s is None:
-                parts["period"] += parts.pop("ramp_in")
-            # The largest part that can make room alone, else the largest.
-            fits = [r for r in parts if rows - parts[r] < most] or list(parts)
-            name = max(fits, key=lambda r: parts[r])
-            value = {"period": self.gait.period, "ramp_in": self.ramp_in}.get(name, self.ramp_out_s)
-            share = 2 if name == "period" and self.ramp_in_s is None and lay.lead else 1
-            room = max(most - (rows - parts[name]), 0) / share
-            limit = f"at most {room / rate:.4g} s at {rate:g} Hz"
-            note = "the plan holds one period"
-            if rows > lay.period:
-                ramps = "the default ramp-in of one period" if share == 2 else "the ramps"
-                note = f"the plan holds one period and {ramps} ({rows - lay.period:,} ticks)"
-        else:
-            name, value = "duration", self.duration_s
-            limit = f"at most {(most - 1) / rate:.4g} s at {rate:g} Hz"
-            note = (
-                "the plan holds every tick"
-                if self.plan_periodic
-                else (
-                    "the plan holds every tick, as the period "
-                    f"{self.gait.period:g} s is not a whole number of {1e3 * self.dt:g} ms ticks"
-                )
-            )
-        v.allocation(name, value, rows, PLAN_ROW_BYTES, what="plan rows", limit=limit, note=note)
 
     @property
     def plan_periodic(self) -> bool:

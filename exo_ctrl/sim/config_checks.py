@@ -1,0 +1,156 @@
+"""The checks of a :class:`~exo_ctrl.sim.config.SimConfig` that span several of its parts.
+
+Each function takes the configuration being made (a ``SimConfig`` with its
+fields set, before it is returned; typed ``Any``, as this module is below
+``config`` in the imports) and raises :class:`~exo_ctrl.exceptions.InvalidParameter`
+naming the field, its value and what is allowed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .. import _validate as v
+from ..control.modes import MODES
+from ..exceptions import InvalidParameter
+from ..plan import PLAN_BYTES_PER_SAMPLE, SpeedProfile
+
+__all__ = [
+    "PLAN_ROW_BYTES",
+    "check_estop",
+    "check_mode",
+    "check_plan_size",
+    "check_ramp_in",
+    "check_sync",
+]
+
+#: Memory per row of a run's joint plan [bytes]: its time (8 B), the plan
+#: (:data:`~exo_ctrl.plan.PLAN_BYTES_PER_SAMPLE`) and the computed-torque
+#: tables of feedforward torque and voltage (4 + 4 numbers).
+PLAN_ROW_BYTES = 8 + PLAN_BYTES_PER_SAMPLE + 2 * 4 * 8
+
+
+def check_mode(config: Any) -> None:
+    """Refuse an unknown mode, and a mode or an active patient where they do not apply."""
+    if config.mode not in MODES:
+        raise InvalidParameter("mode", config.mode, f"one of {', '.join(MODES)}")
+    if config.patient_torque == "active" and config.exercise != "gait":
+        raise InvalidParameter(
+            "patient_torque", "active", "none or spastic", "the active patient walks a gait"
+        )
+    if config.mode == "tracking":
+        return
+    if config.exercise != "gait":
+        raise InvalidParameter("mode", config.mode, "tracking", "the calibration swing tracks")
+    if config.mode == "aan" and (not config.plan_periodic or config.synced):
+        raise InvalidParameter(
+            "mode",
+            "aan",
+            "tracking, guidance or transparent here",
+            "assist-as-needed learns per phase of a precomputed periodic plan (a period of "
+            "a whole number of ticks, sync off)",
+        )
+
+
+def check_estop(config: Any) -> None:
+    """Refuse an e-stop time no control tick reaches (it would be ignored)."""
+    v.non_negative("estop_at", config.estop_at_s, "s")
+    last = (config.n_ticks - 1) * config.dt  # the time of the last tick, as the loop has it
+    if config.estop_at_s <= last:
+        return
+    if config.n_ticks == 0:
+        raise InvalidParameter(
+            "estop_at", config.estop_at_s, "unset", f"a {config.duration_s:g} s run has no tick"
+        )
+    raise InvalidParameter(
+        "estop_at",
+        config.estop_at_s,
+        f"in [0, {last:g}] s, within the run",
+        f"the run lasts {config.duration_s:g} s; its last control tick is at t = {last:g} s",
+    )
+
+
+def check_ramp_in(config: Any) -> None:
+    """Refuse a ramp-in time that is not a number >= 0 or does not fit in the run."""
+    t_in = v.non_negative("ramp_in", config.ramp_in_s, "s")
+    room = config.duration_s - config.ramp_out_s
+    if t_in > room:
+        out = config.ramp_out_s
+        raise InvalidParameter(
+            "ramp_in",
+            config.ramp_in_s,
+            f"at most {max(room, 0.0):g} s, within the run",
+            f"the run lasts {config.duration_s:g} s"
+            + (f", of which the ramp-out takes the last {out:g} s" if out else ""),
+        )
+
+
+def check_plan_size(config: Any) -> None:
+    """Refuse a plan beyond the memory cap, naming the period, a ramp or the duration."""
+    rows = config.plan_rows
+    most = v.max_items(PLAN_ROW_BYTES)
+    rate = config.control_rate_hz
+    lay = config.plan_layout
+    if lay.period:
+        # The rows of each time the user can shorten; the default ramp-in is one period.
+        parts = {
+            "period": lay.period,
+            "ramp_in": lay.lead,
+            "ramp_out": rows - lay.lead - lay.period,
+        }
+        if config.ramp_in_s is None:
+            parts["period"] += parts.pop("ramp_in")
+        # The largest part that can make room alone, else the largest.
+        fits = [r for r in parts if rows - parts[r] < most] or list(parts)
+        name = max(fits, key=lambda r: parts[r])
+        value = {"period": config.gait.period, "ramp_in": config.ramp_in}.get(
+            name, config.ramp_out_s
+        )
+        share = 2 if name == "period" and config.ramp_in_s is None and lay.lead else 1
+        room = max(most - (rows - parts[name]), 0) / share
+        limit = f"at most {room / rate:.4g} s at {rate:g} Hz"
+        note = "the plan holds one period"
+        if rows > lay.period:
+            ramps = "the default ramp-in of one period" if share == 2 else "the ramps"
+            note = f"the plan holds one period and {ramps} ({rows - lay.period:,} ticks)"
+    else:
+        name, value = "duration", config.duration_s
+        limit = f"at most {(most - 1) / rate:.4g} s at {rate:g} Hz"
+        note = (
+            "the plan holds every tick"
+            if config.plan_periodic
+            else (
+                "the plan holds every tick, as the period "
+                f"{config.gait.period:g} s is not a whole number of {1e3 * config.dt:g} ms ticks"
+            )
+        )
+    v.allocation(name, value, rows, PLAN_ROW_BYTES, what="plan rows", limit=limit, note=note)
+
+
+def check_sync(config: Any) -> None:
+    """Refuse a speed profile without the belt, and sync where it does not apply."""
+    profile = config.speed_profile
+    if profile is not None:
+        if not isinstance(profile, SpeedProfile):
+            raise InvalidParameter(
+                "speed_profile", profile, "a SpeedProfile, its text T1:V1,... or None"
+            )
+        if not config.contact.enabled:
+            raise InvalidParameter(
+                "speed_profile", profile.text(), "unset without the belt (contact on)"
+            )
+    if config.sync not in (None, True, False):
+        raise InvalidParameter("sync", config.sync, "True, False or None")
+    if not config.synced:
+        return
+    why = None
+    if not config.contact.enabled:
+        why = "the belt's speed is measured with contact on only"
+    elif config.exercise != "gait":
+        why = f"the {config.exercise} exercise has no gait"
+    elif config.controller == "qp":
+        why = "the QP's prediction follows a precomputed plan; use pd or ct"
+    elif config.ramp_out_s > 0.0:
+        why = "a ramp-out with the synchronised plan is not supported"
+    if why is not None:
+        raise InvalidParameter("sync", "on", "off here", why)
