@@ -159,6 +159,12 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"drive energy balance: residual {residual:.2e} of the energy drawn"
             + (" (the drive model is not energy-consistent)" if residual > 1e-6 else "")
         )
+    gps = summary.get("gait_profile_score_deg") or {}
+    if gps.get("actual") is not None:  # exo_ctrl/sim/gait_score.py
+        lines.append(
+            f"gait profile score (sagittal hip, knee; Baker 2009) against normative gait: "
+            f"patient {gps['actual']:.1f} deg, plan {gps['planned']:.1f} deg"
+        )
     if "slip_speed_rms_mps" in summary:
         feet = ", ".join(f"{f} {x:.1f}" for f, x in summary["peak_ground_force_N"].items())
         lines.append(

@@ -5,16 +5,17 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ..control.modes import MODES, ModeParams
+from ..control.modes import MODES, ModeParams, PathParams
 from ..exceptions import InvalidParameter
 from ..plant.patient_active import ActiveParams
+from ..sim.session import load_session
 
 __all__ = ["add_mode_options", "mode_config_from"]
 
 
 def add_mode_options(p: argparse.ArgumentParser) -> None:
     """Add ``--mode`` and its parameters, and the active patient's options."""
-    m, a = ModeParams(), ActiveParams()
+    m, a, path = ModeParams(), ActiveParams(), PathParams()
     g = p.add_argument_group("interaction modes (exo_ctrl/control/modes)")
     g.add_argument(
         "--mode",
@@ -24,7 +25,32 @@ def add_mode_options(p: argparse.ArgumentParser) -> None:
         "by --guidance around the plan, the device's own dynamics compensated), transparent "
         "(the device carries itself and drives the estimated cuff force towards zero) or aan "
         "(assist-as-needed: a support per gait phase learned cycle by cycle from the error) "
-        "(default tracking)",
+        "or path (a tunnel of --tunnel-width around the planned foot path, the patient setting "
+        "the pace along it) (default tracking)",
+    )
+    g.add_argument(
+        "--tunnel-width",
+        type=float,
+        default=path.tunnel_width_m,
+        metavar="M",
+        help="path's tunnel half-width around the planned foot path [m]: no force inside, a "
+        f"stiff damped wall outside (default {path.tunnel_width_m:g})",
+    )
+    g.add_argument(
+        "--path-support",
+        type=float,
+        default=path.support_N,
+        metavar="N",
+        help=f"path's supportive force along the path's tangent [N] (default {path.support_N:g})",
+    )
+    g.add_argument(
+        "--session",
+        default=None,
+        metavar="FILE.json",
+        help="a session: a JSON list of segments, each {duration [s], mode, its parameters "
+        "(guidance, force_gain, aan_forgetting, aan_gain, tunnel_width, path_support), "
+        "belt_speed [m/s] with --contact on}, switched bumplessly and logged as events; the run "
+        "lasts their sum (exo_ctrl/sim/session.py) (default: none, --mode throughout)",
     )
     g.add_argument(
         "--guidance",
@@ -104,7 +130,7 @@ def add_mode_options(p: argparse.ArgumentParser) -> None:
 
 
 def mode_config_from(args: argparse.Namespace) -> dict[str, Any]:
-    """SimConfig's ``mode``, ``modes`` and ``patient_active`` from the parsed options.
+    """SimConfig's ``mode``, ``modes``, ``path``, ``session``, ``patient_active`` from the options.
 
     Raises:
         InvalidParameter: a value outside its range, or active-patient
@@ -126,8 +152,17 @@ def mode_config_from(args: argparse.Namespace) -> dict[str, Any]:
         raise InvalidParameter(
             "patient_torque", args.patient_torque, f"active with {given[0]} (an active patient's)"
         )
+    session = None
+    if args.session is not None:
+        if args.cycles is not None:
+            raise InvalidParameter(
+                "cycles", args.cycles, "unset with --session", "its segments' durations set the run"
+            )
+        session = load_session(args.session)
     return {
         "mode": args.mode,
+        "path": PathParams(tunnel_width_m=args.tunnel_width, support_N=args.path_support),
+        "session": session,
         "modes": ModeParams(
             guidance=args.guidance,
             force_gain=args.force_gain,

@@ -27,7 +27,7 @@ from ..plant import (
 from ..plant.patient_active import PATIENT_KINDS
 from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
 from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
-from ..record.writer import find_viewer
+from ..record.viewer import find_viewer
 from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
 from ..sim.belief import Belief
 from ..sim.config import CUFF_FITS
@@ -304,16 +304,19 @@ def register(sub: argparse._SubParsersAction) -> None:
 def sim_config(args: argparse.Namespace) -> SimConfig:
     """The run's SimConfig from the parsed options.
 
-    The duration: ``--duration``, else the ramp-in, ``--cycles`` (default 2)
-    gait cycles at full speed and the ramp-out.
+    The duration: ``--duration``, else the ``--session``'s, else the ramp-in,
+    ``--cycles`` (default 2) gait cycles at full speed and the ramp-out.
     """
     gait = gait_params_from(args)
     ramp_in = args.ramp_in
     if ramp_in is not None:
         ramp_in = v.non_negative("ramp_in", ramp_in, "s")
     ramp_out = v.non_negative("ramp_out", args.ramp_out, "s")
+    modes = mode_config_from(args)
     if args.duration is not None:
         duration = args.duration
+    elif modes["session"] is not None:  # the segments' durations
+        duration = modes["session"].total_s
     elif args.exercise == "calibration":
         duration = CALIBRATION_DURATION_S
     else:
@@ -359,7 +362,7 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         else SpeedProfile.parse(args.speed_profile),
         sync=None if args.sync is None else args.sync == "on",
         exercise=args.exercise,
-        **mode_config_from(args),
+        **modes,
         belief=Belief(
             patient=args.controller_patient,
             exo=args.controller_exo,

@@ -16,9 +16,16 @@ from rerun.chunk import RrdReader
 
 from ..exceptions import ExoCtrlError, RecordingError
 from ..model import CUFF_NAMES, JOINT_NAMES
+from .biofeedback import BIOFEEDBACK, BIOFEEDBACK_SERIES
 from .format import TIME, Layout, Series, layout
 
-__all__ = ["MAX_LINES_PER_PANEL", "blueprint_views", "make_blueprint"]
+__all__ = [
+    "BIOFEEDBACK_PANELS",
+    "MAX_LINES_PER_PANEL",
+    "biofeedback_tab",
+    "blueprint_views",
+    "make_blueprint",
+]
 
 #: Most lines any time-series panel of :func:`make_blueprint` shows (the
 #: per-joint and per-cuff panels show 1-3; a 4-joint signal of the "Other
@@ -40,7 +47,8 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
     per joint: desired, actual and patient angle; command and applied
     voltage), drive torques and currents (a panel per leg: hip and knee),
     cuff forces (a row per cuff: simulated and estimated x, z and magnitude
-    side by side), joint speeds, patient torques, and every other signal of
+    side by side), joint speeds, patient torques, the biofeedback panel
+    (:func:`biofeedback_tab`: per-cycle figures), and every other signal of
     the log schema (a panel each).  No panel holds more than
     :data:`MAX_LINES_PER_PANEL` lines; legends are hidden and each panel's
     name says what it shows, its unit and which colour is which line.  The
@@ -66,6 +74,7 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
         _cuffs(take),
         _per_joint(take, "joint_speed", "Joint speeds"),
         _per_leg(take, "patient_torque", "Patient torques"),
+        biofeedback_tab(),
     ]
     rest = take([e for e in series if e not in shown])
     if rest:  # one panel per signal, named by its log-schema name (and meaning, if unitless)
@@ -85,6 +94,39 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
         rrb.TimePanel(timeline=TIME),
         collapse_panels=False,
     )
+
+
+#: The biofeedback tab's panels: (title, entities below ``biofeedback/``).
+BIOFEEDBACK_PANELS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("RMS interaction force", ("interaction_force/true", "interaction_force/estimated")),
+    ("Patient effort: RMS joint torque", ("patient_torque",)),
+    ("Positive work per cycle", ("work/patient", "work/device")),
+    (
+        "Gait Profile Score (sagittal hip, knee)",
+        ("gait_profile_score/planned", "gait_profile_score/actual"),
+    ),
+    ("aan support level", ("aan_support",)),
+)
+
+
+def biofeedback_tab() -> rrb.Vertical:
+    """The therapist's tab: one panel per figure, a point per gait cycle after the ramp-in.
+
+    The figures of :mod:`exo_ctrl.record.biofeedback`; each panel's name
+    gives its unit and which colour is which line (at most two lines a panel).
+    """
+    panels = []
+    for title, names in BIOFEEDBACK_PANELS:
+        unit = BIOFEEDBACK_SERIES[names[0]][0]
+        key = ", ".join(f"{BIOFEEDBACK_SERIES[n][2]} {BIOFEEDBACK_SERIES[n][3]}" for n in names)
+        name = f"{title} [{unit}]" + (f": {key}" if len(names) > 1 else "")
+        contents = [f"/{BIOFEEDBACK}/{n}" for n in names]
+        panels.append(
+            rrb.TimeSeriesView(
+                origin=BIOFEEDBACK, contents=contents, name=name, plot_legend=_NO_LEGEND
+            )
+        )
+    return rrb.Vertical(*panels, name="Biofeedback (per gait cycle)")
 
 
 def _panel(origin: str, shown: list[Series], what: str) -> rrb.TimeSeriesView:

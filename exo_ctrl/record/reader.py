@@ -31,6 +31,7 @@ from ..estimation import EstimateErrorStats
 from ..exceptions import ExoCtrlError, RecordingError
 from ..model import load_body
 from ..sim import RunStats, SimConfig, SimResult
+from ..sim.gait_score import gait_score_stats
 from ..sim.summary import contact_stats
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
 
@@ -215,8 +216,10 @@ def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
     try:
         estimate = EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt)
     except (ExoCtrlError, TypeError):  # the model moved, or an older layout
-        return RunStats(None, contact)
-    return RunStats(estimate, contact)
+        estimate = None
+    stats = RunStats(estimate, contact)
+    stats.gait = gait_score_stats(config)  # the gait scores (exo_ctrl/sim/gait_score.py)
+    return stats
 
 
 def _load_chunks(path: Path) -> list:

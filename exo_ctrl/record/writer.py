@@ -56,7 +56,6 @@ import dataclasses
 import math
 import os
 import shutil
-import sys
 import threading
 import warnings
 from pathlib import Path
@@ -69,6 +68,7 @@ from .._io import is_special, output_problem
 from ..exceptions import InvalidParameter, OutputError, RecordingError
 from ..model import BodyModel, load_body, load_patient
 from ..sim import SimResult
+from .biofeedback import log_biofeedback
 from .blueprint import make_blueprint
 from .columns import SignalColumns
 from .format import (
@@ -84,6 +84,7 @@ from .format import (
 )
 from .rrd_file import RrdFile, signals_held
 from .scene import Skeleton, log_scene_static, send_scene
+from .viewer import find_viewer, spawn_viewer
 
 __all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder", "find_viewer", "spawn_viewer"]
 
@@ -108,40 +109,6 @@ _LEVELS = {
     "estop": "WARN",
     "state": "INFO",
 }
-
-
-def find_viewer() -> Path | None:
-    """The rerun viewer executable: the one installed with rerun-sdk, else one on PATH.
-
-    rerun-sdk installs ``rerun`` next to the Python interpreter
-    (``.venv/bin/rerun``), which is not on PATH unless the environment is
-    activated; that one is looked for first.
-    """
-    beside = Path(sys.executable).parent / ("rerun.exe" if os.name == "nt" else "rerun")
-    if beside.is_file() and os.access(beside, os.X_OK):
-        return beside
-    found = shutil.which("rerun")
-    return Path(found) if found else None
-
-
-def spawn_viewer(rec: rr.RecordingStream) -> str | None:
-    """Start the rerun viewer :func:`find_viewer` finds, listening for ``rec``.
-
-    Returns:
-        None when it started, else why not, in one line.
-
-    """
-    viewer = find_viewer()
-    if viewer is None:
-        return (
-            f"no rerun viewer found (neither {Path(sys.executable).parent / 'rerun'} nor "
-            "'rerun' on PATH; it comes with rerun-sdk)"
-        )
-    try:
-        rr.spawn(connect=False, executable_path=str(viewer), recording=rec)
-    except (RuntimeError, OSError) as exc:
-        return f"could not start the rerun viewer {viewer}: {' '.join(str(exc).split())}"
-    return None
 
 
 class RerunRecorder:
@@ -474,6 +441,7 @@ class RerunRecorder:
     # ------------------------------------------------------------------ end
 
     def _log_outcome(self, rec: rr.RecordingStream, result: SimResult) -> None:
+        log_biofeedback(rec, result)  # the per-cycle figures (exo_ctrl/record/biofeedback.py)
         ticks, dt = self._next_tick, self._dt
         events = [dict(ev) for ev in result.events]
         for ev in events:

@@ -8,7 +8,7 @@ from typing import Any
 
 from .. import _validate as v
 from ..control import PDGains
-from ..control.modes import ModeParams
+from ..control.modes import ModeParams, PathParams
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
 from ..exceptions import InvalidParameter
@@ -36,6 +36,7 @@ from .belief import Belief
 from .config_checks import PLAN_ROW_BYTES
 from .faults import BELT_STOP_NEEDS, Fault, faults_of
 from .schema import log_dtype
+from .session import SessionParams, check_session
 
 __all__ = [
     "CHUNK_ROW_BYTES",
@@ -145,9 +146,15 @@ class SimConfig:
             ``patient_torque="active"``).
         mode: the interaction mode, one of :data:`~exo_ctrl.control.modes.MODES`:
             ``"tracking"`` (default: the controller's position control),
-            ``"guidance"``, ``"transparent"`` or ``"aan"``
+            ``"guidance"``, ``"transparent"``, ``"aan"`` or ``"path"``
             (:mod:`exo_ctrl.control.modes.controller`).
         modes: the modes' parameters (G, K_f, aan's f, g, bins, soft PD).
+        path: ``path``'s tunnel, wall and support
+            (:mod:`exo_ctrl.control.modes.path`).
+        session: segments of modes and belt speeds run one after another
+            (:mod:`exo_ctrl.sim.session`; None: ``mode`` throughout); their
+            durations sum to ``duration_s``, their belt speeds make the
+            speed profile.
         safety: run the safety supervisor (:mod:`exo_ctrl.safety.supervisor`).
         safety_limits: its limits.
         safety_use_estimate: the supervisor watches the estimated cuff
@@ -214,6 +221,8 @@ class SimConfig:
     sync: bool | None = None
     mode: str = "tracking"
     modes: ModeParams = field(default_factory=ModeParams)
+    path: PathParams = field(default_factory=PathParams)
+    session: SessionParams | None = None
     patient_active: ActiveParams = field(default_factory=ActiveParams)
 
     def __post_init__(self) -> None:
@@ -255,7 +264,18 @@ class SimConfig:
                 )
             if fault.kind == "belt_stop" and not self.contact.enabled:
                 raise InvalidParameter("fault kind", fault.kind, BELT_STOP_NEEDS)
+        if self.session is not None:
+            object.__setattr__(self, "session", SessionParams.coerce(self.session))
+            profile = self.session.speed_profile(self.gait.belt_speed)  # None: no belt speeds
+            if profile is not None and self.speed_profile is not None:
+                raise InvalidParameter(
+                    "speed_profile", self.speed_profile, "unset with a session's belt speeds"
+                )
+            if profile is not None and self.contact.enabled:  # else refused by check_session
+                object.__setattr__(self, "speed_profile", profile)
         self._check_sync()
+        if self.session is not None:
+            check_session(self)
         checks.check_plan_size(self)
         chunk = min(self.chunk_ticks, max(self.n_ticks, 1))
         v.allocation(

@@ -42,13 +42,13 @@ def check_mode(config: Any) -> None:
         return
     if config.exercise != "gait":
         raise InvalidParameter("mode", config.mode, "tracking", "the calibration swing tracks")
-    if config.mode == "aan" and (not config.plan_periodic or config.synced):
+    if config.mode in ("aan", "path") and (not config.plan_periodic or config.synced):
         raise InvalidParameter(
             "mode",
-            "aan",
+            config.mode,
             "tracking, guidance or transparent here",
-            "assist-as-needed learns per phase of a precomputed periodic plan (a period of "
-            "a whole number of ticks, sync off)",
+            "assist-as-needed learns per phase (and path control follows the phase) of a "
+            "precomputed periodic plan (a period of a whole number of ticks, sync off)",
         )
 
 

@@ -20,6 +20,7 @@ from ..estimation import EstimateErrorStats
 from ..exceptions import SimulationDiverged, Terminated
 from ..model import JOINT_NAMES
 from .config import SimConfig
+from .gait_score import gait_score_stats
 from .interaction import interaction_stats
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
@@ -73,6 +74,7 @@ def simulate(
             interaction_stats(config),
         ),
     )
+    result.stats.gait = gait_score_stats(config)
     if config.mode == "aan":  # the support level per cycle, for the interaction block
         result.stats.support = setup.controller.support_history
     for obs in observers:
@@ -146,6 +148,7 @@ def simulate(
         result.energy = setup.plant.motors.energy(JOINT_NAMES)
     if runner.faults is not None:
         result.events.extend(runner.faults.events)
+    result.events.extend(getattr(setup.controller, "events", ()))  # a session's switches
     if runner.supervisor is not None:
         result.events.extend(runner.supervisor.events)
         result.safety_state = runner.supervisor.state

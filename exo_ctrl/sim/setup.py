@@ -20,7 +20,7 @@ from ..control import (
     QPController,
     feedforward_torque,
 )
-from ..control.modes import InteractionController
+from ..control.modes import InteractionController, PathController
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..plan import (
@@ -36,6 +36,7 @@ from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
 from .belief import device_models
 from .config import SimConfig
+from .session import session_controller
 from .sync import online_gait, set_speeds
 
 __all__ = [
@@ -130,27 +131,20 @@ def build(config: SimConfig) -> Setup:
         belt_speed = np.stack(sigma[:2], axis=1) * config.gait.belt_speed
         if config.speed_profile is not None:  # σ(t) v(t) of the session's profile
             belt_speed = set_speeds(config, sigma[:2])
-    controller: PDController
-    if config.controller == "ct":
-        controller = ComputedTorqueController(
-            plan, model_exo, model_patient, model_motor, config.gains
-        )
-    elif config.controller == "qp":
-        controller = QPController(
+    controller = _tracking(config, plan, model_exo, model_patient, model_motor)
+    if config.session is not None:  # one controller per segment, switched bumplessly
+        controller = session_controller(  # type: ignore[assignment]
+            config,
             plan,
             model_exo,
-            model_patient,
             model_motor,
-            config.gains,
-            cuff_force_limit_N=config.cuff_force_limit_N,
-            cuffs=config.belief.cuff_model,
-            dt=config.dt,
-            estimate_gain_per_s=config.observer_gain_per_s,
-            restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
+            lambda: _tracking(config, plan, model_exo, model_patient, model_motor),
         )
-    else:
-        controller = PDController(plan, config.gains)
-    if config.mode != "tracking":  # an interaction mode on the device's models
+    elif config.mode == "path":  # the tunnel with free timing, on the device's models
+        controller = PathController(  # type: ignore[assignment]
+            config.path, config.modes, plan, model_exo, model_motor, dt=config.dt
+        )
+    elif config.mode != "tracking":  # an interaction mode on the device's models
         controller = InteractionController(  # type: ignore[assignment]
             config.mode,
             config.modes,
@@ -173,6 +167,32 @@ def build(config: SimConfig) -> Setup:
         belt_speed,
         online,
     )
+
+
+def _tracking(
+    config: SimConfig,
+    plan: JointTrajectory,
+    model_exo: BodyModel,
+    model_patient: BodyModel,
+    model_motor: MotorParams,
+) -> PDController:
+    """A new tracking controller of the run (``config.controller``) on the device's models."""
+    if config.controller == "ct":
+        return ComputedTorqueController(plan, model_exo, model_patient, model_motor, config.gains)
+    if config.controller == "qp":
+        return QPController(
+            plan,
+            model_exo,
+            model_patient,
+            model_motor,
+            config.gains,
+            cuff_force_limit_N=config.cuff_force_limit_N,
+            cuffs=config.belief.cuff_model,
+            dt=config.dt,
+            estimate_gain_per_s=config.observer_gain_per_s,
+            restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
+        )
+    return PDController(plan, config.gains)
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:

@@ -12,6 +12,7 @@ from ..estimation import COMPONENTS, EstimateErrorStats
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .belief import PAPER_PATIENT
 from .config import SimConfig
+from .gait_score import GaitScoreStats
 from .interaction import InteractionStats
 
 __all__ = ["ContactStats", "RunOutcome", "RunStats", "contact_stats"]
@@ -59,6 +60,8 @@ class RunStats:
         #: aan's support level per cycle (the controller's list, filled as it runs).
         self.interaction = interaction
         self.support: list[float] | None = None
+        #: The gait scores (:mod:`exo_ctrl.sim.gait_score`), set by the loop for a gait run.
+        self.gait: GaitScoreStats | None = None
         self.ticks = 0
         # Running sums (Σ err², Σ τ², Σ i²) and peaks (|err|, |τ|, |i|, |U|,
         # |τ q̇|, cuff |f|, |q̇|), a row of 4 each: :func:`_accumulate`'s buffers.
@@ -75,6 +78,8 @@ class RunStats:
             self.contact.update(rows, self.ticks)
         if self.interaction is not None:
             self.interaction.update(rows, self.ticks)
+        if self.gait is not None:
+            self.gait.update(rows, self.ticks)
         self.ticks += rows["q"].shape[0]
         _accumulate(*self._accumulate_args(rows))
 
@@ -178,6 +183,8 @@ class RunStats:
             out.update(self.contact.summary())
         if self.interaction is not None:
             out["interaction"] = self.interaction.summary(self.support)
+        if self.gait is not None:  # gait_profile_score_deg, ... (exo_ctrl.sim.gait_score)
+            out.update(self.gait.summary())
         out.update(result.energy)  # energy_J, energy_balance_residual_rel
         return out
 

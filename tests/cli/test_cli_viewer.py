@@ -12,7 +12,7 @@ import pytest
 import rerun as rr
 
 from exo_ctrl import cli
-from exo_ctrl.record import writer
+from exo_ctrl.record import viewer
 
 
 @pytest.fixture
@@ -29,18 +29,18 @@ def test_the_viewer_beside_the_interpreter_is_found_and_spawned_by_path(monkeypa
     if not beside.is_file():
         pytest.skip("rerun-sdk's viewer is not installed beside this interpreter")
     monkeypatch.setenv("PATH", "/nonexistent")  # as when the environment is not activated
-    assert writer.find_viewer() == beside
+    assert viewer.find_viewer() == beside
     calls: list[dict] = []
     monkeypatch.setattr(rr, "spawn", lambda **kw: calls.append(kw))
     rec = rr.RecordingStream("exo_ctrl_test")
-    assert writer.spawn_viewer(rec) is None
+    assert viewer.spawn_viewer(rec) is None
     assert calls == [{"connect": False, "executable_path": str(beside), "recording": rec}]
 
 
 def test_a_missing_viewer_is_said_in_one_line(no_viewer: Path, monkeypatch) -> None:
     monkeypatch.setattr(rr, "spawn", lambda **kw: pytest.fail("nothing to spawn"))
-    assert writer.find_viewer() is None
-    assert writer.spawn_viewer(rr.RecordingStream("exo_ctrl_test")) == (
+    assert viewer.find_viewer() is None
+    assert viewer.spawn_viewer(rr.RecordingStream("exo_ctrl_test")) == (
         f"no rerun viewer found (neither {no_viewer} nor 'rerun' on PATH; it comes with rerun-sdk)"
     )
 
@@ -49,9 +49,9 @@ def test_a_viewer_that_fails_to_start_is_said_in_one_line(monkeypatch) -> None:
     def fail(**kw: object) -> None:
         raise RuntimeError("Failed to spawn:\n  port in use")
 
-    monkeypatch.setattr(writer, "find_viewer", lambda: Path("/opt/rerun"))
+    monkeypatch.setattr(viewer, "find_viewer", lambda: Path("/opt/rerun"))
     monkeypatch.setattr(rr, "spawn", fail)
-    assert writer.spawn_viewer(rr.RecordingStream("exo_ctrl_test")) == (
+    assert viewer.spawn_viewer(rr.RecordingStream("exo_ctrl_test")) == (
         "could not start the rerun viewer /opt/rerun: Failed to spawn: port in use"
     )
 

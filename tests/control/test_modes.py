@@ -182,7 +182,7 @@ def test_bad_mode_parameters_are_refused(params, message) -> None:
 
 def test_modes_are_refused_where_they_do_not_apply() -> None:
     with pytest.raises(InvalidParameter, match="mode must be one of tracking, guidance"):
-        SimConfig(mode="path")
+        SimConfig(mode="walk")
     with pytest.raises(InvalidParameter, match="assist-as-needed learns per phase"):
         SimConfig(mode="aan", gait=SimConfig().gait.__class__(period=1.2345))
     with pytest.raises(InvalidParameter, match="the calibration swing tracks"):

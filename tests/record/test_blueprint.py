@@ -8,6 +8,7 @@ from rerun.chunk import RrdReader
 
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.record import blueprint_views
+from exo_ctrl.record.biofeedback import BIOFEEDBACK, BIOFEEDBACK_SERIES
 from exo_ctrl.record.blueprint import MAX_LINES_PER_PANEL
 from exo_ctrl.record.format import JOINT_GROUPS
 from exo_ctrl.sim.schema import SIGNALS
@@ -44,7 +45,9 @@ def test_blueprint_is_stored_in_the_file(short_run):
 def _unit_of(entity: str) -> str:
     """The log schema's unit of the values a series entity shows."""
     units = {s.name: s.unit for s in SIGNALS}
-    _, quantity, *_ = entity.split("/")
+    root, quantity, *_ = entity.split("/")
+    if root == BIOFEEDBACK:  # the per-cycle figures (exo_ctrl/record/biofeedback.py)
+        return BIOFEEDBACK_SERIES[entity.partition("/")[2]][0]
     if quantity in JOINT_GROUPS:
         (unit,) = {units[sig] for sig, _ in JOINT_GROUPS[quantity]}
         return unit

@@ -11,8 +11,9 @@ from ...model import JOINT_NAMES
 __all__ = ["MODES", "ModeParams"]
 
 #: The interaction modes (``SimConfig.mode``, ``--mode``); ``tracking`` is
-#: today's position control by the configured controller.
-MODES = ("tracking", "guidance", "transparent", "aan")
+#: today's position control by the configured controller; ``path``: the
+#: tunnel around the foot path with free timing (:mod:`~exo_ctrl.control.modes.path`).
+MODES = ("tracking", "guidance", "transparent", "aan", "path")
 
 
 @dataclass(frozen=True)
