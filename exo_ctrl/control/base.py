@@ -21,7 +21,7 @@ from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..sensing.readings import SensorReadings
 
-__all__ = ["COMMAND_FIELDS", "Controller", "PDGains"]
+__all__ = ["COMMAND_FIELDS", "CommandCounters", "Controller", "PDGains"]
 
 #: The fields every controller's record has (numpy dtype syntax):
 #:
@@ -33,6 +33,22 @@ COMMAND_FIELDS: list[tuple[Any, ...]] = [
     ("active_constraints", np.float64),
     ("failures", np.float64),
 ]
+
+
+class CommandCounters:
+    """The QP counters of a controller's record (:data:`COMMAND_FIELDS`), for every controller."""
+
+    record: np.ndarray
+
+    @property
+    def active_constraints(self) -> int:
+        """Active QP bounds in the last tick (0: no QP)."""
+        return int(self.record["active_constraints"][0])
+
+    @property
+    def failures(self) -> int:
+        """QP fallbacks so far (0: no QP; a session: over every segment's controller)."""
+        return int(self.record["failures"][0])
 
 
 class Controller(Protocol):

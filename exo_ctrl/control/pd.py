@@ -12,7 +12,7 @@ from ..exceptions import InvalidParameter
 from ..plan.kinematics import JointTrajectory
 from ..plan.rows import plan_row
 from ..sensing.readings import SensorReadings
-from .base import COMMAND_FIELDS, PDGains
+from .base import COMMAND_FIELDS, CommandCounters, PDGains
 
 __all__ = ["PD_FIELDS", "PDController", "pd_command", "pd_law"]
 
@@ -31,7 +31,7 @@ PD_FIELDS: list[tuple[Any, ...]] = [
 ]
 
 
-class PDController:
+class PDController(CommandCounters):
     """U = k_p (q* - q) + k_d (q̇* - q̇) per drive [V].
 
     Args:
@@ -94,16 +94,6 @@ class PDController:
     def last_row(self) -> int:
         """The plan row of the last tick."""
         return int(self.record["row"][0])
-
-    @property
-    def active_constraints(self) -> int:
-        """Active QP bounds in the last tick (0: no QP)."""
-        return int(self.record["active_constraints"][0])
-
-    @property
-    def failures(self) -> int:
-        """QP fallbacks so far (0: no QP)."""
-        return int(self.record["failures"][0])
 
 
 @kernel

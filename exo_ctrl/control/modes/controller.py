@@ -79,7 +79,7 @@ from ...plan.kinematics import JointTrajectory
 from ...plan.rows import plan_row
 from ...plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
 from ...sensing.readings import SensorReadings
-from ..base import COMMAND_FIELDS, PDGains
+from ..base import COMMAND_FIELDS, CommandCounters, PDGains
 from ..pd import PDController
 from .params import ModeParams
 
@@ -124,7 +124,7 @@ MODE_FIELDS: list[tuple[Any, ...]] = [
 ]
 
 
-class InteractionController:
+class InteractionController(CommandCounters):
     """An interaction mode (module docstring) behind the controller interface.
 
     Args:
@@ -230,16 +230,6 @@ class InteractionController:
         if self._aan and self.record["cycles"][0] > len(self.support_history):
             self.support_history.append(float(self.record["support_rms"][0]))
         return self._u
-
-    @property
-    def active_constraints(self) -> int:
-        """Active QP bounds in the last tick (0: no QP)."""
-        return int(self.record["active_constraints"][0])
-
-    @property
-    def failures(self) -> int:
-        """QP fallbacks so far (0: no QP)."""
-        return int(self.record["failures"][0])
 
 
 @kernel

@@ -40,7 +40,7 @@ import numpy as np
 from ..._jit import kernel, record
 from ...exceptions import InvalidParameter
 from ...sensing.readings import SensorReadings
-from ..base import COMMAND_FIELDS
+from ..base import COMMAND_FIELDS, CommandCounters
 
 __all__ = ["SWITCH_FIELDS", "SwitchedController", "blend_command"]
 
@@ -54,7 +54,7 @@ SWITCH_FIELDS: list[tuple[Any, ...]] = [
 ]
 
 
-class SwitchedController:
+class SwitchedController(CommandCounters):
     """Runs ``controllers[i]`` from tick ``starts[i]``, blending each switch (module docstring).
 
     Args:
@@ -136,16 +136,6 @@ class SwitchedController:
                 f"(blended over {self.blend_ticks * self.dt:g} s)",
             }
         )
-
-    @property
-    def active_constraints(self) -> int:
-        """Active QP bounds in the last tick (0: no QP)."""
-        return int(self.record["active_constraints"][0])
-
-    @property
-    def failures(self) -> int:
-        """QP fallbacks so far, over every segment's controller."""
-        return int(self.record["failures"][0])
 
 
 @kernel
