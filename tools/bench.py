@@ -95,9 +95,12 @@ def floor_calls(runner: Runner) -> list:
         calls.append(lambda: pin.rnea(ff._me, ff._de, *row))
         if ff._mp is not None:
             calls.append(lambda: pin.rnea(ff._mp, ff._dp, *row))
-    modes = getattr(setup.controller, "_m", None)  # an interaction mode's exoskeleton model
+    # An interaction mode's exoskeleton model (path: its transparent part's;
+    # path's own feet and Jacobians are closed-form, no Pinocchio call).
+    mode_ctrl = getattr(setup.controller, "_free", setup.controller)
+    modes = getattr(mode_ctrl, "_m", None)
     if modes is not None:
-        md = setup.controller._d
+        md = mode_ctrl._d
         calls.append(lambda: pin.nonLinearEffects(modes, md, qe, ve))
     own = runner.patient_model  # the active patient's feedforward (plant side)
     if hasattr(own, "_pm"):
@@ -133,6 +136,8 @@ SCENARIOS = {
     "pd_active": {"controller": "pd", "patient_torque": "active"},
     "transparent": {"mode": "transparent", "patient_torque": "active"},
     "aan": {"mode": "aan", "patient_torque": "active"},
+    # Path control with free timing (control/modes/path.py), the default 0.03 m tunnel.
+    "path": {"mode": "path", "patient_torque": "active"},
     # The QP where its bound binds (tests/test_qp.py's spastic run).
     "qp_spastic": {
         "controller": "qp",

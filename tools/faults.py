@@ -1,6 +1,6 @@
 """The fault-injection campaign: one fault at a time in the default run, detected or not.
 
-    .venv/bin/python tools/faults.py [--seeds N] [--controller pd|ct|qp] [--out DIR]
+    .venv/bin/python tools/faults.py [--seeds N] [--controller pd|ct|qp] [--mode MODE] [--out DIR]
 
 For each fault of :data:`exo_ctrl.sim.faults.FAULT_KINDS` and each seed, the
 default scenario (standing, 1.2 s ramp-in, 3.6 s in all) runs with that one
@@ -20,7 +20,16 @@ gives the feet's slip on the stopped belt after the onset (the largest slip
 speed and the distance slid, both feet, in contact).  Prints a Markdown
 table; exit 0.
 
-Importable: ``run_campaign(seeds=1, controller="pd") -> list[FaultResult]``.
+``--mode MODE`` (default ``tracking``) runs the campaign in an interaction
+mode (:mod:`exo_ctrl.control.modes`: guidance, transparent, aan, path) with
+``--patient-torque active`` (the active patient's defaults,
+:mod:`exo_ctrl.plant.patient_active`): a passive patient would drop out of a
+free device.  Outside ``tracking`` the device does not impose the plan, so
+the excursion's reference while normal is the same mode's run without the
+fault (same seeds: the same patient and sensor noise), and the hold posture
+after the stop, as in tracking.
+
+Importable: ``run_campaign(seeds=1, controller="pd", mode="tracking") -> list[FaultResult]``.
 """
 
 from __future__ import annotations
@@ -36,6 +45,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from exo_ctrl import SimConfig, read_recording, simulate
+from exo_ctrl.control.modes import MODES
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.plant import ContactParams
 from exo_ctrl.record import RerunRecorder
@@ -145,8 +155,12 @@ def plan_fault(kind: str, seed: int, dt: float = 1e-3) -> Fault:
     return Fault(kind, at, target, magnitude, duration, seed=seed)
 
 
-def analyse(result, fault: Fault) -> FaultResult:
-    """The campaign's figures of a run with ``fault`` (module docstring)."""
+def analyse(result, fault: Fault, reference=None) -> FaultResult:
+    """The campaign's figures of a run with ``fault`` (module docstring).
+
+    ``reference``: the run without the fault whose angles q are the
+    excursion's reference while normal (None: the plan, q*).
+    """
     out = FaultResult(fault.kind, fault.label, fault.seed, at_s=fault.at_s)
     out.state = result.safety_state or ""
     out.ticks = int(result.t.shape[0])
@@ -161,7 +175,7 @@ def analyse(result, fault: Fault) -> FaultResult:
     k0 = round(fault.at_s / result.config.dt)
     force = np.linalg.norm(s["cuff_force"][k0:], axis=-1)
     out.worst_cuff_force_N = float(force.max())
-    ref = s["q_des"].copy()
+    ref = s["q_des"].copy() if reference is None else reference.signals["q"].copy()
     stopped = np.flatnonzero(s["safety_state"] != 0)
     if stopped.size:
         k_stop = stopped[0]
@@ -194,13 +208,21 @@ def run_fault(
     controller: str = "pd",
     out: Path | None = None,
     variant: str = "",
+    mode: str = "tracking",
+    reference=None,
     **config: object,
 ) -> FaultResult:
     """Run the default scenario with ``fault`` and analyse it (``config``: SimConfig overrides).
 
     ``variant``: the run's label beside the fault's (``"sync on"``; in the
-    recording's name).
+    recording's name).  ``mode``: the interaction mode; outside tracking with
+    the active patient, and the excursion measured from ``reference``, the
+    same run without the fault (None: run here).
     """
+    if mode != "tracking":
+        config = {"mode": mode, "patient_torque": "active", **config}
+        if reference is None:
+            reference = simulate(SimConfig(controller=controller, **config))
     cfg = SimConfig(controller=controller, faults=(fault,), **config)
     observers = []
     path = None
@@ -210,7 +232,7 @@ def run_fault(
         path = out / f"{fault.kind}_{fault.target or 'all'}{tag}_seed{fault.seed}.rrd"
         observers.append(RerunRecorder(path))
     result = simulate(cfg, observers=observers)
-    res = analyse(result, fault)
+    res = analyse(result, fault, reference)
     res.variant = variant
     if variant:
         res.label = f"{res.label} ({variant})"
@@ -227,9 +249,11 @@ def run_campaign(
     out: Path | None = None,
     kinds: tuple[str, ...] = FAULT_KINDS,
     progress: bool = False,
+    mode: str = "tracking",
 ) -> list[FaultResult]:
-    """Every fault of ``kinds`` × ``seeds`` seeds (module docstring)."""
+    """Every fault of ``kinds`` × ``seeds`` seeds (module docstring), in ``mode``."""
     results = []
+    references: dict[str, object] = {}  # per variant: the mode's run without a fault
     belt = [(name, over) for name, over in BELT_VARIANTS if controller != "qp" or not over["sync"]]
     runs = [
         (kind, seed, variant)
@@ -244,7 +268,14 @@ def run_campaign(
         if kind in UNDETECTABLE:
             results.append(FaultResult(kind, kind, seed, note=UNDETECTABLE[kind]))
             continue
-        results.append(run_fault(plan_fault(kind, seed), controller, out, name, **over))
+        reference = None
+        if mode != "tracking":
+            if name not in references:
+                extra = {"mode": mode, "patient_torque": "active", **over}
+                references[name] = simulate(SimConfig(controller=controller, **extra))
+            reference = references[name]
+        fault = plan_fault(kind, seed)
+        results.append(run_fault(fault, controller, out, name, mode, reference, **over))
     return results
 
 
@@ -278,12 +309,20 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=1, help="seeds per fault (default 1)")
     parser.add_argument("--controller", choices=("pd", "ct", "qp"), default="pd")
+    parser.add_argument(
+        "--mode",
+        choices=MODES,
+        default="tracking",
+        help="interaction mode (default tracking); any other runs with --patient-torque active "
+        "and measures the excursion from the same mode's run without the fault",
+    )
     parser.add_argument("--out", type=Path, default=None, help="directory for the recordings")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
-    results = run_campaign(args.seeds, args.controller, args.out, progress=True)
-    print(f"Fault campaign, controller {args.controller}, {args.seeds} seed(s) per fault:\n")
+    results = run_campaign(args.seeds, args.controller, args.out, progress=True, mode=args.mode)
+    who = f"mode {args.mode}, active patient" if args.mode != "tracking" else "mode tracking"
+    print(f"Fault campaign, controller {args.controller}, {who}, {args.seeds} seed(s) per fault:\n")
     print(table(results))
     return 0
 

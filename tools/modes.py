@@ -2,8 +2,9 @@
 
     .venv/bin/python tools/modes.py [--duration SEC] [--png PATH]
 
-Runs the modes ``tracking``, ``guidance`` (G = 0.5), ``transparent`` and
-``aan`` (:mod:`exo_ctrl.control.modes`, their default parameters) on three
+Runs the modes ``tracking``, ``guidance`` (G = 0.5), ``transparent``,
+``aan`` and ``path`` (tunnel 0.03 m) (:mod:`exo_ctrl.control.modes`, their
+default parameters otherwise) on three
 active patients (:mod:`exo_ctrl.plant.patient_active`), each preferring
 their own gait, a 1.0 s period and 0.30 m steps, against the device's plan
 of 1.2 s and 0.35 m (the preferences of ``tests/sim/test_modes_run.py``):
@@ -22,10 +23,13 @@ true (the plant's cuff forces) and estimated (the device's) [N]; the
 patient's effort, the RMS of their joint torques (RMS over the four joints)
 [N·m] and their positive work per cycle (all joints) [J]; the drives'
 positive work per cycle [J]; the RMS tracking error (RMS over the joints)
-[mrad]; the Gait Profile Score of the patient's true angles [deg] (the
-plan's is the same in every run and printed under the table); the
-supervisor's stop (its state and first event's time; ``--no-safety``
-runs without it).  Figures of a stopped run include the hold after the
+[mrad] against the clock's plan (in ``path``, whose timing is free, it
+counts the patient's own pace as an error); for ``path`` the feet's RMS
+distance from the planned path at the device's own phase (RMS over both
+feet, the summary's ``path_error_rms_m``) [mm]; the Gait Profile Score
+of the patient's true angles [deg] (the plan's is the same in every run
+and printed under the table); the supervisor's stop (its state and first
+event's time; ``--no-safety`` runs without it).  Figures of a stopped run include the hold after the
 stop.  Prints a Markdown table; ``--png`` draws a panel
 per figure with a marker per mode (exit 0).
 
@@ -47,6 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from exo_ctrl import SimConfig, simulate
 from exo_ctrl.control.modes import ModeParams
+from exo_ctrl.control.modes.path import PathParams
 from exo_ctrl.plant.patient_active import ActiveParams
 
 #: The modes run: label → (mode, its parameters).
@@ -55,7 +60,10 @@ MODES: dict[str, tuple[str, ModeParams]] = {
     "guidance 0.5": ("guidance", ModeParams(guidance=0.5)),
     "transparent": ("transparent", ModeParams()),
     "aan": ("aan", ModeParams()),
+    "path 0.03": ("path", ModeParams()),
 }
+#: The path mode's parameters per label of :data:`MODES` (others: the default).
+PATH_PARAMS: dict[str, PathParams] = {"path 0.03": PathParams(tunnel_width_m=0.03)}
 #: The patient's preferred gait [s], [m] (the device's: 1.2 s, 0.35 m).
 PREFERRED = {"period_s": 1.0, "step_length_m": 0.30}
 #: The active patients: label → their parameters.
@@ -71,7 +79,8 @@ FIGURES: dict[str, tuple[str, str]] = {
     "patient_torque_Nm": ("patient RMS joint torque", "N·m"),
     "patient_work_J": ("patient positive work per cycle", "J"),
     "device_work_J": ("device positive work per cycle", "J"),
-    "tracking_error_mrad": ("RMS tracking error", "mrad"),
+    "tracking_error_mrad": ("RMS tracking error (clock)", "mrad"),
+    "path_error_mm": ("feet from the path at the device's phase, RMS", "mm"),
     "gps_deg": ("Gait Profile Score, patient", "deg"),
 }
 
@@ -92,6 +101,7 @@ class Row:
     gps_planned_deg: float
     safety_state: str
     stop_s: float | None
+    path_error_mm: float = math.nan
 
 
 def config_of(mode: str, patient: str, duration_s: float, safety: bool = True) -> SimConfig:
@@ -102,6 +112,7 @@ def config_of(mode: str, patient: str, duration_s: float, safety: bool = True) -
         patient_active=PATIENTS[patient],
         mode=name,
         modes=params,
+        path=PATH_PARAMS.get(mode, PathParams()),
         duration_s=duration_s,
         safety=safety,
     )
@@ -114,6 +125,7 @@ def row_of(mode: str, patient: str, summary: dict[str, Any]) -> Row:
     n = sum(1 for c in block["cycles"] if c["cycle"] != "ramp_in")
     rms = lambda d: math.sqrt(float(np.mean(np.square(list(d.values())))))  # noqa: E731
     gps = summary["gait_profile_score_deg"]
+    path = run.get("path_error_rms_m")
     return Row(
         mode=mode,
         patient=patient,
@@ -127,6 +139,7 @@ def row_of(mode: str, patient: str, summary: dict[str, Any]) -> Row:
         gps_planned_deg=gps["planned"],
         safety_state=summary["safety_state"],
         stop_s=summary["safety_events"][0]["t"] if summary["safety_events"] else None,
+        path_error_mm=1e3 * rms(path) if path is not None else math.nan,
     )
 
 
@@ -151,12 +164,17 @@ def table(rows: list[Row]) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         stop = f"{r.safety_state} at {r.stop_s:.2f} s" if r.stop_s is not None else "none"
-        cells = [r.patient, r.mode, *(f"{getattr(r, k):.2f}" for k in FIGURES), stop]
+        cells = [r.patient, r.mode, *(_cell(getattr(r, k)) for k in FIGURES), stop]
         lines.append("| " + " | ".join(cells) + " |")
     if rows:
         lines.append("")
         lines.append(f"Gait Profile Score of the plan: {rows[0].gps_planned_deg:.2f} deg")
     return "\n".join(lines)
+
+
+def _cell(x: float) -> str:
+    """A figure in the table; a dash where the mode has none (NaN)."""
+    return f"{x:.2f}" if math.isfinite(x) else "–"
 
 
 def plot(rows: list[Row], path: Path, duration_s: float) -> None:
@@ -172,7 +190,7 @@ def plot(rows: list[Row], path: Path, duration_s: float) -> None:
     colors = dict(
         zip(modes, ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"), strict=False)
     )
-    fig, axes = plt.subplots(2, 4, figsize=(16, 7.5))
+    fig, axes = plt.subplots(3, 3, figsize=(15, 10.5))
     for ax, (key, (title, unit)) in zip(axes.flat, FIGURES.items(), strict=False):
         for j, mode in enumerate(modes):
             xs = [i + 0.12 * (j - (len(modes) - 1) / 2) for i in range(len(patients))]
@@ -188,6 +206,11 @@ def plot(rows: list[Row], path: Path, duration_s: float) -> None:
                 ax.plot(*zip(*stopped, strict=True), "o", ms=15, mfc="none", mec=colors[mode])
         ax.set_title(f"{title} [{unit}]", fontsize=10)
         ax.set_xticks(range(len(patients)), patients)
+        ax.set_xlim(-0.5, len(patients) - 0.5)
+        if key == "path_error_mm":  # the tunnels' half-widths, for scale
+            for label, params in PATH_PARAMS.items():
+                ax.axhline(1e3 * params.tunnel_width_m, ls="--", color="0.5", lw=1)
+                ax.text(-0.45, 1e3 * params.tunnel_width_m, f" tunnel ({label})", va="bottom")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
     legend_ax = axes.flat[-1]

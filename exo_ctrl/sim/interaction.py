@@ -13,7 +13,26 @@ after the L ramp-in ticks, P = T_s / Δt; the ramp-in is cycle ``"ramp_in"``):
   their positive work Σ max(τ_p q̇_p, 0) Δt [J], per joint;
 - the device's work: the drives' positive mechanical work at the joints
   Σ max(τ q̇, 0) Δt [J], per joint;
-- the RMS tracking error q* − q [rad], per joint.
+- the RMS tracking error q* − q [rad], per joint, against the CLOCK's plan
+  (q* at row k of the plan): in ``path`` mode, whose timing is free, this
+  counts a patient who walks the path slower or faster as an error.
+
+In ``path`` mode (:class:`PathReference`; the run's controller a
+:class:`~exo_ctrl.control.modes.path.PathController`), the figures that
+mean something under free timing, at the device's own phase σ_k (the
+plan row the device reached, logged as ``path_phase``):
+
+- ``path_error_rms_m``, ``path_error_max_m`` per foot (left, right): the
+  distance d_k = min |p_k − c| of the TRUE exoskeleton's foot p_k (closed-form
+  forward kinematics of the plant's exoskeleton legs at the true angles q,
+  relative to the hip) from the planned foot path c, the polyline through
+  the plan's foot points in rows σ_k − W … σ_k + W (W: the controller's
+  search window; rows wrapped in the gait period in the periodic part,
+  clamped on the ramps) — the tunnel's distance, measured on the truth;
+- ``path_outside_tunnel_share`` per foot: the share of ticks with d_k > w;
+- ``path_phase_tracking_error_rad`` per joint: the RMS of q*(σ_k) − q_k,
+  the plan's joints at the device's phase (the clock-free analogue of the
+  tracking error).
 
 Whole-run figures are over the cycles after the ramp-in.
 """
@@ -21,17 +40,169 @@ Whole-run figures are over the cycles after the ramp-in.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..model import JOINT_NAMES
+from .._jit import kernel
+from ..control.modes.path import PathController, leg_table
+from ..model import JOINT_NAMES, SIDES, BodyModel
+from ..plan.kinematics import JointTrajectory
 from .config import SimConfig
 
-__all__ = ["InteractionStats", "interaction_stats"]
+__all__ = ["InteractionStats", "PathReference", "interaction_stats", "path_distances"]
 
 #: Running sums per cycle, in this order: ticks, Σ|f|², Σ|f̂|², Σ τ_p², W⁺_p, W⁺_d, Σ e².
 _SUMS = 7
+#: Path mode's per cycle: ticks, Σ d², max d, ticks with d > w (feet in the
+#: first two columns), Σ (q*(σ) − q)² (per joint).
+_PATH_SUMS = 5
+
+
+@dataclass(frozen=True)
+class PathReference:
+    """What ``path`` mode's figures are measured against (module docstring).
+
+    Attributes:
+        foot_pos: the planned foot path per plan row, (rows, 2 legs, x/z)
+            [m] from the hips.
+        q_plan: the planned joint angles per plan row, (rows, 4) [rad].
+        legs: the TRUE exoskeleton's legs (left, right): l1, l2 [m], s_h,
+            s_k, φ1⁰, φ2⁰ [rad] (:func:`~exo_ctrl.control.modes.path.leg_table`).
+        window: W, the controller's search window [rows].
+        row_rule: the plan's (lead, period, tail) [rows, ticks].
+        width_m: the tunnel's half-width w [m].
+
+    """
+
+    foot_pos: np.ndarray
+    q_plan: np.ndarray
+    legs: np.ndarray
+    window: int
+    row_rule: tuple[int, int, int]
+    width_m: float
+
+    @classmethod
+    def of(cls, controller: PathController, plan: JointTrajectory, exo: BodyModel) -> PathReference:
+        """The reference of a path controller on ``plan``, measured on the true ``exo``."""
+        rec = controller.record[0]
+        return cls(
+            foot_pos=np.asarray(plan.foot_pos, dtype=float),
+            q_plan=np.asarray(plan.q, dtype=float),
+            legs=leg_table(exo),
+            window=int(rec["window"]),
+            row_rule=plan.row_rule,
+            width_m=float(rec["width"]),
+        )
+
+
+def feet_in_hip(legs: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Feet from the hips, (n, 2 legs, x/z) [m], of joint angles q (n, 4) [rad].
+
+    p = (l1 cos φ1 + l2 cos φ2, l1 sin φ1 + l2 sin φ2), φ1 = φ1⁰ + s_h q_h,
+    φ2 = φ2⁰ + s_h q_h + s_k q_k (:mod:`exo_ctrl.control.modes.path`).
+    """
+    out = np.empty((q.shape[0], 2, 2))
+    for leg in range(2):
+        l1, l2, sh, sk, p10, p20 = legs[leg]
+        phi1 = p10 + sh * q[:, 2 * leg]
+        phi2 = p20 + sh * q[:, 2 * leg] + sk * q[:, 2 * leg + 1]
+        out[:, leg, 0] = l1 * np.cos(phi1) + l2 * np.cos(phi2)
+        out[:, leg, 1] = l1 * np.sin(phi1) + l2 * np.sin(phi2)
+    return out
+
+
+def path_distances(
+    ref: PathReference, q: np.ndarray, phase: np.ndarray, ticks: np.ndarray
+) -> np.ndarray:
+    """d_k per foot (module docstring), (n, 2) [m]: q (n, 4) [rad], σ_k rows, tick numbers k.
+
+    The least distance over the window's segments, exactly; the compiled
+    kernel :func:`_distances` projects onto a segment only where it can beat
+    the nearest vertex (|p − c| ≥ max(|p − a|, |p − b|) − L for c on [a, b],
+    L the plan's longest segment).
+    """
+    lead, period, tail = ref.row_rule
+    out = np.empty((q.shape[0], 2))
+    _distances(
+        ref.foot_pos,
+        ref.legs,
+        np.ascontiguousarray(q, dtype=float),
+        np.ascontiguousarray(phase, dtype=np.int64),
+        np.ascontiguousarray(ticks, dtype=np.int64),
+        ref.window,
+        lead,
+        max(period, 1),
+        tail,
+        out,
+    )
+    return out
+
+
+@kernel
+def _wrap(r, lead, period, last, periodic):  # pragma: no cover - compiled
+    """Plan row r wrapped in the gait period (periodic) or clamped to [0, last]."""
+    if periodic:
+        return lead + (r - lead) % period
+    return min(max(r, 0), last)
+
+
+@kernel
+def _distances(pos, legs, q, phase, ticks, window, lead, period, tail, out):  # pragma: no cover
+    """:func:`path_distances`' arithmetic into ``out`` (n, 2) [m]."""
+    last = pos.shape[0] - 1
+    span = 2 * window + 1
+    d2 = np.empty(span)
+    rows = np.empty(span, dtype=np.int64)
+    # The longest segment of the plan's foot path (the period's closing one too) [m].
+    longest2 = 0.0
+    close = lead + period - 1  # the period's last row, joined to its first (lead)
+    for leg in range(2):
+        for r in range(last + 1):
+            b = lead if r == close else r + 1
+            if b > last:
+                continue
+            dx, dz = pos[b, leg, 0] - pos[r, leg, 0], pos[b, leg, 1] - pos[r, leg, 1]
+            longest2 = max(longest2, dx * dx + dz * dz)
+            if r == close and r < last:  # and the segment on to the next row
+                dx, dz = pos[r + 1, leg, 0] - pos[r, leg, 0], pos[r + 1, leg, 1] - pos[r, leg, 1]
+                longest2 = max(longest2, dx * dx + dz * dz)
+    longest = np.sqrt(longest2)
+    for n in range(q.shape[0]):
+        periodic = lead <= ticks[n] < tail
+        r = _wrap(phase[n] - window, lead, period, last, periodic)
+        for i in range(span):  # the window's rows, wrapped step by step
+            rows[i] = r
+            if periodic:
+                r = r + 1 if r + 1 < lead + period else lead
+            else:
+                r = min(phase[n] - window + i + 1, last) if phase[n] - window + i + 1 > 0 else 0
+        for leg in range(2):
+            l1, l2, sh, sk = legs[leg, 0], legs[leg, 1], legs[leg, 2], legs[leg, 3]
+            p1 = legs[leg, 4] + sh * q[n, 2 * leg]
+            p2 = legs[leg, 5] + sh * q[n, 2 * leg] + sk * q[n, 2 * leg + 1]
+            px = l1 * np.cos(p1) + l2 * np.cos(p2)
+            pz = l1 * np.sin(p1) + l2 * np.sin(p2)
+            best = np.inf
+            for i in range(span):
+                dx, dz = px - pos[rows[i], leg, 0], pz - pos[rows[i], leg, 1]
+                d2[i] = dx * dx + dz * dz
+                best = min(best, d2[i])
+            reach = (np.sqrt(best) + longest) ** 2
+            for i in range(span - 1):
+                if max(d2[i], d2[i + 1]) >= reach:  # cannot beat the nearest vertex
+                    continue
+                a, b = rows[i], rows[i + 1]
+                ex, ez = pos[b, leg, 0] - pos[a, leg, 0], pos[b, leg, 1] - pos[a, leg, 1]
+                length2 = ex * ex + ez * ez
+                if length2 <= 0.0:
+                    continue
+                u = ((px - pos[a, leg, 0]) * ex + (pz - pos[a, leg, 1]) * ez) / length2
+                u = min(max(u, 0.0), 1.0)
+                gap = (px - pos[a, leg, 0] - u * ex) ** 2 + (pz - pos[a, leg, 1] - u * ez) ** 2
+                best = min(best, gap)
+            out[n, leg] = np.sqrt(best)
 
 
 class InteractionStats:
@@ -45,10 +216,15 @@ class InteractionStats:
 
     """
 
-    def __init__(self, mode: str, lead: int, period: int, dt: float) -> None:
+    def __init__(
+        self, mode: str, lead: int, period: int, dt: float, path: PathReference | None = None
+    ) -> None:
         self.mode = mode
         self.lead, self.period, self.dt = lead, max(period, 1), dt
         self._cycles: dict[int, np.ndarray] = {}
+        #: Path mode's reference (None: no path figures) and its sums per cycle.
+        self.path = path
+        self._path: dict[int, np.ndarray] = {}
 
     def update(self, rows: dict[str, np.ndarray], start: int) -> None:
         """Add a chunk of log rows whose first row is tick ``start``."""
@@ -71,6 +247,29 @@ class InteractionStats:
             sums[4] += work_p[m].sum(axis=0)
             sums[5] += work_d[m].sum(axis=0)
             sums[6] += err[m].sum(axis=0)
+        if self.path is not None:
+            self._update_path(rows, ticks, cycle)
+
+    def _update_path(
+        self, rows: dict[str, np.ndarray], ticks: np.ndarray, cycle: np.ndarray
+    ) -> None:
+        """Path mode's sums of a chunk: the ticks with a device phase (σ ≥ 0)."""
+        ref = self.path
+        phase = rows["path_phase"]
+        ok = np.isfinite(phase) & (phase >= 0)
+        if not ok.any():
+            return
+        q, ticks, cycle, phase = rows["q"][ok], ticks[ok], cycle[ok], phase[ok]
+        d = path_distances(ref, q, phase, ticks)
+        err = (ref.q_plan[phase.astype(np.int64)] - q) ** 2
+        for c in np.unique(cycle):
+            m = cycle == c
+            sums = self._path.setdefault(int(c), np.zeros((_PATH_SUMS, 4)))
+            sums[0] += m.sum()
+            sums[1, :2] += (d[m] ** 2).sum(axis=0)
+            sums[2, :2] = np.maximum(sums[2, :2], d[m].max(axis=0))
+            sums[3, :2] += (d[m] > ref.width_m).sum(axis=0)
+            sums[4] += err[m].sum(axis=0)
 
     def summary(self, support: list[float] | None = None) -> dict[str, Any]:
         """The block: ``mode``, ``run`` (after the ramp-in) and ``cycles`` (each cycle's figures).
@@ -79,18 +278,27 @@ class InteractionStats:
             support: aan's support level (RMS of its table [N·m]) after each cycle.
 
         """
-        cycles = [self._figures(self._cycles[c], c) for c in sorted(self._cycles)]
+        cycles = [
+            self._figures(self._cycles[c], c, self._path.get(c)) for c in sorted(self._cycles)
+        ]
         after = [self._cycles[c] for c in sorted(self._cycles) if c >= 0]
+        path = [self._path[c] for c in sorted(self._path) if c >= 0]
+        whole = None
+        if path:  # sums add, maxima take the largest
+            whole = sum(path)
+            whole[2] = np.max([p[2] for p in path], axis=0)
         out: dict[str, Any] = {
             "mode": self.mode,
-            "run": self._figures(sum(after), None) if after else None,
+            "run": self._figures(sum(after), None, whole) if after else None,
             "cycles": cycles,
         }
         if support is not None:
             out["aan_support_rms_Nm"] = [float(x) for x in support]
         return out
 
-    def _figures(self, sums: np.ndarray, cycle: int | None) -> dict[str, Any]:
+    def _figures(
+        self, sums: np.ndarray, cycle: int | None, path: np.ndarray | None = None
+    ) -> dict[str, Any]:
         n = max(float(sums[0, 0]), 1.0)
         keyed = lambda a: {j: float(x) for j, x in zip(JOINT_NAMES, a, strict=True)}  # noqa: E731
         out: dict[str, Any] = {} if cycle is None else {"cycle": cycle if cycle >= 0 else "ramp_in"}
@@ -104,11 +312,36 @@ class InteractionStats:
                 "rms_tracking_error_rad": keyed(np.sqrt(sums[6] / n)),
             }
         )
+        if path is not None:
+            m = max(float(path[0, 0]), 1.0)
+            feet = lambda a: {s: float(x) for s, x in zip(SIDES, a[:2], strict=True)}  # noqa: E731
+            out.update(
+                {
+                    "path_error_rms_m": feet(np.sqrt(path[1] / m)),
+                    "path_error_max_m": feet(path[2]),
+                    "path_outside_tunnel_share": feet(path[3] / m),
+                    "path_phase_tracking_error_rad": keyed(np.sqrt(path[4] / m)),
+                }
+            )
         return out
 
 
-def interaction_stats(config: SimConfig) -> InteractionStats | None:
-    """The interaction figures of a run in a mode or with an active patient, else None."""
+def interaction_stats(
+    config: SimConfig,
+    controller: Any = None,
+    plan: JointTrajectory | None = None,
+    exo: BodyModel | None = None,
+) -> InteractionStats | None:
+    """The interaction figures of a run in a mode or with an active patient, else None.
+
+    Args:
+        config: the run.
+        controller: the run's controller; a :class:`PathController` adds
+            the path figures (module docstring).
+        plan: the run's plan (for the path figures).
+        exo: the TRUE exoskeleton, the plant's (for the path figures).
+
+    """
     if config.mode == "tracking" and config.patient_torque != "active":
         return None
     if config.exercise != "gait":
@@ -116,4 +349,7 @@ def interaction_stats(config: SimConfig) -> InteractionStats | None:
     lay = config.plan_layout
     period = lay.period if lay.period > 1 else round(config.gait.period / config.dt)
     lead = math.ceil(config.ramp_in / config.dt - 1e-9)
-    return InteractionStats(config.mode, lead, period, config.dt)
+    path = None
+    if isinstance(controller, PathController) and plan is not None and exo is not None:
+        path = PathReference.of(controller, plan, exo)
+    return InteractionStats(config.mode, lead, period, config.dt, path)

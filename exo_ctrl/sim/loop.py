@@ -71,7 +71,7 @@ def simulate(
         stats=RunStats(
             EstimateErrorStats(setup.exo, config.dt),
             contact_stats(config),
-            interaction_stats(config),
+            interaction_stats(config, setup.controller, setup.plan, setup.exo),
         ),
     )
     result.stats.gait = gait_score_stats(config)

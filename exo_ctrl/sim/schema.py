@@ -101,6 +101,12 @@ SIGNALS: list[Signal] = [
     Signal("belt_speed_set", (), "m/s", "belt speed controller's set speed"),
     Signal("belt_speed_meas", (), "m/s", "belt-speed encoder reading"),
     Signal("belt_drive_force", (), "N", "belt drive's force at the belt surface"),
+    Signal(
+        "path_phase",
+        (),
+        "",
+        "path mode: the plan row of the device's phase (free timing); -1 in other modes",
+    ),
 ]
 
 

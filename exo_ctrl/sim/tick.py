@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import kernel, record
+from ..control.modes.path import PathController
 from ..estimation import CuffForceEstimator, CuffForceKalman
 from ..plan.online import online_step
 from ..plant import PatientTorque
@@ -32,7 +33,13 @@ from .faults import FaultInjector
 from .schema import log_dtype
 from .setup import Setup, patient_torque_for, start_on_plan
 
-__all__ = ["UNTIMED_TICKS", "Runner", "write_applied", "write_contact", "write_measured"]
+__all__ = [
+    "UNTIMED_TICKS",
+    "Runner",
+    "write_applied",
+    "write_contact",
+    "write_measured",
+]
 
 #: Ticks at the start of a run left out of its wall time: they load (or,
 #: after an install, compile) the compiled kernels.
@@ -49,6 +56,9 @@ _NO_LIMITS = SafetyLimits(
 
 #: The record of an absent supervisor: state 0 (normal) throughout.
 _NO_SUPERVISOR = [("state", np.float64)]
+
+#: The phase record of a controller other than ``path``: row -1 throughout.
+_NO_PHASE = [("row", np.int64)]
 
 
 class Runner:
@@ -154,6 +164,12 @@ class Runner:
         #: The online gait generator (synchronised plan; None: precomputed).
         self._online = setup.online
         self._refresh = getattr(setup.controller, "refresh_row", None) if setup.online else None
+        #: The path mode's record, whose phase ``row`` the tick logs (``path_phase``);
+        #: other controllers: a record whose row is -1.
+        ctrl = setup.controller
+        self._phase = ctrl.record if isinstance(ctrl, PathController) else record(_NO_PHASE)
+        if not isinstance(ctrl, PathController):
+            self._phase["row"] = -1
         start_on_plan(setup)
         # The stages' per-tick methods and arguments, looked up once.
         self._stages = (
@@ -193,7 +209,7 @@ class Runner:
         else:
             self._substep(u)
         write_applied(self.log, row, ctrl_rec, sup_rec, plant_rec)
-        write_contact(self.log, row, plant_rec, self.belt_encoder.record)
+        write_contact(self.log, row, plant_rec, self.belt_encoder.record, self._phase)
 
     def _substep(self, u: np.ndarray) -> None:
         """The plant's steps of a tick with substeps or a patient-torque model."""
@@ -293,12 +309,13 @@ def write_applied(log, row, controller, supervisor, plant):
 
 
 @kernel
-def write_contact(log, row, plant, encoder):
+def write_contact(log, row, plant, encoder, phase):
     """The belt and the feet over [t_k, t_k+1) and the belt-speed reading, into log row ``row``.
 
     ``plant``: its record (field ``contact``, :mod:`exo_ctrl.plant.contact`);
     ``encoder``: the belt encoder's record (``speed``).  With contact off
-    every field is zero.
+    every field is zero.  And the path mode's phase (``phase``: a record
+    with the plan ``row`` of the device's phase; -1 in other modes).
     """
     r = log[row]
     c = plant[0].contact
@@ -316,3 +333,4 @@ def write_contact(log, row, plant, encoder):
     r.belt_speed_set = b.v_set
     r.belt_speed_meas = encoder[0].speed
     r.belt_drive_force = b.f_drive
+    r.path_phase = phase[0].row

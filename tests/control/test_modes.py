@@ -189,3 +189,35 @@ def test_modes_are_refused_where_they_do_not_apply() -> None:
         SimConfig(mode="transparent", exercise="calibration")
     with pytest.raises(InvalidParameter, match="the active patient walks a gait"):
         SimConfig(patient_torque="active", exercise="calibration")
+
+
+@pytest.mark.parametrize("mode", ["transparent", "aan", "guidance", "path"])
+def test_a_nan_reading_commands_nan_and_keeps_the_state(setup, mode) -> None:
+    """A sensor fault is the supervisor's to catch: NaN volts, the mode's state untouched.
+
+    After a NaN encoder frame the next finite tick commands what it would have
+    without the frame in between (the filters, aan's table, path's phase as
+    they were).
+    """
+    from exo_ctrl.control.modes.path import PathController, PathParams
+
+    def make():
+        if mode == "path":
+            c = setup.config
+            return PathController(
+                PathParams(), c.modes, setup.plan, setup.device_exo, setup.device_motor, c.dt
+            )
+        return _mode(setup, mode)
+
+    rng = np.random.default_rng(3)
+    ticks = [1300, 1301, 1302]
+    r0, r2 = _readings(rng, setup, ticks[0]), _readings(rng, setup, ticks[2])
+    bad = SensorReadings(
+        q=np.array([np.nan, *r0.q[1:]]), dq=r0.dq, tau=np.zeros(4), cuff_force_est=r0.cuff_force_est
+    )
+    faulted, clean = make(), make()
+    faulted.command(ticks[0], r0)
+    clean.command(ticks[0], r0)
+    assert np.all(np.isnan(faulted.command(ticks[1], bad)))
+    expected = clean.command(ticks[2], r2).copy()
+    np.testing.assert_array_equal(faulted.command(ticks[2], r2), expected)

@@ -235,3 +235,96 @@ def test_the_interaction_block_sums_the_cycles() -> None:
     effort = paralysed.summary()["interaction"]["run"]
     assert all(x == 0.0 for x in effort["patient_rms_torque_Nm"].values())
     assert all(x == 0.0 for x in effort["patient_positive_work_J"].values())
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Distance of point p from the segment [a, b] [m] (a = b: from the point)."""
+    ab = b - a
+    length2 = float(ab @ ab)
+    u = 0.0 if length2 == 0.0 else min(max(float((p - a) @ ab) / length2, 0.0), 1.0)
+    return float(np.linalg.norm(p - (a + u * ab)))
+
+
+def test_path_error_is_the_feet_distance_from_the_path_at_the_devices_phase() -> None:
+    """Path mode's figures against an independent computation from the logged signals.
+
+    The healthy patient (1.0 s, 0.30 m against the plan's 1.2 s, 0.35 m) walks
+    in ``path``: the clock-based tracking error counts the pace they set as an
+    error, the path figures do not.  Independently of the summary: the true
+    exoskeleton's feet from Pinocchio's frame placements (foot frame minus hip
+    joint, x and z) at the logged angles q, the plan's foot points at the
+    rows the logged phase ``path_phase`` names ± the controller's window,
+    wrapped in the gait period, and the least point–segment distance, tick
+    by tick in Python; the joint error at the phase from the plan's rows.
+    """
+    import pinocchio as pin
+
+    from exo_ctrl.model import SIDES
+
+    result = _run("path")
+    block = result.summary()["interaction"]
+    assert block["mode"] == "path"
+    setup = build(result.config)
+    plan, exo = setup.plan, setup.exo
+    lead, period, _ = plan.row_rule
+    window = int(setup.controller.record["window"][0])
+    sig = result.signals
+    phase = sig["path_phase"].astype(int)
+    ticks = np.flatnonzero(result.t >= 1.2 - 1e-9)  # after the ramp-in's 1200 ticks
+    assert np.all(phase[ticks] >= lead) and np.all(phase[ticks] < lead + period)
+    data = exo.model.createData()
+    hips = [exo.model.getJointId(f"{s}_hip") for s in SIDES]
+    frames = [exo.model.getFrameId(f"{s}_foot") for s in SIDES]
+    q_full = pin.neutral(exo.model)
+    sample = ticks[::7]
+    dist = np.empty((sample.size, 2))
+    for n, k in enumerate(sample):  # every 7th tick: enough, and quick in Python
+        q_full[list(exo.q_index)] = sig["q"][k]
+        pin.forwardKinematics(exo.model, data, q_full)
+        pin.updateFramePlacements(exo.model, data)
+        rows = [lead + (phase[k] + i - lead) % period for i in range(-window, window + 1)]
+        for leg in range(2):
+            rel = data.oMf[frames[leg]].translation - data.oMi[hips[leg]].translation
+            p = rel[[0, 2]]
+            pts = plan.foot_pos[rows, leg]
+            dist[n, leg] = min(
+                _segment_distance(p, pts[i], pts[i + 1]) for i in range(len(rows) - 1)
+            )
+    run = block["run"]
+    got = np.array([run["path_error_rms_m"][s] for s in SIDES])
+    rms = np.sqrt(np.mean(dist**2, axis=0))
+    print(
+        f"\npath mode, healthy patient: feet from the path RMS {1e3 * got[0]:.1f} / "
+        f"{1e3 * got[1]:.1f} mm (every 7th tick, independently: {1e3 * rms[0]:.1f} / "
+        f"{1e3 * rms[1]:.1f} mm), max {1e3 * run['path_error_max_m']['left']:.0f} / "
+        f"{1e3 * run['path_error_max_m']['right']:.0f} mm, outside the tunnel "
+        f"{run['path_outside_tunnel_share']['left']:.1%} / "
+        f"{run['path_outside_tunnel_share']['right']:.1%}; left knee error at the "
+        f"device's phase {1e3 * run['path_phase_tracking_error_rad']['left_knee']:.0f} mrad, "
+        f"against the clock {1e3 * run['rms_tracking_error_rad']['left_knee']:.0f} mrad"
+    )
+    # A subsample of a smooth signal: its RMS within a few per cent of the whole's.
+    np.testing.assert_allclose(got, rms, rtol=0.03)
+    assert [run["path_error_max_m"][s] for s in SIDES] >= list(dist.max(axis=0) - 1e-12)
+    # The whole run exactly, with the distance taken by the module's vectorised code.
+    from exo_ctrl.sim.interaction import PathReference, path_distances
+
+    ref = PathReference.of(setup.controller, plan, exo)
+    d_all = path_distances(ref, sig["q"][ticks], sig["path_phase"][ticks], ticks)
+    np.testing.assert_allclose(d_all[::7], dist, atol=1e-9)  # equals Pinocchio + brute force
+    np.testing.assert_allclose(got, np.sqrt(np.mean(d_all**2, axis=0)), rtol=1e-12)
+    outside = np.mean(d_all > result.config.path.tunnel_width_m, axis=0)
+    np.testing.assert_allclose([run["path_outside_tunnel_share"][s] for s in SIDES], outside)
+    e = plan.q[phase[ticks]] - sig["q"][ticks]
+    np.testing.assert_allclose(
+        [run["path_phase_tracking_error_rad"][j] for j in run["rms_tracking_error_rad"]],
+        np.sqrt(np.mean(e**2, axis=0)),
+        rtol=1e-12,
+    )
+    # Free timing: at the device's own phase the error is a fraction of the clock's.
+    for j, clock in run["rms_tracking_error_rad"].items():
+        assert run["path_phase_tracking_error_rad"][j] < 0.5 * clock
+    # Only path mode has the figures; elsewhere the phase is logged as -1.
+    other = _run("transparent")
+    assert "path_error_rms_m" not in other.summary()["interaction"]["run"]
+    assert np.all(other.signals["path_phase"] == -1.0)

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from exo_ctrl.control.modes import ModeParams
+from exo_ctrl.control.modes.path import PathParams
 from exo_ctrl.plant.patient_active import ActiveParams
 from exo_ctrl.sim import SimConfig, simulate
 
@@ -98,3 +99,37 @@ def test_bad_duration_is_exit_2(capsys):
         tool.main(["--duration", "1.0"])
     assert exc.value.code == 2
     assert "duration must be >= 2.4 s" in capsys.readouterr().err
+
+
+def test_the_path_row_holds_the_path_figure():
+    """``path 0.03``: a 0.03 m tunnel, and its row's path error from the run's feet figures.
+
+    The other modes have no path figure: a dash in the table.
+    """
+    (row,) = tool.run_table(DURATION_S, ("path 0.03",), ("healthy",))
+    config = SimConfig(
+        patient_torque="active",
+        patient_active=ActiveParams(period_s=1.0, step_length_m=0.30),
+        mode="path",
+        path=PathParams(tunnel_width_m=0.03),
+        duration_s=DURATION_S,
+    )
+    run = simulate(config).summary()["interaction"]["run"]
+    feet = np.array(list(run["path_error_rms_m"].values()))
+    assert row.path_error_mm == pytest.approx(1e3 * math.sqrt(np.mean(feet**2)), rel=1e-12)
+    assert 0.0 < row.path_error_mm < 1e3 * 0.03  # the tunnel holds the feet in RMS
+    line = tool.table([row]).splitlines()[2]
+    assert f"{row.path_error_mm:.2f}" in line
+    assert tool.config_of("path 0.03", "healthy", DURATION_S).path.tunnel_width_m == 0.03
+    assert math.isnan(tool.row_of("aan", "healthy", _without_path(run)).path_error_mm)
+
+
+def _without_path(run: dict) -> dict:
+    """A summary whose run block lacks the path figures (as in a mode other than path)."""
+    block = {k: v for k, v in run.items() if not k.startswith("path_")}
+    return {
+        "interaction": {"run": block, "cycles": [{"cycle": 0}]},
+        "gait_profile_score_deg": {"actual": 0.0, "planned": 0.0},
+        "safety_state": "normal",
+        "safety_events": [],
+    }

@@ -193,6 +193,11 @@ class InteractionController(CommandCounters):
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """Drive voltages [V] for tick k: a view of ``record["u_cmd"]``.
 
+        A non-finite angle or speed reading (a sensor fault) commands NaN volts
+        and leaves the mode's state (filters, aan's table) as it was: the safety supervisor,
+        which checks the readings, replaces the command and stops the device,
+        as it does PD's NaN command (tools/faults.py's ``nan_reading``).
+
         Raises:
             InvalidParameter: readings not of 4 joint values or a cuff-force
                 estimate not (4, 2), or a tick beyond the plan.
@@ -251,10 +256,12 @@ def mode_command(state, k, u_track, g, q, dq, f_est, support, q_des):  # pragma:
         return 1
     if f_est.shape[0] != 4 or f_est.shape[1] != 2:
         return 1
-    for j in range(4):
-        if not (np.isfinite(q[j]) and np.isfinite(dq[j])):
-            return 2
     s = state[0]
+    for j in range(4):  # a sensor fault: NaN volts, the state kept; the supervisor stops
+        if not (np.isfinite(q[j]) and np.isfinite(dq[j])):
+            for i in range(4):
+                s.u_cmd[i] = np.nan
+            return 0
     # The joint speed for the drive's back-EMF: the encoder's difference through
     # a faster first-order filter than the sensors' (less lag, more noise).
     for j in range(4):

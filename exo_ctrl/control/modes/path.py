@@ -218,6 +218,11 @@ class PathController:
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """Drive voltages [V] for tick k: a view of ``record["u_cmd"]``.
 
+        A non-finite angle or speed reading (a sensor fault) commands NaN volts
+        and leaves the phase as it was: the safety supervisor,
+        which checks the readings, replaces the command and stops the device,
+        as it does PD's NaN command (tools/faults.py's ``nan_reading``).
+
         Raises:
             InvalidParameter: readings not of 4 joint values, a cuff-force
                 estimate not (4, 2), or a tick beyond the plan.
@@ -318,10 +323,12 @@ def path_command(state, free, k, q, pos, tan):  # pragma: no cover - compiled
     """
     if q.shape[0] != 4:
         return 1
-    for j in range(4):
-        if not np.isfinite(q[j]):
-            return 2
     s = state[0]
+    for j in range(4):  # a sensor fault: NaN volts, the phase kept; the supervisor stops
+        if not np.isfinite(q[j]):
+            for i in range(4):
+                s.u_cmd[i] = np.nan
+            return 0
     f = free[0]
     lead, period, tail, window = s.lead, s.period, s.tail, s.window
     kin = s.kin
