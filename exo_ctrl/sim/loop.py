@@ -80,7 +80,9 @@ def simulate(
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)
-    bar.notice_after(1.0, "compiling the kernels (the first run after an install only: 10-30 s) ...")
+    bar.notice_after(
+        1.0, "compiling the kernels (the first run after an install only: 10-30 s) ..."
+    )
     chunk = runner.chunk
     chunk_start = 0
     row = 0
