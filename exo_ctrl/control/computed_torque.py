@@ -30,7 +30,6 @@ from .._jit import kernel
 from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..plan.kinematics import JointTrajectory
 from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
-from ..plant.motor import MotorBank
 from .base import PDGains
 from .pd import PDController
 
@@ -65,38 +64,19 @@ class ComputedTorqueController(PDController):
         super().__init__(plan, gains)
         # The feedforward depends on the plan only: tabulated once per plan row
         # (the ramps and one gait period for a periodic plan), looked up per tick.
-        self._motor = MotorBank(4, motor)
-        self._torque_ff = feedforward_torque(plan, exo, patient, motor)
-        self._u_ff = np.ascontiguousarray(self._motor.voltage_for(self._torque_ff, plan.dq))
-        self._ff: _Feedforward | None = None
-        self._models = (exo, patient, motor)
+        self._ff = _Feedforward(exo, patient, motor)
+        self._torque_ff, self._u_ff = self._ff.tables(plan)
 
     def refresh_row(self, row: int = 0) -> None:
         """Recompute plan row ``row``'s feedforward after the plan's row changed in place.
 
-        For a plan generated each tick (:mod:`exo_ctrl.plan.online`): two
-        RNEA calls on the controller's own models and the drive model's
-        voltage, as the table was made.
+        For a plan generated each tick (:mod:`exo_ctrl.plan.online`): the
+        same row computation the table was made with (two RNEA calls on the
+        controller's own models, one kernel).
         """
-        ff = self._ff
-        if ff is None:
-            ff = self._ff = _Feedforward(*self._models)
-            m = self._models[2]
-            self._drive = np.array(
-                [
-                    m.resistance_ohm / m.torque_per_amp_Nm_per_A,
-                    m.back_emf_V_per_rad_s,
-                    math.log(m.gear_efficiency),
-                    EFFICIENCY_SMOOTHING_RAD_S,
-                    FRICTION_SMOOTHING_RAD_S,
-                ]
-            )
-            self._zero = np.zeros(4)
-        q, dq, ddq = self.plan.q[row], self.plan.dq[row], self.plan.ddq[row]
-        tau_e = pin.rnea(ff._me, ff._de, q, dq, ddq)
-        tau_p = pin.rnea(ff._mp, ff._dp, q, dq, ddq) if ff._mp is not None else self._zero
-        feedforward_row(
-            tau_e, tau_p, dq, ff._b, ff._fr, self._drive, self._torque_ff[row], self._u_ff[row]
+        plan = self.plan
+        self._ff.row(
+            plan.q[row], plan.dq[row], plan.ddq[row], self._torque_ff[row], self._u_ff[row]
         )
 
     @property
@@ -124,7 +104,7 @@ class ComputedTorqueController(PDController):
 
 
 class _Feedforward:
-    """τ_ff of the module docstring, allocated once."""
+    """τ_ff and U_ff of the module docstring, row by row, allocated once."""
 
     def __init__(self, exo: BodyModel, patient: BodyModel | None, motor: MotorParams) -> None:
         self._me = pin.Model(exo.model)
@@ -138,19 +118,40 @@ class _Feedforward:
             self._dp = self._mp.createData()
             self._b += patient.damping
             self._fr += patient.friction
-        self._tmp = np.zeros(4)
+        self._zero = np.zeros(4)
+        self._u = np.zeros(4)
+        #: The drive model for :func:`feedforward_row`.
+        self._drive = np.array(
+            [
+                motor.resistance_ohm / motor.torque_per_amp_Nm_per_A,
+                motor.back_emf_V_per_rad_s,
+                math.log(motor.gear_efficiency),
+                EFFICIENCY_SMOOTHING_RAD_S,
+                FRICTION_SMOOTHING_RAD_S,
+            ]
+        )
 
-    def torque(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, out: np.ndarray) -> np.ndarray:
-        out[:] = pin.rnea(self._me, self._de, q, dq, ddq)
-        if self._mp is not None:
-            np.add(out, pin.rnea(self._mp, self._dp, q, dq, ddq), out=out)
-        np.multiply(self._b, dq, out=self._tmp)
-        np.add(out, self._tmp, out=out)
-        np.divide(dq, FRICTION_SMOOTHING_RAD_S, out=self._tmp)
-        np.tanh(self._tmp, out=self._tmp)
-        np.multiply(self._tmp, self._fr, out=self._tmp)
-        np.add(out, self._tmp, out=out)
-        return out
+    def row(
+        self,
+        q: np.ndarray,
+        dq: np.ndarray,
+        ddq: np.ndarray,
+        tau_out: np.ndarray,
+        u_out: np.ndarray | None = None,
+    ) -> None:
+        """τ_ff [N·m] into ``tau_out`` and U_ff [V] into ``u_out`` for one plan row."""
+        tau_e = pin.rnea(self._me, self._de, q, dq, ddq)
+        tau_p = self._zero if self._mp is None else pin.rnea(self._mp, self._dp, q, dq, ddq)
+        u = self._u if u_out is None else u_out
+        feedforward_row(tau_e, tau_p, dq, self._b, self._fr, self._drive, tau_out, u)
+
+    def tables(self, plan: JointTrajectory, rows: int | None = None) -> tuple[np.ndarray, ...]:
+        """τ_ff and U_ff along a plan, (N, 4) each: every row, or the first ``rows``."""
+        n = plan.q.shape[0] if rows is None else min(rows, plan.q.shape[0])
+        tau, u = np.zeros((n, 4)), np.zeros((n, 4))
+        for k in range(n):
+            self.row(plan.q[k], plan.dq[k], plan.ddq[k], tau[k], u[k])
+        return tau, u
 
 
 def feedforward_torque(
@@ -161,12 +162,7 @@ def feedforward_torque(
     rows: int | None = None,
 ) -> np.ndarray:
     """τ_ff along a plan, (N, 4) [N·m]: every row, or the first ``rows``."""
-    ff = _Feedforward(exo, patient, motor)
-    n = plan.q.shape[0] if rows is None else min(rows, plan.q.shape[0])
-    out = np.zeros((n, 4))
-    for k in range(n):
-        ff.torque(plan.q[k], plan.dq[k], plan.ddq[k], out=out[k])
-    return out
+    return _Feedforward(exo, patient, motor).tables(plan, rows)[0]
 
 
 @kernel

@@ -18,6 +18,7 @@ import pytest
 from exo_ctrl import cli
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import BodyParams, nominal_patient, write_urdf
+from exo_ctrl.plant.motor import MotorBank
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sim.setup import build
@@ -73,6 +74,9 @@ def test_a_drive_model_off_its_datasheet_changes_the_feedforward_not_the_plant()
     tau = right.controller.torque_ff_table
     np.testing.assert_array_equal(tau, wrong.controller.torque_ff_table)  # torque: no drive in it
     u_right = right.controller.voltage_ff_table
+    # The table's voltage is the drive model's steady state (MotorBank.voltage_for).
+    expected_u = MotorBank(4, right.device_motor).voltage_for(tau, right.plan.dq)
+    np.testing.assert_allclose(u_right, expected_u, rtol=1e-12, atol=1e-12)
     du = wrong.controller.voltage_ff_table - u_right
     back_emf = true_motor.back_emf_V_per_rad_s * right.plan.dq
     np.testing.assert_allclose(du, 0.2 * (u_right - back_emf), rtol=1e-9, atol=1e-9)
