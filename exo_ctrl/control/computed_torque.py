@@ -21,15 +21,14 @@ is built; a tick looks its row up, in the PD's kernel
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pinocchio as pin
 
 from .._jit import kernel
 from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..plan.kinematics import JointTrajectory
-from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
+from ..plant.drive import MotorParams
+from ..plant.motor import drive_model, steady_voltage
 from .base import PDGains
 from .pd import PDController
 
@@ -120,16 +119,8 @@ class _Feedforward:
             self._fr += patient.friction
         self._zero = np.zeros(4)
         self._u = np.zeros(4)
-        #: The drive model for :func:`feedforward_row`.
-        self._drive = np.array(
-            [
-                motor.resistance_ohm / motor.torque_per_amp_Nm_per_A,
-                motor.back_emf_V_per_rad_s,
-                math.log(motor.gear_efficiency),
-                EFFICIENCY_SMOOTHING_RAD_S,
-                FRICTION_SMOOTHING_RAD_S,
-            ]
-        )
+        #: The drive model for :func:`feedforward_row` (:func:`drive_model`).
+        self._drive = drive_model(motor)
 
     def row(
         self,
@@ -167,15 +158,14 @@ def feedforward_torque(
 
 @kernel
 def feedforward_row(tau_exo, tau_patient, dq, damping, friction, drive, tau_out, u_out):
-    """τ_ff (module docstring) from the two RNEA torques and U_ff through the drive model.
+    """τ_ff (module docstring) from the two RNEA torques, and U_ff through the drive model.
 
-    ``drive``: (R / k_t [Ω·A/(N·m)], i_G / k_E [V·s/rad], ln η, ω_η [rad/s],
-    ε [rad/s]); U = R τ / (k_t η^s) + (i_G / k_E) q̇*, s = sign(τ) tanh(q̇*/ω_η)
-    (:meth:`~exo_ctrl.plant.motor.MotorBank.voltage_for`).
+    ``drive``: :func:`~exo_ctrl.plant.motor.drive_model`; the voltage is
+    :func:`~exo_ctrl.plant.motor.steady_voltage`.
     """
     for j in range(4):
         v = dq[j]
-        tau = tau_exo[j] + tau_patient[j] + damping[j] * v + friction[j] * np.tanh(v / drive[4])
+        tau = tau_exo[j] + tau_patient[j] + damping[j] * v
+        tau += friction[j] * np.tanh(v / FRICTION_SMOOTHING_RAD_S)
         tau_out[j] = tau
-        s = np.sign(tau) * np.tanh(v / drive[3])
-        u_out[j] = drive[0] * tau / np.exp(s * drive[2]) + drive[1] * v
+        u_out[j] = steady_voltage(tau, v, drive)

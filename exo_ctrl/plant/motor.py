@@ -52,7 +52,16 @@ from ..exceptions import InvalidParameter
 from .drive import EFFICIENCY_SMOOTHING_RAD_S, OPEN_PHASE, MotorParams, gear_factor
 from .energy import book_drives, energy_fields, energy_report
 
-__all__ = ["MotorBank", "drive_cap", "hold_drive", "motor_fields", "motor_step", "step_drives"]
+__all__ = [
+    "MotorBank",
+    "drive_cap",
+    "drive_model",
+    "hold_drive",
+    "motor_fields",
+    "motor_step",
+    "steady_voltage",
+    "step_drives",
+]
 
 
 def _read_only(a: NDArray) -> NDArray:
@@ -417,3 +426,30 @@ def hold_drive(m: Any, j: int, torque: float, current: float) -> None:
     m.saturated[j] = 1.0
     m.damping[j] = 0.0
     m.held[j] = 1.0
+
+
+def drive_model(motor: MotorParams) -> np.ndarray:
+    """The drive model :func:`steady_voltage` takes, (4,).
+
+    (R / (i_G k_m) [Ω·A/(N·m)], i_G / k_E [V·s/rad], ln η, ω_η [rad/s]).
+    """
+    return np.array(
+        [
+            motor.resistance_ohm / motor.torque_per_amp_Nm_per_A,
+            motor.back_emf_V_per_rad_s,
+            math.log(motor.gear_efficiency),
+            EFFICIENCY_SMOOTHING_RAD_S,
+        ]
+    )
+
+
+@kernel
+def steady_voltage(torque: float, omega: float, drive: np.ndarray) -> float:
+    """The steady-state voltage for a joint torque at a joint speed [V], compiled.
+
+    U = R τ / (i_G k_m η^s) + (i_G / k_E) ω, s = sign(τ) tanh(ω/ω_η): the
+    formula of :meth:`MotorBank.voltage_for` for one joint, ``drive`` from
+    :func:`drive_model`.
+    """
+    s = np.sign(torque) * np.tanh(omega / drive[3])
+    return drive[0] * torque / np.exp(s * drive[2]) + drive[1] * omega

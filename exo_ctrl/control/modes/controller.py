@@ -77,7 +77,8 @@ from ...exceptions import InvalidParameter
 from ...model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ...plan.kinematics import JointTrajectory
 from ...plan.rows import plan_row
-from ...plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
+from ...plant.drive import MotorParams
+from ...plant.motor import drive_model, steady_voltage
 from ...sensing.readings import SensorReadings
 from ..base import COMMAND_FIELDS, CommandCounters, PDGains
 from ..pd import PDController
@@ -165,12 +166,7 @@ class InteractionController(CommandCounters):
         s["mode"] = _CODES[mode]
         s["guidance"] = params.guidance if mode == "guidance" else 0.0
         s["force_gain"] = 0.0 if mode == "aan" else params.force_gain
-        s["drive"] = (
-            motor.resistance_ohm / motor.torque_per_amp_Nm_per_A,
-            motor.back_emf_V_per_rad_s,
-            math.log(motor.gear_efficiency),
-            EFFICIENCY_SMOOTHING_RAD_S,
-        )
+        s["drive"] = drive_model(motor)
         s["damping"], s["friction"] = exo.damping, exo.friction
         CuffGeometry.from_body(exo).fill(rec)
         s["lead"], s["period"], s["tail"] = plan.row_rule
@@ -329,8 +325,7 @@ def mode_command(state, k, u_track, g, q, dq, f_est, support, q_des):  # pragma:
             + sup
         )
         s.tau_free[j] = tau
-        sign = np.sign(tau) * np.tanh(w / dr[3])
-        u_free = dr[0] * tau / np.exp(sign * dr[2]) + dr[1] * w
+        u_free = steady_voltage(tau, w, dr)
         s.u_free[j] = u_free
         if s.mode == 3:
             s.u_cmd[j] = u_track[j] + u_free

@@ -57,14 +57,15 @@ from typing import Any
 import numpy as np
 
 from ... import _validate as v
-from ..._jit import check, kernel, record
+from ..._jit import Status, check, kernel, record
 from ...exceptions import InvalidParameter
 from ...model import SIDES, BodyModel
 from ...plan.kinematics import JointTrajectory
 from ...plan.rows import plan_row
 from ...plant.drive import MotorParams
+from ...plant.motor import steady_voltage
 from ...sensing.readings import SensorReadings
-from ..base import COMMAND_FIELDS
+from ..base import COMMAND_FIELDS, CommandCounters
 from .controller import InteractionController
 from .params import ModeParams
 
@@ -164,7 +165,7 @@ def leg_table(exo: BodyModel) -> np.ndarray:
     return out
 
 
-class PathController:
+class PathController(CommandCounters):
     """``path``: the tunnel around the planned foot path with free timing (module docstring).
 
     Args:
@@ -230,22 +231,12 @@ class PathController:
         """
         self._free.command(k, sensors)
         status = path_command(self.record, self._free.record, k, sensors.q, self._pos, self._tan)
-        if status == 4:
-            rows = self._pos.shape[0]
-            raise InvalidParameter("k", k, f"a tick whose plan row is within the plan's {rows}")
         if status:
+            rows = self._pos.shape[0]
+            if not 0 <= self.plan.row(k) < rows:  # as PD refuses it (control/pd.py)
+                raise InvalidParameter("k", k, f"a tick whose plan row is within the plan's {rows}")
             check(status, f"{type(self).__name__}.command", sensors_q=sensors.q)
         return self._u
-
-    @property
-    def active_constraints(self) -> int:
-        """Active QP bounds in the last tick (0: no QP)."""
-        return 0
-
-    @property
-    def failures(self) -> int:
-        """QP fallbacks so far (0: no QP)."""
-        return 0
 
 
 @kernel
@@ -360,8 +351,8 @@ def path_command(state, free, k, q, pos, tan):  # pragma: no cover - compiled
         row = lead + s.phase
     else:
         row = plan_row(k, lead, period, tail)
-        if row >= pos.shape[0]:
-            return 4
+        if row >= pos.shape[0]:  # a tick beyond the plan: the caller names it
+            return Status.WRONG_LENGTH.value
     s.row = row
     near = s.near
     for leg in range(2):
@@ -387,6 +378,5 @@ def path_command(state, free, k, q, pos, tan):  # pragma: no cover - compiled
     for j in range(4):
         w = f.speed[j]
         tau = f.tau_free[j] + s.tau_path[j]
-        sign = np.sign(tau) * np.tanh(w / dr[3])
-        s.u_cmd[j] = dr[0] * tau / np.exp(sign * dr[2]) + dr[1] * w
+        s.u_cmd[j] = steady_voltage(tau, w, dr)
     return 0
