@@ -40,7 +40,8 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from exo_ctrl.estimation import CuffForceKalman
-from exo_ctrl.plant import ContactParams
+from exo_ctrl.plan import GaitParams
+from exo_ctrl.plant import ContactParams, PelvisParams
 from exo_ctrl.record import RerunRecorder
 from exo_ctrl.sim import Runner, SimConfig, build, simulate
 
@@ -72,9 +73,16 @@ def floor_calls(runner: Runner) -> list:
     q, v, tau = plant.q.copy(), plant.v.copy(), np.zeros(8)
     qe, ve = q[:4].copy(), v[:4].copy()
     pm, pd = plant.model, plant.data
-    calls = [
-        lambda: pin.aba(pm, pd, q, v, tau),
-    ]
+    if pm.nq == 9:  # the pelvis on its guide: [z, q_all], and the friction solve's CRBA
+        q9, v9, tau9 = np.r_[plant.pelvis_z, q], np.r_[0.0, v], np.zeros(9)
+        calls = [
+            lambda: pin.aba(pm, pd, q9, v9, tau9),
+            lambda: pin.crba(pm, pd, q9),
+        ]
+    else:
+        calls = [
+            lambda: pin.aba(pm, pd, q, v, tau),
+        ]
     est = runner.estimator
     if isinstance(est, CuffForceKalman):  # both models at the last posterior
         qp, vp = q[4:].copy(), v[4:].copy()
@@ -127,6 +135,16 @@ SCENARIOS = {
     # The same with the plan generated each tick from the measured belt speed
     # (plan/online.py) and CT's feedforward row recomputed (two RNEA calls).
     "ct_sync": {"controller": "ct", "contact": ContactParams(enabled=True), "sync": True},
+    # CT with the pelvis on its guide at 50 % body-weight support (plant/pelvis.py): the
+    # stance legs carry the rest; nine coordinates, a foot always on the belt (a CRBA and
+    # the coupled friction solve every step), the hips 0.98 m above the belt.
+    "ct_bws": {
+        "controller": "ct",
+        "contact": ContactParams(enabled=True),
+        "sync": False,
+        "pelvis": PelvisParams(supported=True, bws_fraction=0.5),
+        "gait": GaitParams(hip_height=0.98),
+    },
     "qp": {"controller": "qp"},
     # PD with the coupled model's Kalman filter as the estimator (estimation/kalman.py).
     "pd_kalman": {"controller": "pd", "estimator": "kalman"},
@@ -204,7 +222,8 @@ _COLD_RUN = """
 import time
 t0 = time.perf_counter()
 from exo_ctrl.sim import SimConfig, simulate
-from exo_ctrl.plant import BeltParams, ContactParams
+from exo_ctrl.plant import BeltParams, ContactParams, PelvisParams
+from exo_ctrl.plan import GaitParams
 t1 = time.perf_counter()
 result = simulate(SimConfig(**{overrides!r}, duration_s=0.05))
 t2 = time.perf_counter()

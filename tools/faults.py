@@ -1,6 +1,7 @@
 """The fault-injection campaign: one fault at a time in the default run, detected or not.
 
-    .venv/bin/python tools/faults.py [--seeds N] [--controller pd|ct|qp] [--mode MODE] [--out DIR]
+    .venv/bin/python tools/faults.py [--seeds N] [--controller pd|ct|qp] [--mode MODE]
+        [--stop-reaction hold|yield] [--out DIR]
 
 For each fault of :data:`exo_ctrl.sim.faults.FAULT_KINDS` and each seed, the
 default scenario (standing, 1.2 s ramp-in, 3.6 s in all) runs with that one
@@ -29,6 +30,13 @@ the excursion's reference while normal is the same mode's run without the
 fault (same seeds: the same patient and sensor noise), and the hold posture
 after the stop, as in tracking.
 
+``--stop-reaction hold|yield`` sets the supervisor's stop reaction
+(:mod:`exo_ctrl.safety.stop_reaction`; default: the mode's).  After a
+``yield`` the patient is not held, so the excursion's reference stays the
+run without the fault (the plan in tracking).  The table also gives the
+worst true thigh and shank cuff forces from the stop on, against ISO/TS
+15066's 220 N and 130 N.
+
 Importable: ``run_campaign(seeds=1, controller="pd", mode="tracking") -> list[FaultResult]``.
 """
 
@@ -49,6 +57,7 @@ from exo_ctrl.control.modes import MODES
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.plant import ContactParams
 from exo_ctrl.record import RerunRecorder
+from exo_ctrl.safety import STOP_REACTIONS
 from exo_ctrl.sim.faults import FAULT_KINDS, Fault
 
 #: The window of the seeded onset [s]: after the default 1.2 s ramp-in, 1.1 s before the end.
@@ -119,6 +128,10 @@ class FaultResult:
             [m/s] (NaN: no belt).
         slip_distance_m: distance the feet slid on the belt after the onset,
             ∫ (|s_L| + |s_R|) dt over the ticks in contact [m] (NaN: no belt).
+        reaction: the stop reaction that acted ("" if no stop).
+        thigh_after_stop_N: largest true thigh cuff force from the stop on [N]
+            (NaN: no stop).
+        shank_after_stop_N: the same for the shank cuffs [N].
 
     """
 
@@ -138,6 +151,9 @@ class FaultResult:
     variant: str = ""
     slip_max_mps: float = math.nan
     slip_distance_m: float = math.nan
+    reaction: str = ""
+    thigh_after_stop_N: float = math.nan
+    shank_after_stop_N: float = math.nan
 
 
 def plan_fault(kind: str, seed: int, dt: float = 1e-3) -> Fault:
@@ -177,7 +193,13 @@ def analyse(result, fault: Fault, reference=None) -> FaultResult:
     out.worst_cuff_force_N = float(force.max())
     ref = s["q_des"].copy() if reference is None else reference.signals["q"].copy()
     stopped = np.flatnonzero(s["safety_state"] != 0)
+    starts = [e["message"] for e in result.events if "controlled stop (" in e.get("message", "")]
+    out.reaction = starts[0].split("(", 1)[1].split(")", 1)[0] if starts else ""
     if stopped.size:
+        after_stop = np.linalg.norm(s["cuff_force"][stopped[0] :], axis=-1)
+        out.thigh_after_stop_N = float(after_stop[:, 0::2].max())
+        out.shank_after_stop_N = float(after_stop[:, 1::2].max())
+    if stopped.size and out.reaction != "yield":
         k_stop = stopped[0]
         q_meas = s["q_meas"][: k_stop + 1]
         hold = q_meas[-1].copy()
@@ -250,8 +272,12 @@ def run_campaign(
     kinds: tuple[str, ...] = FAULT_KINDS,
     progress: bool = False,
     mode: str = "tracking",
+    stop_reaction: str | None = None,
 ) -> list[FaultResult]:
-    """Every fault of ``kinds`` × ``seeds`` seeds (module docstring), in ``mode``."""
+    """Every fault of ``kinds`` × ``seeds`` seeds (module docstring), in ``mode``.
+
+    ``stop_reaction``: the supervisor's (None: the mode's default).
+    """
     results = []
     references: dict[str, object] = {}  # per variant: the mode's run without a fault
     belt = [(name, over) for name, over in BELT_VARIANTS if controller != "qp" or not over["sync"]]
@@ -275,6 +301,7 @@ def run_campaign(
                 references[name] = simulate(SimConfig(controller=controller, **extra))
             reference = references[name]
         fault = plan_fault(kind, seed)
+        over = {**over, "stop_reaction": stop_reaction}
         results.append(run_fault(fault, controller, out, name, mode, reference, **over))
     return results
 
@@ -283,22 +310,27 @@ def table(results: list[FaultResult]) -> str:
     """The campaign as a Markdown table."""
     head = (
         "| fault | seed | onset [s] | detected | after [ms] | first channel | state "
-        "| worst cuff force [N] | worst excursion [rad] | feet slip on the belt: max [m/s], "
-        "slid [mm] | recording |"
+        "| worst cuff force [N] | after the stop: thigh, shank [N] (limits 220, 130) "
+        "| worst excursion [rad] | feet slip on the belt: max [m/s], slid [mm] | recording |"
     )
-    rows = [head, "|" + "---|" * 11]
+    rows = [head, "|" + "---|" * 12]
     for r in results:
         if r.note and not r.ticks:
-            rows.append(f"| {r.label} | {r.seed} | – | no | – | {r.note} | – | – | – | – | – |")
+            rows.append(f"| {r.label} | {r.seed} | – | no | – | {r.note} | – | – | – | – | – | – |")
             continue
         rec = {None: "–", True: "every tick + event", False: "INCOMPLETE"}[r.recording_ok]
         after = f"{1e3 * r.detection_s:.0f}" if r.detected else "–"
         slip = "–"
         if math.isfinite(r.slip_max_mps):
             slip = f"{r.slip_max_mps:.2f}, {1e3 * r.slip_distance_m:.0f}"
+        stop = "–"
+        if math.isfinite(r.thigh_after_stop_N):
+            over = " (over)" if r.thigh_after_stop_N > 220 or r.shank_after_stop_N > 130 else ""
+            stop = f"{r.thigh_after_stop_N:.0f}, {r.shank_after_stop_N:.0f}{over}"
+        state = f"{r.state} ({r.reaction})" if r.reaction else r.state
         rows.append(
             f"| {r.label} | {r.seed} | {r.at_s:.3f} | {'yes' if r.detected else 'NO'} | {after} "
-            f"| {r.channel or r.note or '–'} | {r.state} | {r.worst_cuff_force_N:.0f} "
+            f"| {r.channel or r.note or '–'} | {state} | {r.worst_cuff_force_N:.0f} | {stop} "
             f"| {r.worst_excursion_rad:.3f} | {slip} | {rec} |"
         )
     return "\n".join(rows)
@@ -316,12 +348,26 @@ def main(argv: list[str] | None = None) -> int:
         help="interaction mode (default tracking); any other runs with --patient-torque active "
         "and measures the excursion from the same mode's run without the fault",
     )
+    parser.add_argument(
+        "--stop-reaction",
+        choices=STOP_REACTIONS,
+        default=None,
+        help="the supervisor's stop reaction (default: the mode's, hold in tracking)",
+    )
     parser.add_argument("--out", type=Path, default=None, help="directory for the recordings")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
-    results = run_campaign(args.seeds, args.controller, args.out, progress=True, mode=args.mode)
+    results = run_campaign(
+        args.seeds,
+        args.controller,
+        args.out,
+        progress=True,
+        mode=args.mode,
+        stop_reaction=args.stop_reaction,
+    )
     who = f"mode {args.mode}, active patient" if args.mode != "tracking" else "mode tracking"
+    who += f", stop reaction {args.stop_reaction or 'by mode'}"
     print(f"Fault campaign, controller {args.controller}, {who}, {args.seeds} seed(s) per fault:\n")
     print(table(results))
     return 0

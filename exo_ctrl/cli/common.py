@@ -55,6 +55,16 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
         help=f"hip height above the belt H_s [m] (default {d.hip_height})",
     )
     g.add_argument(
+        "--pelvis-excursion",
+        type=float,
+        default=d.pelvis_excursion,
+        metavar="M",
+        help="peak-to-peak rise and fall e of the hip over the gait cycle [m]: the hip at "
+        "H_s + (e/2) cos(4π t / T_s), highest at mid-stance, lowest at the support transfers; "
+        "beyond the paper, for a pelvis free to move vertically, about 0.04-0.05 in normal "
+        f"gait (default {d.pelvis_excursion:g}: the hip fixed)",
+    )
+    g.add_argument(
         "--shape-coeff",
         type=float,
         default=d.shape_coeff,
@@ -89,6 +99,7 @@ def gait_params_from(args: argparse.Namespace) -> GaitParams:
         step_length=args.step_length,
         lift_height=args.lift_height,
         hip_height=args.hip_height,
+        pelvis_excursion=args.pelvis_excursion,
         shape_coeff=args.shape_coeff,
         period=args.period,
         duty_factor=args.duty_factor,
@@ -173,6 +184,22 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{summary['touchdown_speed_mps']:.4f} m/s, horizontal "
             f"{summary['touchdown_slip_mps']:.4f} m/s; peak ground force [N]: {feet}; "
             f"belt speed error RMS {summary['belt_speed_error_rms_mps']:.4f} m/s"
+        )
+    if "stance_knee_torque_rms_Nm" in summary:  # exo_ctrl/sim/load_stats.py
+        rms, peak = summary["stance_knee_torque_rms_Nm"], summary["stance_knee_torque_peak_Nm"]
+        lines.append(
+            "stance knee torque after the ramp-in [N·m]: "
+            + ", ".join(f"{side} RMS {rms[side]:.1f} (peak {peak[side]:.1f})" for side in rms)
+        )
+    pelvis = summary.get("pelvis")
+    if pelvis and pelvis["mean_vertical_ground_force_N"] is not None:
+        lines.append(
+            f"pelvis supported: {pelvis['support_N']:.0f} N ({pelvis['bws_fraction']:.0%} of "
+            f"body weight); vertical ground force over whole cycles "
+            f"{pelvis['mean_vertical_ground_force_N']:.1f} N against the unsupported weight "
+            f"{pelvis['unsupported_weight_N']:.1f} N "
+            f"({pelvis['vertical_balance_error_rel']:+.2%}); "
+            f"pelvis excursion {1e3 * pelvis['excursion_m']:.1f} mm"
         )
     if "device_belief" in summary:
         lines.append(describe_belief(summary["device_belief"]))

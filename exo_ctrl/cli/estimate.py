@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..estimation import ESTIMATORS
 from ..record import estimate_file, write_estimate_recording
 from .common import check_outputs, write_json
 
@@ -27,11 +28,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="exoskeleton URDF (default: the recording's, or urdf/exoskeleton.urdf)",
     )
     p.add_argument(
+        "--estimator",
+        choices=ESTIMATORS,
+        default=None,
+        help="momentum (the momentum observer on the exoskeleton's model) or kalman (the "
+        "Kalman filter on the coupled exoskeleton-cuff-patient model, rebuilt from the "
+        "recording's device models) (default: the recording's run's; momentum for a CSV log)",
+    )
+    p.add_argument(
         "--gain",
         type=float,
         default=None,
         metavar="1/S",
-        help="observer gain K_O [1/s] (default: the recording's, or 100)",
+        help="the momentum observer's gain K_O [1/s] (default: the recording's, or 100)",
     )
     p.add_argument(
         "--allow-other-exo",
@@ -61,17 +70,24 @@ def run(args: argparse.Namespace) -> int:
     """
     check_outputs(args, out="--out", summary="--summary")
     estimate = estimate_file(
-        args.file, exo=args.exo, gain_per_s=args.gain, allow_other_exo=args.allow_other_exo
+        args.file,
+        exo=args.exo,
+        gain_per_s=args.gain,
+        allow_other_exo=args.allow_other_exo,
+        estimator=args.estimator,
     )
     summary = estimate.summary()
     if args.out:
         write_estimate_recording(estimate, args.out)
     if args.summary:
         write_json(args.summary, summary)
-    print(
-        f"estimated {summary['samples']} samples of {args.file} "
-        f"(observer gain {summary['observer_gain_per_s']:g} 1/s)"
+    gain = summary["observer_gain_per_s"]
+    how = (
+        "the Kalman filter on the device's models"
+        if gain is None
+        else f"the momentum observer, gain {gain:g} 1/s"
     )
+    print(f"estimated {summary['samples']} samples of {args.file} ({how})")
     print(estimate.table())
     if args.out:
         print(f"estimate recording: {args.out}")

@@ -8,6 +8,7 @@ from typing import Any
 from ..control.modes import MODES, ModeParams, PathParams
 from ..exceptions import InvalidParameter
 from ..plant.patient_active import ActiveParams
+from ..safety import STOP_REACTIONS
 from ..sim.session import load_session
 
 __all__ = ["add_mode_options", "mode_config_from"]
@@ -27,6 +28,15 @@ def add_mode_options(p: argparse.ArgumentParser) -> None:
         "(assist-as-needed: a support per gait phase learned cycle by cycle from the error) "
         "or path (a tunnel of --tunnel-width around the planned foot path, the patient setting "
         "the pace along it) (default tracking)",
+    )
+    g.add_argument(
+        "--stop-reaction",
+        choices=STOP_REACTIONS,
+        default=None,
+        help="how the safety supervisor's stop ends: hold (the posture, stiffly) or yield "
+        "(gravity compensation and damping, the device no longer drives, an active patient "
+        "moves the legs; exo_ctrl/safety/stop_reaction.py) (default: hold in tracking and in "
+        "guidance with G = 1, yield in the other modes)",
     )
     g.add_argument(
         "--tunnel-width",
@@ -130,7 +140,7 @@ def add_mode_options(p: argparse.ArgumentParser) -> None:
 
 
 def mode_config_from(args: argparse.Namespace) -> dict[str, Any]:
-    """SimConfig's ``mode``, ``modes``, ``path``, ``session``, ``patient_active`` from the options.
+    """SimConfig's mode, stop_reaction, modes, path, session and patient_active fields.
 
     Raises:
         InvalidParameter: a value outside its range, or active-patient
@@ -161,6 +171,7 @@ def mode_config_from(args: argparse.Namespace) -> dict[str, Any]:
         session = load_session(args.session)
     return {
         "mode": args.mode,
+        "stop_reaction": args.stop_reaction,
         "path": PathParams(tunnel_width_m=args.tunnel_width, support_N=args.path_support),
         "session": session,
         "modes": ModeParams(

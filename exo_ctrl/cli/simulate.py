@@ -11,14 +11,12 @@ from ..control import PDGains
 from ..estimation import ESTIMATORS
 from ..exceptions import InvalidParameter
 from ..model import SEXES, load_exo
-from ..plan import EXERCISES, GaitParams, SpeedProfile
+from ..plan import EXERCISES, GaitParams
 from ..plan.exercise import CALIBRATION_DURATION_S
 from ..plant import (
     MAX_MISALIGNMENT_M,
     MOTOR_PRESETS,
-    BeltParams,
     CompliantJoint,
-    ContactParams,
     CuffParams,
     Misalignment,
     consistency_warning,
@@ -39,6 +37,7 @@ from .common import (
     write_json,
 )
 from .modes_options import add_mode_options, mode_config_from
+from .treadmill_options import add_treadmill_options, treadmill_config_from
 
 __all__ = ["register", "run", "sim_config"]
 
@@ -156,7 +155,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the joint spring's damping [N·m·s/rad], with --joint-stiffness "
         f"(default {CompliantJoint().damping_Nm_s_per_rad:g})",
     )
-    _treadmill_options(p)
+    add_treadmill_options(p)
     p.add_argument(
         "--kp",
         type=float,
@@ -232,10 +231,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     device.add_argument(
         "--estimator",
         choices=ESTIMATORS,
-        default="momentum",
-        help="the live cuff-force estimator: momentum (the momentum observer on the "
-        "exoskeleton's model) or kalman (a Kalman filter on the coupled exoskeleton-cuff-"
-        "patient model with the device's patient and cuff models) (default momentum)",
+        default="kalman",
+        help="the live cuff-force estimator: kalman (a Kalman filter on the coupled "
+        "exoskeleton-cuff-patient model with the device's patient and cuff models) or "
+        "momentum (the momentum observer on the exoskeleton's model) (default kalman)",
     )
     p.add_argument(
         "--patient-torque",
@@ -356,11 +355,7 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         cuff_force_limit_N=args.cuff_force_limit,
         estimator=args.estimator,
         joint_compliance=compliance,
-        contact=_contact_from(args),
-        speed_profile=None
-        if args.speed_profile is None
-        else SpeedProfile.parse(args.speed_profile),
-        sync=None if args.sync is None else args.sync == "on",
+        **treadmill_config_from(args),
         exercise=args.exercise,
         **modes,
         belief=Belief(
@@ -372,72 +367,6 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
             cuffs=CuffParams() if args.controller_cuffs == "split" else None,
         ),
     )
-
-
-def _treadmill_options(p: argparse.ArgumentParser) -> None:
-    """The belt and foot–belt contact options (:mod:`exo_ctrl.plant.contact`)."""
-    c, b = ContactParams(), BeltParams()
-    g = p.add_argument_group("treadmill belt and foot contact")
-    g.add_argument(
-        "--contact",
-        choices=("on", "off"),
-        default="on" if c.enabled else "off",
-        help="the belt as a body with its own drive and the exoskeleton feet in Hunt–Crossley "
-        f"contact with friction on it (default {'on' if c.enabled else 'off'}: the feet in free "
-        "air, as the paper)",
-    )
-    g.add_argument(
-        "--friction",
-        type=float,
-        default=c.friction_coeff,
-        metavar="MU",
-        help=f"foot–belt friction coefficient μ [-] (default {c.friction_coeff:g}, a rubber sole)",
-    )
-    g.add_argument(
-        "--belt-height",
-        type=float,
-        default=None,
-        metavar="M",
-        help="the belt's top below the hip joint [m] (default: the gait's hip height H_s, "
-        f"{GaitParams().hip_height:g} m by default)",
-    )
-    g.add_argument(
-        "--belt-mass",
-        type=float,
-        default=b.mass_kg,
-        metavar="KG",
-        help=f"belt + rollers + drive rotor as an equivalent mass [kg] (default {b.mass_kg:g})",
-    )
-    g.add_argument(
-        "--belt-bandwidth",
-        type=float,
-        default=b.bandwidth_hz,
-        metavar="HZ",
-        help=f"the belt speed controller's bandwidth [Hz] (default {b.bandwidth_hz:g})",
-    )
-    g.add_argument(
-        "--speed-profile",
-        default=None,
-        metavar="T1:V1,T2:V2,...",
-        help="the session's belt set speed, piecewise linear through the points [s:m/s] "
-        "(times increasing, speeds > 0; V1 before T1, the last speed after the last point; "
-        "needs --contact on; default: the gait's belt speed)",
-    )
-    g.add_argument(
-        "--sync",
-        choices=("on", "off"),
-        default=None,
-        help="plan online from the measured belt speed, step length and period adapting to it "
-        "(exo_ctrl/plan/online.py, adapt.py); off: the precomputed plan at the gait's belt speed "
-        "(default: on with --contact on and pd or ct, off otherwise)",
-    )
-
-
-def _contact_from(args: argparse.Namespace) -> ContactParams:
-    belt = BeltParams(
-        height_m=args.belt_height, mass_kg=args.belt_mass, bandwidth_hz=args.belt_bandwidth
-    )
-    return ContactParams(enabled=args.contact == "on", friction_coeff=args.friction, belt=belt)
 
 
 def _pair(name: str, text: str) -> tuple[float, float]:

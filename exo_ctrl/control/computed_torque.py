@@ -5,7 +5,9 @@ The drive torque the planned motion needs is computed from the models:
     τ_ff = RNEA_exo(q*, q̇*, q̈*) + i_G² J_rotor q̈* + b_exo q̇* + f_exo tanh(q̇*/ε)
          + RNEA_patient(q*, q̇*, q̈*) + b_patient q̇* + f_patient tanh(q̇*/ε),
 
-the second line being the patient's load carried through the cuffs: with the
+the second line being the patient's load carried through the cuffs (and,
+with the pelvis on its guide, the stance legs' share of the weight the
+support leaves, :mod:`exo_ctrl.control.stance_load`): with the
 cuffs fitted so that the patient's hip and knee axes coincide with the
 exoskeleton's (how the device is adjusted to a patient), a rigid cuff makes
 the patient follow the same joint angles, and by virtual work the torque
@@ -31,6 +33,7 @@ from ..plant.drive import MotorParams
 from ..plant.motor import drive_model, steady_voltage
 from .base import PDGains
 from .pd import PDController
+from .stance_load import StanceLoad, stance_load_record, stance_load_torque
 
 __all__ = ["ComputedTorqueController", "feedforward_torque"]
 
@@ -47,6 +50,8 @@ class ComputedTorqueController(PDController):
         patient: the patient model (None: the exoskeleton alone).
         motor: the drive model.
         gains: the PD gains (the same as the plain PD for a fair comparison).
+        stance_load: what the device knows of the weight its stance legs carry
+            (with the pelvis on its guide; None: the pelvis fixed, no load).
 
     """
 
@@ -59,11 +64,12 @@ class ComputedTorqueController(PDController):
         patient: BodyModel | None,
         motor: MotorParams,
         gains: PDGains | None = None,
+        stance_load: StanceLoad | None = None,
     ) -> None:
         super().__init__(plan, gains)
         # The feedforward depends on the plan only: tabulated once per plan row
         # (the ramps and one gait period for a periodic plan), looked up per tick.
-        self._ff = _Feedforward(exo, patient, motor)
+        self._ff = _Feedforward(exo, patient, motor, stance_load)
         self._torque_ff, self._u_ff = self._ff.tables(plan)
 
     def refresh_row(self, row: int = 0) -> None:
@@ -105,8 +111,16 @@ class ComputedTorqueController(PDController):
 class _Feedforward:
     """τ_ff and U_ff of the module docstring, row by row, allocated once."""
 
-    def __init__(self, exo: BodyModel, patient: BodyModel | None, motor: MotorParams) -> None:
+    def __init__(
+        self,
+        exo: BodyModel,
+        patient: BodyModel | None,
+        motor: MotorParams,
+        stance_load: StanceLoad | None = None,
+    ) -> None:
         self._me = pin.Model(exo.model)
+        self._load = None if stance_load is None else stance_load_record(stance_load, exo)
+        self._tau_e = np.zeros(4)
         self._me.armature = np.full(exo.model.nv, motor.reflected_inertia_kgm2)
         self._de = self._me.createData()
         self._b = exo.damping.copy()
@@ -132,6 +146,9 @@ class _Feedforward:
     ) -> None:
         """τ_ff [N·m] into ``tau_out`` and U_ff [V] into ``u_out`` for one plan row."""
         tau_e = pin.rnea(self._me, self._de, q, dq, ddq)
+        if self._load is not None:  # the stance legs' load (control/stance_load.py)
+            tau_e = np.copyto(self._tau_e, tau_e) or self._tau_e
+            stance_load_torque(self._load, q, dq, ddq, tau_e)
         tau_p = self._zero if self._mp is None else pin.rnea(self._mp, self._dp, q, dq, ddq)
         u = self._u if u_out is None else u_out
         feedforward_row(tau_e, tau_p, dq, self._b, self._fr, self._drive, tau_out, u)

@@ -9,7 +9,7 @@ Modules, in the order they build on each other:
 - :mod:`.kalman`: :class:`CuffForceKalman`, a Kalman filter on the coupled
   exoskeleton–cuff–patient model (the device's patient and cuff models),
   its compiled step in :mod:`.kalman_step`;
-- :mod:`.series`: the observer along a logged series;
+- :mod:`.series`: the observer or the filter along a logged series;
 - :mod:`.bias`: torque-sensor bias, its effect and its measurement;
 - :mod:`.csvlog`: sensor logs as CSV files;
 - :mod:`.identification` (with :mod:`.segment_fit`): the patient's segment
@@ -33,9 +33,9 @@ from .identification import (
     calibration_samples,
     identify_patient,
 )
-from .kalman import COMPONENTS, ESTIMATORS, CuffForceKalman, KalmanNoise
+from .kalman import COMPONENTS, ESTIMATORS, MODEL_DRIVEN, CuffForceKalman, KalmanNoise
 from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
-from .series import EstimateSeries, estimate_series, first_order_filter
+from .series import EstimateSeries, estimate_series, first_order_filter, kalman_series
 
 __all__ = [
     "COMPONENTS",
@@ -43,6 +43,7 @@ __all__ = [
     "CSV_REQUIRED_COLUMNS",
     "DEFAULT_GAIN_PER_S",
     "ESTIMATORS",
+    "MODEL_DRIVEN",
     "BiasEstimate",
     "CalibrationSamples",
     "CuffForceEstimator",
@@ -64,6 +65,7 @@ __all__ = [
     "estimate_series",
     "first_order_filter",
     "identify_patient",
+    "kalman_series",
     "normal_component_errors",
     "read_csv_log",
     "write_csv_log",

@@ -47,6 +47,7 @@ from .cuff_geometry import GEOMETRY_FIELDS, _cuff_directions, _geometry, cuff_no
 
 __all__ = [
     "REL_FLOOR_N",
+    "STARTUP_S",
     "UNOBSERVABLE",
     "EstimateErrorStats",
     "EstimateErrors",
@@ -56,6 +57,10 @@ __all__ = [
 #: Smallest true force [N] (RMS magnitude, or peak normal component) a relative error
 #: is given for (else NaN).
 REL_FLOOR_N = 1.0
+
+#: The start-up a live run's error figures leave out [s]: five time constants
+#: of the default momentum observer (K_O = 100 /s), whichever estimator runs.
+STARTUP_S = 0.05
 
 #: What the joint torques cannot observe, per cuff (:mod:`.cuff_geometry`): the
 #: thigh cuff's along-thigh force has no lever arm (the estimate assumes it
@@ -231,7 +236,7 @@ class EstimateErrorStats:
 
     """
 
-    def __init__(self, exo: BodyModel | None, dt: float, skip_s: float = 0.05) -> None:
+    def __init__(self, exo: BodyModel | None, dt: float, skip_s: float = STARTUP_S) -> None:
         self.exo = exo
         self.skip = round(v.non_negative("skip", skip_s, "s") / v.positive("dt", dt, "s"))
         self.rows = 0

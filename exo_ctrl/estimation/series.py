@@ -1,10 +1,13 @@
-r"""The momentum observer run along a logged series of sensor readings.
+r"""The live estimators run along a logged series of sensor readings.
 
 :func:`estimate_series` steps the same
 :class:`~exo_ctrl.estimation.observer.CuffForceEstimator` as the live loop
 along rows (t_k, q_k, q̇_k, τ_k): row 0 starts the observer, row k > 0
 advances it by h_k = t_k − t_{k-1} (or a fixed control period), so the
 sensor readings logged every tick reproduce the live estimate exactly.
+:func:`kalman_series` does the same with a
+:class:`~exo_ctrl.estimation.kalman.CuffForceKalman` built on the device's
+models (its step is the filter's fixed control period).
 
 :func:`first_order_filter` is the observer's own filter,
 y_k = y_{k-1} + (1 − e^{−K_O h}) (x_k − y_{k-1}), for the exact observer's
@@ -21,21 +24,26 @@ import numpy as np
 from .. import _validate as v
 from ..exceptions import InvalidLog
 from ..model import BodyModel
+from .kalman import CuffForceKalman
 from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
 
-__all__ = ["EstimateSeries", "estimate_series", "first_order_filter"]
+__all__ = ["EstimateSeries", "estimate_series", "first_order_filter", "kalman_series"]
 
 
 @dataclass
 class EstimateSeries:
-    """The observer's output along a logged series.
+    """An estimator's output along a logged series.
 
     Attributes:
         t: times [s], (N,).
         normal: estimated normal components f⊥ [N], (N, 4), CUFF_NAMES order.
-        force: estimated cuff forces on the exoskeleton f⊥ n [N], (N, 4, 2).
+        force: estimated cuff forces on the exoskeleton [N], (N, 4, 2): f⊥ n
+            from the momentum observer, every component from the Kalman filter.
         tau_ext: external joint torques r [N·m], (N, 4), JOINT_NAMES order.
-        gain_per_s: the observer gain used [1/s].
+        gain_per_s: the momentum observer's gain used [1/s] (None: the
+            Kalman filter, which has none).
+        estimator: ``"momentum"`` or ``"kalman"``
+            (:data:`~exo_ctrl.estimation.kalman.ESTIMATORS`).
 
     """
 
@@ -43,7 +51,8 @@ class EstimateSeries:
     normal: np.ndarray
     force: np.ndarray
     tau_ext: np.ndarray
-    gain_per_s: float
+    gain_per_s: float | None
+    estimator: str = "momentum"
 
 
 def _check_series(
@@ -149,6 +158,55 @@ def estimate_series(
         force[k] = est.force
         tau_ext[k] = est.tau_ext
     return EstimateSeries(t=t, normal=normal, force=force, tau_ext=tau_ext, gain_per_s=gain_per_s)
+
+
+def kalman_series(
+    t: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray | None,
+    tau_sensor: np.ndarray,
+    kalman: CuffForceKalman,
+) -> EstimateSeries:
+    """Run a fresh Kalman filter along a logged series of sensor readings.
+
+    Row 0 starts the filter at its readings (the nominal patient settled in
+    the cuffs, :meth:`~exo_ctrl.estimation.kalman.CuffForceKalman.step`);
+    row k > 0 advances it by its control period h, exactly as the live loop
+    does, so the readings a run logged reproduce its live estimate when the
+    filter is built on the run's device models.  The rows must be sampled
+    every h: the filter's process noise and transition are made for h.
+
+    Args:
+        t: times [s], (N,), strictly increasing, t_k − t_{k-1} = h.
+        q: encoder joint angles [rad], (N, 4), JOINT_NAMES order.
+        dq: joint speeds [rad/s], (N, 4) (used only to start); None: central
+            differences of q.
+        tau_sensor: joint torque sensor readings [N·m], (N, 4).
+        kalman: the filter, on the device's exoskeleton, patient, cuff and
+            sensor models; it is restarted (:meth:`~CuffForceKalman.reset`).
+
+    Raises:
+        InvalidLog: shapes differ, a value is not finite, t does not
+            increase, or t is not sampled every h.
+
+    """
+    t, q, dq, tau = _check_series(t, q, dq, tau_sensor)
+    if dq is None:
+        dq = np.gradient(q, t, axis=0)
+    h = kalman.dt
+    if np.max(np.abs(np.diff(t) - h)) > 1e-6 * h + 1e-12:
+        raise InvalidLog("arrays", f"t is not sampled every dt = {h!r} s (the filter's period)")
+    kalman.reset()
+    n = t.shape[0]
+    normal = np.zeros((n, 4))
+    force = np.zeros((n, 4, 2))
+    tau_ext = np.zeros((n, 4))
+    for k in range(n):
+        kalman.step(q[k], dq[k], tau[k])
+        normal[k] = kalman.normal
+        force[k] = kalman.force
+        tau_ext[k] = kalman.tau_ext
+    return EstimateSeries(t, normal, force, tau_ext, gain_per_s=None, estimator="kalman")
 
 
 def first_order_filter(x: np.ndarray, dt: float, gain_per_s: float) -> np.ndarray:

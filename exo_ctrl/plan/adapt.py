@@ -29,10 +29,11 @@ the longest step whose path (same h_s, H_s, k_v, β) stays within the leg's
 reach and the joints' ranges of motion (:func:`max_step_length`); above the
 speed where the law meets it the step stays at s_max and the cadence alone
 rises.  The paths' shape in phase depends on k_v and β only, so the foot's
-x scales with s and its z does not: reach and ranges are monotone in s and
-the cap is found by bisection.  What the drives can follow (the joint speeds
-grow as 1/T) is checked by the run for each speed of a profile
-(:func:`exo_ctrl.sim.sync.check_profile`).
+x scales with s and its z does not (nor does the hip's rise and fall, a
+function of the phase, ``pelvis_excursion``: it is in the path checked):
+reach and ranges are monotone in s and the cap is found by bisection.
+What the drives can follow (the joint speeds grow as 1/T) is checked by
+the run for each speed of a profile (:func:`exo_ctrl.sim.sync.check_profile`).
 
 The phase rate is r(v) = 1 / T(v) = β v / s(v); its derivative in v (for
 the planned accelerations) is (1 - a) r / v below the cap and r / v on it.

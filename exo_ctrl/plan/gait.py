@@ -24,6 +24,27 @@ speed is v_f = s / (β T_s) (= 2 s / T_s for β = 0.5), and the top-of-swing
 speed is v_b = v_f / k_v.  The paths are C¹ (positions and velocities
 continuous; accelerations jump at B and D).
 
+**Hip excursion** (beyond the paper, for a pelvis free to move vertically).
+With e = ``pelvis_excursion`` > 0 the hip rises and falls over the cycle as in
+normal gait: its height above the belt is H(t) = H_s + ΔH(φ), φ = t / T_s,
+
+    ΔH = (e/2) cos(4π φ),   ΔḢ = -(e/2) ω sin(4π φ),   ΔḦ = -(e/2) ω² cos(4π φ),
+
+ω = 4π / T_s.  Peak to peak e, mean H_s; highest at both mid-stances (φ = 0:
+the right foot's, φ = ½: the left's, for any β), lowest at φ = ¼ and ¾, the
+middle of each support transfer.  Each foot's path relative to the hip is
+the path above with z - ΔH (ż - ΔḢ, z̈ - ΔḦ): relative to the belt it is
+unchanged (stance on the belt line, the same lift), x is unchanged, and it
+stays C¹ (ΔH is smooth).  The stance leg is then H_s + e/2 long at
+mid-stance: the knee extends there.  ΔH has period T_s / 2, so both legs see
+the same hip and a plan of one period still repeats.  e = 0 (default) is the
+paper's fixed hip, bit for bit.  Sources: the hip's vertical motion in adult
+walking is mostly the second harmonic of the cycle, one rise per step
+(Ivanenko et al. 2004, J. Exp. Biol. 207:3797-3810, Fig. 2); its size, about
+4-5 cm peak to peak for the body's centre of mass, is the gait literature's
+usual figure (measured against speed by Gard, Miff & Kuo 2004, Hum. Mov.
+Sci. 22:597-610).
+
 Each cubic segment q(τ) = Σ k_i τ^i meets (q0, q1, q̇0, q̇1) at its ends; the
 paper writes the coefficients as the inverse of its 4×4 matrix applied to
 those values.  Here each segment is evaluated in local time u = τ - τ0 ∈ [0, d],
@@ -34,6 +55,8 @@ k0 = q0, k1 = q̇0, k2 = (3Δ - (2 q̇0 + q̇1) d) / d², k3 = (-2Δ + (q̇0 + q
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +83,15 @@ class GaitParams:
         period: T_s, duration of one gait cycle (one step of each leg) [s].
         duty_factor: β, fraction of the period a foot is on the belt [-];
             0.5 is the paper's schedule, above 0.5 gives double support.
+        pelvis_excursion: e, the hip's peak-to-peak vertical excursion over the
+            cycle [m] (module docstring; beyond the paper, for a pelvis free
+            to move vertically; about 4-5 cm in normal gait); 0: the paper's
+            fixed hip.  Below 2 (H_s - h_s), so that the lifted swing foot
+            stays below the hip when the hip is lowest; whether the leg
+            reaches the path is :meth:`GaitPlan.check_reach`'s question.
+
+    Raises:
+        InvalidParameter: a value that is not finite or outside its range.
 
     """
 
@@ -69,6 +101,7 @@ class GaitParams:
     shape_coeff: float = 0.5
     period: float = 1.2
     duty_factor: float = 0.5
+    pelvis_excursion: float = 0.0
 
     def __post_init__(self) -> None:
         for name, unit in (
@@ -89,6 +122,17 @@ class GaitParams:
                 self.lift_height,
                 f"< hip_height = {self.hip_height:g} m",
                 "the foot would rise to the hip",
+            )
+        e = v.non_negative("pelvis_excursion", self.pelvis_excursion, "m")
+        object.__setattr__(self, "pelvis_excursion", e)
+        room = 2.0 * (self.hip_height - self.lift_height)
+        if e >= room:
+            raise InvalidParameter(
+                "pelvis_excursion",
+                self.pelvis_excursion,
+                f"< 2 (hip_height - lift_height) = {room:g} m",
+                "the lifted swing foot would rise to the hip when the hip is at its lowest, "
+                "H_s - e/2",
             )
 
     @property
@@ -175,7 +219,23 @@ class GaitPlan:
         for leg, offset in enumerate((0.0, 0.5 * self.params.period)):
             tau = np.mod(t + offset, self.params.period)
             pos[:, leg], vel[:, leg], acc[:, leg], stance[:, leg] = self._leg(tau)
+        if self.params.pelvis_excursion > 0.0:  # relative to the moving hip: z - ΔH
+            for rows, d in zip((pos, vel, acc), self.hip(t), strict=True):
+                rows[:, :, 1] -= d[:, None]
         return FootTrajectory(t=t, pos=pos, vel=vel, acc=acc, stance=stance)
+
+    def hip(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The hip's planned rise above H_s: ΔH [m], ΔḢ [m/s], ΔḦ [m/s²] at times ``t`` [s].
+
+        ΔH = (e/2) cos(4π φ), φ = mod(t, T_s) / T_s (module docstring); zeros
+        for e = 0.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        p = self.params
+        half, omega = 0.5 * p.pelvis_excursion, 4.0 * np.pi / p.period
+        arg = omega * np.mod(t, p.period)
+        c, s = np.cos(arg), np.sin(arg)
+        return half * c, -half * omega * s, -half * omega * omega * c
 
     def _leg(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         p = self.params
@@ -199,11 +259,11 @@ class GaitPlan:
     # ------------------------------------------------------------------ validation
 
     def check_reach(self, thigh_length: float, shank_length: float, side: str = "left") -> None:
-        """Raise :class:`UnreachableFootTarget` if any path point is out of reach.
+        """Raise if any path point is out of reach.
 
         The path is sampled densely (4096 points per period, phase boundaries
-        included).  A point is reachable if its distance r from the hip
-        satisfies |l1 - l2| ≤ r ≤ r_max, where
+        and the hip's extremes included).  A point is reachable if its
+        distance r from the hip satisfies |l1 - l2| ≤ r ≤ r_max, where
         r_max = sqrt(l1² + l2² + 2 l1 l2 cos θ_min) is the hip-to-foot
         distance with the knee flexed by θ_min = :data:`MIN_KNEE_FLEXION_RAD`
         (a nearly straight knee is singular).  Both legs follow the same path,
@@ -214,24 +274,58 @@ class GaitPlan:
             shank_length: l2 [m].
             side: leg named in the message.
 
+        Raises:
+            InvalidParameter: ``pelvis_excursion``, when the path with the hip
+                fixed (e = 0) is reachable but the moving hip's is not; it
+                names the largest e the leg reaches (the set of reachable e
+                is an interval [0, e_max]: each point's |z| is monotone in e).
+            UnreachableFootTarget: a point of the path out of reach otherwise.
+
         """
-        l1, l2 = thigh_length, shank_length
+        error = self._reach_error(thigh_length, shank_length, side)
+        if error is None:
+            return
+        p = self.params
+        if p.pelvis_excursion > 0.0:
+            fixed = GaitPlan(dataclasses.replace(p, pelvis_excursion=0.0))
+            if fixed._reach_error(thigh_length, shank_length, side) is None:
+                lo, hi = 0.0, p.pelvis_excursion
+                while hi - lo > 1e-6:
+                    mid = 0.5 * (lo + hi)
+                    trial = GaitPlan(dataclasses.replace(p, pelvis_excursion=mid))
+                    if trial._reach_error(thigh_length, shank_length, side) is None:
+                        lo = mid
+                    else:
+                        hi = mid
+                raise InvalidParameter(
+                    "pelvis_excursion",
+                    p.pelvis_excursion,
+                    f"at most {math.floor(lo * 1e4) / 1e4:g} m for this gait and a "
+                    f"{thigh_length:.4g} m + {shank_length:.4g} m leg",
+                    str(error),
+                )
+        raise error
+
+    def _reach_error(self, l1: float, l2: float, side: str) -> UnreachableFootTarget | None:
+        """The :meth:`check_reach` error of the worst out-of-reach point, or None."""
         r_min = abs(l1 - l2)
         r_max = float(np.sqrt(l1**2 + l2**2 + 2 * l1 * l2 * np.cos(MIN_KNEE_FLEXION_RAD)))
-        t = np.linspace(0.0, self.params.period, 4097)
-        t = np.union1d(t, [self._half_swing, self._stance_end])
+        period = self.params.period
+        t = np.linspace(0.0, period, 4097)
+        t = np.union1d(t, [self._half_swing, self._stance_end, *(period * np.arange(1, 4) / 4)])
         feet = self.feet(t)
         r = np.hypot(feet.pos[:, 0, 0], feet.pos[:, 0, 1])
         bad = np.flatnonzero((r > r_max) | (r < r_min))
-        if bad.size:
-            i = bad[np.argmax(np.maximum(r[bad] - r_max, r_min - r[bad]))]
-            x, z = feet.pos[i, 0]
-            raise UnreachableFootTarget(
-                (float(x), float(z)),
-                (r_min, r_max),
-                time=float(t[i]),
-                what=f"{side} foot path point",
-            )
+        if not bad.size:
+            return None
+        i = bad[np.argmax(np.maximum(r[bad] - r_max, r_min - r[bad]))]
+        x, z = feet.pos[i, 0]
+        return UnreachableFootTarget(
+            (float(x), float(z)),
+            (r_min, r_max),
+            time=float(t[i]),
+            what=f"{side} foot path point",
+        )
 
 
 class _Cubic2:

@@ -140,6 +140,9 @@ class JointTrajectory:
         lead_ticks: L, the ramp-in ticks before the period (with a period).
         tail_tick: K, the first tick of the ramp-out rows (with a period;
             None: no ramp-out).
+        hip: (N, 3): the hip's planned rise above H_s and its rates, ΔH [m],
+            ΔḢ [m/s], ΔḦ [m/s²] (:meth:`~exo_ctrl.plan.gait.GaitPlan.hip`,
+            ramped); None: the hip does not move (``pelvis_excursion`` 0).
 
     """
 
@@ -153,6 +156,7 @@ class JointTrajectory:
     period_ticks: int | None = None
     lead_ticks: int = 0
     tail_tick: int | None = None
+    hip: np.ndarray | None = None
 
     @property
     def row_rule(self) -> tuple[int, int, int]:
@@ -214,7 +218,10 @@ def plan_joints(plan: GaitPlan | RampedGait, body: BodyModel, t: np.ndarray) -> 
         dq[:, cols] = np.column_stack(leg.rates_to_joint(d1, d2))
         ddq[:, cols] = np.column_stack(leg.rates_to_joint(a1, a2))
     check_range(body, t, q, "plan")
-    return JointTrajectory(t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet.pos, foot_vel=feet.vel)
+    hip = np.column_stack(plan.hip(t)) if plan.params.pelvis_excursion > 0.0 else None
+    return JointTrajectory(
+        t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet.pos, foot_vel=feet.vel, hip=hip
+    )
 
 
 def check_range(body: BodyModel, t: np.ndarray, q: np.ndarray, what: str) -> None:

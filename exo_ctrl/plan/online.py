@@ -36,6 +36,14 @@ paper's path (k_v keeps its shape).  **Swing foot, z**: the paper's lift
 cubic in phase, scaled by the ramp-in factor σ(t) (:mod:`exo_ctrl.plan.ramp`),
 z = -H_s + σ Z(τ), with ż, z̈ by the chain rule through ṙ.
 
+**Hip excursion** (``pelvis_excursion`` e > 0, :mod:`exo_ctrl.plan.gait`): the
+hip rises by ΔH(τ) = (e/2) cos(4π τ) at the phase τ (highest at both
+mid-stances, lowest at the support transfers), ramped in by the same σ, and
+each foot's z relative to the hip is z = -H_s + σ (Z(τ) - ΔH(τ)), its rates
+by the same chain rule (dτ/dt = r = 1 / T(t)).  The foot's path relative to
+the belt is unchanged.  The planned rise σ ΔH and its rates are the record's
+``hip`` (:meth:`OnlineGait.hip`).
+
 **Start.**  At t = 0 the left foot is at A, the right at mid-stance, both
 at x = 0.  With a ramp-in the belt starts at rest and the step L = v̄ β T
 grows with the belt's speed: the gait ramps in with the belt and no foot
@@ -72,7 +80,8 @@ FREEZE_S = 0.02
 
 #: Fields of the generator's record.  Parameters: ``dt`` [s], ``law`` (s_0,
 #: v_0, a, s_max, β) (:meth:`~exo_ctrl.plan.adapt.SpeedAdaptation.kernel_params`),
-#: ``kv``, ``H``, ``h`` [m], ``ramp_in`` T_r [s], ``filt`` [s]; per leg ``l1``,
+#: ``kv``, ``H``, ``h`` [m], ``ramp_in`` T_r [s], ``filt`` [s], ``exc`` the hip
+#: excursion e [m]; per leg ``l1``,
 #: ``l2`` [m], ``s_h``, ``s_k``, ``phi1_0``, ``phi2_0``.  State: ``phase`` τ of
 #: each leg (the right leg's τ + ½), ``rate`` r [1/s], ``vbar`` v̄ [m/s], ``w``
 #: the touchdown point's speed [m/s], per
@@ -80,11 +89,12 @@ FREEZE_S = 0.02
 #: [m, m/s] and its segment ``seg`` (0 A → B, 2 D → A).  Diagnostics: ``fail_leg``,
 #: ``fail_r`` [m] (an unreachable point).  The profile: ``n_prof`` points
 #: ``prof_t`` [s], ``prof_v`` [m/s].  ``out``: row 0 of the plan, q, q̇, q̈, φ
-#: (4 each), foot position and velocity (2 × 2 each), flat.
+#: (4 each), foot position and velocity (2 × 2 each), flat; ``hip``: the hip's
+#: planned rise σ ΔH [m] and its rates [m/s, m/s²] at the same tick.
 ONLINE_FIELDS = [
     ("dt", np.float64),
     ("law", np.float64, (5,)),
-    *((name, np.float64) for name in ("kv", "H", "h", "ramp_in", "filt")),
+    *((name, np.float64) for name in ("kv", "H", "h", "ramp_in", "filt", "exc")),
     *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
     ("phase", np.float64, (2,)),
     *((name, np.float64) for name in ("rate", "vbar", "w")),
@@ -96,6 +106,7 @@ ONLINE_FIELDS = [
     ("prof_t", np.float64, (MAX_PROFILE_POINTS,)),
     ("prof_v", np.float64, (MAX_PROFILE_POINTS,)),
     ("out", np.float64, (24,)),
+    ("hip", np.float64, (3,)),
 ]
 
 
@@ -139,6 +150,7 @@ class OnlineGait:
         g["dt"], g["law"] = float(dt), law.kernel_params()
         g["kv"], g["H"], g["h"] = gait.shape_coeff, gait.hip_height, gait.lift_height
         g["ramp_in"], g["filt"] = float(ramp_in_s), FILTER_S
+        g["exc"] = gait.pelvis_excursion
         for i, side in enumerate(SIDES):
             leg = body.legs[side]
             g["l1"][i], g["l2"][i] = leg.thigh_length, leg.shank_length
@@ -154,8 +166,14 @@ class OnlineGait:
             foot_pos=out[16:20].reshape(1, 2, 2),
             foot_vel=out[20:24].reshape(1, 2, 2),
             period_ticks=1,
+            hip=self.record["hip"][0].reshape(1, 3) if gait.pelvis_excursion > 0.0 else None,
         )
         self.start(self.belt_speed(0.0)[0])
+
+    def hip(self) -> tuple[float, float, float]:
+        """The hip's planned rise σ ΔH [m] and its rates [m/s, m/s²] at the present tick."""
+        h = self.record["hip"][0]
+        return float(h[0]), float(h[1]), float(h[2])
 
     def belt_speed(self, t: float) -> tuple[float, float]:
         """The belt's set speed σ(t) v(t) [m/s] and its rate [m/s²] at time ``t`` [s]."""
@@ -268,6 +286,27 @@ def _lift(tau: float, half: float, h: float) -> tuple[float, float, float]:  # p
 
 
 @kernel
+def _rise(tau: float, e: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """The hip's rise at phase τ: ΔH = (e/2) cos(4π τ) [m], dΔH/dτ, d²ΔH/dτ² (module docstring)."""
+    w = 4.0 * math.pi
+    c, s = math.cos(w * tau), math.sin(w * tau)
+    a = 0.5 * e
+    return a * c, -a * w * s, -a * w * w * c
+
+
+@kernel
+def _write_hip(g, tau: float, r: float, dr: float, t: float) -> None:  # pragma: no cover
+    """The record's ``hip``: σ ΔH and its time derivatives at phase τ, rate r and ṙ (docstring)."""
+    if g.exc <= 0.0:
+        return
+    sig, dsig, ddsig = _ramp(t, g.ramp_in)
+    h, h1, h2 = _rise(tau, g.exc)
+    g.hip[0] = sig * h
+    g.hip[1] = dsig * h + sig * h1 * r
+    g.hip[2] = ddsig * h + 2.0 * dsig * h1 * r + sig * (h2 * r * r + h1 * dr)
+
+
+@kernel
 def _target(g, tau: float, r: float) -> tuple[float, float]:  # pragma: no cover - compiled
     """The end (x, ẋ) of the swing segment τ is in: top (0, v̄/k_v) or touchdown (L/2, -v̄)."""
     beta = g.law[4]
@@ -338,6 +377,9 @@ def _write_leg(g, leg, tau, r, dr, a_belt, t) -> int:  # pragma: no cover - comp
         ddx = -a_belt
     sig, dsig, ddsig = _ramp(t, g.ramp_in)
     zz, z1, z2 = _lift(tau, half, g.h)
+    if g.exc > 0.0:  # relative to the moving hip: Z - ΔH
+        h, h1, h2 = _rise(g.phase[0], g.exc)  # one hip: the left leg's phase (ΔH has period ½)
+        zz, z1, z2 = zz - h, z1 - h1, z2 - h2
     z = -g.H + sig * zz
     dz = dsig * zz + sig * z1 * r
     ddz = ddsig * zz + 2.0 * dsig * z1 * r + sig * (z2 * r * r + z1 * dr)
@@ -390,6 +432,7 @@ def online_start(state: np.ndarray, v0: float) -> int:  # pragma: no cover - com
     g.w = 0.5 * g.law[4] * (a_belt - v0 * dr / r) / r
     g.seg[0], g.seg[1] = -1, -1
     g.ddx[0] = _swing(g, 0, 0.0, r, 0.5 * (1.0 - g.law[4]) / r, 0.0)[2]
+    _write_hip(g, 0.0, r, dr, 0.0)
     for leg in range(2):
         status = _write_leg(g, leg, g.phase[leg], r, dr, a_belt, 0.0)
         if status:
@@ -417,6 +460,7 @@ def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no 
         tau = _advance(g, leg, g.phase[leg], r_mid, g.vbar, g.dt)
         g.phase[leg] = 0.0 if tau >= 1.0 else tau
     g.rate = r
+    _write_hip(g, g.phase[0], r, dr, t)
     for leg in range(2):
         status = _write_leg(g, leg, g.phase[leg], r, dr, a_belt, t)
         if status:

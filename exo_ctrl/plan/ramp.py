@@ -26,7 +26,12 @@ is
     \dot p_r = \dot σ (p - p_0) + σ \dot p, \quad
     \ddot p_r = \ddot σ (p - p_0) + 2 \dot σ \dot p + σ \ddot p,
 
-p(t) being the gait's own path (:class:`~exo_ctrl.plan.gait.GaitPlan`).
+p(t) being the gait's own path (:class:`~exo_ctrl.plan.gait.GaitPlan`),
+relative to the hip.  With a hip excursion (``pelvis_excursion`` e > 0) p
+holds z - ΔH, so the ramp scales the hip's rise and fall by the same σ: the
+hip is planned at H_s + σ ΔH (:meth:`RampedGait.hip`), at H_s and at rest
+at t = 0, its rates continuous, and a stance foot stays on the belt line
+(z_r + σ ΔH = -H_s).
 
 Properties (tests/plan/test_ramp.py checks each):
 
@@ -34,7 +39,7 @@ Properties (tests/plan/test_ramp.py checks each):
 - σ is C² and equals 1 with σ̇ = σ̈ = 0 from T_r to t_e - T_o: the ramp adds
   no discontinuity of its own; where the gait's acceleration jumps (B and D,
   its paths are C¹ only) the ramped one jumps by σ times as much;
-- a stance foot (z = -H_s) stays on the belt line, and the lift at the top of
+- a stance foot (z = -H_s - σ ΔH) stays on the belt line, and the lift at the top of
   the swing is σ h_s; the step length grows as σ s;
 - after the ramp-in the path is the gait's, bit for bit (samples with σ = 1
   are the gait's own numbers).
@@ -173,8 +178,22 @@ class RampedGait:
         vel[ramped] = ds * rel + s * base.vel[ramped]
         acc[ramped] = dds * rel + 2.0 * ds * base.vel[ramped] + s * base.acc[ramped]
         stance = base.stance.copy()
-        stance[ramped] |= np.isclose(pos[ramped, :, 1], p0[1], rtol=0.0, atol=1e-12)
+        above_belt = pos[ramped, :, 1]  # the foot's height above the belt, less H_s
+        if self.params.pelvis_excursion > 0.0:
+            above_belt = above_belt + s[:, :, 0] * self.gait.hip(base.t[ramped])[0][:, None]
+        stance[ramped] |= np.isclose(above_belt, p0[1], rtol=0.0, atol=1e-12)
         return FootTrajectory(t=base.t, pos=pos, vel=vel, acc=acc, stance=stance)
+
+    def hip(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The hip's planned rise above H_s, ramped: σ ΔH [m] and its rates [m/s, m/s²].
+
+        (σ ΔH, σ̇ ΔH + σ ΔḢ, σ̈ ΔH + 2 σ̇ ΔḢ + σ ΔḦ) at times ``t`` [s], ΔH of
+        :meth:`~exo_ctrl.plan.gait.GaitPlan.hip`.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        h, dh, ddh = self.gait.hip(t)
+        s, ds, dds = self.ramp.factor(t)
+        return s * h, ds * h + s * dh, dds * h + 2.0 * ds * dh + s * ddh
 
     def belt_speed_at(self, t: np.ndarray | float) -> np.ndarray:
         """σ(t) v_f: the belt speed the plan assumes at times ``t`` [m/s]."""

@@ -39,6 +39,7 @@ from .patient import (
     SpasticPatient,
     make_patient_torque,
 )
+from .pelvis import PelvisParams
 from .plant import (
     Plant,
 )
@@ -58,6 +59,7 @@ __all__ = [
     "MotorBank",
     "MotorParams",
     "PatientTorque",
+    "PelvisParams",
     "Plant",
     "SpasticParams",
     "SpasticPatient",

@@ -288,7 +288,7 @@ def rotor_kick(p: Any) -> None:
     """The rotors' kick and drift (module docstring), the drives held and booked.
 
     (J_r + h D) θ̈ = τ_d − τ_s; the applied torque τ_d − h D θ̈ is held within
-    the cap of :func:`~exo_ctrl.plant.plant._kick_and_drift` (then
+    the cap of :func:`~exo_ctrl.plant.step.kick_and_drift` (then
     J_r θ̈ = cap − τ_s); the sensor reads τ_s.
     """
     m = p.motors

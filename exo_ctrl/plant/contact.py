@@ -131,7 +131,11 @@ class ContactParams:
 #: ``jx``, ``jz`` the rows of ∂p/∂(q_hip, q_knee) [m/rad], ``pen``, ``fn``,
 #: ``ft``, ``slip``, ``state``, ``fn_rate``, ``fn_prev``, ``td_vx``, ``td_vz``
 #: (module docstring), ``imp`` P [N·s], ``g`` A⁻¹ J_xᵀ [1/(kg·m)·…], ``w``,
-#: ``s_free``; ``any``: a foot in contact this step; ``acc`` (8,) the
+#: ``s_free``; ``z_pelvis``, ``vz_pelvis`` the pelvis's height and speed at
+#: mid-step (:mod:`exo_ctrl.plant.pelvis`; 0 with a fixed pelvis) [m, m/s],
+#: ``fz`` the feet's normal forces summed [N], ``w_x`` the feet's coupling
+#: J_x,L M⁻¹ J_x,Rᵀ through the pelvis (0 with a fixed pelvis) [1/kg];
+#: ``any``: a foot in contact this step; ``acc`` (8,) the
 #: accelerations with friction [rad/s²]; ``belt``: the belt's record.
 _FOOT_ROWS = (
     "pen", "fn", "ft", "slip", "state", "fn_rate", "fn_prev", "td_vx", "td_vz", "imp", "w",
@@ -141,6 +145,7 @@ CONTACT_FIELDS = [
     ("hip", np.float64, (2, 2)),
     *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
     *((name, np.float64) for name in ("z_belt", "k", "n", "d", "mu")),
+    *((name, np.float64) for name in ("z_pelvis", "vz_pelvis", "fz", "w_x")),
     ("on", np.bool_),
     ("pos", np.float64, (2, 2)),
     ("vel", np.float64, (2, 2)),
@@ -206,7 +211,7 @@ class FootContact:
     def reset(self, belt_speed_mps: float = 0.0) -> None:
         """Belt at ``belt_speed_mps`` [m/s] with its set speed, feet free, outputs zero."""
         c = self.record[0]
-        for name in ("fn", "ft", "slip", "state", "fn_rate", "fn_prev", "pen", "imp"):
+        for name in ("fn", "ft", "slip", "state", "fn_rate", "fn_prev", "pen", "imp", "w_x"):
             c[name] = 0.0
         b = c["belt"]
         b["v"] = b["v_set"] = b["v_next"] = b["v_free"] = float(belt_speed_mps)
@@ -214,8 +219,11 @@ class FootContact:
         b["brake"] = b["held"] = 0.0
         b["inv_m"] = 1.0 / b["mass"]
 
-    def feet(self, q: np.ndarray) -> np.ndarray:
-        """World (x, z) of the two exo foot points at joint angles ``q`` (≥ 4) [m], (2, 2)."""
+    def feet(self, q: np.ndarray, z_pelvis_m: float = 0.0) -> np.ndarray:
+        """World (x, z) of the two exo foot points at joint angles ``q`` (≥ 4) [m], (2, 2).
+
+        ``z_pelvis_m``: the pelvis's height above its nominal (:mod:`exo_ctrl.plant.pelvis`).
+        """
         c = self.record[0]
         out = np.zeros((2, 2))
         for leg in range(2):
@@ -223,11 +231,23 @@ class FootContact:
             a2 = a1 - c["phi1_0"][leg] + c["phi2_0"][leg] + c["s_k"][leg] * q[2 * leg + 1]
             out[leg, 0] = c["hip"][leg, 0] + c["l1"][leg] * np.cos(a1) + c["l2"][leg] * np.cos(a2)
             out[leg, 1] = c["hip"][leg, 1] + c["l1"][leg] * np.sin(a1) + c["l2"][leg] * np.sin(a2)
+        out[:, 1] += z_pelvis_m
         return out
 
-    def penetration(self, q: np.ndarray) -> np.ndarray:
+    def normal_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Rows ∂p_z/∂(q_hip, q_knee) of each foot at joint angles ``q`` [m/rad], (2, 2)."""
+        c = self.record[0]
+        out = np.zeros((2, 2))
+        for leg in range(2):
+            a1 = c["phi1_0"][leg] + c["s_h"][leg] * q[2 * leg]
+            a2 = c["phi2_0"][leg] + c["s_h"][leg] * q[2 * leg] + c["s_k"][leg] * q[2 * leg + 1]
+            out[leg, 0] = c["s_h"][leg] * (c["l1"][leg] * np.cos(a1) + c["l2"][leg] * np.cos(a2))
+            out[leg, 1] = c["s_k"][leg] * c["l2"][leg] * np.cos(a2)
+        return out
+
+    def penetration(self, q: np.ndarray, z_pelvis_m: float = 0.0) -> np.ndarray:
         """δ = z_b - p_z of each foot at joint angles ``q`` [m], (2,) (negative: above the belt)."""
-        return self.z_belt - self.feet(q)[:, 1]
+        return self.z_belt - self.feet(q, z_pelvis_m)[:, 1]
 
 
 @kernel
@@ -248,13 +268,13 @@ def contact_forces(c: Any, qm: np.ndarray, vm: np.ndarray, tau: np.ndarray, h: f
         c1, s1, c2, s2 = np.cos(a1), np.sin(a1), np.cos(a2), np.sin(a2)
         l1, l2 = c.l1[leg], c.l2[leg]
         c.pos[leg, 0] = c.hip[leg, 0] + l1 * c1 + l2 * c2
-        c.pos[leg, 1] = c.hip[leg, 1] + l1 * s1 + l2 * s2
+        c.pos[leg, 1] = c.hip[leg, 1] + c.z_pelvis + l1 * s1 + l2 * s2
         c.jx[leg, 0] = -c.s_h[leg] * (l1 * s1 + l2 * s2)
         c.jx[leg, 1] = -c.s_k[leg] * l2 * s2
         c.jz[leg, 0] = c.s_h[leg] * (l1 * c1 + l2 * c2)
         c.jz[leg, 1] = c.s_k[leg] * l2 * c2
         vx = c.jx[leg, 0] * vm[i] + c.jx[leg, 1] * vm[i + 1]
-        vz = c.jz[leg, 0] * vm[i] + c.jz[leg, 1] * vm[i + 1]
+        vz = c.jz[leg, 0] * vm[i] + c.jz[leg, 1] * vm[i + 1] + c.vz_pelvis
         c.vel[leg, 0], c.vel[leg, 1] = vx, vz
         pen = c.z_belt - c.pos[leg, 1]
         c.pen[leg] = pen
@@ -272,6 +292,7 @@ def contact_forces(c: Any, qm: np.ndarray, vm: np.ndarray, tau: np.ndarray, h: f
         c.fn_rate[leg] = (fn - c.fn_prev[leg]) / h
         tau[i] += c.jz[leg, 0] * fn
         tau[i + 1] += c.jz[leg, 1] * fn
+    c.fz = c.fn[0] + c.fn[1]
 
 
 @kernel
@@ -305,6 +326,81 @@ def friction_impulse(plant: np.ndarray, acc_in: np.ndarray, mass: np.ndarray) ->
         c.w[leg] = j0 * g0 + j1 * g1
         vx = j0 * (p.v[i] + h * acc_in[i]) + j1 * (p.v[i + 1] + h * acc_in[i + 1])
         c.s_free[leg] = vx + v_free
+    _solve(c, held, inv_mb, h)
+    for leg in range(2):
+        i = 2 * leg
+        c.acc[i] += c.g[leg, 0] * c.imp[leg] / h
+        c.acc[i + 1] += c.g[leg, 1] * c.imp[leg] / h
+
+
+@kernel
+def friction_impulse_coupled(plant: np.ndarray, acc_in: np.ndarray, mass: np.ndarray) -> None:
+    """:func:`friction_impulse` with the pelvis's vertical coordinate: into ``p.pelvis.acc9``.
+
+    With z in the model (:mod:`exo_ctrl.plant.pelvis`) the mass matrix M
+    (9×9, [z, q_all]) couples both legs and the patient's, so
+    g_i = M⁻¹ J_x,iᵀ is solved in full (a Cholesky factor of M) and the feet
+    are coupled: s_i⁺ = s_i^free + w_i P_i + w_x P_j + (P_L + P_R) / m_b with
+    w_x = J_x,i M⁻¹ J_x,jᵀ.  ``acc_in``: ABA's nine accelerations without
+    friction; ``mass``: CRBA's M with the armature (upper triangle read).
+    """
+    p = plant[0]
+    c = p.contact
+    pel = p.pelvis
+    h = p.h
+    held = c.belt.held != 0.0
+    v_free = 0.0 if held else c.belt.v_free
+    inv_mb = 0.0 if held else 1.0 / c.belt.mass
+    n = 9
+    for i in range(n):
+        pel.acc9[i] = acc_in[i]
+    low = pel.chol
+    for j in range(n):  # M = L Lᵀ, from the upper triangle
+        d = mass[j, j]
+        for k in range(j):
+            d -= low[j, k] * low[j, k]
+        low[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            s = mass[j, i]
+            for k in range(j):
+                s -= low[i, k] * low[j, k]
+            low[i, j] = s / low[j, j]
+    c.w_x = 0.0
+    for leg in range(2):
+        c.imp[leg] = 0.0
+        g = pel.g9[leg]
+        g[:] = 0.0
+        if c.fn[leg] <= 0.0:
+            continue
+        i = 2 * leg + 1
+        g[i], g[i + 1] = c.jx[leg, 0], c.jx[leg, 1]
+        for r in range(n):  # forward: L y = J_xᵀ
+            s = g[r]
+            for k in range(r):
+                s -= low[r, k] * g[k]
+            g[r] = s / low[r, r]
+        for r in range(n - 1, -1, -1):  # back: Lᵀ g = y
+            s = g[r]
+            for k in range(r + 1, n):
+                s -= low[k, r] * g[k]
+            g[r] = s / low[r, r]
+        c.w[leg] = c.jx[leg, 0] * g[i] + c.jx[leg, 1] * g[i + 1]
+        vx = c.jx[leg, 0] * (p.v[i - 1] + h * acc_in[i])
+        vx += c.jx[leg, 1] * (p.v[i] + h * acc_in[i + 1])
+        c.s_free[leg] = vx + v_free
+    if c.fn[0] > 0.0 and c.fn[1] > 0.0:
+        c.w_x = c.jx[0, 0] * pel.g9[1, 1] + c.jx[0, 1] * pel.g9[1, 2]
+    _solve(c, held, inv_mb, h)
+    for leg in range(2):
+        for i in range(n):
+            pel.acc9[i] += pel.g9[leg, i] * c.imp[leg] / h
+    pel.az = pel.acc9[0]
+
+
+@kernel
+def _solve(c: Any, held: bool, inv_mb: float, h: float) -> None:
+    """The impulses (:func:`_sweeps`), a brake overpowered giving way; the belt's next speed."""
+    b = c.belt
     _sweeps(c, inv_mb, h)
     total = c.imp[0] + c.imp[1]
     if held and not brake_holds(b, total / h, h):  # the feet overpower the brake
@@ -313,10 +409,6 @@ def friction_impulse(plant: np.ndarray, acc_in: np.ndarray, mass: np.ndarray) ->
             c.s_free[leg] += b.v_free
         _sweeps(c, inv_mb, h)
         total = c.imp[0] + c.imp[1]
-    for leg in range(2):
-        i = 2 * leg
-        c.acc[i] += c.g[leg, 0] * c.imp[leg] / h
-        c.acc[i + 1] += c.g[leg, 1] * c.imp[leg] / h
     b.v_next = 0.0 if held and inv_mb == 0.0 else b.v_free + total * inv_mb
     b.f_feet = total / h
 
@@ -328,7 +420,8 @@ def _sweeps(c: Any, inv_mb: float, h: float) -> None:
         for leg in range(2):
             if c.fn[leg] <= 0.0:
                 continue
-            r = c.s_free[leg] + c.w[leg] * c.imp[leg] + (c.imp[0] + c.imp[1]) * inv_mb
+            r = c.s_free[leg] + c.w[leg] * c.imp[leg] + c.w_x * c.imp[1 - leg]
+            r += (c.imp[0] + c.imp[1]) * inv_mb
             new = c.imp[leg] - r / (c.w[leg] + inv_mb)
             bound = c.mu * c.fn[leg] * h
             if new > bound:
@@ -354,6 +447,6 @@ def contact_commit(c: Any, h: float) -> None:
             continue
         imp = c.imp[leg]
         c.ft[leg] = imp / h
-        c.slip[leg] = c.s_free[leg] + c.w[leg] * imp + total * inv_mb
+        c.slip[leg] = c.s_free[leg] + c.w[leg] * imp + c.w_x * c.imp[1 - leg] + total * inv_mb
         c.state[leg] = 2.0 if abs(imp) >= c.mu * fn * h * (1.0 - 1e-12) else 1.0
     belt_commit(b, h)

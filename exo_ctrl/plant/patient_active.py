@@ -202,6 +202,7 @@ class ActiveParams:
             shape_coeff=device.shape_coeff,
             period=period,
             duty_factor=device.duty_factor,
+            pelvis_excursion=device.pelvis_excursion,  # the shared pelvis rises as the device's
         )
 
 

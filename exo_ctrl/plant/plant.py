@@ -35,7 +35,7 @@ The drive current itself is integrated exactly over the step
 
 Outputs of a step: ``drive_torque`` is the torque the drive applied at the
 joint, τ_m(v) - h D_m a (the mean-current torque with its implicit back-EMF
-correction, held within the drive's current limit: ``_kick_and_drift``);
+correction, held within the drive's current limit: :func:`~exo_ctrl.plant.step.kick_and_drift`);
 ``sensor_torque`` is what a joint torque sensor between the
 gearbox and the link reads, drive_torque - i_G² J_rotor a (the rotor's
 inertia is on the motor side of the sensor).  With joint compliance
@@ -47,6 +47,13 @@ default) the feet's normal forces join the mid-step forces, and on a step
 with a foot in contact the friction impulses are solved after ABA (one CRBA
 for the legs' mass matrices) and added to its accelerations before the kick.
 Without contact the step is the same arithmetic as before, bit for bit.
+
+With the pelvis on its vertical guide (:mod:`exo_ctrl.plant.pelvis`, off by
+default) the model gains a ninth coordinate z ahead of q_all (Pinocchio's
+order [z, q_exo, q_patient]), stepped by the same leapfrog; the feet's
+heights and normal speeds include z and ż, their normal forces push on z,
+and the friction solve takes the full 9×9 mass matrix (the legs are coupled
+through the pelvis).
 """
 
 from __future__ import annotations
@@ -57,22 +64,30 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as _v
-from .._jit import Status, check, kernel, record
+from .._jit import Status, check, record
 from ..exceptions import InvalidParameter
-from ..model import FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel, combined_model
-from .compliance import CompliantJoint, Rotors, rotor_forces, rotor_kick
-from .contact import ContactParams, FootContact, contact_commit, contact_forces, friction_impulse
-from .cuffs import CuffParams, CuffSet, forces_of
+from ..model import JOINT_NAMES, BodyModel, combined_model
+from .compliance import CompliantJoint, Rotors
+from .contact import (
+    ContactParams,
+    FootContact,
+    friction_impulse,
+    friction_impulse_coupled,
+)
+from .cuffs import CuffParams, CuffSet
 from .drive import MotorParams
-from .end_stops import EndStopParams, end_stop_torques
-from .energy import book_drives
-from .motor import MotorBank, drive_cap, hold_drive, step_drives
+from .end_stops import EndStopParams
+from .motor import MotorBank
+from .pelvis import (
+    PelvisParams,
+    pelvis_model,
+    pelvis_pack,
+    pelvis_unpack,
+)
 from .plant_record import plant_fields
+from .step import MAX_JOINT_SPEED_RAD_S, drift_and_forces, kick_and_drift
 
-__all__ = ["Plant"]
-
-#: A joint speed above this is taken as divergence [rad/s].
-MAX_JOINT_SPEED_RAD_S = 100.0
+__all__ = ["MAX_JOINT_SPEED_RAD_S", "Plant"]
 
 
 class Plant:
@@ -97,6 +112,8 @@ class Plant:
             default off: the feet in free air).
         belt_height_m: the belt's top below the hip [m] (the plan's H_s),
             unless the contact's belt sets its own.
+        pelvis: the pelvis on a vertical guide with body-weight support
+            (:mod:`exo_ctrl.plant.pelvis`; default: fixed, as the paper).
 
     Raises:
         InvalidModel: a body without exactly the four joints in JOINT_NAMES
@@ -118,6 +135,7 @@ class Plant:
         compliance: CompliantJoint | None = None,
         contact: ContactParams | None = None,
         belt_height_m: float = 0.9,
+        pelvis: PelvisParams | None = None,
     ) -> None:
         for body in (exo, patient):
             body.require_legs_only("the plant")
@@ -193,6 +211,25 @@ class Plant:
         self.contact = FootContact(exo, contact or ContactParams(), belt_height_m, r["contact"])
         self._contact_on = self.contact.params.enabled
         self._contact_any, self._contact_acc = r["contact"]["any"], r["contact"]["acc"][0]
+        #: The pelvis's guide and support (:mod:`exo_ctrl.plant.pelvis`).
+        self.pelvis_params = pelvis if pelvis is not None else PelvisParams()
+        self._pelvis_on = self.pelvis_params.supported
+        self.pelvis = r["pelvis"]
+        if self._pelvis_on:
+            #: Both bodies on the pelvis's z: q = [z, q_all] for ABA.
+            self.model = pelvis_model(self.model, patient, self.pelvis_params)
+            self.data = self.model.createData()
+            pel = self.pelvis[0]
+            pel["on"] = True
+            pel["support"] = self.pelvis_params.support_N
+            pel["mass"] = pin.computeTotalMass(self.model)
+            pel["lower"], pel["upper"] = -self.pelvis_params.travel_m, self.pelvis_params.travel_m
+            pel["stop_k"] = self.pelvis_params.stop_stiffness_N_per_m
+            pel["stop_c"] = self.pelvis_params.stop_damping_N_s_per_m
+            pel["arm9"][1:] = self._arm
+            self.model.armature = pel["arm9"]
+            self._q9, self._v9, self._tau9 = pel["q9"], pel["v9"], pel["tau9"]
+            self._arm9, self._acc9_tail = pel["arm9"], self.pelvis["acc9"][0, 1:]
         self.t = 0.0
         if self.motors is not None:
             self.motors.set_step(self.dt)
@@ -207,6 +244,7 @@ class Plant:
         v_patient: np.ndarray | None = None,
         current_A: np.ndarray | float = 0.0,
         fit_cuffs: bool = True,
+        pelvis_z_m: float = 0.0,
     ) -> None:
         """Set the state; the patient defaults to the exoskeleton's joint state.
 
@@ -218,6 +256,8 @@ class Plant:
             current_A: drive currents [A].
             fit_cuffs: make the present cuff offsets the slack ones (the
                 straps are fitted in this posture).
+            pelvis_z_m: the pelvis's height above its nominal [m], at rest
+                (with the pelvis on its guide).
 
         """
         self.q[:4] = q_exo
@@ -235,6 +275,17 @@ class Plant:
         self.sensor_torque[:] = self.drive_torque
         self.rotors.reset()
         self.contact.reset(self.contact.belt["v_set"][0])
+        pel = self.pelvis[0]
+        z = float(pelvis_z_m) if self._pelvis_on else 0.0
+        pel["z"] = pel["z_mid"] = z
+        pel["vz"] = pel["vz_mid"] = pel["az"] = 0.0
+        self.contact.record["z_pelvis"] = z
+        self.contact.record["vz_pelvis"] = 0.0
+
+    @property
+    def pelvis_z(self) -> float:
+        """The pelvis's height above its nominal [m] (0 with the pelvis fixed)."""
+        return float(self.pelvis["z"][0])
 
     @property
     def cuff_force(self) -> np.ndarray:
@@ -263,23 +314,34 @@ class Plant:
             voltage_V, patient_torque_Nm = _v.arrays(
                 (4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm
             )
-        status = _drift_and_forces(self.record, voltage_V, patient_torque_Nm, given)
+        status = drift_and_forces(self.record, voltage_V, patient_torque_Nm, given)
         if status:
             check(status, "Plant.step", voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
-        if self._changed[0]:
+        if self._changed[0] and not self._pelvis_on:
             self.model.armature = self._arm
         # Kick: accelerations of both bodies at mid-step, damping implicit
         # through the armature.
         self.t += self.dt
-        status = _kick_and_drift(self.record, self._accelerations())
+        status = kick_and_drift(self.record, self._accelerations())
         while self._resolve[0]:  # a drive reached its current limit: at most 4 times
-            self.model.armature = self._arm
-            status = _kick_and_drift(self.record, self._accelerations())
+            if not self._pelvis_on:
+                self.model.armature = self._arm
+            status = kick_and_drift(self.record, self._accelerations())
         if status:
             self._diverged()
 
     def _accelerations(self) -> np.ndarray:
         """ABA's accelerations at mid-step, with the feet's friction impulses if in contact."""
+        if self._pelvis_on:  # [z, q_all]; the armature changes with the drives' damping
+            pelvis_pack(self.record)
+            self.model.armature = self._arm9
+            acc = pin.aba(self.model, self.data, self._q9, self._v9, self._tau9)
+            if self._contact_on and self._contact_any[0]:
+                mass = pin.crba(self.model, self.data, self._q9)
+                friction_impulse_coupled(self.record, acc, mass)
+            else:
+                pelvis_unpack(self.pelvis[0], acc)
+            return self._acc9_tail
         acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
         if self._contact_on and self._contact_any[0]:
             mass = pin.crba(self.model, self.data, self._q_mid)
@@ -317,10 +379,27 @@ class Plant:
         stores ½ K d² at a penetration d.
         """
         energy = 0.0
-        for model, q, v, arm in (
-            (self.exo.model, self.q[:4], self.v[:4], self._arm_base),
-            (self.patient.model, self.q[4:], self.v[4:], np.zeros(4)),
-        ):
+        z = self.pelvis_z
+        if self._pelvis_on:  # one model: the trunk's m g z, the support's potential -F_s z
+            pel = self.pelvis[0]
+            model = pin.Model(self.model)
+            model.armature = np.zeros(9)
+            bodies = [
+                (
+                    model,
+                    np.r_[z, self.q],
+                    np.r_[pel["vz"], self.v],
+                    np.r_[0.0, self._arm_base, np.zeros(4)],
+                )
+            ]
+            depth = max(z - pel["upper"], 0.0) + max(pel["lower"] - z, 0.0)
+            energy += 0.5 * float(pel["stop_k"]) * depth**2 - float(pel["support"]) * z
+        else:
+            bodies = [
+                (self.exo.model, self.q[:4], self.v[:4], self._arm_base),
+                (self.patient.model, self.q[4:], self.v[4:], np.zeros(4)),
+            ]
+        for model, q, v, arm in bodies:
             data = model.createData()
             mass = pin.crba(model, data, q)
             mass = np.triu(mass) + np.triu(mass, 1).T
@@ -334,138 +413,6 @@ class Plant:
         if self._contact_on:  # the belt's kinetic energy, the contact springs' k δⁿ⁺¹ / (n + 1)
             c = self.contact.record[0]
             energy += 0.5 * float(c["belt"]["mass"] * c["belt"]["v"] ** 2)
-            n, depth = float(c["n"]), np.maximum(self.contact.penetration(self.q), 0.0)
+            n, depth = float(c["n"]), np.maximum(self.contact.penetration(self.q, z), 0.0)
             energy += float(c["k"]) * float(np.sum(depth ** (n + 1.0))) / (n + 1.0)
         return energy + self.rotors.energy()  # with compliance, the rotors' and springs'
-
-
-@kernel
-def _drift_and_forces(
-    plant: np.ndarray,
-    voltage_V: np.ndarray,
-    patient_torque_Nm: np.ndarray,
-    given: bool,
-) -> int:
-    """First half of :meth:`Plant.step`: drift to mid-step and every force there.
-
-    q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
-    + end stops(q½, v½) (+ patient torque, if ``given``) (+ drive torque of the exact motor
-    step); the exo armature i_G² J_rotor + h b + h D_m (fields: PLANT_FIELDS).
-    Returns ``Status.WRONG_LENGTH`` (nothing done) when the voltages or
-    patient torques are not 4, else ``Status.OK``.
-    """
-    if voltage_V.shape[0] != 4 or patient_torque_Nm.shape[0] != 4:
-        return Status.WRONG_LENGTH.value
-    p = plant[0]
-    q, v, acc, qm, vm, tau = p.q, p.v, p.acc, p.q_mid, p.v_mid, p.tau
-    h = p.h
-    half = 0.5 * h
-    for i in range(8):
-        qm[i] = q[i] + v[i] * half
-        vm[i] = v[i] + acc[i] * half
-    c = p.cuffs
-    forces_of(c, qm, vm)
-    for i in range(8):
-        t = c.tau[i] - p.b[i] * v[i]
-        if p.has_friction:
-            t -= np.tanh(v[i] / FRICTION_SMOOTHING_RAD_S) * p.friction[i]
-        tau[i] = t
-    end_stop_torques(p, qm, vm, tau)
-    if p.contact.on:
-        contact_forces(p.contact, qm, vm, tau, h)
-    if given:
-        for j in range(4):
-            p.patient_torque[j] = patient_torque_Nm[j]
-            tau[4 + j] += p.patient_torque[j]
-    changed = False
-    if p.compliant:
-        rotor_forces(p, voltage_V, qm, vm, tau)
-    elif p.has_motors:
-        m = p.motors
-        step_drives(m, voltage_V, v[:4])
-        for j in range(4):
-            torque = m.torque[j]
-            p.drive_torque[j] = torque
-            tau[j] += torque
-            p.damping_m[j] = m.damping[j] * h
-            arm = p.damping_m[j] + p.arm_const[j]
-            changed = changed or arm != p.armature[j]
-            p.armature[j] = arm
-    p.armature_changed = changed
-    return Status.OK.value
-
-
-@kernel
-def _kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
-    """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺.
-
-    ``acc_all``: the ABA accelerations of both bodies, (8,) in q_all order.
-    With drives, the applied torque τ_m - h D_m a and the sensor torque
-    τ_m - h D_m a - i_G² J_rotor a; the step's applied voltage, mean current
-    and cuff forces.
-
-    **Current limit.**  τ_m - h D_m a is the mean torque linearised at the
-    end-of-step speed, so its current (τ_m - h D_m a) / (i_G k_m) is bounded by
-    I_max like any other.  h D_m is 0.15 N·m·s/rad at 1 ms but 3.0 at 10 ms:
-    at 100 Hz the correction alone reached 170 N·m (241 N·m against the
-    150 N·m cap).  The cap is the smaller of the drive's own, η^s i_G k_m
-    I_max (η^s the gear factor, :mod:`exo_ctrl.plant.motor`), and the joint's
-    rated effort (URDF ``<limit effort>``: a braking gearbox passes the motor
-    torque over η, and the driver keeps the output within the rating).  A
-    drive beyond the cap is held there (torque in ``tau`` at the limit, no
-    damping, the current that gives it) and nothing is stepped: the caller
-    solves the accelerations again.  A held drive is not held
-    again: at most four re-solves; 1 kHz runs of the default scenario need none.
-
-    Returns:
-        ``Status.DIVERGED`` when a joint speed is not below
-        :data:`MAX_JOINT_SPEED_RAD_S` (NaN included), else ``Status.OK``
-        (with ``resolve`` set when a drive was held at its limit).
-
-    """
-    p = plant[0]
-    p.resolve = False
-    if p.has_motors and not p.compliant:
-        m = p.motors
-        held = False
-        for j in range(4):
-            cap, i_held = drive_cap(m, p.effort[j], j)
-            linear = p.drive_torque[j] - p.damping_m[j] * acc_all[j]
-            if abs(linear) > cap:
-                sign = 1.0 if linear > 0.0 else -1.0
-                limit = sign * cap
-                p.tau[j] += limit - p.drive_torque[j]
-                p.drive_torque[j] = limit
-                p.damping_m[j] = 0.0
-                p.armature[j] = p.arm_const[j]
-                hold_drive(m, j, limit, sign * i_held)
-                held = True
-        if held:
-            p.resolve = True
-            return Status.OK.value
-    q, v, acc, qm = p.q, p.v, p.acc, p.q_mid
-    for i in range(8):
-        acc[i] = acc_all[i]
-    if p.compliant:
-        rotor_kick(p)
-    elif p.has_motors:
-        book_drives(p.motors, v)  # the step is final; ω held: the start of step's
-        for j in range(4):
-            p.drive_torque[j] = p.drive_torque[j] - p.damping_m[j] * acc[j]
-            p.sensor_torque[j] = p.drive_torque[j] - p.arm_base[j] * acc[j]
-    m = p.motors
-    f = p.cuffs.f
-    for j in range(4):
-        p.voltage[j] = m.u[j]
-        p.current[j] = m.mean[j]
-        p.cuff_force[j, 0] = f[j]
-        p.cuff_force[j, 1] = f[4 + j]
-    if p.contact.on:
-        contact_commit(p.contact, p.h)
-    half = 0.5 * p.h
-    speed2 = 0.0
-    for i in range(8):
-        v[i] = v[i] + acc[i] * p.h
-        q[i] = qm[i] + v[i] * half
-        speed2 += v[i] * v[i]
-    return Status.OK.value if speed2 < MAX_JOINT_SPEED_RAD_S**2 else Status.DIVERGED.value

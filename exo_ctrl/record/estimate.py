@@ -1,19 +1,25 @@
 """Cuff-force estimation after the fact, from a recording or a user's CSV log.
 
 This module reads and writes files; the estimation itself is
-:func:`exo_ctrl.estimation.estimate_series`.  :func:`estimate_file` runs the
-same momentum observer as the live loop
-(:class:`exo_ctrl.estimation.CuffForceEstimator`) along logged sensor readings:
+:func:`exo_ctrl.estimation.estimate_series` (the momentum observer,
+:class:`exo_ctrl.estimation.CuffForceEstimator`) or
+:func:`exo_ctrl.estimation.kalman_series` (the Kalman filter on the coupled
+model, :class:`exo_ctrl.estimation.CuffForceKalman`).  :func:`estimate_file`
+runs the same estimator as the live loop along logged sensor readings:
 
 - an ``.rrd`` written by exo_ctrl: the encoder angles ``q_meas``, speeds
   ``dq_meas`` and torque-sensor readings ``tau_sensor`` of every tick, with
-  the run's own control period, observer gain and assumption, so the answer
-  equals the live estimate; where the recording holds the simulated cuff
-  forces, the error of the estimate is reported (after the checks of
-  :func:`estimate_file`: integrity, length, model, plausibility);
+  the run's own estimator (or the one the user names), control period and
+  device models (:mod:`.estimate_models`: the observer's gain and
+  assumption; the filter's nominal patient, cuff model and sensor
+  datasheet), so the answer equals the live estimate; where the recording
+  holds the simulated cuff forces, the error of the estimate is reported
+  (after the checks of :func:`estimate_file`: integrity, length, model,
+  plausibility);
 - a ``.csv`` log with the header documented in
   :func:`exo_ctrl.estimation.read_csv_log` (``t`` and, per joint, the angle
-  and the torque-sensor reading, speeds optional).
+  and the torque-sensor reading, speeds optional), with the momentum
+  observer (a log holds no device models for the filter).
 
 :func:`write_estimate_recording` writes the estimate as a rerun recording
 (entities ``estimate/cuff_normal/{cuff}``, ``estimate/cuff_force/{cuff}/{x,z}``
@@ -34,13 +40,17 @@ import rerun as rr
 from .. import _validate as v
 from ..estimation import (
     DEFAULT_GAIN_PER_S,
+    ESTIMATORS,
+    MODEL_DRIVEN,
     EstimateSeries,
     estimate_series,
+    kalman_series,
     normal_component_errors,
     read_csv_log,
 )
-from ..exceptions import InvalidParameter, RecordingError
-from ..model import CUFF_NAMES, JOINT_NAMES, load_exo
+from ..estimation.errors import STARTUP_S
+from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
+from ..model import CUFF_NAMES, JOINT_NAMES, BodyModel, load_exo
 from ..plant import CuffParams
 from .estimate_checks import (
     STARTUP_TIME_CONSTANTS,
@@ -49,6 +59,7 @@ from .estimate_checks import (
     startup_ticks,
     worse_than_none,
 )
+from .estimate_models import chosen_estimator, recorded_kalman
 from .format import TIME
 from .reader import RecordingIntegrity, read_recording_integrity
 
@@ -94,13 +105,17 @@ class OfflineEstimate:
     warnings: list[str] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
-        """JSON-able figures: source, samples, gain, completeness, peaks, errors, warnings."""
+        """JSON-able figures: the source, estimator and gain, peaks, errors and warnings.
+
+        ``observer_gain_per_s`` is None for the Kalman filter (it has no gain).
+        """
         s = self.series
         whole = self.integrity
         return {
             "source": self.source,
             "samples": int(s.t.shape[0]),
-            "observer_gain_per_s": float(s.gain_per_s),
+            "estimator": s.estimator,
+            "observer_gain_per_s": None if s.gain_per_s is None else float(s.gain_per_s),
             "complete": True if whole is None else whole.complete,
             "ticks_recovered": None if whole is None else whole.ticks_recovered,
             "ticks_planned": None if whole is None else whole.ticks_planned,
@@ -114,7 +129,8 @@ class OfflineEstimate:
 
         Where the truth is known: the whole force's RMS error [N] and over the
         RMS true force ("rel"), the normal component's RMS error over its peak
-        ("normal/peak"), and a line naming what the estimator cannot observe.
+        ("normal/peak"), and a line naming what the estimator cannot observe
+        (the momentum observer) or takes from the device's models (the Kalman filter).
         A figure not given (a relative error below its floor) shows as "—".
         """
         summary = self.summary()
@@ -138,10 +154,17 @@ class OfflineEstimate:
                 "rms err, rel: the whole 2-D force against the RMS true force; normal/peak: the "
                 "normal component against its peak"
             )
-            lines.append(
-                "unobservable from the joint torques: the thigh cuffs' along-thigh force "
-                "(assumed 0), the shank cuffs' along-shank force (from the assumption)"
-            )
+            if self.series.estimator == "kalman":
+                lines.append(
+                    "from the device's cuff and patient models, not the joint torques: the thigh "
+                    "cuffs' along-thigh force, and the split of each hip torque between the "
+                    "thigh's normal and the shank's along-shank force"
+                )
+            else:
+                lines.append(
+                    "unobservable from the joint torques: the thigh cuffs' along-thigh force "
+                    "(assumed 0), the shank cuffs' along-shank force (from the assumption)"
+                )
         return "\n".join(lines)
 
 
@@ -227,11 +250,15 @@ def read_sensor_log(
             "the observer needs at least 2"
         )
     config = result.config
-    body, model_notes = recorded_exo(p, result.exo_source or config.exo or "", exo, allow_other_exo)
+    # The device's exoskeleton model (what the live estimator held): the
+    # belief's URDF when the run gave the device another than the truth.
+    source = config.belief.exo or result.exo_source or config.exo or ""
+    body, model_notes = recorded_exo(p, source, exo, allow_other_exo)
     notes += model_notes
-    return SensorLog(
-        result.t, s["q_meas"], s["dq_meas"], s["tau_sensor"], body, result, integrity, notes
-    )
+    tau = s["tau_sensor"]
+    if "tau_ground_meas" in s:  # the feet's load from the foot plates, as the live estimator had
+        tau = tau + s["tau_ground_meas"]
+    return SensorLog(result.t, s["q_meas"], s["dq_meas"], tau, body, result, integrity, notes)
 
 
 def estimate_file(
@@ -239,8 +266,15 @@ def estimate_file(
     exo: str | os.PathLike[str] | None = None,
     gain_per_s: float | None = None,
     allow_other_exo: bool = False,
+    estimator: str | None = None,
 ) -> OfflineEstimate:
     """Estimate the cuff forces along a recording (``.rrd``) or a CSV log.
+
+    The estimator is the recording's run's (``config.estimator``) unless
+    ``estimator`` names another; a CSV log is estimated with the momentum
+    observer (:func:`~.estimate_models.chosen_estimator`).  Each is built as
+    the live run built it (:mod:`.estimate_models`), so a recording's
+    offline estimate equals its live one to rounding.
 
     A recording is checked before and after (:mod:`.estimate_checks`):
 
@@ -266,21 +300,30 @@ def estimate_file(
             :data:`~exo_ctrl.estimation.DEFAULT_GAIN_PER_S`).
         allow_other_exo: estimate a recording with an ``exo`` other than the
             one it was recorded with.
+        estimator: ``"momentum"`` or ``"kalman"`` (None: the recording's;
+            momentum for a CSV log).
 
     Raises:
         RecordingError: an unreadable recording, one without sensor readings
-            or of fewer than 2 ticks.
+            or of fewer than 2 ticks; a recording whose device patient model
+            cannot be rebuilt for the Kalman filter.
         InvalidLog: a bad CSV log.
-        InvalidParameter: an unknown file type, a bad gain, or an ``exo``
-            other than the recorded one.
+        InvalidParameter: an unknown file type, a bad gain, an ``exo``
+            other than the recorded one, an unknown estimator, ``kalman`` for
+            a CSV log, or a gain with the Kalman filter.
 
     """
     p = Path(path)
     if gain_per_s is not None:
         v.positive("gain", gain_per_s, "1/s")
+    if estimator is not None and estimator not in ESTIMATORS:
+        raise InvalidParameter("estimator", estimator, f"one of {', '.join(ESTIMATORS)}")
+    if p.suffix.lower() == ".csv":
+        chosen_estimator(estimator, None, gain_per_s)  # refuses kalman before reading
     log = read_sensor_log(p, exo, allow_other_exo)
     if log.result is not None:
-        return _warn(_from_recording(p, log, gain_per_s))
+        chosen = chosen_estimator(estimator, log.result.config, gain_per_s)
+        return _warn(_from_recording(p, log, gain_per_s, chosen))
     gain = DEFAULT_GAIN_PER_S if gain_per_s is None else gain_per_s
     series = estimate_series(log.t, log.q, log.dq, log.tau, log.exo, gain_per_s=gain)
     stiffness = CuffParams().stiffness_N_per_m
@@ -295,37 +338,70 @@ def _warn(estimate: OfflineEstimate) -> OfflineEstimate:
     return estimate
 
 
-def _from_recording(path: Path, log: SensorLog, gain_per_s: float | None) -> OfflineEstimate:
+def _from_recording(
+    path: Path, log: SensorLog, gain_per_s: float | None, estimator: str
+) -> OfflineEstimate:
     result, body, notes = log.result, log.exo, list(log.notes)
     s, n, config = result.signals, result.t.size, result.config
     gain = config.observer_gain_per_s if gain_per_s is None else gain_per_s
-    series = estimate_series(
-        log.t,
-        log.q,
-        log.dq,
-        log.tau,
-        body,
-        gain_per_s=gain,
-        dt=config.dt,
-        stiffness_ratio=config.cuff_stiffness_ratio,
-    )
+    if estimator == "kalman":
+        kalman = recorded_kalman(path, config, body)
+        series = kalman_series(log.t, log.q, log.dq, log.tau, kalman)
+    else:
+        series = estimate_series(
+            log.t,
+            log.q,
+            log.dq,
+            log.tau,
+            body,
+            gain_per_s=gain,
+            dt=config.dt,
+            stiffness_ratio=config.cuff_stiffness_ratio,
+        )
     errors: dict[str, dict[str, float | None]] = {}
-    skip = startup_ticks(gain, config.dt)
+    if estimator == "kalman":  # the live run's error figures leave out its first STARTUP_S
+        skip = round(STARTUP_S / config.dt)
+        startup = f"the start-up the live figures leave out, {skip} ticks ({STARTUP_S:g} s)"
+    else:
+        skip = startup_ticks(gain, config.dt)
+        startup = (
+            f"the observer's start-up of {skip} ticks "
+            f"(5 / K_O = {STARTUP_TIME_CONSTANTS / gain:.4g} s)"
+        )
     truth = s.get("cuff_force")
     if truth is not None and np.all(np.isfinite(truth)) and np.all(np.isfinite(s["q"])):
         if n <= max(skip, 1):
-            notes.append(
-                f"{path}: {n} ticks, not more than the observer's start-up of {skip} ticks "
-                f"(5 / K_O = {STARTUP_TIME_CONSTANTS / gain:.4g} s): no error figures"
-            )
+            notes.append(f"{path}: {n} ticks, not more than {startup}: no error figures")
         else:
             found = normal_component_errors(
-                s["q"], truth, series.normal, body, skip=skip, lag=1, force_est=series.force
+                s["q"],
+                truth,
+                series.normal,
+                _true_exo(result, body),
+                skip=skip,
+                lag=1,
+                force_est=series.force,
             )
             errors = found.summary()
+            if estimator == "kalman":  # every component estimated; these from the models
+                errors["cuff_force_estimate_unobservable"] = list(MODEL_DRIVEN)
             notes += worse_than_none(path, found)
     notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)
     return OfflineEstimate(str(path), series, errors, log.integrity, notes)
+
+
+def _true_exo(result: Any, device_exo: BodyModel) -> BodyModel:
+    """The exoskeleton whose geometry the live error figures used: the truth's.
+
+    The device's model when the run gave the device none other (the same
+    file), or when the truth's URDF cannot be loaded here.
+    """
+    if result.config.belief.exo is None:
+        return device_exo
+    try:
+        return load_exo(result.exo_source or result.config.exo or None)
+    except ExoCtrlError:
+        return device_exo
 
 
 def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[str]) -> Path:

@@ -32,6 +32,7 @@ from ..exceptions import ExoCtrlError, RecordingError
 from ..model import load_body
 from ..sim import RunStats, SimConfig, SimResult
 from ..sim.gait_score import gait_score_stats
+from ..sim.load_stats import load_stats
 from ..sim.summary import contact_stats
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
 
@@ -219,6 +220,8 @@ def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
         estimate = None
     stats = RunStats(estimate, contact)
     stats.gait = gait_score_stats(config)  # the gait scores (exo_ctrl/sim/gait_score.py)
+    if estimate is not None:  # the stance legs' load (exo_ctrl/sim/load_stats.py)
+        stats.load = load_stats(config, estimate.exo)
     return stats
 
 

@@ -7,8 +7,12 @@
 - :mod:`.plausibility`, :mod:`.belt_monitor`: whether the readings can be
   true (drive model, encoder step, stuck sensor, command age; the belt's
   measured speed against its set speed);
+- :mod:`.stop_reaction`: how the stop ends: ``hold`` the posture or
+  ``yield`` to an active patient (gravity compensation and damping), and
+  the default per interaction mode;
 - :mod:`.supervisor`: :class:`SafetySupervisor`, the state machine and the
-  controlled stop (hold with gravity compensation, ramp, power cut), events.
+  controlled stop (hold or yield with gravity compensation, ramp, power
+  cut), events.
 """
 
 from .limits import (
@@ -20,6 +24,12 @@ from .limits import (
     resolve_limits,
 )
 from .monitor import MONITOR_FIELDS, Channel, channels, monitor, monitor_record
+from .stop_reaction import (
+    STOP_REACTIONS,
+    default_stop_reaction,
+    stop_reaction_schedule,
+    yield_damping,
+)
 from .supervisor import SafetySupervisor
 
 __all__ = [
@@ -27,12 +37,16 @@ __all__ = [
     "ISO_TS_15066_CUFF_FORCE_N",
     "MONITOR_FIELDS",
     "STATES",
+    "STOP_REACTIONS",
     "Channel",
     "ResolvedLimits",
     "SafetyLimits",
     "SafetySupervisor",
     "channels",
+    "default_stop_reaction",
     "monitor",
     "monitor_record",
     "resolve_limits",
+    "stop_reaction_schedule",
+    "yield_damping",
 ]

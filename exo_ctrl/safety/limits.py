@@ -28,7 +28,7 @@ __all__ = [
 
 #: Supervisor states; the index is :attr:`SafetySupervisor.state_code` and
 #: the ``state`` field of its record.
-STATES = ("normal", "stopping", "holding", "power_cut")
+STATES = ("normal", "stopping", "holding", "power_cut", "yielding")
 
 #: ISO/TS 15066:2016 Annex A, Table A.2, maximum permissible quasi-static
 #: contact force for the body regions "thighs and knees" (220 N) and "lower

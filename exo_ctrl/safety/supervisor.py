@@ -47,6 +47,13 @@ the emergency-stop time, it stops the gait:
    about 0.1 s) instead of falling.  (A driver that opens its bridge would
    give no braking; not modelled.)
 
+**Stop reaction** (``stop_reaction``; :mod:`.stop_reaction`).  The above is
+``hold``.  ``yield`` ramps the same way to gravity compensation at the
+present posture with damping injection instead, state ``"yielding"``
+after the ramp, no posture held, so an active patient moves the legs with
+a bounded interaction force; a joint beyond its speed limit or range of
+motion then cuts the power, legs at rest end in the hold.
+
 Every violation and every state change is an event dict
 ``{"t", "kind", "quantity", "value", "limit", "message"}`` in
 :attr:`SafetySupervisor.events` (kind ``"violation"``, ``"estop"`` or
@@ -63,6 +70,7 @@ stay non-finite the PD acts only on the joints whose readings are finite
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -77,6 +85,16 @@ from .belt_monitor import BELT, BELT_DEVIATION_MPS, belt_monitor, belt_monitor_r
 from .limits import STATES, SafetyLimits, resolve_limits
 from .monitor import LIMIT_GROUPS, channels, monitor, monitor_record
 from .plausibility import plausibility, plausibility_limits, plausibility_record
+from .stop_reaction import (
+    REST_SPEED_RAD_S,
+    REST_TIME_S,
+    YieldCommand,
+    check_stop_reaction,
+    hold_breach,
+    reaction_at,
+    yield_breach,
+)
+from .stop_reaction import yield_damping as _yield_damping
 
 __all__ = ["SafetySupervisor"]
 
@@ -112,10 +130,16 @@ class SafetySupervisor:
         belt_encoder: the belt encoder whose reading (``speed``, filled in
             place each tick) the belt monitor compares with the set speed
             (:mod:`exo_ctrl.safety.belt_monitor`; None: no belt monitor).
+        stop_reaction: ``"hold"`` or ``"yield"`` (:mod:`.stop_reaction`), or a
+            schedule ((start time [s], reaction), ...) (the one in force at
+            the stop acts; :func:`~exo_ctrl.safety.stop_reaction.stop_reaction_schedule`).
+        yield_damping: the yield's joint damping d_y [N·m·s/rad], a number
+            or 4 (None: :func:`~exo_ctrl.safety.stop_reaction.yield_damping`
+            from the cuff limits, the lever arms and the speed limits).
 
     Attributes:
-        state: ``"normal"``, ``"stopping"``, ``"holding"`` or ``"power_cut"``.
-        state_code: 0, 1, 2, 3 (same order), for logging.
+        state: ``"normal"``, ``"stopping"``, ``"holding"``, ``"power_cut"`` or ``"yielding"``.
+        state_code: 0, 1, 2, 3, 4 (same order), for logging.
         record: the supervisor's record, a structured array of one element
             (:data:`exo_ctrl.safety.monitor.MONITOR_FIELDS`): the monitor's
             limits and last excesses, and the field ``state`` (float, equal
@@ -151,6 +175,8 @@ class SafetySupervisor:
         compliant_drives: bool = False,
         belt_set_speed: np.ndarray | None = None,
         belt_encoder: BeltEncoder | None = None,
+        stop_reaction: str | Sequence[tuple[float, str]] = "hold",
+        yield_damping: float | Sequence[float] | None = None,
     ) -> None:
         self.dt = v.positive("dt", dt, "s")
         self.estop_at_s = (
@@ -170,6 +196,21 @@ class SafetySupervisor:
         self.speed_limit = resolved.speed_limit
         self.current_limit = resolved.current_limit
         self.cuff_limit = resolved.cuff_limit
+        if isinstance(stop_reaction, str):
+            stop_reaction = ((0.0, stop_reaction),)
+        #: The stop reaction's schedule ((start [s], reaction), ...).
+        self.stop_reactions = tuple((float(t0), check_stop_reaction(r)) for t0, r in stop_reaction)
+        if yield_damping is None:
+            damping = _yield_damping(resolved, exo)
+        else:
+            damping = v.per_item("yield_damping", yield_damping, "N·m·s/rad", JOINT_NAMES)
+        #: The yield's command (:class:`~exo_ctrl.safety.stop_reaction.YieldCommand`).
+        self.yield_command = YieldCommand(exo, patient, motor, damping, self.speed_limit, self.dt)
+        #: The reaction of the present stop ("" while normal).
+        self.reaction = ""
+        self._ramp_t0 = 0.0
+        self._rest_ticks = 0
+        self._rest_needed = max(round(REST_TIME_S / self.dt), 1)
         self._estop = math.inf if self.estop_at_s is None else self.estop_at_s
         self.record = monitor_record(resolved, self._estop)
         sensors = sensors if sensors is not None else SensorParams()
@@ -303,7 +344,8 @@ class SafetySupervisor:
                 float(self._estop),
                 f"emergency stop at t = {t:.4f} s",
             )
-        self.stop_time_s = float(t)
+        self.stop_time_s = self._ramp_t0 = float(t)
+        self.reaction = reaction_at(self.stop_reactions, t)
         q = np.asarray(sensors.q, dtype=float)
         finite = np.isfinite(q)
         self.hold_posture_rad = np.where(finite, q, self.record["q_last"][0])
@@ -313,7 +355,10 @@ class SafetySupervisor:
             self._set_state(t, "power_cut", "no finite posture reading to hold")
             return
         self.hold_voltage_gravity_V = self._gravity_voltage(self.hold_posture_rad)
-        self._set_state(t, "stopping", f"controlled stop: {cause['message']}")
+        if self.reaction == "yield":
+            self.yield_command.start(self.hold_posture_rad, np.asarray(sensors.dq, dtype=float))
+        why = f"controlled stop ({self.reaction}): {cause['message']}"
+        self._set_state(t, "stopping", why)
 
     def _gravity_voltage(self, q: np.ndarray) -> np.ndarray:
         """U = R (g_exo(q) + g_patient(q)) / (i_G k_m): holding torque at zero speed [V]."""
@@ -330,6 +375,8 @@ class SafetySupervisor:
         if self.state_code == 3:
             u.fill(0.0)
             return u
+        if self.reaction == "yield":
+            return self._yield(t, sensors)
         np.subtract(self.hold_posture_rad, sensors.q, out=e)
         np.copyto(w, sensors.dq)
         if not clean:  # no PD on a joint whose reading is not finite
@@ -344,45 +391,49 @@ class SafetySupervisor:
         np.subtract(u, w, out=u)
         np.add(u, self.hold_voltage_gravity_V, out=u)
         if self.state_code == 1:
-            elapsed = t - self.stop_time_s + 1e-9 * self.dt  # rounding of t = k Δt
-            alpha = elapsed / self.ramp_s if self.ramp_s > 0.0 else 1.0
-            if alpha >= 1.0:
-                self._set_state(t, "holding", "ramp done")
-            else:  # U = U_0 + α (U_hold - U_0)
-                np.subtract(u, self._u_start, out=u)
-                np.multiply(u, alpha, out=u)
-                np.add(u, self._u_start, out=u)
+            self._ramp(t, u, "holding")
+        return u
+
+    def _ramp(self, t: float, u: np.ndarray, then: str) -> None:
+        """U = U_0 + α (U - U_0) in place, α = (t - t_0)/ramp_s; at α = 1 the state ``then``."""
+        elapsed = t - self._ramp_t0 + 1e-9 * self.dt  # rounding of t = k Δt
+        alpha = elapsed / self.ramp_s if self.ramp_s > 0.0 else 1.0
+        if alpha >= 1.0:
+            self._set_state(t, then, "ramp done")
+        else:
+            np.subtract(u, self._u_start, out=u)
+            np.multiply(u, alpha, out=u)
+            np.add(u, self._u_start, out=u)
+
+    def _yield(self, t: float, sensors: SensorReadings) -> np.ndarray:
+        """The yield's command [V] (:mod:`.stop_reaction`): ramp, limits, rest → hold."""
+        u = self.yield_command.command(np.asarray(sensors.q, dtype=float), self._u)
+        if self.state_code == 1:
+            self._ramp(t, u, "yielding")
+            return u
+        q = self.yield_command.posture  # the last finite reading per joint
+        dq = np.abs(np.asarray(sensors.dq, dtype=float))
+        breach = yield_breach(q, dq, self.q_lower, self.q_upper, self.speed_limit)
+        if breach is not None:
+            self._event(t, "violation", *breach)
+            self._set_state(t, "power_cut", "yield ended: drive voltages set to zero")
+            u.fill(0.0)
+            return u
+        self._rest_ticks = self._rest_ticks + 1 if np.all(dq < REST_SPEED_RAD_S) else 0
+        if self._rest_ticks >= self._rest_needed:  # the legs at rest: hold them there
+            self.reaction = "hold"
+            self._ramp_t0 = float(t)
+            self.hold_posture_rad = q.copy()
+            self.hold_voltage_gravity_V = self._gravity_voltage(self.hold_posture_rad)
+            self._u_start[:] = u
+            self._set_state(t, "stopping", "legs at rest: ramp to the hold")
         return u
 
     def _hold_failed(self, t: float, e: np.ndarray, speed: np.ndarray) -> bool:
-        err = np.abs(e)
-        fast = np.abs(speed) - self.speed_limit
-        i = int(np.argmax(err))
-        if err[i] > self.hold_tolerance_rad:
-            joint = JOINT_NAMES[i]
-            self._event(
-                t,
-                "violation",
-                f"hold posture error {joint}",
-                float(err[i]),
-                self.hold_tolerance_rad,
-                f"hold failed: {joint} is {err[i]:.4g} rad from the hold posture "
-                f"(tolerance {self.hold_tolerance_rad:g} rad)",
-            )
-        else:
-            i = int(np.argmax(fast))
-            if not fast[i] > 0.0:
-                return False
-            joint = JOINT_NAMES[i]
-            self._event(
-                t,
-                "violation",
-                f"hold speed {joint}",
-                float(abs(speed[i])),
-                float(self.speed_limit[i]),
-                f"hold failed: {joint} moves at {abs(speed[i]):.4g} rad/s "
-                f"(limit {self.speed_limit[i]:g} rad/s)",
-            )
+        breach = hold_breach(e, speed, self.hold_tolerance_rad, self.speed_limit)
+        if breach is None:
+            return False
+        self._event(t, "violation", *breach)
         self._set_state(t, "power_cut", "hold failed: drive voltages set to zero")
         return True
 

@@ -8,6 +8,10 @@ from .current_sensor import (
     CurrentSensor,
     CurrentSensorParams,
 )
+from .foot_load import (
+    FootLoad,
+    FootLoadParams,
+)
 from .readings import (
     SensorReadings,
 )
@@ -21,6 +25,8 @@ __all__ = [
     "BeltEncoderParams",
     "CurrentSensor",
     "CurrentSensorParams",
+    "FootLoad",
+    "FootLoadParams",
     "SensorParams",
     "SensorReadings",
     "Sensors",

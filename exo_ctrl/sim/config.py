@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from .. import _validate as v
@@ -27,10 +27,12 @@ from ..plant import (
     EndStopParams,
     Misalignment,
     MotorParams,
+    PelvisParams,
 )
 from ..plant.patient_active import PATIENT_KINDS, ActiveParams
-from ..safety import SafetyLimits
-from ..sensing import BeltEncoderParams, CurrentSensorParams, SensorParams
+from ..safety import SafetyLimits, stop_reaction_schedule
+from ..safety.stop_reaction import check_stop_reaction
+from ..sensing import BeltEncoderParams, CurrentSensorParams, FootLoadParams, SensorParams
 from . import config_checks as checks
 from .belief import Belief
 from .config_checks import PLAN_ROW_BYTES
@@ -104,6 +106,11 @@ class SimConfig:
             its link (:mod:`exo_ctrl.plant.compliance`; default disabled: rigid).
         contact: the treadmill belt with its drive and the foot–belt contact
             (:mod:`exo_ctrl.plant.contact`; default off: the feet in free air).
+        pelvis: the pelvis on a vertical guide with body-weight support
+            (:mod:`exo_ctrl.plant.pelvis`; default fixed, as the paper); needs
+            contact on and the gait exercise.
+        foot_load: the foot plates' load cells (:mod:`exo_ctrl.sensing.foot_load`;
+            read with contact on, their joint torque given to the estimator).
         belt_encoder: the belt-speed sensor (:mod:`exo_ctrl.sensing.belt_encoder`).
         speed_profile: the session's belt set speed over time
             (:mod:`exo_ctrl.plan.profile`, or its text ``"T1:V1,..."``; None: the
@@ -134,10 +141,11 @@ class SimConfig:
         observer_gain_per_s: bandwidth K_O of the momentum observer [1/s].
         cuff_stiffness_ratio: the estimator's assumption on how the cuffs
             share load (:mod:`exo_ctrl.estimation.observer`).
-        estimator: the live cuff-force estimator, ``"momentum"`` (the
-            momentum observer, :mod:`exo_ctrl.estimation.observer`) or
-            ``"kalman"`` (the filter on the coupled model with the device's
-            patient and cuff models, :mod:`exo_ctrl.estimation.kalman`).
+        estimator: the live cuff-force estimator, ``"kalman"`` (default:
+            the filter on the coupled model with the device's patient and
+            cuff models, :mod:`exo_ctrl.estimation.kalman`; the better one,
+            smaller whole-force error and lag) or ``"momentum"`` (the
+            momentum observer, :mod:`exo_ctrl.estimation.observer`).
         patient_torque: patient joint torques, ``"none"`` (paper §VI),
             ``"spastic"`` (:mod:`exo_ctrl.plant.patient`) or ``"active"``
             (:mod:`exo_ctrl.plant.patient_active`: their own gait, strength,
@@ -161,6 +169,12 @@ class SimConfig:
             forces, as a real device must (default); False: the true
             (simulated) ones, the ideal comparison of a device with a force
             sensor in every cuff.
+        stop_reaction: how the supervisor's stop ends, ``"hold"`` (the
+            posture, stiffly) or ``"yield"`` (gravity compensation and
+            damping: an active patient moves the legs;
+            :mod:`exo_ctrl.safety.stop_reaction`); None (default): by mode,
+            ``hold`` in tracking and guidance with G = 1, ``yield`` in the
+            others (with a session: the segment running at the stop).
         estop_at_s: emergency stop at this time [s] (None: none); at most
             the time of the last control tick, (n_ticks - 1) Δt.
         belief: the models the controller, the estimator and the supervisor
@@ -194,7 +208,9 @@ class SimConfig:
     end_stops: EndStopParams = field(default_factory=EndStopParams)
     joint_compliance: CompliantJoint = field(default_factory=CompliantJoint)
     contact: ContactParams = field(default_factory=ContactParams)
+    pelvis: PelvisParams = field(default_factory=PelvisParams)
     belt_encoder: BeltEncoderParams = field(default_factory=BeltEncoderParams)
+    foot_load: FootLoadParams = field(default_factory=FootLoadParams)
     duration_s: float = 3.6
     ramp_in_s: float | None = None
     ramp_out_s: float = 0.0
@@ -206,13 +222,14 @@ class SimConfig:
     current_sensor: CurrentSensorParams = field(default_factory=CurrentSensorParams)
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
-    estimator: str = "momentum"
+    estimator: str = "kalman"
     cuff_force_limit_N: float = 120.0
     qp_estimate_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S
     patient_torque: str = "none"
     safety: bool = True
     safety_limits: SafetyLimits = field(default_factory=SafetyLimits)
     safety_use_estimate: bool = True
+    stop_reaction: str | None = None
     estop_at_s: float | None = None
     belief: Belief = field(default_factory=Belief)
     faults: tuple[Fault, ...] = ()
@@ -245,6 +262,8 @@ class SimConfig:
                 "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_KINDS)}"
             )
         checks.check_mode(self)
+        if self.stop_reaction is not None:
+            check_stop_reaction(self.stop_reaction)
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
         if self.estimator not in ESTIMATORS:
             raise InvalidParameter("estimator", self.estimator, f"one of {', '.join(ESTIMATORS)}")
@@ -274,6 +293,7 @@ class SimConfig:
             if profile is not None and self.contact.enabled:  # else refused by check_session
                 object.__setattr__(self, "speed_profile", profile)
         self._check_sync()
+        checks.check_pelvis(self)
         if self.session is not None:
             check_session(self)
         checks.check_plan_size(self)
@@ -287,6 +307,19 @@ class SimConfig:
             limit="smaller",
         )
 
+    @property
+    def pelvis_resolved(self) -> PelvisParams:
+        """The pelvis's parameters, its body mass the one entered at the device when not given.
+
+        The body-weight support is set at the trainer from the patient's body
+        mass (``belief.patient_mass_kg`` when given, else the paper patient's
+        80 kg); ``pelvis.body_mass_kg`` overrides it.
+        """
+        pelvis = self.pelvis
+        if pelvis.supported and pelvis.body_mass_kg is None and self.belief.patient_mass_kg:
+            pelvis = replace(pelvis, body_mass_kg=self.belief.patient_mass_kg)
+        return pelvis
+
     def _check_sync(self) -> None:
         """Normalise the speed profile (text or plain data: a sweep's, ``to_dict``'s form)."""
         profile = self.speed_profile
@@ -296,6 +329,12 @@ class SimConfig:
             profile = SpeedProfile(tuple(profile["times"]), tuple(profile["speeds"]))
         object.__setattr__(self, "speed_profile", profile)
         checks.check_sync(self)
+
+    @property
+    def stop_reactions(self) -> tuple[tuple[float, str], ...]:
+        """The supervisor's stop reaction over the run, ((start [s], reaction), ...)."""
+        g = self.modes.guidance
+        return stop_reaction_schedule(self.stop_reaction, self.mode, g, self.session)
 
     @property
     def synced(self) -> bool:

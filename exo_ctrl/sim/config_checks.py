@@ -14,6 +14,7 @@ from .. import _validate as v
 from ..control.modes import MODES
 from ..exceptions import InvalidParameter
 from ..plan import PLAN_BYTES_PER_SAMPLE, SpeedProfile
+from ..plant import PelvisParams
 
 __all__ = [
     "PLAN_ROW_BYTES",
@@ -125,6 +126,39 @@ def check_plan_size(config: Any) -> None:
             )
         )
     v.allocation(name, value, rows, PLAN_ROW_BYTES, what="plan rows", limit=limit, note=note)
+
+
+def check_pelvis(config: Any) -> None:
+    """Refuse a supported pelvis without the belt to stand on, or off the gait."""
+    if not isinstance(config.pelvis, PelvisParams):
+        raise InvalidParameter("pelvis", config.pelvis, "a PelvisParams")
+    if not config.pelvis.supported:
+        if config.gait.pelvis_excursion > 0.0:
+            raise InvalidParameter(
+                "pelvis_excursion",
+                config.gait.pelvis_excursion,
+                "0 with the pelvis fixed (--pelvis supported)",
+                "a fixed hip cannot rise and fall",
+            )
+        if config.pelvis.bws_fraction != 0.0:
+            raise InvalidParameter(
+                "bws", config.pelvis.bws_fraction, "0 with the pelvis fixed (--pelvis supported)"
+            )
+        return
+    if not config.contact.enabled:
+        raise InvalidParameter(
+            "pelvis",
+            "supported",
+            "'fixed' without the belt",
+            "the legs carry the weight through the belt contact: use --contact on",
+        )
+    if config.exercise != "gait":
+        raise InvalidParameter(
+            "pelvis",
+            "supported",
+            "'fixed' here",
+            f"the {config.exercise} exercise swings the legs in the air",
+        )
 
 
 def check_sync(config: Any) -> None:

@@ -22,6 +22,7 @@ from ..model import JOINT_NAMES
 from .config import SimConfig
 from .gait_score import gait_score_stats
 from .interaction import interaction_stats
+from .load_stats import load_stats
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
 from .setup import build
@@ -75,6 +76,7 @@ def simulate(
         ),
     )
     result.stats.gait = gait_score_stats(config)
+    result.stats.load = load_stats(config, setup.exo)
     if config.mode == "aan":  # the support level per cycle, for the interaction block
         result.stats.support = setup.controller.support_history
     for obs in observers:

@@ -70,7 +70,7 @@ SIGNALS: list[Signal] = [
         "safety_state",
         (),
         "",
-        "safety supervisor: 0 normal, 1 stopping, 2 holding, 3 power cut",
+        "safety supervisor: 0 normal, 1 stopping, 2 holding, 3 power cut, 4 yielding",
     ),
     Signal("q_meas", (4,), "rad", "encoder reading", "joint"),
     Signal("dq_meas", (4,), "rad/s", "joint speed reading (filtered encoder difference)", "joint"),
@@ -101,6 +101,17 @@ SIGNALS: list[Signal] = [
     Signal("belt_speed_set", (), "m/s", "belt speed controller's set speed"),
     Signal("belt_speed_meas", (), "m/s", "belt-speed encoder reading"),
     Signal("belt_drive_force", (), "N", "belt drive's force at the belt surface"),
+    Signal("foot_force_meas", (2, 2), "N", "foot plates' load cells: belt force (x, z)", "foot"),
+    Signal(
+        "tau_ground_meas",
+        (4,),
+        "N·m",
+        "the load cells' joint torque J(q_meas)ᵀ F_meas, added to tau_sensor for the estimator",
+        "joint",
+    ),
+    # The pelvis on its guide (--pelvis supported; zero with the pelvis fixed).
+    Signal("pelvis_z", (), "m", "pelvis height above its nominal, end of the tick"),
+    Signal("pelvis_vz", (), "m/s", "pelvis vertical speed, end of the tick"),
     Signal(
         "path_phase",
         (),

@@ -21,6 +21,7 @@ from ..control import (
     feedforward_torque,
 )
 from ..control.modes import InteractionController, PathController
+from ..control.stance_load import StanceLoad
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..plan import (
@@ -31,9 +32,16 @@ from ..plan import (
     calibration_plan,
     plan_joints,
 )
-from ..plant import MotorParams, PatientTorque, Plant, make_patient_torque, misaligned_patient
+from ..plant import (
+    MotorParams,
+    PatientTorque,
+    Plant,
+    make_patient_torque,
+    misaligned_patient,
+)
 from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
+from ..plant.pelvis import moving_mass_kg
 from .belief import device_models
 from .config import SimConfig
 from .session import session_controller
@@ -124,6 +132,7 @@ def build(config: SimConfig) -> Setup:
         compliance=config.joint_compliance,
         contact=config.contact,
         belt_height_m=config.gait.hip_height,
+        pelvis=config.pelvis_resolved,
     )
     belt_speed = None
     if config.contact.enabled:
@@ -178,7 +187,14 @@ def _tracking(
 ) -> PDController:
     """A new tracking controller of the run (``config.controller``) on the device's models."""
     if config.controller == "ct":
-        return ComputedTorqueController(plan, model_exo, model_patient, model_motor, config.gains)
+        return ComputedTorqueController(
+            plan,
+            model_exo,
+            model_patient,
+            model_motor,
+            config.gains,
+            stance_load=stance_load_for(config, model_exo),
+        )
     if config.controller == "qp":
         return QPController(
             plan,
@@ -211,6 +227,38 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     return dataclasses.replace(motor, current_limit_A=cap)
 
 
+def stance_load_for(config: SimConfig, model_exo: BodyModel) -> StanceLoad | None:
+    """What the device knows of its stance legs' load: the pelvis supported, else None.
+
+    The moving mass from the body mass entered at the device and its own
+    exoskeleton model; the support it applies.
+    """
+    pelvis = config.pelvis_resolved
+    if not pelvis.supported:
+        return None
+    return StanceLoad(
+        moving_mass_kg(pelvis, model_exo.model),
+        pelvis.support_N,
+        -float(model_exo.model.gravity.linear[2]),
+    )
+
+
+def _pelvis_rest(plant: Plant, q0: np.ndarray) -> tuple[float, np.ndarray]:
+    """The pelvis at rest on the feet of q₀ that touch the belt, and their normal forces [m, N].
+
+    The feet within 1 mm of the deepest one share M g − F_s equally; each
+    sinks δ = (F_n / k)^(1/n) (the contact law at rest), so z₀ = δ₀ − δ with
+    δ₀ the deepest foot's penetration at z = 0.
+    """
+    pel, contact = plant.pelvis[0], plant.contact.params
+    pen = plant.contact.penetration(q0)
+    loaded = pen >= pen.max() - 1e-3
+    load = float(pel["mass"]) * -float(plant.model.gravity.linear[2]) - float(pel["support"])
+    fn = np.where(loaded, max(load, 0.0) / np.count_nonzero(loaded), 0.0)
+    sink = (fn.max() / contact.stiffness_N_per_m_n) ** (1.0 / contact.exponent)
+    return float(pen.max() - sink), fn
+
+
 def start_on_plan(setup: Setup) -> None:
     """Put the plant on the plan's first row at t = 0, with the planned speed.
 
@@ -241,12 +289,16 @@ def start_on_plan(setup: Setup) -> None:
         tau0 = holding_torque(plant.cuffs, setup.exo.model, q0, q_p)
     else:
         tau0 = feedforward_torque(plan, setup.exo, setup.patient, motor, rows=1)[0]
+    z0 = 0.0
+    if config.pelvis.supported:  # the stance feet carry M g - F_s: the drives hold it
+        z0, fn = _pelvis_rest(plant, q0)
+        tau0 = tau0 - (plant.contact.normal_jacobian(q0) * fn[:, None]).reshape(4)
     limit = motor.current_limit_A
     i0 = np.clip(tau0 / motor.torque_per_amp_Nm_per_A, -limit, limit)
     fit = config.cuff_fit == "slack"
     if setup.belt_speed is not None:  # the belt runs at its first set speed
         plant.contact.belt["v_set"] = setup.belt_speed[0, 0]
-    plant.reset(q0, dq0, q_p, dq0, current_A=i0, fit_cuffs=fit)
+    plant.reset(q0, dq0, q_p, dq0, current_A=i0, fit_cuffs=fit, pelvis_z_m=z0)
 
 
 def patient_torque_for(config: SimConfig, patient: BodyModel) -> PatientTorque | None:

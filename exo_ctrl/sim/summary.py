@@ -14,6 +14,7 @@ from .belief import PAPER_PATIENT
 from .config import SimConfig
 from .gait_score import GaitScoreStats
 from .interaction import InteractionStats
+from .load_stats import LoadStats
 
 __all__ = ["ContactStats", "RunOutcome", "RunStats", "contact_stats"]
 
@@ -62,6 +63,8 @@ class RunStats:
         self.support: list[float] | None = None
         #: The gait scores (:mod:`exo_ctrl.sim.gait_score`), set by the loop for a gait run.
         self.gait: GaitScoreStats | None = None
+        #: The stance legs' load (:mod:`exo_ctrl.sim.load_stats`), set for a run with the belt.
+        self.load: LoadStats | None = None
         self.ticks = 0
         # Running sums (Σ err², Σ τ², Σ i²) and peaks (|err|, |τ|, |i|, |U|,
         # |τ q̇|, cuff |f|, |q̇|), a row of 4 each: :func:`_accumulate`'s buffers.
@@ -76,6 +79,8 @@ class RunStats:
             )
         if self.contact is not None:
             self.contact.update(rows, self.ticks)
+        if self.load is not None:
+            self.load.update(rows, self.ticks)
         if self.interaction is not None:
             self.interaction.update(rows, self.ticks)
         if self.gait is not None:
@@ -181,6 +186,8 @@ class RunStats:
                 ]
         if self.contact is not None:
             out.update(self.contact.summary())
+        if self.load is not None:  # stance knee torque, the pelvis (exo_ctrl.sim.load_stats)
+            out.update(self.load.summary())
         if self.interaction is not None:
             out["interaction"] = self.interaction.summary(self.support)
         if self.gait is not None:  # gait_profile_score_deg, ... (exo_ctrl.sim.gait_score)

@@ -27,7 +27,7 @@ from ..estimation import CuffForceEstimator, CuffForceKalman
 from ..plan.online import online_step
 from ..plant import PatientTorque
 from ..safety import SafetyLimits, SafetySupervisor
-from ..sensing import BeltEncoder, CurrentSensor, Sensors
+from ..sensing import BeltEncoder, CurrentSensor, FootLoad, SensorReadings, Sensors
 from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
 from .schema import log_dtype
@@ -104,6 +104,8 @@ class Runner:
             )
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
+        #: The foot plates' load cells (sensing/foot_load.py; read with the belt only).
+        self.foot_load = FootLoad(config.foot_load, setup.device_exo)
         #: The belt-speed sensor (read each tick with contact on).
         self.belt_encoder = BeltEncoder(config.belt_encoder, config.dt)
         self._belt = plant.contact.belt
@@ -135,6 +137,7 @@ class Runner:
                 compliant_drives=config.joint_compliance.enabled,
                 belt_set_speed=setup.belt_speed if config.safety else None,
                 belt_encoder=self.belt_encoder,
+                stop_reaction=config.stop_reactions,
             )
         sup = self.supervisor
         self._sup_force = None
@@ -170,6 +173,13 @@ class Runner:
         self._phase = ctrl.record if isinstance(ctrl, PathController) else record(_NO_PHASE)
         if not isinstance(ctrl, PathController):
             self._phase["row"] = -1
+        # With the belt the estimator is given the torque sensors' reading plus the
+        # load cells' joint torque (the same arrays every tick; faulted or not).
+        self._est_in: SensorReadings | None = None
+        if config.contact.enabled:
+            src = self.faults.readings if self.faults is not None else self.sensors
+            self._est_in = SensorReadings(src.q, src.dq, self.foot_load.tau_known)
+            self._contact_rec = plant.record["contact"]
         start_on_plan(setup)
         # The stages' per-tick methods and arguments, looked up once.
         self._stages = (
@@ -195,7 +205,11 @@ class Runner:
         faults = self.faults
         if faults is not None:
             readings = faults.readings_at(k, readings)
-        estimate(readings)
+        if self._est_in is not None:  # the feet's load, known from the foot plates
+            self.foot_load.read(self._contact_rec, readings.q, readings.tau)
+            estimate(self._est_in)
+        else:
+            estimate(readings)
         write_measured(self.log, row, plant_rec, sensor_rec, est_rec)
         u = command(k, readings)
         age = 0.0
@@ -209,7 +223,9 @@ class Runner:
         else:
             self._substep(u)
         write_applied(self.log, row, ctrl_rec, sup_rec, plant_rec)
-        write_contact(self.log, row, plant_rec, self.belt_encoder.record, self._phase)
+        write_contact(
+            self.log, row, plant_rec, self.belt_encoder.record, self._phase, self.foot_load.record
+        )
 
     def _substep(self, u: np.ndarray) -> None:
         """The plant's steps of a tick with substeps or a patient-torque model."""
@@ -309,12 +325,14 @@ def write_applied(log, row, controller, supervisor, plant):
 
 
 @kernel
-def write_contact(log, row, plant, encoder, phase):
+def write_contact(log, row, plant, encoder, phase, foot):
     """The belt and the feet over [t_k, t_k+1) and the belt-speed reading, into log row ``row``.
 
     ``plant``: its record (field ``contact``, :mod:`exo_ctrl.plant.contact`);
     ``encoder``: the belt encoder's record (``speed``).  With contact off
-    every field is zero.  And the path mode's phase (``phase``: a record
+    every field is zero.  The foot plates' reading (``foot``: the load cells'
+    record).  The pelvis's height and speed (zero when fixed).
+    And the path mode's phase (``phase``: a record
     with the plan ``row`` of the device's phase; -1 in other modes).
     """
     r = log[row]
@@ -334,3 +352,11 @@ def write_contact(log, row, plant, encoder, phase):
     r.belt_speed_meas = encoder[0].speed
     r.belt_drive_force = b.f_drive
     r.path_phase = phase[0].row
+    f = foot[0]
+    for j in range(2):
+        r.foot_force_meas[j, 0] = f.force[j, 0]
+        r.foot_force_meas[j, 1] = f.force[j, 1]
+    for j in range(4):
+        r.tau_ground_meas[j] = f.tau[j]
+    r.pelvis_z = plant[0].pelvis.z
+    r.pelvis_vz = plant[0].pelvis.vz

@@ -117,6 +117,7 @@ PARAMETERS: dict[str, ParamInfo] = {
         _p("step_length", "gait", "step_length", "m", 0.0, 2.0, "step length s", lo_open=True),
         _p("lift_height", "gait", "lift_height", "m", 0.0, 0.5, "top of swing", lo_open=True),
         _p("hip_height", "gait", "hip_height", "m", 0.0, 2.0, "hip above belt", lo_open=True),
+        _p("pelvis_excursion", "gait", "pelvis_excursion", "m", 0.0, 0.5, "hip's rise and fall"),
         _p("shape_coeff", "gait", "shape_coeff", "", 0.0, 10.0, "k_v = v_f / v_b", lo_open=True),
         _p("period", "gait", "period", "s", 0.0, 10.0, "gait cycle T_s", lo_open=True),
         _p("duty_factor", "gait", "duty_factor", "", 0.5, 1.0, "stance fraction β", hi_open=True),

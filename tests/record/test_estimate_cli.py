@@ -95,7 +95,7 @@ def test_other_exo_allowed_on_request(chunked: Path, tmp_path: Path, capsys) -> 
 
 
 def test_run_too_short_for_error_figures(tmp_path: Path, capsys) -> None:
-    path = _record(tmp_path / "short.rrd", duration_s=0.03)
+    path = _record(tmp_path / "short.rrd", duration_s=0.03, estimator="momentum")
     assert cli_main(["estimate", str(path)]) == 0
     captured = capsys.readouterr()
     assert captured.err == (

@@ -76,7 +76,10 @@ def test_the_runner_builds_the_chosen_estimator_on_the_device_models() -> None:
     assert runner.estimator.models[1][0] is setup.device_patient.model
     assert runner.estimator.cuffs.params == CuffParams()
     assert runner.sensors.cuff_force_est is runner.estimator.force
-    assert isinstance(Runner(build(SimConfig(duration_s=0.1))).estimator, CuffForceEstimator)
+    momentum = Runner(build(SimConfig(duration_s=0.1, estimator="momentum"))).estimator
+    assert isinstance(momentum, CuffForceEstimator)
+    # The default is the filter (the better of the two, measured above).
+    assert isinstance(Runner(build(SimConfig(duration_s=0.1))).estimator, CuffForceKalman)
 
 
 def test_bad_estimator_is_refused() -> None:

@@ -34,6 +34,7 @@ LEGACY = {
     # What the device held then: the true patient, the true cuff forces.
     "belief": Belief("truth"),
     "safety_use_estimate": False,
+    "estimator": "momentum",  # the only estimator then (the default is the Kalman filter now)
 }
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "golden_runs.npz"

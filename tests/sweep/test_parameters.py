@@ -28,8 +28,9 @@ def test_parse_lists_and_ranges():
     [
         (
             "stride=0.3",
-            "sweep parameter must be one of step_length, lift_height, hip_height, shape_coeff, "
-            "period, duty_factor, patient_thigh_mass, patient_shank_mass, patient_thigh_length, "
+            "sweep parameter must be one of step_length, lift_height, hip_height, "
+            "pelvis_excursion, shape_coeff, period, duty_factor, patient_thigh_mass, "
+            "patient_shank_mass, patient_thigh_length, "
             "patient_shank_length, cuff_stiffness, cuff_damping, gear_ratio, kp, kd, controller; "
             "got 'stride'",
         ),

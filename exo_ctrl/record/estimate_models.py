@@ -1,0 +1,103 @@
+"""Which estimator an offline estimate runs, and the device models it is rebuilt on.
+
+A recording stores its run's whole :class:`~exo_ctrl.sim.config.SimConfig`
+(``raw/meta``), the ``estimator`` and the device's beliefs
+(:class:`~exo_ctrl.sim.belief.Belief`) included.  The offline estimate
+runs the recording's estimator unless the user names another
+(:func:`chosen_estimator`), and builds it as the live run did
+(:class:`~exo_ctrl.sim.tick.Runner` on :func:`~exo_ctrl.sim.setup.build`'s
+device models):
+
+- the momentum observer holds the device's exoskeleton only, its gain K_O
+  and its load-sharing assumption κ (:func:`~exo_ctrl.estimation.estimate_series`);
+- the Kalman filter (:func:`recorded_kalman`) holds the device's
+  exoskeleton, the device's patient rebuilt from the recorded config
+  exactly as :func:`~exo_ctrl.sim.setup.build` does it
+  (:func:`~exo_ctrl.sim.belief.device_models` with the fitted, coaxial true
+  patient's leg lengths: the nominal de Leva model, the truth or the user's
+  URDF), the device's cuff model (``belief.cuff_model``), the run's sensor
+  datasheet (noise and resolution) and its control period.
+
+A CSV log holds readings only, none of these models: it is estimated with
+the momentum observer.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..estimation import ESTIMATORS, CuffForceKalman
+from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
+from ..model import BodyModel, load_patient
+from ..sim.belief import device_models
+from ..sim.config import SimConfig
+
+__all__ = ["chosen_estimator", "recorded_kalman"]
+
+
+def chosen_estimator(
+    estimator: str | None, config: SimConfig | None, gain_per_s: float | None
+) -> str:
+    """The estimator to run: ``estimator``, else the recording's, else (a CSV log) momentum.
+
+    Args:
+        estimator: the user's choice (None: the recording's).
+        config: the recording's run (None: a CSV log).
+        gain_per_s: the user's observer gain (None: not given).
+
+    Raises:
+        InvalidParameter: an unknown estimator; ``kalman`` for a CSV log (it
+            holds no device models); a gain with the Kalman filter (it has none).
+
+    """
+    if estimator is not None and estimator not in ESTIMATORS:
+        raise InvalidParameter("estimator", estimator, f"one of {', '.join(ESTIMATORS)}")
+    if config is None:
+        if estimator == "kalman":
+            raise InvalidParameter(
+                "estimator",
+                estimator,
+                "momentum for a .csv log",
+                "the Kalman filter needs the device's patient, cuff and sensor models, "
+                "which only a recording holds",
+            )
+        return "momentum"
+    chosen = estimator if estimator is not None else config.estimator
+    if chosen == "kalman" and gain_per_s is not None:
+        recorded = "" if estimator is not None else " (the recording's estimator)"
+        raise InvalidParameter(
+            "gain",
+            gain_per_s,
+            "given with the momentum observer only",
+            f"the kalman estimator{recorded} has no observer gain; add --estimator momentum",
+        )
+    return chosen
+
+
+def recorded_kalman(
+    path: os.PathLike[str] | str, config: SimConfig, exo: BodyModel
+) -> CuffForceKalman:
+    """The Kalman filter of a recorded run, on the device models the run held (module docstring).
+
+    Args:
+        path: the recording (for messages).
+        config: the recording's run.
+        exo: the device's exoskeleton model (the recorded one, or the
+            user's, checked by :func:`~.estimate_checks.recorded_exo`).
+
+    Raises:
+        RecordingError: the device's patient cannot be rebuilt (a patient
+            URDF the recording names that cannot be loaded here).
+
+    """
+    try:
+        fitted = load_patient(config.patient)  # as build() does: the coaxial true patient
+        _, patient = device_models(config.belief, config.exo, config.patient, fitted)
+    except ExoCtrlError as exc:
+        raise RecordingError(
+            f"cannot estimate from {path} with the kalman estimator: the device's patient "
+            f"model cannot be rebuilt ({exc}); --estimator momentum needs none"
+        ) from None
+    return CuffForceKalman(
+        exo, patient, config.dt, cuffs=config.belief.cuff_model, sensors=config.sensors
+    )

@@ -1,0 +1,165 @@
+r"""The foot plates' load cells: the belt's force on each exoskeleton foot, as the device reads it.
+
+With the belt (contact on) the stance foot carries body weight, and every
+joint torque sensor of that leg reads the ground's force through the leg.
+An estimator that explains the joint torques by the cuffs alone would call
+that force a cuff force (with body-weight support: hundreds of newtons).  A
+device that stands on a belt therefore measures what its feet carry: a load
+cell under each foot plate reads the sagittal force (F_x, F_z) the belt
+applies, plus white noise,
+
+    F_m = F + n_F,   n_F ~ N(0, σ_F²) per component,
+
+and the reading's joint-space torque at the encoders' angles, with the
+device's own leg geometry (its URDF, not the plant's),
+
+    τ_g = J_x(q_m)ᵀ F_m,x + J_z(q_m)ᵀ F_m,z,
+
+J the foot point's rows ∂p/∂(q_hip, q_knee) (the closed form of
+:mod:`exo_ctrl.plant.contact`), is a known external torque: the cuff-force
+estimators (:mod:`exo_ctrl.estimation`) are given τ_s + τ_g, the torque
+sensors' reading with it, as the torque acting on the legs besides the
+cuffs' (logged as ``tau_ground_meas``, so the offline estimate adds the same).
+
+**Defaults** (chosen; the class of a strain-gauge foot plate of 2 kN range
+read at 0.1 % of its range): ``noise_std_N`` = 2 N, ``seed`` = 2 (a stream
+of its own, apart from the joint sensors' and the current sensors').
+:meth:`FootLoadParams.ideal` reads the force exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .. import _validate as v
+from .._jit import kernel, record
+from ..exceptions import InvalidParameter
+from ..model import SIDES, BodyModel
+
+__all__ = ["FOOT_LOAD_FIELDS", "FootLoad", "FootLoadParams"]
+
+#: Noise samples drawn at a time, per component.
+NOISE_BLOCK = 1000
+
+
+@dataclass(frozen=True)
+class FootLoadParams:
+    """The two foot plates' load cells (module docstring).
+
+    Attributes:
+        noise_std_N: σ_F, white noise on each force component, std [N].
+        seed: seed of the noise generator (an integer >= 0).
+
+    Raises:
+        InvalidParameter: a negative noise, a seed that is not an integer >= 0.
+
+    """
+
+    noise_std_N: float = 2.0
+    seed: int = 2
+
+    def __post_init__(self) -> None:
+        v.non_negative("foot load cell noise_std", self.noise_std_N, "N")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
+            raise InvalidParameter("foot load cell seed", self.seed, "an integer >= 0")
+        if self.seed < 0:
+            raise InvalidParameter("foot load cell seed", self.seed, "an integer >= 0")
+
+    @classmethod
+    def ideal(cls) -> FootLoadParams:
+        """The exact force: no noise."""
+        return cls(noise_std_N=0.0)
+
+
+#: Fields of the load cells' record: the device's leg geometry per leg
+#: (``l1``, ``l2`` [m], ``s_h``, ``s_k``, ``phi1_0``, ``phi2_0`` [rad]);
+#: ``force`` the reading (x, z) per foot [N], ``tau`` τ_g [N·m] (4),
+#: ``tau_known`` τ_s + τ_g [N·m] (4), ``row``
+#: of the noise block, ``depleted``, ``noise`` (NOISE_BLOCK, 4) [N].
+FOOT_LOAD_FIELDS = [
+    *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
+    ("force", np.float64, (2, 2)),
+    ("tau", np.float64, (4,)),
+    ("tau_known", np.float64, (4,)),
+    ("row", np.int64),
+    ("depleted", np.bool_),
+    ("noise", np.float64, (NOISE_BLOCK, 4)),
+]
+
+
+class FootLoad:
+    """The foot plates' load cells, read once per control tick.
+
+    Args:
+        params: the load cells.
+        exo: the exoskeleton model the device holds (its legs' geometry).
+
+    """
+
+    def __init__(self, params: FootLoadParams, exo: BodyModel) -> None:
+        self.params = params
+        self.record = record(FOOT_LOAD_FIELDS)
+        r = self.record[0]
+        for i, side in enumerate(SIDES):
+            leg = exo.legs[side]
+            r["l1"][i], r["l2"][i] = leg.thigh_length, leg.shank_length
+            r["s_h"][i], r["s_k"][i] = leg.sign_hip, leg.sign_knee
+            r["phi1_0"][i], r["phi2_0"][i] = leg.phi1_zero, leg.phi2_zero
+        #: The reading (x, z) per foot [N], (2, 2), and τ_g [N·m], (4,): views of the record.
+        self.force = r["force"]
+        self.tau = r["tau"]
+        #: τ_s + τ_g of the last read [N·m], (4,): what the estimators are given.
+        self.tau_known = r["tau_known"]
+        self._noise = r["noise"]
+        self._rng = np.random.default_rng(params.seed)
+        self.draw()
+
+    def read(self, contact: Any, q_meas: np.ndarray, tau_sensor: np.ndarray) -> np.ndarray:
+        """Read the plant's foot forces (``contact``: its record); returns :attr:`tau_known`.
+
+        ``q_meas``: the encoders' angles [rad]; ``tau_sensor``: the joint
+        torque sensors' reading [N·m], to which τ_g is added.
+        """
+        read_foot_load(self.record, contact, q_meas, tau_sensor)
+        if self.record["depleted"][0]:
+            self.draw()
+        return self.tau_known
+
+    def draw(self) -> None:
+        """Draw the next block of noise (a read calls it when the block is used up)."""
+        self._rng.standard_normal(out=self._noise)
+        np.multiply(self._noise, self.params.noise_std_N, out=self._noise)
+        self.record["row"][0] = 0
+        self.record["depleted"][0] = False
+
+
+@kernel
+def read_foot_load(sensor: np.ndarray, contact: Any, q: np.ndarray, tau_s: np.ndarray) -> None:
+    """F_m = F + n_F per foot, τ_g = Jᵀ F_m at the encoder angles ``q``, and τ_s + τ_g.
+
+    ``contact``: the plant's contact record (:data:`~exo_ctrl.plant.contact.CONTACT_FIELDS`;
+    ``ft``, ``fn`` of the last step).
+    """
+    s = sensor[0]
+    c = contact[0]
+    i = s.row
+    for leg in range(2):
+        fx = c.ft[leg] + s.noise[i, 2 * leg]
+        fz = c.fn[leg] + s.noise[i, 2 * leg + 1]
+        s.force[leg, 0], s.force[leg, 1] = fx, fz
+        a1 = s.phi1_0[leg] + s.s_h[leg] * q[2 * leg]
+        a2 = s.phi2_0[leg] + s.s_h[leg] * q[2 * leg] + s.s_k[leg] * q[2 * leg + 1]
+        l1, l2 = s.l1[leg], s.l2[leg]
+        jx0 = -s.s_h[leg] * (l1 * np.sin(a1) + l2 * np.sin(a2))
+        jx1 = -s.s_k[leg] * l2 * np.sin(a2)
+        jz0 = s.s_h[leg] * (l1 * np.cos(a1) + l2 * np.cos(a2))
+        jz1 = s.s_k[leg] * l2 * np.cos(a2)
+        s.tau[2 * leg] = jx0 * fx + jz0 * fz
+        s.tau[2 * leg + 1] = jx1 * fx + jz1 * fz
+    for j in range(4):
+        s.tau_known[j] = tau_s[j] + s.tau[j]
+    s.row = i + 1
+    s.depleted = i + 1 == s.noise.shape[0]
