@@ -15,8 +15,9 @@ when, the steepest rise of the real force in the 50 ms before the peak
 (:func:`exo_ctrl.control.qp.stated_margin`); then the worst point.  By
 default the truth's cuffs are split (normal and shear apart, the default
 plant) and the QP holds the device's default patient model (nominal) with
-the split cuff model; ``--controller-patient``, ``--controller-cuffs`` and
-``--cuffs`` change them.  Exit 0
+the split cuff model, with the run's default live estimator (the Kalman
+filter; the stated margin is that estimator's); ``--controller-patient``,
+``--controller-cuffs``, ``--cuffs`` and ``--estimator`` change them.  Exit 0
 if every point holds within its stated margin, 1 if one does not (or a run
 did not complete), 2 on bad input.
 
@@ -63,6 +64,8 @@ BOUNDS_N = (100.0, 125.0, 150.0)
 CUFFS = {"split": CuffParams(), "isotropic": CuffParams.isotropic()}
 #: The window before the peak in which the force's steepest rise is taken [s].
 RISE_WINDOW_S = 0.05
+#: The live cuff-force estimator of a default run (``SimConfig.estimator``).
+DEFAULT_ESTIMATOR = SimConfig().estimator
 
 
 def run_point(
@@ -76,7 +79,7 @@ def run_point(
     controller_patient: str = "nominal",
     controller_cuffs: str = "split",
     cuffs: str = "split",
-    estimator: str = "momentum",
+    estimator: str = DEFAULT_ESTIMATOR,
 ) -> dict:
     """One grid point: the real peak cuff force against the bound, and where it came.
 
@@ -180,9 +183,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument(
         "--estimator",
-        default="momentum",
+        default=DEFAULT_ESTIMATOR,
         choices=ESTIMATORS,
-        help="the live cuff-force estimator (default momentum, the device's default)",
+        help=f"the live cuff-force estimator (default {DEFAULT_ESTIMATOR}, a run's default)",
     )
     p.add_argument(
         "--cuffs", default="split", choices=tuple(CUFFS), help="the truth's cuffs (default split)"

@@ -198,7 +198,13 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"body weight); vertical ground force over whole cycles "
             f"{pelvis['mean_vertical_ground_force_N']:.1f} N against the unsupported weight "
             f"{pelvis['unsupported_weight_N']:.1f} N "
-            f"({pelvis['vertical_balance_error_rel']:+.2%}); "
+            + (
+                f"with the harness (travel stops, brake) carrying "
+                f"{pelvis['mean_harness_stop_force_N']:.1f} N "
+                if pelvis["mean_harness_stop_force_N"] > 0.0
+                else ""
+            )
+            + f"(balance {pelvis['vertical_balance_error_rel']:+.2%}); "
             f"pelvis excursion {1e3 * pelvis['excursion_m']:.1f} mm"
         )
     if "device_belief" in summary:

@@ -50,6 +50,12 @@ friction impulses are solved against a fixed belt, and the brake takes up
 their force as long as it stays within F_br (else the belt slips at the
 limit).  The integral is frozen while braked.
 
+**The drive's report** ``f_motor`` [N]: the force the treadmill's drive
+reports applying, as its controller does (a device reading, e.g. for the
+belt monitor, :mod:`exo_ctrl.safety.belt_monitor`): F_d while it runs, 0
+while the brake has the speed controller out (the brake's force is not the
+drive's, and no reading of it exists).
+
 Integration, step h: the force is taken at the start of the step (explicit;
 K_p h / m_b = 0.013 at 1 ms, far inside the bound 2), the friction
 impulses of the feet over the step are added with the belt's inertia in the
@@ -89,10 +95,14 @@ class BeltParams:
             K_i = m_b ω_c² / 4.
         force_limit_N: F_max, the drive's force limit at the belt surface [N].
         integral: use the integral term (False: P only).
+        stop_decel_mps2: the treadmill's controlled stop when the device
+            stops the gait: its set speed falls at this rate to rest [m/s²]
+            (chosen: 1 m/s², about a tenth of g, so a patient still standing
+            on the belt is not thrown; the default 0.58 m/s stops in 0.6 s).
 
     Raises:
-        InvalidParameter: a height, mass, bandwidth or force limit that is not
-            a finite number > 0.
+        InvalidParameter: a height, mass, bandwidth, force limit or stop
+            deceleration that is not a finite number > 0.
 
     """
 
@@ -101,6 +111,7 @@ class BeltParams:
     bandwidth_hz: float = 2.0
     force_limit_N: float = 1000.0
     integral: bool = True
+    stop_decel_mps2: float = 1.0
 
     def __post_init__(self) -> None:
         if self.height_m is not None:
@@ -110,6 +121,8 @@ class BeltParams:
         object.__setattr__(self, "bandwidth_hz", bw)
         f = v.positive("belt force limit", self.force_limit_N, "N")
         object.__setattr__(self, "force_limit_N", f)
+        decel = v.positive("belt stop deceleration", self.stop_decel_mps2, "m/s²")
+        object.__setattr__(self, "stop_decel_mps2", decel)
 
     @property
     def gains(self) -> tuple[float, float]:
@@ -142,7 +155,8 @@ class BeltParams:
 #: its flag (0 off), ``f_brake`` F_br [N]; of the step, ``f_stop`` the
 #: brake's force before the feet [N], ``held`` 1 while it holds the belt at
 #: rest, ``inv_m`` the belt's 1/m_b in the feet's friction solve [1/kg] (0
-#: while held: a fixed belt).
+#: while held: a fixed belt).  ``f_motor``: the drive's report of its force
+#: [N] (F_d; 0 while braked).
 BELT_FIELDS = [
     *((name, np.float64) for name in ("mass", "kp", "ki", "f_max", "v", "x", "integral")),
     *(
@@ -151,6 +165,7 @@ BELT_FIELDS = [
     ),
     ("f_feet", np.float64),
     *((name, np.float64) for name in ("brake", "f_brake", "f_stop", "held", "inv_m")),
+    ("f_motor", np.float64),
 ]
 
 
@@ -167,6 +182,7 @@ def belt_drive(b: Any, h: float) -> None:
         f = -b.f_max
         integral = b.integral
     b.f_drive = f
+    b.f_motor = f
     b.integral_next = integral
     b.v_free = b.v + h * f / b.mass
     b.v_next = b.v_free
@@ -182,6 +198,7 @@ def _brake(b: Any, h: float) -> None:
     """The braked belt's step (module docstring): F = clip(-m_b v_b / h, ±F_br), the PI out."""
     f = -b.mass * b.v / h
     b.integral_next = b.integral
+    b.f_motor = 0.0  # the drive is out
     if abs(f) <= b.f_brake:
         b.f_stop = f
         b.f_drive = f

@@ -30,6 +30,14 @@ M ≥ 50 kg, ω = √(K/M) ≤ 45 rad/s, ω h = 0.045 at 1 ms (the leapfrog need
 No standard gives these; a harness's catch within a centimetre is the
 design intent (a fall is stopped, not cushioned).
 
+**The harness locks on a stop.**  When the device stops the gait (its safety
+supervisor leaves ``normal``), the guide's brake locks the pelvis at its
+height of that moment, z_l: a bilateral spring–damper of the stops' K and C,
+F = −K (z − z_l) − C ż, so the legs no longer carry the weight while the
+drives hold or yield (a gait trainer's body-weight support catches the
+patient; without it a stopped, crouched leg under 700 N is beyond the knee
+drive's 150 N·m and folds onto the travel stop).
+
 **Stepping.**  The plant's leapfrog runs on z as on the joints; this module
 packs the nine-coordinate vectors for ABA (:func:`pelvis_pack`), unpacks
 its accelerations (:func:`pelvis_unpack`) and kicks z (:func:`pelvis_kick`).
@@ -134,12 +142,15 @@ class PelvisParams:
 #: feet's [N]; ``stop_force`` [N]; the stops ``lower``, ``upper`` [m],
 #: ``stop_k``, ``stop_c``; the nine-coordinate vectors ``q9``, ``v9``,
 #: ``tau9``, ``arm9``, ``acc9`` ([z, q_all]) and, for the friction solve,
-#: ``chol`` (9, 9) and ``g9`` (2, 9) = M⁻¹ J_xᵀ per foot.
+#: ``chol`` (9, 9) and ``g9`` (2, 9) = M⁻¹ J_xᵀ per foot; ``locked`` and
+#: ``lock_z`` [m]: the harness's brake (module docstring).
 PELVIS_FIELDS = [
     ("on", np.bool_),
     *((name, np.float64) for name in ("support", "mass", "z", "vz", "az", "z_mid", "vz_mid")),
     *((name, np.float64) for name in ("tau", "stop_force", "lower", "upper", "stop_k", "stop_c")),
     *((name, np.float64, (9,)) for name in ("q9", "v9", "tau9", "arm9", "acc9")),
+    ("locked", np.bool_),
+    ("lock_z", np.float64),
     ("chol", np.float64, (9, 9)),
     ("g9", np.float64, (2, 9)),
 ]
@@ -220,6 +231,8 @@ def pelvis_drift(pel: Any, h: float) -> None:
     d = pel.lower - pel.z_mid
     if d > 0.0:
         force = max(0.0, pel.stop_k * d - pel.stop_c * pel.vz_mid)
+    if pel.locked:  # the harness's brake: a bilateral spring–damper at z_l
+        force -= pel.stop_k * (pel.z_mid - pel.lock_z) + pel.stop_c * pel.vz_mid
     pel.stop_force = force
     pel.tau = pel.support + force
 

@@ -279,8 +279,15 @@ class Plant:
         z = float(pelvis_z_m) if self._pelvis_on else 0.0
         pel["z"] = pel["z_mid"] = z
         pel["vz"] = pel["vz_mid"] = pel["az"] = 0.0
+        pel["locked"] = False
         self.contact.record["z_pelvis"] = z
         self.contact.record["vz_pelvis"] = 0.0
+
+    def lock_pelvis(self) -> None:
+        """Lock the harness at the pelvis's present height (a stop; module :mod:`.pelvis`)."""
+        if self._pelvis_on and not self.pelvis["locked"][0]:
+            self.pelvis["lock_z"][0] = self.pelvis["z"][0]
+            self.pelvis["locked"][0] = True
 
     @property
     def pelvis_z(self) -> float:
@@ -394,6 +401,8 @@ class Plant:
             ]
             depth = max(z - pel["upper"], 0.0) + max(pel["lower"] - z, 0.0)
             energy += 0.5 * float(pel["stop_k"]) * depth**2 - float(pel["support"]) * z
+            if pel["locked"]:
+                energy += 0.5 * float(pel["stop_k"]) * (z - float(pel["lock_z"])) ** 2
         else:
             bodies = [
                 (self.exo.model, self.q[:4], self.v[:4], self._arm_base),

@@ -18,6 +18,8 @@ import math
 import os
 import struct
 import tempfile
+import types
+import typing
 import warnings
 from pathlib import Path
 from typing import Any
@@ -344,7 +346,15 @@ def _assemble(
     return {name: values[:n_common].copy() for name, (_, values) in per_signal.items()}
 
 
-def _nested_type(f: dataclasses.Field) -> type | None:
+def _field_types(cls: type) -> dict[str, Any]:
+    """The resolved annotations of a dataclass's fields (``{}`` if they cannot be resolved)."""
+    try:
+        return typing.get_type_hints(cls)
+    except (NameError, TypeError):  # an annotation naming what the module cannot see
+        return {}
+
+
+def _default_type(f: dataclasses.Field) -> type | None:
     """The dataclass a field holds, judged from its default (factory or value)."""
     factory = f.default_factory
     if isinstance(factory, type) and dataclasses.is_dataclass(factory):
@@ -354,24 +364,74 @@ def _nested_type(f: dataclasses.Field) -> type | None:
     return None
 
 
+def _is_dataclass_type(hint: Any) -> bool:
+    return isinstance(hint, type) and dataclasses.is_dataclass(hint)
+
+
+def _coerce(hint: Any, value: Any) -> Any:
+    """``value`` from its ``asdict``/JSON form back to the type the annotation ``hint`` names.
+
+    A dict for a dataclass (also one of ``X | None`` or ``X | Y``) becomes
+    that dataclass, recursively; a list for a tuple becomes a tuple, its items
+    converted by the tuple's item types (``tuple[X, ...]``, ``tuple[X, Y]``).
+    Anything else is returned as it is: the dataclass's own checks judge it.
+    """
+    if _is_dataclass_type(hint):
+        return _from_dict(hint, value) if isinstance(value, dict) else value
+    origin = typing.get_origin(hint)
+    args = typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None:
+            return None
+        if isinstance(value, dict):
+            classes = [a for a in args if _is_dataclass_type(a)]
+            return _from_dict(classes[0], value) if len(classes) == 1 else value
+        if isinstance(value, list):
+            tuples = [a for a in args if a is tuple or typing.get_origin(a) is tuple]
+            return _coerce(tuples[0], value) if len(tuples) == 1 else tuple(value)
+        return value
+    if isinstance(value, list):
+        if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_coerce(args[0], item) for item in value)
+        if origin is tuple and args and len(args) == len(value):
+            return tuple(_coerce(a, item) for a, item in zip(args, value, strict=True))
+        return tuple(value)
+    return value
+
+
 def _from_dict(cls: type, data: dict[str, Any]) -> Any:
-    """Build a (nested) dataclass from its ``asdict`` form; unknown keys are ignored."""
+    """Build a (nested) dataclass from its ``asdict`` form; unknown keys are ignored.
+
+    Each field is converted by its annotation (:func:`_coerce`), so nested
+    dataclasses, ``X | None`` ones and tuples of them come back as they were
+    written; a field whose annotation cannot be resolved falls back to the
+    dataclass of its default.
+    """
+    hints = _field_types(cls)
     kwargs = {}
     for f in dataclasses.fields(cls):
-        if f.name not in data:
+        if f.name not in data or not f.init:
             continue
         value = data[f.name]
-        nested = _nested_type(f)
-        if nested is not None:
-            if isinstance(value, dict):
-                value = _from_dict(nested, value)
-        elif isinstance(value, list):
-            value = tuple(value)
-        kwargs[f.name] = value
+        hint = hints.get(f.name, _default_type(f))
+        kwargs[f.name] = _coerce(hint, value)
     return cls(**kwargs)
 
 
+def _session_sets_belt_speeds(data: dict[str, Any]) -> bool:
+    """The recorded session (``asdict`` form) has a segment with a belt speed."""
+    session = data.get("session")
+    segments = session.get("segments") if isinstance(session, dict) else None
+    return isinstance(segments, list) and any(
+        isinstance(s, dict) and s.get("belt_speed_mps") is not None for s in segments
+    )
+
+
 def _config_from_dict(path: Path, data: dict[str, Any]) -> SimConfig:
+    if data.get("speed_profile") is not None and _session_sets_belt_speeds(data):
+        # SimConfig derives the speed profile from the session's belt speeds
+        # and refuses one given beside them: the session rebuilds it.
+        data = {key: value for key, value in data.items() if key != "speed_profile"}
     try:
         return _from_dict(SimConfig, data)
     except (ExoCtrlError, TypeError, ValueError) as exc:

@@ -19,8 +19,8 @@ VOLTAGE    |U| - DBL_MAX        V (finiteness only, the command)
 Four more groups, the plausibility monitors (drive model residual, encoder
 step, torque sensor unchanged, command age), are written into the rows after
 these by :func:`exo_ctrl.safety.plausibility.plausibility` before this
-kernel runs, and a last one, the belt's speed against its set speed (one
-channel; :mod:`exo_ctrl.safety.belt_monitor`), with the belt; it counts them
+kernel runs, and a last one, the belt's speed against the speed its forces
+predict (one channel; :mod:`exo_ctrl.safety.belt_monitor`), with the belt; it counts them
 in ``worst`` and ``passed`` like its own (48 channels in all).
 
 A channel is violated when ``not e <= 0``: e > 0, or e NaN (a NaN reading),

@@ -7,7 +7,7 @@ drive currents — and the controller's command against :class:`SafetyLimits`
 (:mod:`exo_ctrl.safety.limits`), in one call of the compiled monitor
 (:mod:`exo_ctrl.safety.monitor`), after the plausibility monitors
 (:mod:`exo_ctrl.safety.plausibility`) and, with the belt, the belt monitor
-(the encoder's belt speed against the set speed,
+(the encoder's belt speed against the speed the belt's forces predict,
 :mod:`exo_ctrl.safety.belt_monitor`).  While nothing is wrong it returns the
 controller's command unchanged (and allocates no array).  Its state is one
 record, :attr:`SafetySupervisor.record`, whose ``state`` field the log reads.
@@ -80,8 +80,8 @@ from .. import _validate as v
 from .._jit import Status, check
 from ..model import JOINT_NAMES, BodyModel
 from ..plant import MotorParams
-from ..sensing import BeltEncoder, SensorParams, SensorReadings
-from .belt_monitor import BELT, BELT_DEVIATION_MPS, belt_monitor, belt_monitor_record
+from ..sensing import SensorParams, SensorReadings
+from .belt_monitor import BELT, BeltMonitor, belt_monitor
 from .limits import STATES, SafetyLimits, resolve_limits
 from .monitor import LIMIT_GROUPS, channels, monitor, monitor_record
 from .plausibility import plausibility, plausibility_limits, plausibility_record
@@ -125,11 +125,9 @@ class SafetySupervisor:
         compliant_drives: the joints are compliant (the torque sensors read
             a spring, :mod:`exo_ctrl.plant.compliance`): the rigid drive
             model's check is off, the other monitors stay.
-        belt_set_speed: the treadmill's set speed per control tick, (n, 2)
-            [m/s, m/s²] (the command the device knows; None: no belt).
-        belt_encoder: the belt encoder whose reading (``speed``, filled in
-            place each tick) the belt monitor compares with the set speed
-            (:mod:`exo_ctrl.safety.belt_monitor`; None: no belt monitor).
+        belt: the belt monitor's readings (belt encoder, foot load cells,
+            drive's report) and datasheet (:mod:`exo_ctrl.safety.belt_monitor`;
+            None: no belt monitor).
         stop_reaction: ``"hold"`` or ``"yield"`` (:mod:`.stop_reaction`), or a
             schedule ((start time [s], reaction), ...) (the one in force at
             the stop acts; :func:`~exo_ctrl.safety.stop_reaction.stop_reaction_schedule`).
@@ -173,8 +171,7 @@ class SafetySupervisor:
         sensors: SensorParams | None = None,
         plausibility_checks: bool = True,
         compliant_drives: bool = False,
-        belt_set_speed: np.ndarray | None = None,
-        belt_encoder: BeltEncoder | None = None,
+        belt: BeltMonitor | None = None,
         stop_reaction: str | Sequence[tuple[float, str]] = "hold",
         yield_damping: float | Sequence[float] | None = None,
     ) -> None:
@@ -227,14 +224,11 @@ class SafetySupervisor:
         if self._checks:
             self.record["limit"][0][LIMIT_GROUPS:BELT] = self.plausibility_limits
         self._u_sent = self.plausibility_record["u_prev"][0]
-        #: The belt monitor's set speeds, reading and record (None: no belt).
-        self._belt: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        belt_limit = None
-        if belt_set_speed is not None and belt_encoder is not None:
-            set_speed = np.ascontiguousarray(belt_set_speed, dtype=float)
-            window = int(belt_encoder.record["window"][0])
-            self._belt = (set_speed, belt_encoder.speed, belt_monitor_record(window))
-            belt_limit = BELT_DEVIATION_MPS
+        #: The belt monitor (None: no belt).
+        self.belt = belt
+        self._belt = None if belt is None else belt.args
+        belt_limit = None if belt is None else belt.threshold_mps
+        if belt_limit is not None:
             self.record["limit"][0][BELT, 0] = belt_limit
         self._channels = channels(
             resolved, self.use_estimate, self.record["limit"][0][LIMIT_GROUPS:BELT], belt_limit
@@ -304,7 +298,7 @@ class SafetySupervisor:
         if self._checks:
             plausibility(q, dq, tau, u, command_age_s, self.plausibility_record, self.record)
         if self._belt is not None:
-            belt_monitor(k, *self._belt, self.record)
+            belt_monitor(*self._belt, self.record)
         status = monitor(f, q, dq, tau, current, u, t, self.record)
         if status:
             self._refuse(status, f, q, dq, tau, current, u)

@@ -286,7 +286,8 @@ class SimConfig:
         if self.session is not None:
             object.__setattr__(self, "session", SessionParams.coerce(self.session))
             profile = self.session.speed_profile(self.gait.belt_speed)  # None: no belt speeds
-            if profile is not None and self.speed_profile is not None:
+            given = self.speed_profile
+            if profile is not None and given is not None and given != profile:
                 raise InvalidParameter(
                     "speed_profile", self.speed_profile, "unset with a session's belt speeds"
                 )

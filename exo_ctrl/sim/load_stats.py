@@ -6,8 +6,9 @@ drive's torque over stance is the figure a drive is sized on
 side, from the end of the ramp-in).  With the pelvis on its guide
 (:mod:`exo_ctrl.plant.pelvis`) the ``pelvis`` block checks the vertical
 balance: averaged over whole gait cycles the belt's vertical force on both
-feet equals the weight the support does not carry, M g − F_s (the vertical
-momentum returns each cycle), and reports the pelvis's excursion.
+feet (and the harness's, if its travel stops caught the pelvis or its
+brake locked it after a stop) equals the weight the support does not carry, M g − F_s (the
+vertical momentum returns each cycle), and reports the pelvis's excursion.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ class LoadStats:
         self._knee_n = np.zeros(2)
         self._knee_peak = np.zeros(2)
         self._fz_sum = 0.0
+        self._stop_sum = 0.0
         self._fz_n = 0
         self._z_min, self._z_max = math.inf, -math.inf
 
@@ -64,6 +66,7 @@ class LoadStats:
         end = min(max(self.cycle_end_tick - first_tick, 0), n)
         if end > start:
             self._fz_sum += float(rows["ground_force"][start:end, :, 1].sum())
+            self._stop_sum += float(rows["pelvis_stop_force"][start:end].sum())
             self._fz_n += end - start
         z = rows["pelvis_z"][start:]
         if z.size:
@@ -81,13 +84,17 @@ class LoadStats:
             p = self.pelvis
             weight = p["moving_mass_kg"] * p["gravity_mps2"] - p["support_N"]
             mean = self._fz_sum / self._fz_n if self._fz_n else None
+            stop = self._stop_sum / self._fz_n if self._fz_n else None
             out["pelvis"] = {
                 "bws_fraction": p["bws_fraction"],
                 "support_N": p["support_N"],
                 "moving_mass_kg": p["moving_mass_kg"],
                 "unsupported_weight_N": weight,
                 "mean_vertical_ground_force_N": mean,
-                "vertical_balance_error_rel": None if mean is None else (mean - weight) / weight,
+                "mean_harness_stop_force_N": stop,
+                "vertical_balance_error_rel": (
+                    None if mean is None else (mean + stop - weight) / weight
+                ),
                 "averaged_ticks": self._fz_n,
                 "excursion_m": self._z_max - self._z_min if self._z_max >= self._z_min else None,
                 "lowest_m": self._z_min if math.isfinite(self._z_min) else None,

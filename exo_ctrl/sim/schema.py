@@ -113,6 +113,12 @@ SIGNALS: list[Signal] = [
     Signal("pelvis_z", (), "m", "pelvis height above its nominal, end of the tick"),
     Signal("pelvis_vz", (), "m/s", "pelvis vertical speed, end of the tick"),
     Signal(
+        "pelvis_stop_force",
+        (),
+        "N",
+        "harness's force on the pelvis: travel stops, its brake after a stop (up > 0)",
+    ),
+    Signal(
         "path_phase",
         (),
         "",

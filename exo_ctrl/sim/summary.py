@@ -8,7 +8,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .._jit import kernel, preload
-from ..estimation import COMPONENTS, EstimateErrorStats
+from ..estimation import MODEL_DRIVEN, EstimateErrorStats
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .belief import PAPER_PATIENT
 from .config import SimConfig
@@ -177,13 +177,9 @@ class RunStats:
         if self.estimate is not None:
             out.update(self.estimate.summary())
             if result.config.estimator == "kalman":
-                # The filter estimates every component; these come from its models.
-                out["cuff_force_estimate_unobservable"] = [
-                    f"{cuff}: {part}: {how}"
-                    for cuff, parts in COMPONENTS.items()
-                    for part, how in parts.items()
-                    if "model" in how
-                ]
+                # The filter estimates every component; these come from its models
+                # (a copy: the summary is the caller's to change).
+                out["cuff_force_estimate_unobservable"] = list(MODEL_DRIVEN)
         if self.contact is not None:
             out.update(self.contact.summary())
         if self.load is not None:  # stance knee torque, the pelvis (exo_ctrl.sim.load_stats)

@@ -104,6 +104,7 @@ def check_profile(
             sync=False,
             ramp_in_s=ramp_in,
             duration_s=max(config.duration_s, span),
+            session=None,  # a profile point's check, not the session's run
         )
         try:
             plan = plan_joints(RampedGait(gait, Ramp(ramp_in)), exo, np.linspace(0.0, span, n))

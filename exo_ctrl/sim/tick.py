@@ -27,6 +27,7 @@ from ..estimation import CuffForceEstimator, CuffForceKalman
 from ..plan.online import online_step
 from ..plant import PatientTorque
 from ..safety import SafetyLimits, SafetySupervisor
+from ..safety.belt_monitor import BeltMonitor
 from ..sensing import BeltEncoder, CurrentSensor, FootLoad, SensorReadings, Sensors
 from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
@@ -110,6 +111,8 @@ class Runner:
         self.belt_encoder = BeltEncoder(config.belt_encoder, config.dt)
         self._belt = plant.contact.belt
         self._belt_set, self._belt_rate = self._belt["v_set"], self._belt["a_set"]
+        #: The treadmill drive's report of its force [N], (1,) (copied each tick with contact on).
+        self.belt_drive_force, self._belt_motor = np.zeros(1), self._belt["f_motor"]
         self._belt_speed = setup.belt_speed  # the set speed per tick (None: contact off)
         if setup.belt_speed is not None:
             self.sensors.belt_speed = self.belt_encoder.speed
@@ -135,11 +138,17 @@ class Runner:
                 use_estimate=config.safety_use_estimate,
                 sensors=config.sensors,
                 compliant_drives=config.joint_compliance.enabled,
-                belt_set_speed=setup.belt_speed if config.safety else None,
-                belt_encoder=self.belt_encoder,
+                belt=BeltMonitor(
+                    self.belt_encoder, self.foot_load, self.belt_drive_force, config.contact.belt
+                )
+                if config.safety and setup.belt_speed is not None
+                else None,
                 stop_reaction=config.stop_reactions,
             )
         sup = self.supervisor
+        #: On a stop the harness locks the pelvis (plant/pelvis.py) and the treadmill
+        #: runs down to rest (BeltParams.stop_decel_mps2): :meth:`_device_stop`.
+        self._stop_pending = sup is not None and config.contact.enabled
         self._sup_force = None
         if sup is not None:
             # The estimate, as on the device; the plant's true forces only
@@ -200,6 +209,7 @@ class Runner:
             self._belt_set[0] = self._belt_speed[k, 0]
             self._belt_rate[0] = self._belt_speed[k, 1]
             read_belt(self.belt_encoder.record, k, self._belt)
+            self.belt_drive_force[0] = self._belt_motor[0]
             if self._online is not None:
                 self._plan_tick(k, row)
         faults = self.faults
@@ -218,6 +228,8 @@ class Runner:
         if supervise is not None:
             current = self.current_sensor.read(self._mean_current)
             u = supervise(k, k * self._dt, readings, self._sup_force, current, u, age)
+            if self._stop_pending and self.supervisor.state_code:
+                self._device_stop(k)
         if step is not None:
             step(u)
         else:
@@ -226,6 +238,26 @@ class Runner:
         write_contact(
             self.log, row, plant_rec, self.belt_encoder.record, self._phase, self.foot_load.record
         )
+
+    def _device_stop(self, k: int) -> None:
+        """The supervisor stopped at tick ``k``: the harness locks, the belt runs down.
+
+        The belt's set speed from tick k + 1 on falls from its present value at
+        the treadmill's stop deceleration a to rest, v(t) = max(v_k − a (t − t_k), 0)
+        (its rate −a while it falls); the pelvis on its guide locks at its height.
+        """
+        self._stop_pending = False
+        config = self.setup.config
+        if config.pelvis.supported:
+            self.setup.plant.lock_pelvis()
+        speed = self._belt_speed
+        if speed is None or k + 1 >= speed.shape[0]:
+            return
+        decel = config.contact.belt.stop_decel_mps2
+        t = np.arange(1, speed.shape[0] - k) * self._dt
+        v = np.maximum(speed[k, 0] - decel * t, 0.0)
+        speed[k + 1 :, 0] = v
+        speed[k + 1 :, 1] = np.where(v > 0.0, -decel, 0.0)
 
     def _substep(self, u: np.ndarray) -> None:
         """The plant's steps of a tick with substeps or a patient-torque model."""
@@ -360,3 +392,4 @@ def write_contact(log, row, plant, encoder, phase, foot):
         r.tau_ground_meas[j] = f.tau[j]
     r.pelvis_z = plant[0].pelvis.z
     r.pelvis_vz = plant[0].pelvis.vz
+    r.pelvis_stop_force = plant[0].pelvis.stop_force

@@ -42,7 +42,12 @@ def _mode(setup, mode, **params) -> InteractionController:
 
 
 def test_guidance_blends_tracking_and_the_free_command(setup) -> None:
-    """U_G = G U_track + (1 - G) U_free; G = 1 is the tracking command bit for bit."""
+    """U_G = G U_track + (1 - G) U_free; G = 1 is the tracking command bit for bit.
+
+    The free command's force feedback without guidance's low-pass (a cut-off
+    whose step weight is 1); the filter itself:
+    tests/control/test_guidance_force_loop.py.
+    """
     rng = np.random.default_rng(1)
     ticks = [0, 1, 2, 700, 1500, 2600, 4000]
     readings = [_readings(rng, setup, k) for k in ticks]
@@ -51,7 +56,7 @@ def test_guidance_blends_tracking_and_the_free_command(setup) -> None:
     u_pd = [pd.command(k, r).copy() for k, r in zip(ticks, readings, strict=True)]
     u_free = [free.command(k, r).copy() for k, r in zip(ticks, readings, strict=True)]
     for g in (0.0, 0.3, 1.0):
-        ctrl = _mode(setup, "guidance", guidance=g)
+        ctrl = _mode(setup, "guidance", guidance=g, force_filter_hz=1e9)
         for k, r, a, b in zip(ticks, readings, u_pd, u_free, strict=True):
             u = ctrl.command(k, r)
             np.testing.assert_allclose(u, g * a + (1.0 - g) * b, rtol=1e-13, atol=1e-12)
@@ -173,6 +178,7 @@ def test_a_mode_needs_the_cuff_force_estimate(setup) -> None:
         ({"aan_forgetting": 1.0}, r"aan_forgetting must be in \[0, 1\)"),
         ({"aan_bins": 0}, r"aan_bins must be an integer in \[1, 10000\]"),
         ({"aan_gain": (1.0, 2.0)}, "aan_gain must be a number or 4 numbers"),
+        ({"force_filter_hz": 0.0}, r"force_filter_hz must be > 0 Hz; got 0.0"),
     ],
 )
 def test_bad_mode_parameters_are_refused(params, message) -> None:

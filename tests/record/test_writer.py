@@ -210,11 +210,11 @@ def test_scene_rate_must_be_a_positive_rate(rate):
 def test_write_failure_mid_run_raises_output_error(
     tmp_path, reference, assert_same_run, verify, write_behind
 ):
-    """A 1.5 MB file-size limit makes the disk 'full' while the third chunk is written.
+    """A 1.75 MB file-size limit makes the disk 'full' while the third chunk is written.
 
-    The file grows by about 340 kB per 70-tick chunk (with the belt and
-    contact signals), footer included: 1346 kB with two chunks, 1684 kB with
-    three.  The failed write is undone: the
+    The file grows by about 370 kB per 70-tick chunk (with the belt, contact,
+    load-cell and pelvis signals), footer included: 1566 kB with two chunks,
+    1936 kB with three.  The failed write is undone: the
     file is the whole two-chunk recording again, with its footer.  With
     write-behind the error surfaces at the next chunk() (or finish()).  The
     process then ends normally (no hang in the interpreter's shutdown: rerun
@@ -228,7 +228,7 @@ def test_write_failure_mid_run_raises_output_error(
         from exo_ctrl.record import RerunRecorder
         from exo_ctrl.sim import SimConfig, simulate
 
-        resource.setrlimit(resource.RLIMIT_FSIZE, (1_500_000, 1_500_000))  # SIGXFSZ: ignored
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1_750_000, 1_750_000))  # SIGXFSZ: ignored
         recorder = RerunRecorder({str(path)!r}, write_behind={write_behind})
         try:
             simulate(SimConfig(duration_s=0.3, chunk_ticks=70), observers=[recorder])

@@ -39,6 +39,10 @@ The modes (``mode`` of :class:`~exo_ctrl.control.modes.params.ModeParams`):
   CT): the tracking impedance, its back-EMF damping included, scaled by G
   around the plan, and the free share by 1 − G.  G = 1 gives U_track
   exactly (1·U + 0·U_free: bit-equal), G = 0 gives ``transparent``.
+  For 0 < G < 1 the force feedback acts on τ̂_int through a first-order
+  low-pass of ``force_filter_hz`` (ω_f = 100 rad/s by default),
+  K_f ω_f/(s + ω_f) τ̂_int: the loop's bandwidth is the mode's own, not
+  the estimator's (below).
 - ``aan`` (assist-as-needed, Emken et al. 2007): U = U_soft + U_free with
   K_f = 0, U_soft a soft PD on the plan (``aan_kp``, ``aan_kd``) and the
   support F(φ) per phase bin of the plan's gait period, learned cycle by
@@ -52,6 +56,29 @@ The modes (``mode`` of :class:`~exo_ctrl.control.modes.params.ModeParams`):
   and fades by f per cycle (time constant −1/ln f cycles) once the error is
   gone.  Outside the gait's periodic rows (the ramps) the support is zero
   and nothing is learned.
+
+**Why guidance filters its force feedback** (issues 17/18).  With an
+active patient the loop closes through the patient's long-latency reflex
+(a PD on the error 60 ms ago, :mod:`exo_ctrl.plant.patient_active`),
+whose delay makes its damping negative at the 5–6 Hz mode of the leg in
+the cuffs against the guidance spring.  Measured on the healthy active
+patient (1.0 s, 0.30 m) at G = 0.25, 8 s, without the filter: fed the TRUE
+interaction torque the mode grows (the cuff forces' 3–9 Hz content at
++0.24/s, peak at 5.4 Hz); with the reflex's gains or its delay at zero,
+or with a passive patient, it does not.  The lag of a first-order filter
+turns part of the rendered spring into damping: (1 + K' ω_f/(s + ω_f))⁻¹
+≈ (1 + s/ω_f)/(1 + K'), K' = (1 − G) K_f, below (1 + K') ω_f.  The
+momentum observer has that lag built in (100 rad/s: its knee torque lags
+20° at 5.4 Hz), the Kalman filter does not (3°), so guidance grew with the
+Kalman filter (the four cuffs' RMS force 51 N in the 2nd second, 123 N in
+the 8th, the same phase of the patient's 6 s beat with the plan) and not
+with the observer (52 → 43 N).  With the filter the true torque, the Kalman filter and the
+observer give the same forces (second by second within 1 N).  Transparent
+mode has no spring for the lag to damp, only the rendered inertia, which
+the lag turns into negative damping (the observer behind the filter
+yields there: 72 N RMS against 13 N), so it is left unfiltered; explicit
+damping on ė in place of the filter (k_p τ_g, τ_g = 10–20 ms) did not bound the
+true-torque loop.  ``tests/control/test_guidance_force_loop.py``.
 
 All per-tick arithmetic is one compiled kernel (:func:`mode_command`),
 plus one Pinocchio call (gravity) and, for guidance and aan, the tracking
@@ -94,7 +121,8 @@ _CODES = {"guidance": 1, "transparent": 2, "aan": 3}
 #: the cuff geometry; the plan's row rule; aan's f, g [N·m/rad], its bin of
 #: the last tick, error sum and count in it, completed cycles and support
 #: level (RMS of F over the table [N·m]); what the last tick computed:
-#: τ̂_int, τ_free, the support applied [N·m], U_free [V].
+#: τ̂_int, τ_free, the support applied [N·m], U_free [V]; guidance's force
+#: loop low-pass: its step weight 1 − exp(−ω_f Δt) (1: none) and its output [N·m].
 MODE_FIELDS: list[tuple[Any, ...]] = [
     ("mode", np.int64),
     ("guidance", np.float64),
@@ -122,6 +150,8 @@ MODE_FIELDS: list[tuple[Any, ...]] = [
     ("q_prev", np.float64, (4,)),
     ("speed", np.float64, (4,)),
     ("started", np.int64),
+    ("force_alpha", np.float64),
+    ("tau_int_lp", np.float64, (4,)),
 ]
 
 
@@ -175,6 +205,9 @@ class InteractionController(CommandCounters):
         s["bin"] = -1
         s["dt"] = dt
         s["speed_alpha"] = 1.0 - math.exp(-2.0 * math.pi * params.speed_filter_hz * dt)
+        s["force_alpha"] = 1.0
+        if mode == "guidance" and 0.0 < params.guidance < 1.0:
+            s["force_alpha"] = 1.0 - math.exp(-2.0 * math.pi * params.force_filter_hz * dt)
         self.support = np.zeros((params.aan_bins if mode == "aan" else 1, 4))
         self.support_history: list[float] = []
         self._m = pin.Model(exo.model)
@@ -284,6 +317,11 @@ def mode_command(state, k, u_track, g, q, dq, f_est, support, q_des):  # pragma:
         )
         s.tau_int_est[2 * leg] = sh * hip
         s.tau_int_est[2 * leg + 1] = sk * knee
+    for j in range(4):  # guidance's force-loop low-pass (weight 1: none)
+        if s.started == 0:
+            s.tau_int_lp[j] = s.tau_int_est[j]
+        else:
+            s.tau_int_lp[j] += s.force_alpha * (s.tau_int_est[j] - s.tau_int_lp[j])
     s.started = 1
     # aan: the support of this tick's phase bin, and learning from its error.
     b = -1
@@ -321,7 +359,7 @@ def mode_command(state, k, u_track, g, q, dq, f_est, support, q_des):  # pragma:
             g[j]
             + s.damping[j] * w
             + s.friction[j] * np.tanh(w / FRICTION_SMOOTHING_RAD_S)
-            + s.force_gain[j] * s.tau_int_est[j]
+            + s.force_gain[j] * s.tau_int_lp[j]
             + sup
         )
         s.tau_free[j] = tau

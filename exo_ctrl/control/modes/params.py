@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ... import _validate as v
@@ -44,6 +45,12 @@ class ModeParams:
         aan_kd: the soft PD's k_d [V·s/rad] (default 1: 45 N·m·s/rad, the
             damping that keeps the soft leg from ringing at the gait's
             frequency once the back-EMF is compensated).
+        force_filter_hz: f_f, cut-off of the first-order low-pass on the
+            estimated interaction torque before K_f in ``guidance`` with
+            0 < G < 1 [Hz] (the controller's module docstring: its lag
+            damps the active patient's reflex mode against the guidance
+            spring).  Default 100 / (2π) ≈ 15.9 Hz, the momentum
+            observer's bandwidth, with which K_f was tuned.
         speed_filter_hz: cut-off of the first-order filter on the encoder's
             difference that gives the speed for the drive's back-EMF [Hz].
             Default 150 (1 ms lag): the sensors' 30 Hz speed (5 ms lag) left
@@ -72,6 +79,7 @@ class ModeParams:
     aan_kp: float = 1.0
     aan_kd: float = 1.0
     speed_filter_hz: float = 150.0
+    force_filter_hz: float = 100.0 / (2.0 * math.pi)
 
     def __post_init__(self) -> None:
         g = v.finite("guidance", self.guidance)
@@ -93,4 +101,7 @@ class ModeParams:
         object.__setattr__(self, "aan_kd", v.non_negative("aan_kd", self.aan_kd, "V·s/rad"))
         object.__setattr__(
             self, "speed_filter_hz", v.positive("speed_filter", self.speed_filter_hz, "Hz")
+        )
+        object.__setattr__(
+            self, "force_filter_hz", v.positive("force_filter_hz", self.force_filter_hz, "Hz")
         )

@@ -68,7 +68,7 @@ MIN_MARGIN = 0.10
 
 
 def stated_margin(
-    period_s: float, bound_N: float, estimator: str = "momentum", true_patient: bool = False
+    period_s: float, bound_N: float, estimator: str = "kalman", true_patient: bool = False
 ) -> float:
     """The stated margin of the real peak cuff force over the bound, a fraction [-].
 
@@ -80,7 +80,9 @@ def stated_margin(
     Args:
         period_s: the gait period T [s], > 0.
         bound_N: the bound F_max [N], > 0.
-        estimator: the live cuff-force estimator, ``"momentum"`` or ``"kalman"``.
+        estimator: the run's live cuff-force estimator (``SimConfig.estimator``),
+            ``"momentum"`` or ``"kalman"``; default ``"kalman"``, the default
+            run's (a run with another estimator must name it).
         true_patient: the device holds the true patient model (the ideal
             comparison): no :data:`PATIENT_MODEL_ERROR_N`.
 

@@ -64,9 +64,9 @@ def test_load_held_within_the_stated_margin(period, step, bound, estimator) -> N
 def test_stated_margin_is_the_error_budget() -> None:
     model = MODEL_ERROR_N + PATIENT_MODEL_ERROR_N
     # (19.3 N + 18 N · 1.2/0.9) / 100 N at the fastest gait with the momentum observer.
-    assert stated_margin(0.9, 100.0) == pytest.approx((model + 18.0 * 1.2 / 0.9) / 100)
-    assert stated_margin(1.2, 150.0) == pytest.approx((model + 18.0) / 150)
-    assert stated_margin(1.2, 150.0, true_patient=True) == pytest.approx(
+    assert stated_margin(0.9, 100.0, "momentum") == pytest.approx((model + 18.0 * 1.2 / 0.9) / 100)
+    assert stated_margin(1.2, 150.0, "momentum") == pytest.approx((model + 18.0) / 150)
+    assert stated_margin(1.2, 150.0, "momentum", true_patient=True) == pytest.approx(
         (MODEL_ERROR_N + 18.0) / 150
     )
     # The Kalman filter: a smaller estimate term; the 10 % floor where the budget is below it.
