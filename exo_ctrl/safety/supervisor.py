@@ -52,7 +52,10 @@ the emergency-stop time, it stops the gait:
 present posture with damping injection instead, state ``"yielding"``
 after the ramp, no posture held, so an active patient moves the legs with
 a bounded interaction force; a joint beyond its speed limit or range of
-motion then cuts the power, legs at rest end in the hold.
+motion then cuts the power, legs at rest end in the hold.  A hold the
+patient pushes against (a cuff force over its limit while holding, on
+readings no plausibility monitor has doubted since the stop) ramps to the
+yield.
 
 Every violation and every state change is an event dict
 ``{"t", "kind", "quantity", "value", "limit", "message"}`` in
@@ -74,7 +77,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from .. import _validate as v
 from .._jit import Status, check
@@ -83,7 +85,7 @@ from ..plant import MotorParams
 from ..sensing import SensorParams, SensorReadings
 from .belt_monitor import BELT, BeltMonitor, belt_monitor
 from .limits import STATES, SafetyLimits, resolve_limits
-from .monitor import LIMIT_GROUPS, channels, monitor, monitor_record
+from .monitor import CUFF, LIMIT_GROUPS, channels, monitor, monitor_record
 from .plausibility import plausibility, plausibility_limits, plausibility_record
 from .stop_reaction import (
     REST_SPEED_RAD_S,
@@ -187,7 +189,6 @@ class SafetySupervisor:
         self.limits = limits
         self.use_estimate = bool(use_estimate)
         self._motor = motor
-        self._bodies = [(pin.Model(b.model), b) for b in (exo, patient) if b is not None]
         resolved = resolve_limits(limits, exo, patient, motor)
         self.q_lower, self.q_upper = resolved.q_lower, resolved.q_upper
         self.speed_limit = resolved.speed_limit
@@ -206,7 +207,7 @@ class SafetySupervisor:
         #: The reaction of the present stop ("" while normal).
         self.reaction = ""
         self._ramp_t0 = 0.0
-        self._rest_ticks = 0
+        self._rest_ticks, self._doubt = 0, False
         self._rest_needed = max(round(REST_TIME_S / self.dt), 1)
         self._estop = math.inf if self.estop_at_s is None else self.estop_at_s
         self.record = monitor_record(resolved, self._estop)
@@ -339,6 +340,7 @@ class SafetySupervisor:
                 f"emergency stop at t = {t:.4f} s",
             )
         self.stop_time_s = self._ramp_t0 = float(t)
+        self._doubt = False
         self.reaction = reaction_at(self.stop_reactions, t)
         q = np.asarray(sensors.q, dtype=float)
         finite = np.isfinite(q)
@@ -356,11 +358,7 @@ class SafetySupervisor:
 
     def _gravity_voltage(self, q: np.ndarray) -> np.ndarray:
         """U = R (g_exo(q) + g_patient(q)) / (i_G k_m): holding torque at zero speed [V]."""
-        tau = np.zeros(4)
-        for model, body in self._bodies:
-            data = model.createData()
-            g = pin.computeGeneralizedGravity(model, data, body.to_model_q(q))
-            tau += g[body.q_index]
+        tau = self.yield_command.gravity(q)  # the device's models, as the yield's
         return self._motor.resistance_ohm * tau / self._motor.torque_per_amp_Nm_per_A
 
     def _stop_command(self, t: float, sensors: SensorReadings, clean: bool) -> np.ndarray:
@@ -379,6 +377,10 @@ class SafetySupervisor:
         if self.state_code == 2 and self._hold_failed(t, e, w):
             u.fill(0.0)
             return u
+        # Pushed: a cuff over its limit while holding, on readings not doubted since the stop.
+        excess = self.record["excess"][0]
+        self._doubt = self._doubt or bool(np.any(excess[LIMIT_GROUPS:] > 0.0))
+        pushed = self.state_code == 2 and not self._doubt and bool(np.any(excess[CUFF] > 0.0))
         # U_hold = U_g + k_p (q_h - q) - k_d q̇
         np.multiply(e, self.hold_kp, out=u)
         np.multiply(w, self.hold_kd, out=w)
@@ -386,6 +388,11 @@ class SafetySupervisor:
         np.add(u, self.hold_voltage_gravity_V, out=u)
         if self.state_code == 1:
             self._ramp(t, u, "holding")
+        elif pushed:  # the patient pushes against the hold past a cuff's limit: yield
+            self.reaction, self._ramp_t0 = "yield", float(t)
+            self.yield_command.start(np.asarray(sensors.q, dtype=float), sensors.dq)
+            self._u_start[:] = u
+            self._set_state(t, "stopping", "the patient pushes against the hold: ramp to yield")
         return u
 
     def _ramp(self, t: float, u: np.ndarray, then: str) -> None:
