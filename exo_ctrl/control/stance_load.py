@@ -37,7 +37,8 @@ import numpy as np
 
 from .. import _validate as v
 from .._jit import kernel, record
-from ..model import SIDES, BodyModel
+from ..model import BodyModel
+from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_bias, foot_point
 
 __all__ = ["STANCE_LOAD_FIELDS", "StanceLoad", "stance_load_record", "stance_load_torque"]
 
@@ -75,7 +76,7 @@ class StanceLoad:
 #: [kg], ``support`` [N], ``g`` [m/s²], ``band`` b [m]; outputs of the last
 #: row: ``share`` s_i, ``force`` F [N], ``jz`` (2, 2) [m/rad].
 STANCE_LOAD_FIELDS = [
-    *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
+    *LEG_FIELDS,
     *((name, np.float64) for name in ("mass", "support", "g", "band", "force")),
     ("share", np.float64, (2,)),
     ("jz", np.float64, (2, 2)),
@@ -86,11 +87,7 @@ def stance_load_record(load: StanceLoad, exo: BodyModel) -> np.ndarray:
     """The kernel's record for ``load`` on the legs of ``exo`` (the device's model)."""
     rec = record(STANCE_LOAD_FIELDS)
     r = rec[0]
-    for i, side in enumerate(SIDES):
-        leg = exo.legs[side]
-        r["l1"][i], r["l2"][i] = leg.thigh_length, leg.shank_length
-        r["s_h"][i], r["s_k"][i] = leg.sign_hip, leg.sign_knee
-        r["phi1_0"][i], r["phi2_0"][i] = leg.phi1_zero, leg.phi2_zero
+    fill_legs(r, exo)
     r["mass"], r["support"], r["g"] = load.mass_kg, load.support_N, load.gravity_mps2
     r["band"] = STANCE_BAND_M
     return rec
@@ -106,17 +103,9 @@ def stance_load_torque(
     zdd = np.empty(2)
     for leg in range(2):
         i = 2 * leg
-        sh, sk = r.s_h[leg], r.s_k[leg]
-        a1 = r.phi1_0[leg] + sh * q[i]
-        a2 = r.phi2_0[leg] + sh * q[i] + sk * q[i + 1]
-        w1, w2 = sh * dq[i], sh * dq[i] + sk * dq[i + 1]
-        b1, b2 = sh * ddq[i], sh * ddq[i] + sk * ddq[i + 1]
-        l1, l2 = r.l1[leg], r.l2[leg]
-        c1, s1, c2, s2 = np.cos(a1), np.sin(a1), np.cos(a2), np.sin(a2)
-        z[leg] = l1 * s1 + l2 * s2
-        zdd[leg] = l1 * (c1 * b1 - s1 * w1 * w1) + l2 * (c2 * b2 - s2 * w2 * w2)
-        r.jz[leg, 0] = sh * (l1 * c1 + l2 * c2)
-        r.jz[leg, 1] = sk * l2 * c2
+        _, z[leg], _, _, r.jz[leg, 0], r.jz[leg, 1] = foot_point(r, leg, q[i], q[i + 1])
+        bias = foot_bias(r, leg, q[i], q[i + 1], dq[i], dq[i + 1])[1]
+        zdd[leg] = r.jz[leg, 0] * ddq[i] + r.jz[leg, 1] * ddq[i + 1] + bias
     low = min(z[0], z[1])
     total = 0.0
     for leg in range(2):

@@ -62,6 +62,7 @@ import numpy as np
 from .._jit import Status, kernel, record
 from ..exceptions import InvalidParameter, SimulationDiverged
 from ..model import SIDES, BodyModel
+from ..model.leg_kernels import LEG_FIELDS, fill_legs
 from .adapt import SpeedAdaptation
 from .kinematics import JointTrajectory
 from .profile import SpeedProfile, profile_at
@@ -95,7 +96,7 @@ ONLINE_FIELDS = [
     ("dt", np.float64),
     ("law", np.float64, (5,)),
     *((name, np.float64) for name in ("kv", "H", "h", "ramp_in", "filt", "exc")),
-    *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
+    *LEG_FIELDS,
     ("phase", np.float64, (2,)),
     *((name, np.float64) for name in ("rate", "vbar", "w")),
     *((name, np.float64, (2,)) for name in ("x", "dx", "ddx", "xe", "dxe")),
@@ -151,11 +152,7 @@ class OnlineGait:
         g["kv"], g["H"], g["h"] = gait.shape_coeff, gait.hip_height, gait.lift_height
         g["ramp_in"], g["filt"] = float(ramp_in_s), FILTER_S
         g["exc"] = gait.pelvis_excursion
-        for i, side in enumerate(SIDES):
-            leg = body.legs[side]
-            g["l1"][i], g["l2"][i] = leg.thigh_length, leg.shank_length
-            g["s_h"][i], g["s_k"][i] = leg.sign_hip, leg.sign_knee
-            g["phi1_0"][i], g["phi2_0"][i] = leg.phi1_zero, leg.phi2_zero
+        fill_legs(g, body)
         out = self.record["out"][0]  # the plan's arrays are views of the record's row
         self.plan = JointTrajectory(
             t=np.zeros(1),

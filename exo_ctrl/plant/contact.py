@@ -72,6 +72,7 @@ from .. import _validate as v
 from .._jit import kernel, record, shared_dtype
 from ..exceptions import InvalidParameter
 from ..model import SIDES, BodyModel
+from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
 from .belt import BELT_FIELDS, BeltParams, belt_commit, belt_drive, brake_holds
 
 __all__ = ["CONTACT_FIELDS", "ContactParams", "FootContact"]
@@ -143,7 +144,7 @@ _FOOT_ROWS = (
 )  # fmt: skip
 CONTACT_FIELDS = [
     ("hip", np.float64, (2, 2)),
-    *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
+    *LEG_FIELDS,
     *((name, np.float64) for name in ("z_belt", "k", "n", "d", "mu")),
     *((name, np.float64) for name in ("z_pelvis", "vz_pelvis", "fz", "w_x")),
     ("on", np.bool_),
@@ -193,11 +194,8 @@ class FootContact:
                 "belt height", height, f"in (0, {reach:.4g}) m, within the leg's reach"
             )
         for i, side in enumerate(SIDES):
-            leg = exo.legs[side]
-            c["hip"][i] = leg.hip_xz
-            c["l1"][i], c["l2"][i] = leg.thigh_length, leg.shank_length
-            c["s_h"][i], c["s_k"][i] = leg.sign_hip, leg.sign_knee
-            c["phi1_0"][i], c["phi2_0"][i] = leg.phi1_zero, leg.phi2_zero
+            c["hip"][i] = exo.legs[side].hip_xz
+        fill_legs(c, exo)
         #: The belt's top in the exoskeleton's world [m].
         self.z_belt = float(exo.legs["left"].hip_xz[1]) - float(height)
         c["z_belt"] = self.z_belt
@@ -225,12 +223,10 @@ class FootContact:
         ``z_pelvis_m``: the pelvis's height above its nominal (:mod:`exo_ctrl.plant.pelvis`).
         """
         c = self.record[0]
-        out = np.zeros((2, 2))
+        out = np.array(c["hip"], dtype=float)
         for leg in range(2):
-            a1 = c["phi1_0"][leg] + c["s_h"][leg] * q[2 * leg]
-            a2 = a1 - c["phi1_0"][leg] + c["phi2_0"][leg] + c["s_k"][leg] * q[2 * leg + 1]
-            out[leg, 0] = c["hip"][leg, 0] + c["l1"][leg] * np.cos(a1) + c["l2"][leg] * np.cos(a2)
-            out[leg, 1] = c["hip"][leg, 1] + c["l1"][leg] * np.sin(a1) + c["l2"][leg] * np.sin(a2)
+            x, z, *_ = foot_point(c, leg, float(q[2 * leg]), float(q[2 * leg + 1]))
+            out[leg] += (x, z)
         out[:, 1] += z_pelvis_m
         return out
 
@@ -239,10 +235,7 @@ class FootContact:
         c = self.record[0]
         out = np.zeros((2, 2))
         for leg in range(2):
-            a1 = c["phi1_0"][leg] + c["s_h"][leg] * q[2 * leg]
-            a2 = c["phi2_0"][leg] + c["s_h"][leg] * q[2 * leg] + c["s_k"][leg] * q[2 * leg + 1]
-            out[leg, 0] = c["s_h"][leg] * (c["l1"][leg] * np.cos(a1) + c["l2"][leg] * np.cos(a2))
-            out[leg, 1] = c["s_k"][leg] * c["l2"][leg] * np.cos(a2)
+            out[leg] = foot_point(c, leg, float(q[2 * leg]), float(q[2 * leg + 1]))[4:]
         return out
 
     def penetration(self, q: np.ndarray, z_pelvis_m: float = 0.0) -> np.ndarray:
@@ -263,16 +256,11 @@ def contact_forces(c: Any, qm: np.ndarray, vm: np.ndarray, tau: np.ndarray, h: f
     for leg in range(2):
         i = 2 * leg
         c.imp[leg] = 0.0
-        a1 = c.phi1_0[leg] + c.s_h[leg] * qm[i]
-        a2 = c.phi2_0[leg] + c.s_h[leg] * qm[i] + c.s_k[leg] * qm[i + 1]
-        c1, s1, c2, s2 = np.cos(a1), np.sin(a1), np.cos(a2), np.sin(a2)
-        l1, l2 = c.l1[leg], c.l2[leg]
-        c.pos[leg, 0] = c.hip[leg, 0] + l1 * c1 + l2 * c2
-        c.pos[leg, 1] = c.hip[leg, 1] + c.z_pelvis + l1 * s1 + l2 * s2
-        c.jx[leg, 0] = -c.s_h[leg] * (l1 * s1 + l2 * s2)
-        c.jx[leg, 1] = -c.s_k[leg] * l2 * s2
-        c.jz[leg, 0] = c.s_h[leg] * (l1 * c1 + l2 * c2)
-        c.jz[leg, 1] = c.s_k[leg] * l2 * c2
+        x, z, c.jx[leg, 0], c.jx[leg, 1], c.jz[leg, 0], c.jz[leg, 1] = foot_point(
+            c, leg, qm[i], qm[i + 1]
+        )
+        c.pos[leg, 0] = c.hip[leg, 0] + x
+        c.pos[leg, 1] = c.hip[leg, 1] + c.z_pelvis + z
         vx = c.jx[leg, 0] * vm[i] + c.jx[leg, 1] * vm[i + 1]
         vz = c.jz[leg, 0] * vm[i] + c.jz[leg, 1] * vm[i + 1] + c.vz_pelvis
         c.vel[leg, 0], c.vel[leg, 1] = vx, vz

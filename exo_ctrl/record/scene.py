@@ -245,6 +245,7 @@ def send_scene(
     belt: dict[str, float],
     v_belt: float,
     ground_force: np.ndarray | None = None,
+    pelvis_z: np.ndarray | None = None,
 ) -> None:
     """Send the scene at the ticks ``ticks``, every entity in one record batch.
 
@@ -259,6 +260,8 @@ def send_scene(
         v_belt: belt speed [m/s]; its top moves backwards (-x).
         ground_force: the belt's force on each exoskeleton foot (m, 2, 2) [N]
             (x, z), drawn at the feet (None: not drawn).
+        pelvis_z: the pelvis's height above its nominal (m,) [m]: both bodies
+            ride on it (:mod:`exo_ctrl.plant.pelvis`; None: fixed).
 
     """
     m = ticks.shape[0]
@@ -268,6 +271,9 @@ def send_scene(
     exo_cuffs, exo_feet = np.zeros((m, 4, 3)), np.zeros((m, 2, 3))
     for body, skeleton, q in bodies:
         legs, cuffs = skeleton.points(q)
+        if pelvis_z is not None:  # both bodies hang from the pelvis
+            legs[..., 2] += pelvis_z[:, None, None]
+            cuffs[..., 2] += pelvis_z[:, None]
         if body == "exo":
             exo_cuffs, exo_feet = cuffs, legs[:, :, 2]
         for s, side in enumerate(SIDES):

@@ -436,7 +436,8 @@ class RerunRecorder:
         shown = ticks[picked]
         force = signal(source, n, "cuff_force")[picked]
         ground = signal(source, n, "ground_force")[picked]
-        send_scene(rec, shown, self._dt, bodies, force, self._belt, v, ground)
+        pelvis = signal(source, n, "pelvis_z")[picked]
+        send_scene(rec, shown, self._dt, bodies, force, self._belt, v, ground, pelvis)
 
     # ------------------------------------------------------------------ end
 

@@ -37,7 +37,8 @@ import numpy as np
 from .. import _validate as v
 from .._jit import kernel, record
 from ..exceptions import InvalidParameter
-from ..model import SIDES, BodyModel
+from ..model import BodyModel
+from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
 
 __all__ = ["FOOT_LOAD_FIELDS", "FootLoad", "FootLoadParams"]
 
@@ -80,7 +81,7 @@ class FootLoadParams:
 #: ``tau_known`` τ_s + τ_g [N·m] (4), ``row``
 #: of the noise block, ``depleted``, ``noise`` (NOISE_BLOCK, 4) [N].
 FOOT_LOAD_FIELDS = [
-    *((name, np.float64, (2,)) for name in ("l1", "l2", "s_h", "s_k", "phi1_0", "phi2_0")),
+    *LEG_FIELDS,
     ("force", np.float64, (2, 2)),
     ("tau", np.float64, (4,)),
     ("tau_known", np.float64, (4,)),
@@ -103,11 +104,7 @@ class FootLoad:
         self.params = params
         self.record = record(FOOT_LOAD_FIELDS)
         r = self.record[0]
-        for i, side in enumerate(SIDES):
-            leg = exo.legs[side]
-            r["l1"][i], r["l2"][i] = leg.thigh_length, leg.shank_length
-            r["s_h"][i], r["s_k"][i] = leg.sign_hip, leg.sign_knee
-            r["phi1_0"][i], r["phi2_0"][i] = leg.phi1_zero, leg.phi2_zero
+        fill_legs(r, exo)
         #: The reading (x, z) per foot [N], (2, 2), and τ_g [N·m], (4,): views of the record.
         self.force = r["force"]
         self.tau = r["tau"]
@@ -150,13 +147,7 @@ def read_foot_load(sensor: np.ndarray, contact: Any, q: np.ndarray, tau_s: np.nd
         fx = c.ft[leg] + s.noise[i, 2 * leg]
         fz = c.fn[leg] + s.noise[i, 2 * leg + 1]
         s.force[leg, 0], s.force[leg, 1] = fx, fz
-        a1 = s.phi1_0[leg] + s.s_h[leg] * q[2 * leg]
-        a2 = s.phi2_0[leg] + s.s_h[leg] * q[2 * leg] + s.s_k[leg] * q[2 * leg + 1]
-        l1, l2 = s.l1[leg], s.l2[leg]
-        jx0 = -s.s_h[leg] * (l1 * np.sin(a1) + l2 * np.sin(a2))
-        jx1 = -s.s_k[leg] * l2 * np.sin(a2)
-        jz0 = s.s_h[leg] * (l1 * np.cos(a1) + l2 * np.cos(a2))
-        jz1 = s.s_k[leg] * l2 * np.cos(a2)
+        _, _, jx0, jx1, jz0, jz1 = foot_point(s, leg, q[2 * leg], q[2 * leg + 1])
         s.tau[2 * leg] = jx0 * fx + jz0 * fz
         s.tau[2 * leg + 1] = jx1 * fx + jz1 * fz
     for j in range(4):

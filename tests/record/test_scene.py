@@ -137,3 +137,26 @@ def test_batched_kinematics_equals_pinocchio(body, exo, patient, human):
         for s, side in enumerate(SIDES):
             foot = model.frame_position(q[i], f"{side}_foot")
             assert np.allclose(legs[i, s, 2] - shift, foot, rtol=0, atol=1e-12)
+
+
+def test_the_scene_rides_on_the_pelvis(tmp_path, entity_columns):
+    """With the pelvis on its guide both bodies' points move with it; the feet meet the belt."""
+    from exo_ctrl.plant import ContactParams, PelvisParams
+
+    config = SimConfig(
+        duration_s=0.3,
+        contact=ContactParams(enabled=True),
+        pelvis=PelvisParams(supported=True, bws_fraction=0.5),
+        sync=False,
+        safety=False,
+    )
+    path = tmp_path / "bws.rrd"
+    result = simulate(config, observers=[RerunRecorder(path)])
+    exo = load_body(result.exo_source)
+    q, z = result.signals["q"], result.signals["pelvis_z"]
+    assert np.abs(z).max() > 1e-3  # the pelvis sank into the shoes
+    for side in SIDES:
+        ticks, joints = entity_columns(path, f"world/exo/{side}/joints", "Points3D:positions")
+        for k, pts in zip(ticks, joints, strict=True):
+            foot = exo.frame_position(q[k], f"{side}_foot") + np.array([0.0, 0.0, z[k]])
+            assert np.allclose(np.asarray(pts)[2], foot, atol=1e-6)
