@@ -4,11 +4,10 @@ The supervisor sits between the controller and the drives.  Every control
 tick it checks what the device can measure — joint angles, speeds and torques
 from the sensors, cuff forces (measured, or estimated from the joint torques),
 drive currents — and the controller's command against :class:`SafetyLimits`
-(:mod:`exo_ctrl.safety.limits`), in one call of the compiled monitor
-(:mod:`exo_ctrl.safety.monitor`), after the plausibility monitors
-(:mod:`exo_ctrl.safety.plausibility`) and, with the belt, the belt monitor
-(the encoder's belt speed against the speed the belt's forces predict,
-:mod:`exo_ctrl.safety.belt_monitor`).  While nothing is wrong it returns the
+(:mod:`exo_ctrl.safety.limits`, :mod:`exo_ctrl.safety.monitor`) and the
+plausibility monitors (:mod:`exo_ctrl.safety.plausibility`), in one compiled
+call (:mod:`exo_ctrl.safety.tick_check`), after the belt monitor with the belt
+(:mod:`exo_ctrl.safety.belt_monitor`).  While nothing is wrong it returns the
 controller's command unchanged (and allocates no array).  Its state is one
 record, :attr:`SafetySupervisor.record`, whose ``state`` field the log reads.
 
@@ -85,8 +84,8 @@ from ..plant import MotorParams
 from ..sensing import SensorParams, SensorReadings
 from .belt_monitor import BELT, BeltMonitor, belt_monitor
 from .limits import STATES, SafetyLimits, resolve_limits
-from .monitor import CUFF, LIMIT_GROUPS, channels, monitor, monitor_record
-from .plausibility import plausibility, plausibility_limits, plausibility_record
+from .monitor import CUFF, LIMIT_GROUPS, channels, monitor_record
+from .plausibility import plausibility_limits, plausibility_record
 from .stop_reaction import (
     REST_SPEED_RAD_S,
     REST_TIME_S,
@@ -97,6 +96,7 @@ from .stop_reaction import (
     yield_breach,
 )
 from .stop_reaction import yield_damping as _yield_damping
+from .tick_check import check_readings
 
 __all__ = ["SafetySupervisor"]
 
@@ -237,8 +237,7 @@ class SafetySupervisor:
         self._passed = self.record["passed"]  # read once per tick
         self._u_start = np.zeros(4)
         self._u = np.zeros(4)
-        self._e = np.zeros(4)
-        self._w = np.zeros(4)
+        self._e, self._w = np.zeros(4), np.zeros(4)
         self._last_logged: dict[str, float] = {}
         self.hold_posture_rad = np.full(4, np.nan)
         self.hold_voltage_gravity_V = np.zeros(4)
@@ -265,8 +264,8 @@ class SafetySupervisor:
     ) -> np.ndarray:
         """Check the tick's readings; return the voltages to apply [V], (4,).
 
-        One call of the plausibility kernel and one of the monitor kernel;
-        the rest only when the tick did not pass (the stop).
+        One compiled call (:mod:`.tick_check`; with the belt, the belt
+        monitor's before it); the rest only when the tick did not pass (the stop).
 
         Args:
             k: control tick index.
@@ -296,11 +295,12 @@ class SafetySupervisor:
                 (4,), sensors_q=q, sensors_dq=dq, sensors_tau=tau, current_A=current, u_cmd=u
             )
             f = v.array("cuff_force", f, (4, 2))
-        if self._checks:
-            plausibility(q, dq, tau, u, command_age_s, self.plausibility_record, self.record)
-        if self._belt is not None:
-            belt_monitor(*self._belt, self.record)
-        status = monitor(f, q, dq, tau, current, u, t, self.record)
+        rec = self.record
+        if self._belt is not None:  # its own row; the plausibility monitors' are others
+            belt_monitor(*self._belt, rec)
+        status = check_readings(
+            f, q, dq, tau, current, u, command_age_s, t, self._checks, self.plausibility_record, rec
+        )
         if status:
             self._refuse(status, f, q, dq, tau, current, u)
         if self._passed[0]:

@@ -8,6 +8,9 @@ from .current_sensor import (
     CurrentSensor,
     CurrentSensorParams,
 )
+from .device import (
+    DeviceSensors,
+)
 from .foot_load import (
     FootLoad,
     FootLoadParams,
@@ -25,6 +28,7 @@ __all__ = [
     "BeltEncoderParams",
     "CurrentSensor",
     "CurrentSensorParams",
+    "DeviceSensors",
     "FootLoad",
     "FootLoadParams",
     "SensorParams",

@@ -78,7 +78,7 @@ from .._jit import Status, check, kernel, record
 from ..exceptions import InvalidParameter
 from .readings import SensorReadings
 
-__all__ = ["SensorParams", "Sensors"]
+__all__ = ["SENSOR_FIELDS", "SensorParams", "Sensors", "read_joints"]
 
 #: Noise samples drawn at a time (per sensor kind), to keep a read cheap.
 NOISE_BLOCK = 1000
@@ -180,7 +180,7 @@ class Sensors:
     arrays to keep them).  Noise is drawn in blocks of :data:`NOISE_BLOCK`
     samples; the sequence depends only on ``seed`` and the number of samples
     taken, so a run is reproducible.  A read is one call of the compiled
-    kernel :func:`_read_kernel`.
+    kernel :func:`read_joints`.
 
     Args:
         params: sensor parameters.
@@ -249,7 +249,7 @@ class Sensors:
             q_true, dq_true, tau_true = v.arrays(
                 (4,), q_true=q_true, dq_true=dq_true, tau_true=tau_true
             )
-        status = _read_kernel(k, q_true, dq_true, tau_true, self.record)
+        status = read_joints(k, q_true, dq_true, tau_true, self.record)
         if status:
             check(status, "Sensors.read", q_true=q_true, dq_true=dq_true, tau_true=tau_true)
         if self._depleted[0]:
@@ -318,7 +318,7 @@ def _quantise(x: float, step: float) -> float:
 
 
 @kernel
-def _read_kernel(k, q_true, dq_true, tau_true, sensors):
+def read_joints(k, q_true, dq_true, tau_true, sensors):
     """One read at tick k: hold, or take a sample into the readings (module docstring).
 
     ``sensors``: the record of :data:`SENSOR_FIELDS`.  Returns
