@@ -2,7 +2,8 @@
 
     .venv/bin/python tools/load_held.py [--periods 0.9,1.05,...] [--steps 0.25,...]
         [--bounds 100,125,150] [--duration S] [--workers 2] [--json PATH]
-        [--truth] [--restored-bandwidth W] [--horizon-ms 5,10,20,30,40]
+        [--truth] [--restored-bandwidth W] [--disturbance-bandwidth W]
+        [--horizon-ms 5,10,20,30,40]
         [--controller-patient nominal|truth|URDF] [--controller-cuffs split|isotropic]
         [--cuffs split|isotropic] [--estimator momentum|kalman]
 
@@ -29,6 +30,8 @@ Diagnostics (they change the controller, not the plant):
   to undo);
 - ``--restored-bandwidth W``: ω_f of the estimate's lead–lag [1/s]
   (100 = the estimator's own K_O: f̂ as it is);
+- ``--disturbance-bandwidth W``: ω_d of the patient-torque estimate d̂
+  [1/s] (default: the estimator's, ``DISTURBANCE_BANDWIDTH_PER_S``);
 - ``--horizon-ms``: the prediction's horizon points [ms].
 """
 
@@ -48,7 +51,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from exo_ctrl._progress import Progress
 from exo_ctrl.control.qp import QPController, stated_margin
-from exo_ctrl.control.qp.controller import RESTORED_BANDWIDTH_PER_S
+from exo_ctrl.control.qp.controller import (
+    DISTURBANCE_BANDWIDTH_PER_S,
+    RESTORED_BANDWIDTH_PER_S,
+)
 from exo_ctrl.control.qp.prediction import DEFAULT_HORIZON_TICKS
 from exo_ctrl.estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
 from exo_ctrl.exceptions import ExoCtrlError
@@ -80,6 +86,7 @@ def run_point(
     controller_cuffs: str = "split",
     cuffs: str = "split",
     estimator: str = DEFAULT_ESTIMATOR,
+    disturbance_bandwidth_per_s: float | None = None,
 ) -> dict:
     """One grid point: the real peak cuff force against the bound, and where it came.
 
@@ -104,8 +111,10 @@ def run_point(
         **extra,
     )
     setup = build(config)
-    if restored_bandwidth_per_s != RESTORED_BANDWIDTH_PER_S or horizon_ticks != tuple(
-        DEFAULT_HORIZON_TICKS
+    if (
+        restored_bandwidth_per_s != RESTORED_BANDWIDTH_PER_S
+        or horizon_ticks != tuple(DEFAULT_HORIZON_TICKS)
+        or disturbance_bandwidth_per_s is not None
     ):
         setup.controller = QPController(
             setup.plan,
@@ -118,6 +127,8 @@ def run_point(
             dt=config.dt,
             horizon_ticks=horizon_ticks,
             restored_bandwidth_per_s=restored_bandwidth_per_s,
+            estimator=estimator,
+            disturbance_bandwidth_per_s=disturbance_bandwidth_per_s,
         )
     runner = Runner(setup)
     if truth:
@@ -197,6 +208,14 @@ def main(argv: list[str] | None = None) -> int:
         help=f"ω_f [1/s] (default {RESTORED_BANDWIDTH_PER_S:g}; with --truth, K_O)",
     )
     p.add_argument(
+        "--disturbance-bandwidth",
+        type=float,
+        default=None,
+        help="ω_d of the patient-torque estimate [1/s] (default: the estimator's, "
+        + ", ".join(f"{k} {w:g}" for k, w in DISTURBANCE_BANDWIDTH_PER_S.items())
+        + ")",
+    )
+    p.add_argument(
         "--horizon-ms",
         type=_floats,
         default=DEFAULT_HORIZON_TICKS,
@@ -217,6 +236,7 @@ def main(argv: list[str] | None = None) -> int:
         "controller_cuffs": args.controller_cuffs,
         "cuffs": args.cuffs,
         "estimator": args.estimator,
+        "disturbance_bandwidth_per_s": args.disturbance_bandwidth,
     }
     points = list(itertools.product(args.periods, args.steps, args.bounds))
     try:  # refuse bad input before any worker starts

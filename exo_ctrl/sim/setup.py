@@ -207,6 +207,7 @@ def _tracking(
             dt=config.dt,
             estimate_gain_per_s=config.observer_gain_per_s,
             restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
+            estimator=config.estimator,
         )
     return PDController(plan, config.gains)
 

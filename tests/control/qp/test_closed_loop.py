@@ -32,7 +32,7 @@ F_TIGHT = 80.0
 TIGHT_MARGIN = 0.15
 #: The spastic scenario's bound [N] and its stated margin at the default 1.2 s
 #: gait with the run's estimator (the default, the Kalman filter) and the
-#: nominal patient, (5.5 N + 13.8 N + 2.1 N) / 150 N = 14.3 %
+#: nominal patient, (5.5 N + 13.8 N + 1.5 N) / 150 N = 13.9 %
 #: (exo_ctrl.control.qp.margin; the grid of gaits: test_load_held.py).
 #: Measured 154.1 N (+2.7 %; CT 180.7 N); 157.6 N (+5.1 %) with the
 #: momentum observer and the true patient model.

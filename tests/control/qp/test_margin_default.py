@@ -1,7 +1,7 @@
 """The stated margin and tools/load_held.py follow the run's default estimator (the Kalman filter).
 
 The margin's estimate term is the estimator's (:data:`LAG_ERROR_N`, 18 N for
-the momentum observer, 2.1 N for the Kalman filter at 1.2 s), so a margin
+the momentum observer, 1.5 N for the Kalman filter at 1.2 s), so a margin
 stated for one estimator and asserted on a run of the other is wrong by
 16 N / F_max.  Left unnamed, the estimator is a default run's
 (``SimConfig().estimator``), in the function and in the tool alike.
@@ -35,7 +35,7 @@ DEFAULT = SimConfig().estimator
 @pytest.mark.parametrize(("period", "bound"), [(0.9, 100.0), (1.2, 150.0), (1.5, 125.0)])
 def test_stated_margin_defaults_to_the_runs_estimator(period: float, bound: float) -> None:
     assert DEFAULT == "kalman"
-    budget = MODEL_ERROR_N + PATIENT_MODEL_ERROR_N + 2.1 * REFERENCE_PERIOD_S / period
+    budget = MODEL_ERROR_N + PATIENT_MODEL_ERROR_N + 1.5 * REFERENCE_PERIOD_S / period
     assert stated_margin(period, bound) == pytest.approx(max(0.10, budget / bound), rel=1e-12)
     assert stated_margin(period, bound) == stated_margin(period, bound, DEFAULT)
 
@@ -45,7 +45,7 @@ def test_the_estimators_margins_differ_by_their_lag_terms() -> None:
     gap = stated_margin(0.9, 100.0, "momentum") - stated_margin(0.9, 100.0)
     lag = (LAG_ERROR_N["momentum"] - LAG_ERROR_N["kalman"]) * REFERENCE_PERIOD_S / 0.9
     assert gap == pytest.approx(lag / 100.0, rel=1e-12)
-    assert gap > 0.2  # (18 - 2.1) N · 1.2/0.9 over 100 N: 21 points of margin
+    assert gap > 0.2  # (18 - 1.5) N · 1.2/0.9 over 100 N: 22 points of margin
 
 
 def test_load_held_runs_and_states_the_default_estimator(tmp_path: Path) -> None:
