@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from dataclasses import asdict
 from typing import Any
 
 from .._io import atomic_write, check_output
@@ -12,6 +13,7 @@ from ..model import JOINT_NAMES
 from ..plan import GaitParams
 
 __all__ = [
+    "SUPPORTED_GAIT",
     "Parser",
     "add_gait_options",
     "check_outputs",
@@ -19,6 +21,13 @@ __all__ = [
     "gait_params_from",
     "write_json",
 ]
+
+
+#: The gait's hip height H_s and excursion e [m] by default with the pelvis
+#: supported: the 0.52 + 0.52 m legs extend to 19.5° of knee flexion at
+#: mid-stance (36° at the transfers; a 0.90 m fixed hip walks a 56–60° crouch,
+#: tests/plan/test_hip_excursion.py), 13.7 mm within the leg's reach.
+SUPPORTED_GAIT = {"hip_height": 1.0, "pelvis_excursion": 0.05}
 
 
 class Parser(argparse.ArgumentParser):
@@ -47,22 +56,25 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
         metavar="H",
         help=f"foot lift h_s [m] (default {d.lift_height})",
     )
+    s = SUPPORTED_GAIT
     g.add_argument(
         "--hip-height",
         type=float,
-        default=d.hip_height,
+        default=None,
         metavar="HS",
-        help=f"hip height above the belt H_s [m] (default {d.hip_height})",
+        help=f"hip height above the belt H_s [m] (default {d.hip_height}; "
+        f"{s['hip_height']:g} with simulate's --pelvis supported)",
     )
     g.add_argument(
         "--pelvis-excursion",
         type=float,
-        default=d.pelvis_excursion,
+        default=None,
         metavar="M",
         help="peak-to-peak rise and fall e of the hip over the gait cycle [m]: the hip at "
         "H_s + (e/2) cos(4π t / T_s), highest at mid-stance, lowest at the support transfers; "
         "beyond the paper, for a pelvis free to move vertically, about 0.04-0.05 in normal "
-        f"gait (default {d.pelvis_excursion:g}: the hip fixed)",
+        f"gait (default {d.pelvis_excursion:g}: the hip fixed; {s['pelvis_excursion']:g} with "
+        "simulate's --pelvis supported)",
     )
     g.add_argument(
         "--shape-coeff",
@@ -94,12 +106,20 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
 
 
 def gait_params_from(args: argparse.Namespace) -> GaitParams:
-    """GaitParams from the parsed gait options."""
+    """GaitParams from the parsed gait options.
+
+    Unset ``--hip-height`` and ``--pelvis-excursion`` take GaitParams' defaults,
+    or :data:`SUPPORTED_GAIT`'s with ``simulate --pelvis supported``.
+    """
+    supported = getattr(args, "pelvis", "fixed") == "supported"
+    d = SUPPORTED_GAIT if supported else asdict(GaitParams())
+    hip = args.hip_height if args.hip_height is not None else d["hip_height"]
+    excursion = args.pelvis_excursion
     return GaitParams(
         step_length=args.step_length,
         lift_height=args.lift_height,
-        hip_height=args.hip_height,
-        pelvis_excursion=args.pelvis_excursion,
+        hip_height=hip,
+        pelvis_excursion=excursion if excursion is not None else d["pelvis_excursion"],
         shape_coeff=args.shape_coeff,
         period=args.period,
         duty_factor=args.duty_factor,
