@@ -72,6 +72,7 @@ References:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -195,15 +196,8 @@ class ActiveParams:
         """The patient's own gait: the device's with their step length and period."""
         step = self.step_length_m if self.step_length_m is not None else device.step_length
         period = self.period_s if self.period_s is not None else device.period
-        return GaitParams(
-            step_length=step,
-            lift_height=device.lift_height,
-            hip_height=device.hip_height,
-            shape_coeff=device.shape_coeff,
-            period=period,
-            duty_factor=device.duty_factor,
-            pelvis_excursion=device.pelvis_excursion,  # the shared pelvis rises as the device's
-        )
+        # Every other parameter the device's (the shared pelvis rises as the device's).
+        return dataclasses.replace(device, step_length=step, period=period)
 
 
 #: The active patient's record: parameters, the reference of the last call

@@ -202,22 +202,6 @@ def moving_mass_kg(params: PelvisParams, exo: pin.Model) -> float:
     return params.body_mass + float(pin.computeTotalMass(exo)) + float(exo.inertias[0].mass)
 
 
-def pelvis_rest(params: PelvisParams, mass_kg: float, gravity: float, contact: Any) -> float:
-    """The pelvis height z at rest on both feet [m]: 2 k (−z)ⁿ = M g − F_s.
-
-    Args:
-        params: the support.
-        mass_kg: M, the mass the guide moves [kg].
-        gravity: g [m/s²].
-        contact: the contact parameters (k [N/mⁿ], n).
-
-    """
-    load = mass_kg * gravity - params.support_N
-    if load <= 0.0:  # cannot happen with β_s ≤ 1: the legs weigh something
-        return 0.0
-    return -((load / (2.0 * contact.stiffness_N_per_m_n)) ** (1.0 / contact.exponent))
-
-
 @kernel
 def pelvis_drift(pel: Any, h: float) -> None:
     """z½ = z + (h/2) ż, ż½ = ż + (h/2) z̈⁻; the stops' and the support's force at z½."""

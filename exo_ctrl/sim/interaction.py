@@ -45,9 +45,10 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import kernel
-from ..control.modes.path import PathController, leg_table
+from .._jit import kernel, record
+from ..control.modes.path import PathController
 from ..model import JOINT_NAMES, SIDES, BodyModel
+from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
 from ..plan.kinematics import JointTrajectory
 from .config import SimConfig
 
@@ -68,8 +69,8 @@ class PathReference:
         foot_pos: the planned foot path per plan row, (rows, 2 legs, x/z)
             [m] from the hips.
         q_plan: the planned joint angles per plan row, (rows, 4) [rad].
-        legs: the TRUE exoskeleton's legs (left, right): l1, l2 [m], s_h,
-            s_k, φ1⁰, φ2⁰ [rad] (:func:`~exo_ctrl.control.modes.path.leg_table`).
+        legs: the TRUE exoskeleton's legs: a record of
+            :data:`~exo_ctrl.model.leg_kernels.LEG_FIELDS`.
         window: W, the controller's search window [rows].
         row_rule: the plan's (lead, period, tail) [rows, ticks].
         width_m: the tunnel's half-width w [m].
@@ -87,30 +88,16 @@ class PathReference:
     def of(cls, controller: PathController, plan: JointTrajectory, exo: BodyModel) -> PathReference:
         """The reference of a path controller on ``plan``, measured on the true ``exo``."""
         rec = controller.record[0]
+        legs = record(LEG_FIELDS)
+        fill_legs(legs[0], exo)
         return cls(
             foot_pos=np.asarray(plan.foot_pos, dtype=float),
             q_plan=np.asarray(plan.q, dtype=float),
-            legs=leg_table(exo),
+            legs=legs,
             window=int(rec["window"]),
             row_rule=plan.row_rule,
             width_m=float(rec["width"]),
         )
-
-
-def feet_in_hip(legs: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Feet from the hips, (n, 2 legs, x/z) [m], of joint angles q (n, 4) [rad].
-
-    p = (l1 cos φ1 + l2 cos φ2, l1 sin φ1 + l2 sin φ2), φ1 = φ1⁰ + s_h q_h,
-    φ2 = φ2⁰ + s_h q_h + s_k q_k (:mod:`exo_ctrl.control.modes.path`).
-    """
-    out = np.empty((q.shape[0], 2, 2))
-    for leg in range(2):
-        l1, l2, sh, sk, p10, p20 = legs[leg]
-        phi1 = p10 + sh * q[:, 2 * leg]
-        phi2 = p20 + sh * q[:, 2 * leg] + sk * q[:, 2 * leg + 1]
-        out[:, leg, 0] = l1 * np.cos(phi1) + l2 * np.cos(phi2)
-        out[:, leg, 1] = l1 * np.sin(phi1) + l2 * np.sin(phi2)
-    return out
 
 
 def path_distances(
@@ -179,11 +166,7 @@ def _distances(pos, legs, q, phase, ticks, window, lead, period, tail, out):  # 
             else:
                 r = min(phase[n] - window + i + 1, last) if phase[n] - window + i + 1 > 0 else 0
         for leg in range(2):
-            l1, l2, sh, sk = legs[leg, 0], legs[leg, 1], legs[leg, 2], legs[leg, 3]
-            p1 = legs[leg, 4] + sh * q[n, 2 * leg]
-            p2 = legs[leg, 5] + sh * q[n, 2 * leg] + sk * q[n, 2 * leg + 1]
-            px = l1 * np.cos(p1) + l2 * np.cos(p2)
-            pz = l1 * np.sin(p1) + l2 * np.sin(p2)
+            px, pz, _, _, _, _ = foot_point(legs[0], leg, q[n, 2 * leg], q[n, 2 * leg + 1])
             best = np.inf
             for i in range(span):
                 dx, dz = px - pos[rows[i], leg, 0], pz - pos[rows[i], leg, 1]

@@ -75,7 +75,7 @@ def _swing_top_row(ctrl: PathController, leg: int) -> int:
 def test_forward_kinematics_and_jacobian_of_the_device_model() -> None:
     """p(q) at the plan's angles is the plan's foot; J = ∂p/∂q by central differences."""
     s = _setup()
-    legs = _controller().record["legs"][0]
+    legs = _controller().record[0]
     out, worst_p, worst_j = np.empty(8), 0.0, 0.0
     for row in range(0, s.plan.q.shape[0], 97):
         for leg in range(2):
@@ -121,7 +121,7 @@ def test_a_foot_outside_meets_the_wall_of_its_stiffness(depth: float) -> None:
     """
     ctrl = _controller()
     k, w = PARAMS.wall_stiffness_N_per_m, PARAMS.tunnel_width_m
-    legs = ctrl.record["legs"][0]
+    legs = ctrl.record[0]
     for leg, (row, tol) in enumerate(
         ((_stance_row(ctrl, 0), 1e-9), (_swing_top_row(ctrl, 1), 1e-2))
     ):

@@ -59,7 +59,8 @@ import numpy as np
 from ... import _validate as v
 from ..._jit import Status, check, kernel, record
 from ...exceptions import InvalidParameter
-from ...model import SIDES, BodyModel
+from ...model import BodyModel
+from ...model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
 from ...plan.kinematics import JointTrajectory
 from ...plan.rows import plan_row
 from ...plant.drive import MotorParams
@@ -69,7 +70,7 @@ from ..base import COMMAND_FIELDS, CommandCounters
 from .controller import InteractionController
 from .params import ModeParams
 
-__all__ = ["PATH_FIELDS", "PathController", "PathParams", "leg_table", "path_command"]
+__all__ = ["PATH_FIELDS", "PathController", "PathParams", "path_command"]
 
 
 @dataclass(frozen=True)
@@ -115,8 +116,9 @@ class PathParams:
         set_(self, "search_window", w)
 
 
-#: The path mode's part of the record (after COMMAND_FIELDS): per leg l1, l2
-#: [m], s_h, s_k, φ1⁰, φ2⁰ [rad]; k [N/m], b [N·s/m], w [m], f_s [N]; the
+#: The path mode's part of the record (after COMMAND_FIELDS): the legs'
+#: geometry (:data:`~exo_ctrl.model.leg_kernels.LEG_FIELDS`); k [N/m],
+#: b [N·s/m], w [m], f_s [N]; the
 #: search window W and the plan's row rule (rows); the phase σ (a row of
 #: the period), progress (rows advanced in the periodic part), whether the
 #: periodic part began; what the last tick computed: the feet p [m] and ṗ
@@ -124,7 +126,7 @@ class PathParams:
 #: wall and support forces on the feet [N], τ_path [N·m], the phase row;
 #: scratch for the kernel (a leg's kinematics, a nearest point).
 PATH_FIELDS: list[tuple[Any, ...]] = [
-    ("legs", np.float64, (2, 6)),
+    *LEG_FIELDS,
     ("stiffness", np.float64),
     ("damping", np.float64),
     ("width", np.float64),
@@ -147,22 +149,6 @@ PATH_FIELDS: list[tuple[Any, ...]] = [
     ("kin", np.float64, (8,)),
     ("near", np.float64, (3,)),
 ]
-
-
-def leg_table(exo: BodyModel) -> np.ndarray:
-    """Per leg (left, right): l1, l2 [m], s_h, s_k, φ1⁰, φ2⁰ [rad] of the model, (2, 6)."""
-    out = np.empty((2, 6))
-    for i, side in enumerate(SIDES):
-        g = exo.legs[side]
-        out[i] = (
-            g.thigh_length,
-            g.shank_length,
-            g.sign_hip,
-            g.sign_knee,
-            g.phi1_zero,
-            g.phi2_zero,
-        )
-    return out
 
 
 class PathController(CommandCounters):
@@ -202,7 +188,7 @@ class PathController(CommandCounters):
         self._free = InteractionController("transparent", modes, plan, exo, motor, dt=dt)
         self.record = rec = record(COMMAND_FIELDS + PATH_FIELDS)
         s = rec[0]
-        s["legs"] = leg_table(exo)
+        fill_legs(s, exo)
         s["stiffness"] = params.wall_stiffness_N_per_m
         s["damping"] = params.wall_damping_N_s_per_m
         s["width"] = params.tunnel_width_m
@@ -240,21 +226,14 @@ class PathController(CommandCounters):
 
 
 @kernel
-def foot_kinematics(legs, leg, qh, qk, wh, wk, out):  # pragma: no cover - compiled
+def foot_kinematics(g, leg, qh, qk, wh, wk, out):  # pragma: no cover - compiled
     """Foot p, ṗ and the Jacobian J (module docstring) of leg ``leg`` into ``out`` (8,).
 
+    ``g``: a record element with the legs' geometry (``LEG_FIELDS``;
+    :func:`~exo_ctrl.model.leg_kernels.foot_point` computes p and J);
     ``out`` = (x, z, ẋ, ż, J₀₀, J₁₀, J₀₁, J₁₁): J's columns ∂p/∂q_h, ∂p/∂q_k.
     """
-    l1, l2, sh, sk = legs[leg, 0], legs[leg, 1], legs[leg, 2], legs[leg, 3]
-    p1 = legs[leg, 4] + sh * qh
-    p2 = legs[leg, 5] + sh * qh + sk * qk
-    c1, s1, c2, s2 = np.cos(p1), np.sin(p1), np.cos(p2), np.sin(p2)
-    out[0] = l1 * c1 + l2 * c2
-    out[1] = l1 * s1 + l2 * s2
-    out[4] = sh * (-l1 * s1 - l2 * s2)
-    out[5] = sh * (l1 * c1 + l2 * c2)
-    out[6] = sk * (-l2 * s2)
-    out[7] = sk * (l2 * c2)
+    out[0], out[1], out[4], out[6], out[5], out[7] = foot_point(g, leg, qh, qk)
     out[2] = out[4] * wh + out[6] * wk
     out[3] = out[5] * wh + out[7] * wk
 
@@ -325,7 +304,7 @@ def path_command(state, free, k, q, pos, tan):  # pragma: no cover - compiled
     kin = s.kin
     for leg in range(2):
         foot_kinematics(
-            s.legs, leg, q[2 * leg], q[2 * leg + 1], f.speed[2 * leg], f.speed[2 * leg + 1], kin
+            s, leg, q[2 * leg], q[2 * leg + 1], f.speed[2 * leg], f.speed[2 * leg + 1], kin
         )
         s.foot[leg, 0], s.foot[leg, 1] = kin[0], kin[1]
         s.foot_vel[leg, 0], s.foot_vel[leg, 1] = kin[2], kin[3]
@@ -371,7 +350,7 @@ def path_command(state, free, k, q, pos, tan):  # pragma: no cover - compiled
         s.wall_force[leg, 0], s.wall_force[leg, 1] = fx, fz
         sx, sz = s.support * tan[row, leg, 0], s.support * tan[row, leg, 1]
         s.support_force[leg, 0], s.support_force[leg, 1] = sx, sz
-        foot_kinematics(s.legs, leg, q[2 * leg], q[2 * leg + 1], 0.0, 0.0, kin)
+        foot_kinematics(s, leg, q[2 * leg], q[2 * leg + 1], 0.0, 0.0, kin)
         s.tau_path[2 * leg] = kin[4] * (fx + sx) + kin[5] * (fz + sz)
         s.tau_path[2 * leg + 1] = kin[6] * (fx + sx) + kin[7] * (fz + sz)
     dr = f.drive
