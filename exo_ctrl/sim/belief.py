@@ -34,6 +34,11 @@ bench measures them, isotropic (default :meth:`CuffParams.isotropic`: the
 paper's 8 N/mm, 100 N·s/m): the device cannot know how much softer the
 patient's soft tissue is in shear than across the link
 (:class:`~exo_ctrl.plant.cuffs.CuffParams`, the truth's split cuffs).
+The treadmill's datasheet (belt and rollers' equivalent mass, the drive's
+force limit; what the supervisor's belt monitor predicts the belt with) is
+the installed treadmill's nominal values by default
+(:attr:`~exo_ctrl.plant.contact.ContactParams.belt`), a parameter set of its
+own, so that a belt heavier or lighter than its datasheet can be studied.
 
 Either way the device's models are objects of their own, never the plant's.
 """
@@ -47,7 +52,7 @@ from pathlib import Path
 from .. import _validate as v
 from ..exceptions import InvalidParameter
 from ..model import SEXES, BodyModel, load_exo, load_patient, nominal_patient, write_urdf
-from ..plant import CuffParams, MotorParams
+from ..plant import BeltParams, CuffParams, MotorParams
 
 __all__ = ["PAPER_PATIENT", "PATIENT_BELIEFS", "Belief", "device_models"]
 
@@ -76,10 +81,12 @@ class Belief:
         cuffs: the cuff model the device holds (None:
             :meth:`~exo_ctrl.plant.cuffs.CuffParams.isotropic`, the cuffs'
             nominal 8 N/mm and 100 N·s/m in every direction).
+        belt: the treadmill's datasheet the device holds (None: the nominal
+            values of the run's belt, ``SimConfig.contact.belt``).
 
     Raises:
-        InvalidParameter: an unknown sex, a height or mass not > 0, a motor
-            or cuffs that are not parameter sets.
+        InvalidParameter: an unknown sex, a height or mass not > 0, a motor,
+            cuffs or belt that are not parameter sets.
 
     """
 
@@ -90,6 +97,7 @@ class Belief:
     patient_sex: str = "male"
     motor: MotorParams | None = None
     cuffs: CuffParams | None = None
+    belt: BeltParams | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.patient, str) or not self.patient:
@@ -113,6 +121,8 @@ class Belief:
             raise InvalidParameter("belief motor", self.motor, "a MotorParams or None")
         if self.cuffs is not None and not isinstance(self.cuffs, CuffParams):
             raise InvalidParameter("belief cuffs", self.cuffs, "a CuffParams or None")
+        if self.belt is not None and not isinstance(self.belt, BeltParams):
+            raise InvalidParameter("belief belt", self.belt, "a BeltParams or None")
 
     @property
     def cuff_model(self) -> CuffParams:
@@ -128,6 +138,16 @@ class Belief:
 
         """
         return self.motor if self.motor is not None else installed
+
+    def belt_model(self, installed: BeltParams) -> BeltParams:
+        """The treadmill datasheet the device believes in: ``belt``, or the installed one's.
+
+        Args:
+            installed: the run's belt (``SimConfig.contact.belt``): its nominal
+                values are the datasheet's.
+
+        """
+        return self.belt if self.belt is not None else installed
 
 
 def device_models(

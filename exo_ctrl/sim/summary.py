@@ -337,6 +337,7 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
     others), ``exo`` (the URDF the device holds, None: the true one's file),
     ``drive`` (``"datasheet"``: the installed drive's nominal values, or
     ``"given"``), ``cuffs`` (``"isotropic"``, the nominal default, or
+    ``"given"``), ``belt`` (the treadmill's datasheet: ``"datasheet"`` or
     ``"given"``), ``estimator``, ``plan`` (``"synchronised"`` with the
     measured belt, or ``"precomputed"``) and ``safety_cuff_force`` (``"estimate"``,
     or ``"truth"``: the plant's forces, a sensor per cuff).
@@ -351,6 +352,7 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
         "exo": b.exo,
         "drive": "datasheet" if b.motor is None else "given",
         "cuffs": "isotropic" if b.cuffs is None else "given",
+        "belt": "datasheet" if b.belt is None else "given",
         "estimator": config.estimator,
         "plan": "synchronised" if config.synced else "precomputed",
         "safety_cuff_force": "estimate" if config.safety_use_estimate else "truth",

@@ -154,7 +154,10 @@ class Runner:
                 sensors=config.sensors,
                 compliant_drives=config.joint_compliance.enabled,
                 belt=BeltMonitor(
-                    self.belt_encoder, self.foot_load, self.belt_drive_force, config.contact.belt
+                    self.belt_encoder,
+                    self.foot_load,
+                    self.belt_drive_force,
+                    config.belief.belt_model(config.contact.belt),
                 )
                 if config.safety and setup.belt_speed is not None
                 else None,

@@ -82,6 +82,7 @@ FULL = SimConfig(
         patient_mass_kg=78.0,
         motor=MotorParams(gear_ratio=118.0),
         cuffs=CuffParams(),
+        belt=BeltParams(mass_kg=22.0),
     ),
     faults=(Fault("torque_bias_step", 0.15, "left_knee", magnitude=1.0),),
     modes=ModeParams(guidance=0.6),

@@ -18,10 +18,13 @@ import pytest
 from exo_ctrl import cli
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import BodyParams, nominal_patient, write_urdf
+from exo_ctrl.plan import GaitParams
+from exo_ctrl.plant import BeltParams, ContactParams, PelvisParams
 from exo_ctrl.plant.motor import MotorBank
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sim.setup import build
+from exo_ctrl.sim.tick import Runner
 
 SHORT = {"duration_s": 1.8, "safety": False}
 
@@ -188,3 +191,37 @@ def test_the_cli_runs_a_nominal_model_and_refuses_a_missing_file(tmp_path: Path,
     err = capsys.readouterr().err
     assert err.startswith("exo-ctrl simulate: error: ") and str(missing) in err
     assert err.count("\n") == 1
+
+
+def test_the_belt_monitor_holds_the_treadmills_datasheet_not_the_belt() -> None:
+    """The supervisor predicts the belt with the datasheet the device holds (Belief.belt).
+
+    The truth's belt (20 kg) under a device told it weighs half that: the monitor's record
+    holds 1/10 kg⁻¹ while the plant moves 20 kg; on a supported-pelvis run the feet's
+    friction (hundreds of newtons) is then predicted to move the belt twice as fast as it
+    does, and the monitor, quiet with the right datasheet, trips on the healthy run.
+    """
+
+    def run(belief: Belief) -> tuple[Runner, dict]:
+        config = SimConfig(
+            controller="ct",
+            contact=ContactParams(enabled=True),
+            pelvis=PelvisParams(supported=True, bws_fraction=0.5),
+            gait=GaitParams(hip_height=1.0, pelvis_excursion=0.05),
+            sync=True,
+            duration_s=3.0,
+            belief=belief,
+        )
+        runner = Runner(build(config))
+        return runner, simulate(config).summary()
+
+    true_mass = BeltParams().mass_kg
+    light = Belief(belt=BeltParams(mass_kg=0.5 * true_mass))
+    runner, wrong = run(light)
+    assert runner.supervisor._belt[3]["inv_m"][0] == pytest.approx(2.0 / true_mass, rel=1e-15)
+    assert runner.setup.plant.contact.belt["mass"][0] == pytest.approx(true_mass)
+    _, right = run(Belief())
+    assert right["safety_state"] == "normal" and right["device_belief"]["belt"] == "datasheet"
+    assert wrong["device_belief"]["belt"] == "given"
+    assert wrong["safety_state"] != "normal"
+    assert "belt" in wrong["safety_events"][0]["message"]
