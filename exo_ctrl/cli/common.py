@@ -23,11 +23,15 @@ __all__ = [
 ]
 
 
-#: The gait's hip height H_s and excursion e [m] by default with the pelvis
-#: supported: the 0.52 + 0.52 m legs extend to 19.5° of knee flexion at
-#: mid-stance (36° at the transfers; a 0.90 m fixed hip walks a 56–60° crouch,
-#: tests/plan/test_hip_excursion.py), 13.7 mm within the leg's reach.
-SUPPORTED_GAIT = {"hip_height": 1.0, "pelvis_excursion": 0.05}
+#: The gait's hip height H_s and excursion e [m] and duty factor β by default
+#: with the pelvis supported: the 0.52 + 0.52 m legs extend to 19.5° of knee
+#: flexion at mid-stance (36° at the transfers; a 0.90 m fixed hip walks a
+#: 56–60° crouch, tests/plan/test_hip_excursion.py), 13.7 mm within the leg's
+#: reach; β = 0.6, normal walking's 60 % stance (Perry & Burnfield, Gait
+#: Analysis, 2nd ed. 2010, ch. 1), so that the load passes from foot to foot
+#: over a double support and the plan's loading phase can sink the loaded
+#: foot (:mod:`exo_ctrl.plan.loading`).
+SUPPORTED_GAIT = {"hip_height": 1.0, "pelvis_excursion": 0.05, "duty_factor": 0.6}
 
 
 class Parser(argparse.ArgumentParser):
@@ -93,9 +97,10 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--duty-factor",
         type=float,
-        default=d.duty_factor,
+        default=None,
         metavar="B",
-        help=f"stance fraction β of the period, no unit (default {d.duty_factor})",
+        help=f"stance fraction β of the period, no unit (default {d.duty_factor}; "
+        f"{s['duty_factor']:g} with simulate's --pelvis supported)",
     )
     g.add_argument(
         "--exo",
@@ -108,8 +113,8 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
 def gait_params_from(args: argparse.Namespace) -> GaitParams:
     """GaitParams from the parsed gait options.
 
-    Unset ``--hip-height`` and ``--pelvis-excursion`` take GaitParams' defaults,
-    or :data:`SUPPORTED_GAIT`'s with ``simulate --pelvis supported``.
+    Unset ``--hip-height``, ``--pelvis-excursion`` and ``--duty-factor`` take
+    GaitParams' defaults, or :data:`SUPPORTED_GAIT`'s with ``simulate --pelvis supported``.
     """
     supported = getattr(args, "pelvis", "fixed") == "supported"
     d = SUPPORTED_GAIT if supported else asdict(GaitParams())
@@ -122,7 +127,7 @@ def gait_params_from(args: argparse.Namespace) -> GaitParams:
         pelvis_excursion=excursion if excursion is not None else d["pelvis_excursion"],
         shape_coeff=args.shape_coeff,
         period=args.period,
-        duty_factor=args.duty_factor,
+        duty_factor=args.duty_factor if args.duty_factor is not None else d["duty_factor"],
     )
 
 

@@ -22,6 +22,7 @@ from .kinematics import (
     joint_rates,
     plan_joints,
 )
+from .loading import StanceSink
 from .online import OnlineGait
 from .profile import SpeedProfile
 from .ramp import Ramp, RampedGait, smoothstep
@@ -41,6 +42,7 @@ __all__ = [
     "RowLayout",
     "SpeedAdaptation",
     "SpeedProfile",
+    "StanceSink",
     "calibration_plan",
     "fill_rows",
     "forward_kinematics",

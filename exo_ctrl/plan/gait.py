@@ -63,6 +63,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..exceptions import InvalidParameter, UnreachableFootTarget
+from .loading import StanceSink, sink_samples
 
 __all__ = ["FootTrajectory", "GaitParams", "GaitPlan"]
 
@@ -183,11 +184,15 @@ class GaitPlan:
 
     Args:
         params: the gait.
+        sink: the stance feet's loading sink (:mod:`exo_ctrl.plan.loading`;
+            with a supported pelvis and double support, β > ½); None: the
+            stance foot on the belt line (the paper's).
 
     """
 
-    def __init__(self, params: GaitParams) -> None:
+    def __init__(self, params: GaitParams, sink: StanceSink | None = None) -> None:
         self.params = params
+        self.sink = sink if sink is not None and params.duty_factor > 0.5 else None
         p = params
         half_swing = p.swing_time / 2.0
         self._half_swing = half_swing
@@ -222,6 +227,11 @@ class GaitPlan:
         if self.params.pelvis_excursion > 0.0:  # relative to the moving hip: z - ΔH
             for rows, d in zip((pos, vel, acc), self.hip(t), strict=True):
                 rows[:, :, 1] -= d[:, None]
+        if self.sink is not None:  # into the belt by the load's sink: z - Δs
+            for leg, rows in enumerate(self.sinks(t)):
+                pos[:, leg, 1] -= rows[:, 0]
+                vel[:, leg, 1] -= rows[:, 1]
+                acc[:, leg, 1] -= rows[:, 2]
         return FootTrajectory(t=t, pos=pos, vel=vel, acc=acc, stance=stance)
 
     def hip(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -236,6 +246,24 @@ class GaitPlan:
         arg = omega * np.mod(t, p.period)
         c, s = np.cos(arg), np.sin(arg)
         return half * c, -half * omega * s, -half * omega * omega * c
+
+    def sinks(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each leg's planned sink Δs [m] and its rates [m/s, m/s²] at ``t``, (N, 3) each.
+
+        Zeros without a :class:`~exo_ctrl.plan.loading.StanceSink`.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        p = self.params
+        out = (np.zeros((t.shape[0], 3)), np.zeros((t.shape[0], 3)))
+        if self.sink is None:
+            return out
+        params = self.sink.kernel_params()
+        hip = np.mod(t, p.period) / p.period
+        for leg, offset in enumerate((0.0, 0.5 * p.period)):
+            tau = np.mod(t + offset, p.period) / p.period
+            rate = 1.0 / p.period
+            sink_samples(params, tau, hip, p.duty_factor, rate, p.pelvis_excursion, out[leg])
+        return out
 
     def _leg(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         p = self.params
@@ -287,12 +315,12 @@ class GaitPlan:
             return
         p = self.params
         if p.pelvis_excursion > 0.0:
-            fixed = GaitPlan(dataclasses.replace(p, pelvis_excursion=0.0))
+            fixed = GaitPlan(dataclasses.replace(p, pelvis_excursion=0.0), self.sink)
             if fixed._reach_error(thigh_length, shank_length, side) is None:
                 lo, hi = 0.0, p.pelvis_excursion
                 while hi - lo > 1e-6:
                     mid = 0.5 * (lo + hi)
-                    trial = GaitPlan(dataclasses.replace(p, pelvis_excursion=mid))
+                    trial = GaitPlan(dataclasses.replace(p, pelvis_excursion=mid), self.sink)
                     if trial._reach_error(thigh_length, shank_length, side) is None:
                         lo = mid
                     else:

@@ -49,6 +49,11 @@ at x = 0.  With a ramp-in the belt starts at rest and the step L = v̄ β T
 grows with the belt's speed: the gait ramps in with the belt and no foot
 slides (the precomputed ramp's stance feet slide up to 0.27 m/s).
 
+**Loading sink** (a supported pelvis with double support,
+:mod:`exo_ctrl.plan.loading`): each foot's z relative to the hip also
+subtracts its planned sink Δs(τ) at the rate r, z = -H_s + σ (Z - ΔH - Δs),
+through the same chain rule.
+
 **Inverse kinematics** is the closed form of
 :mod:`exo_ctrl.plan.kinematics`, in the same compiled kernel.
 """
@@ -65,6 +70,7 @@ from ..model import SIDES, BodyModel
 from ..model.leg_kernels import LEG_FIELDS, fill_legs
 from .adapt import SpeedAdaptation
 from .kinematics import JointTrajectory
+from .loading import StanceSink, sink_phase
 from .profile import SpeedProfile, profile_at
 
 __all__ = ["FILTER_S", "FREEZE_S", "MAX_PROFILE_POINTS", "ONLINE_FIELDS", "OnlineGait"]
@@ -91,7 +97,9 @@ FREEZE_S = 0.02
 #: ``fail_r`` [m] (an unreachable point).  The profile: ``n_prof`` points
 #: ``prof_t`` [s], ``prof_v`` [m/s].  ``out``: row 0 of the plan, q, q̇, q̈, φ
 #: (4 each), foot position and velocity (2 × 2 each), flat; ``hip``: the hip's
-#: planned rise σ ΔH [m] and its rates [m/s, m/s²] at the same tick.
+#: planned rise σ ΔH [m] and its rates [m/s, m/s²] at the same tick; ``sink``
+#: the loading sink's parameters (:meth:`~exo_ctrl.plan.loading.StanceSink.kernel_params`)
+#: and ``sink_on`` 1 when the stance feet are planned into the belt.
 ONLINE_FIELDS = [
     ("dt", np.float64),
     ("law", np.float64, (5,)),
@@ -108,6 +116,8 @@ ONLINE_FIELDS = [
     ("prof_v", np.float64, (MAX_PROFILE_POINTS,)),
     ("out", np.float64, (24,)),
     ("hip", np.float64, (3,)),
+    ("sink", np.float64, (5,)),
+    ("sink_on", np.int64),
 ]
 
 
@@ -121,6 +131,8 @@ class OnlineGait:
             (the device's exoskeleton model).
         dt: control period Δt [s].
         ramp_in_s: T_r of the lift's ramp-in [s] (0: none).
+        sink: the stance feet's loading sink (:mod:`exo_ctrl.plan.loading`;
+            used with double support, β > ½); None: on the belt line.
 
     Attributes:
         plan: the one-row plan the controllers read (overwritten each tick).
@@ -134,6 +146,7 @@ class OnlineGait:
         body: BodyModel,
         dt: float,
         ramp_in_s: float = 0.0,
+        sink: StanceSink | None = None,
     ) -> None:
         self.law = law
         gait = law.reference
@@ -152,6 +165,8 @@ class OnlineGait:
         g["kv"], g["H"], g["h"] = gait.shape_coeff, gait.hip_height, gait.lift_height
         g["ramp_in"], g["filt"] = float(ramp_in_s), FILTER_S
         g["exc"] = gait.pelvis_excursion
+        if sink is not None and gait.duty_factor > 0.5:
+            g["sink"], g["sink_on"] = sink.kernel_params(), 1
         fill_legs(g, body)
         out = self.record["out"][0]  # the plan's arrays are views of the record's row
         self.plan = JointTrajectory(
@@ -377,6 +392,9 @@ def _write_leg(g, leg, tau, r, dr, a_belt, t) -> int:  # pragma: no cover - comp
     if g.exc > 0.0:  # relative to the moving hip: Z - ΔH
         h, h1, h2 = _rise(g.phase[0], g.exc)  # one hip: the left leg's phase (ΔH has period ½)
         zz, z1, z2 = zz - h, z1 - h1, z2 - h2
+    if g.sink_on:  # into the belt by the load's sink: Z - ΔH - Δs
+        s0, s1, s2 = sink_phase(g.sink, tau, g.phase[0], beta, r, g.exc)
+        zz, z1, z2 = zz - s0, z1 - s1, z2 - s2
     z = -g.H + sig * zz
     dz = dsig * zz + sig * z1 * r
     ddz = ddsig * zz + 2.0 * dsig * z1 * r + sig * (z2 * r * r + z1 * dr)

@@ -26,9 +26,11 @@ from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..plan import (
     NO_TAIL,
+    GaitPlan,
     JointTrajectory,
     OnlineGait,
     RampedGait,
+    StanceSink,
     calibration_plan,
     plan_joints,
 )
@@ -103,11 +105,14 @@ def build(config: SimConfig) -> Setup:
     rows = config.plan_layout
     motor = drive_for(config.motor, exo)
     online = None
+    model_exo, model_patient = device_models(config.belief, config.exo, config.patient, fitted)
+    sink = stance_sink_for(config, model_exo)
     if config.exercise == "calibration":
         times = rows.ticks() * config.dt
         plan = calibration_plan(exo, times, config.duration_s, config.gait.hip_height)
     elif not config.synced:
-        plan = plan_joints(RampedGait(config.gait, config.ramp), exo, rows.ticks() * config.dt)
+        gait = GaitPlan(config.gait, sink)
+        plan = plan_joints(RampedGait(gait, config.ramp), exo, rows.ticks() * config.dt)
     if rows.period and not config.synced:
         tail = None if rows.tail == NO_TAIL else rows.tail
         plan = dataclasses.replace(
@@ -115,9 +120,8 @@ def build(config: SimConfig) -> Setup:
         )
     if not config.synced:  # the online plan's speeds are checked by online_gait
         check_followable(config, plan, exo, patient, motor)
-    model_exo, model_patient = device_models(config.belief, config.exo, config.patient, fitted)
     if config.synced:  # generated each tick from the measured belt speed (sim/sync.py)
-        online = online_gait(config, exo, patient, motor, model_exo, check_followable)
+        online = online_gait(config, exo, patient, motor, model_exo, check_followable, sink)
         plan = online.plan
     # The device's drive: its datasheet, a parameter set of its own (a copy
     # when it is the installed drive's nominal values).
@@ -241,6 +245,26 @@ def stance_load_for(config: SimConfig, model_exo: BodyModel) -> StanceLoad | Non
         moving_mass_kg(pelvis, model_exo.model),
         pelvis.support_N,
         -float(model_exo.model.gravity.linear[2]),
+    )
+
+
+def stance_sink_for(config: SimConfig, model_exo: BodyModel) -> StanceSink | None:
+    """The plan's loading sink (:mod:`exo_ctrl.plan.loading`): a supported pelvis, else None.
+
+    The static load W₀ = M g − F_s and the moving mass M as the device holds
+    them (:func:`stance_load_for`), k and n of the soles on the belt (the
+    contact law's datasheet values).  The plan uses it with double support
+    (β > ½) only.
+    """
+    load = stance_load_for(config, model_exo)
+    if load is None or not config.contact.enabled:
+        return None
+    contact = config.contact
+    return StanceSink(
+        max(0.0, load.mass_kg * load.gravity_mps2 - load.support_N),
+        load.mass_kg,
+        contact.stiffness_N_per_m_n,
+        contact.exponent,
     )
 
 

@@ -23,11 +23,13 @@ import numpy as np
 from ..exceptions import ExoCtrlError, InvalidParameter
 from ..model import BodyModel
 from ..plan import (
+    GaitPlan,
     OnlineGait,
     Ramp,
     RampedGait,
     SpeedAdaptation,
     SpeedProfile,
+    StanceSink,
     max_step_length,
     plan_joints,
 )
@@ -47,6 +49,7 @@ def online_gait(
     motor: MotorParams,
     device_exo: BodyModel,
     check: Callable[..., None],
+    sink: StanceSink | None = None,
 ) -> OnlineGait:
     """The run's online generator, its profile checked first.
 
@@ -58,6 +61,7 @@ def online_gait(
         device_exo: the device's exoskeleton model: the generator's kinematics.
         check: the check of a plan's joint speeds
             (:func:`~exo_ctrl.sim.setup.check_followable`).
+        sink: the stance feet's loading sink (:mod:`exo_ctrl.plan.loading`), or None.
 
     Raises:
         InvalidParameter: a profile speed the leg cannot reach or the drives
@@ -65,8 +69,8 @@ def online_gait(
 
     """
     law = SpeedAdaptation(config.gait, max_step_length(config.gait, exo))
-    check_profile(config, law, exo, patient, motor, check)
-    return OnlineGait(law, config.speed_profile, device_exo, config.dt, config.ramp_in)
+    check_profile(config, law, exo, patient, motor, check, sink)
+    return OnlineGait(law, config.speed_profile, device_exo, config.dt, config.ramp_in, sink)
 
 
 def check_profile(
@@ -76,6 +80,7 @@ def check_profile(
     patient: BodyModel,
     motor: MotorParams,
     check: Callable[..., None],
+    sink: StanceSink | None = None,
 ) -> None:
     """Refuse a profile point whose adapted gait the leg or the drives cannot follow.
 
@@ -107,7 +112,8 @@ def check_profile(
             session=None,  # a profile point's check, not the session's run
         )
         try:
-            plan = plan_joints(RampedGait(gait, Ramp(ramp_in)), exo, np.linspace(0.0, span, n))
+            ramped = RampedGait(GaitPlan(gait, sink), Ramp(ramp_in))
+            plan = plan_joints(ramped, exo, np.linspace(0.0, span, n))
             check(cfg, plan, exo, patient, motor)
         except ExoCtrlError as exc:
             cap = " (the longest the leg reaches)" if law.capped(speed) else ""

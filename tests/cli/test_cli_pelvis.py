@@ -20,6 +20,7 @@ def test_the_supported_pelvis_walks_the_extended_gait_by_default() -> None:
     assert config.pelvis.supported and config.pelvis.bws_fraction == 0.5
     assert config.gait.hip_height == SUPPORTED_GAIT["hip_height"] == 1.0
     assert config.gait.pelvis_excursion == SUPPORTED_GAIT["pelvis_excursion"] == 0.05
+    assert config.gait.duty_factor == SUPPORTED_GAIT["duty_factor"] == 0.6  # a double support
     # The knee at mid-stance: the leg H_s + e/2 long, straight below the hip.
     l1 = l2 = 0.52
     phi1, phi2 = inverse_kinematics(0.0, -(1.0 + 0.025), l1, l2)
@@ -29,9 +30,10 @@ def test_the_supported_pelvis_walks_the_extended_gait_by_default() -> None:
 def test_given_values_and_the_fixed_pelvis_keep_their_own() -> None:
     given = _config(
         "--contact", "on", "--pelvis", "supported", "--hip-height", "0.95",
-        "--pelvis-excursion", "0.02",
+        "--pelvis-excursion", "0.02", "--duty-factor", "0.5",
     )  # fmt: skip
     assert (given.gait.hip_height, given.gait.pelvis_excursion) == (0.95, 0.02)
+    assert given.gait.duty_factor == 0.5
     fixed = _config()
     assert fixed.gait == GaitParams()
 
