@@ -17,17 +17,27 @@ step length instead (below), where they cost nothing.  Segments as the
 paper's: swing A → B on [0, τ_B), stance on [τ_B, τ_D), swing D → A on
 [τ_D, 1), τ_B = (1 - β)/2, τ_D = (1 + β)/2.
 
-**Stance foot** (x forward, relative to the hip): ẋ = -v̄, x integrated
-from the measured speed v̂ low-passed to v̄ (time constant
-:data:`FILTER_S`), z = -H_s.  It moves with the belt by construction; the
-filter keeps the encoder's quantum (3.8 mm/s a count over its 10 ms window)
-out of the planned velocity, at the cost of a lag of :data:`FILTER_S` (2 mm/s
-while the belt accelerates at 0.1 m/s²).
+**Stance foot** (x forward, relative to the hip): ẋ = -v_l, x integrated
+from v_l = v̄ + (v_set − v̄_set): the measured speed v̂ low-passed to v̄ (time
+constant τ_f = :data:`FILTER_S`) and the lag the same filter puts on the set
+speed v_set = σ(t) v(t), added back (v̄_set: v_set low-passed alike; τ_f a
+on a ramp of rate a, continuous where the profile's rate steps), z = -H_s.
+It moves with the belt by construction; the filter keeps the encoder's
+quantum (3.8 mm/s a count over its 10 ms window) out of the planned
+velocity, and the lag it adds while the belt accelerates is cancelled as
+far as the belt follows its set speed.  Without
+that term the stance feet of the position-controlled legs, 20 ms behind a
+belt ramping up under 50 % body-weight support, held it back with 50–90 N,
+the belt's speed controller wound up and overshot the set speed by 18 %
+after the ramp-in, and the first touchdowns landed at 0.70 m/s along the
+belt (0.03 m/s with it; belt speed error RMS 0.047 → 0.019 m/s; measured
+with computed torque, ``exo-ctrl simulate --controller ct --contact on
+--pelvis supported --bws 0.5 --cycles 3``).
 
 **Swing foot, x**: a cubic re-solved every tick from the foot's present
 (x, ẋ) to its segment's end point in the time the phase leaves: D → A ends
-at the top (0, v̄ / k_v), A → B at touchdown (L / 2, -v̄), with the step
-L = v̄ β T(v) the stance will cover at the measured speed (filtered: the
+at the top (0, v_l / k_v), A → B at touchdown (L / 2, -v_l), with the step
+L = v_l β T(v) the stance will cover at the measured speed (filtered: the
 encoder's quantum would otherwise jolt the targets at the end of a segment,
 where the cubic's curvature goes as 1 / d²).  Position and velocity carry over from the
 present, so the paths are C¹ by construction; a cubic re-solved from a
@@ -90,7 +100,9 @@ FREEZE_S = 0.02
 #: ``kv``, ``H``, ``h`` [m], ``ramp_in`` T_r [s], ``filt`` [s], ``exc`` the hip
 #: excursion e [m]; per leg ``l1``,
 #: ``l2`` [m], ``s_h``, ``s_k``, ``phi1_0``, ``phi2_0``.  State: ``phase`` τ of
-#: each leg (the right leg's τ + ½), ``rate`` r [1/s], ``vbar`` v̄ [m/s], ``w``
+#: each leg (the right leg's τ + ½), ``rate`` r [1/s], ``vbar`` v̄ [m/s], ``vset_bar``
+#: the set speed low-passed alike and ``vlead`` v̄ + v_set − v̄_set, the speed planned
+#: [m/s], ``a_set`` the set speed's rate [m/s²], ``w``
 #: the touchdown point's speed [m/s], per
 #: leg ``x``, ``dx``, ``ddx`` [m, m/s, m/s²], the swing's end ``xe``, ``dxe``
 #: [m, m/s] and its segment ``seg`` (0 A → B, 2 D → A).  Diagnostics: ``fail_leg``,
@@ -106,7 +118,7 @@ ONLINE_FIELDS = [
     *((name, np.float64) for name in ("kv", "H", "h", "ramp_in", "filt", "exc")),
     *LEG_FIELDS,
     ("phase", np.float64, (2,)),
-    *((name, np.float64) for name in ("rate", "vbar", "w")),
+    *((name, np.float64) for name in ("rate", "vbar", "vset_bar", "vlead", "a_set", "w")),
     *((name, np.float64, (2,)) for name in ("x", "dx", "ddx", "xe", "dxe")),
     ("seg", np.int64, (2,)),
     ("fail_leg", np.int64),
@@ -320,11 +332,11 @@ def _write_hip(g, tau: float, r: float, dr: float, t: float) -> None:  # pragma:
 
 @kernel
 def _target(g, tau: float, r: float) -> tuple[float, float]:  # pragma: no cover - compiled
-    """The end (x, ẋ) of the swing segment τ is in: top (0, v̄/k_v) or touchdown (L/2, -v̄)."""
+    """The end (x, ẋ) of the swing segment τ is in: top (0, v_l/k_v) or touchdown (L/2, -v_l)."""
     beta = g.law[4]
     if tau >= 0.5 * (1.0 + beta):
-        return 0.0, g.vbar / g.kv
-    return 0.5 * g.vbar * beta / r, -g.vbar
+        return 0.0, g.vlead / g.kv
+    return 0.5 * g.vlead * beta / r, -g.vlead
 
 
 @kernel
@@ -333,15 +345,21 @@ def _swing(g, leg: int, tau: float, r: float, d: float, u: float):  # pragma: no
 
     The end point is the target now moved on at its present speed w for the
     ``d`` seconds left (the touchdown point moves while the step grows,
-    L = v̄ β / r; w = ``g.w``), so that re-solving each tick does not chase
-    it; in the last :data:`FREEZE_S` of a segment the end stays as it was
-    (the cubic then is followed as solved: its curvature grows as 1 / d²).
+    L = v_l β / r; w = ``g.w``), and its speed on at the set speed's rate
+    a_set (the stance will take v_l then, not now), so that re-solving each
+    tick does not chase it; in the last :data:`FREEZE_S` of a segment the
+    end stays as it was (the cubic then is followed as solved: its curvature
+    grows as 1 / d²).
     """
     seg = 0 if tau < 0.5 * (1.0 - g.law[4]) else 2
     if d > FREEZE_S or g.seg[leg] != seg:
         xt, dxt = _target(g, tau, r)
-        g.xe[leg] = xt + (g.w * d if seg == 0 else 0.0)
-        g.dxe[leg] = dxt
+        if seg == 0:
+            g.xe[leg] = xt + g.w * d
+            g.dxe[leg] = dxt - g.a_set * d
+        else:
+            g.xe[leg] = xt
+            g.dxe[leg] = dxt + g.a_set * d / g.kv
         g.seg[leg] = seg
     return _cubic(g.x[leg], g.dx[leg], g.xe[leg], g.dxe[leg], d, u)
 
@@ -438,12 +456,14 @@ def online_start(state: np.ndarray, v0: float) -> int:  # pragma: no cover - com
     n = g.n_prof
     v_ref, a_ref = profile_at(g.prof_t[:n], g.prof_v[:n], 0.0)
     r, dr = _rate(g.law, v_ref, a_ref)
-    g.rate, g.vbar = r, v0
+    g.rate, g.vbar, g.vlead = r, v0, v0
+    g.vset_bar = _ramp(0.0, g.ramp_in)[0] * v_ref
     g.phase[0], g.phase[1] = 0.0, 0.5
     g.x[0], g.dx[0] = 0.0, v0 / g.kv
     g.x[1], g.dx[1] = 0.0, -v0
     sig, dsig, _ = _ramp(0.0, g.ramp_in)
     a_belt = dsig * v_ref + sig * a_ref
+    g.a_set = a_belt
     g.w = 0.5 * g.law[4] * (a_belt - v0 * dr / r) / r
     g.seg[0], g.seg[1] = -1, -1
     g.ddx[0] = _swing(g, 0, 0.0, r, 0.5 * (1.0 - g.law[4]) / r, 0.0)[2]
@@ -467,12 +487,16 @@ def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no 
     r, dr = _rate(g.law, v_ref, a_ref)
     r_mid = 0.5 * (g.rate + r)
     g.vbar += (v_meas - g.vbar) * g.dt / (g.filt + g.dt)
+    v_set = _ramp(t, g.ramp_in)[0] * v_ref
+    g.vset_bar += (v_set - g.vset_bar) * g.dt / (g.filt + g.dt)
+    g.vlead = g.vbar + (v_set - g.vset_bar)  # the filter's lag on the set speed, added back
     sig, dsig, _ = _ramp(t, g.ramp_in)
     a_belt = dsig * v_ref + sig * a_ref
-    # dL/2/dt of the touchdown point L/2 = v̄ β / (2 r), with v̄' the planned belt rate
-    g.w = 0.5 * g.law[4] * (a_belt - g.vbar * dr / r) / r
+    g.a_set = a_belt
+    # dL/2/dt of the touchdown point L/2 = v_l β / (2 r), with v_l' the planned belt rate
+    g.w = 0.5 * g.law[4] * (a_belt - g.vlead * dr / r) / r
     for leg in range(2):
-        tau = _advance(g, leg, g.phase[leg], r_mid, g.vbar, g.dt)
+        tau = _advance(g, leg, g.phase[leg], r_mid, g.vlead, g.dt)
         g.phase[leg] = 0.0 if tau >= 1.0 else tau
     g.rate = r
     _write_hip(g, g.phase[0], r, dr, t)

@@ -89,13 +89,19 @@ def test_feet_stay_c1_and_the_stance_foot_moves_at_the_measured_speed(exo) -> No
     assert np.abs(fd - mid).max() < 5e-3
     assert jump_fine < 0.6 * jump
     assert jump < 0.05
-    # stance: moving back at the measured speed low-passed over FILTER_S
+    # stance: moving back at the measured speed low-passed over FILTER_S, with the lag
+    # the same filter puts on the set speed added back
     stance = np.isclose(pos[:, :, 1], -gait.hip_height, rtol=0, atol=1e-12)
-    vbar = np.empty(n)
-    vbar[0] = v_set[0]
+    vbar, vset_bar = np.empty(n), np.empty(n)
+    vbar[0] = vset_bar[0] = v_set[0]
     for k in range(1, n):
         vbar[k] = vbar[k - 1] + (measured[k] - vbar[k - 1]) * DT / (FILTER_S + DT)
-    both = np.broadcast_to(vbar[:, None], (n, 2))
+        vset_bar[k] = vset_bar[k - 1] + (v_set[k] - vset_bar[k - 1]) * DT / (FILTER_S + DT)
+    lead = vbar + (v_set - vset_bar)
+    # on the profile's ramp (a = 0.1 m/s²) the added lag is τ_f a
+    on_ramp = (t > 2.0) & (t < 4.2)
+    np.testing.assert_allclose((v_set - vset_bar)[on_ramp], FILTER_S * 0.1, rtol=1e-6)
+    both = np.broadcast_to(lead[:, None], (n, 2))
     np.testing.assert_allclose(-vel[:, :, 0][stance], both[stance], rtol=0, atol=1e-12)
     err = (-vel[:, :, 0] - v_set[:, None])[stance & (t[:, None] > 1.2)]
     print(f"stance foot vs the belt's set speed: RMS {1e3 * np.sqrt(np.mean(err**2)):.2f} mm/s")
