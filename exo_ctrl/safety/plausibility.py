@@ -7,7 +7,10 @@ drives last tick, the drive's model (:class:`~exo_ctrl.plant.MotorParams`,
 its datasheet), the sensors' parameters and the command's age.  Four
 channel groups, one channel per joint, their excesses written into the
 monitor record's rows :data:`DRIVE` … :data:`AGE` (the limit monitor then
-counts them with its own):
+counts them with its own), and a fifth, the torque sensor against the
+drive's current reading and the encoder (:mod:`.consistency`, row
+:data:`~.consistency.CONSIST`; its state is this record's ``c_`` fields,
+its limit this module's fifth row; :mod:`.tick_check` runs it):
 
 **Drive model residual** (:data:`DRIVE`, N·m).  A drive with the voltage U
 across it at the joint speed ω carries I = (U - i_G ω / k_E) / R (the
@@ -82,6 +85,7 @@ from .._jit import Status, kernel, record
 from ..plant import MotorParams
 from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S
 from ..sensing import SensorParams
+from .consistency import CONSISTENCY_FIELDS, consistency_limit, init_consistency
 
 __all__ = [
     "AGE",
@@ -149,13 +153,14 @@ PLAUSIBILITY_FIELDS = [
         )
     ),
     ("started", np.bool_),
+    *CONSISTENCY_FIELDS,  # the torque-sensor consistency check's (.consistency)
 ]
 
 
 def plausibility_limits(
     motor: MotorParams, sensors: SensorParams, dt: float, speed_limit: np.ndarray
 ) -> np.ndarray:
-    """The limits of the four groups, (4 groups, 4 joints), in the monitor record's units.
+    """The limits of the five groups, (5 groups, 4 joints), in the monitor record's units.
 
     Args:
         motor: the drive (datasheet).
@@ -164,14 +169,14 @@ def plausibility_limits(
         speed_limit: the joint speed limits q̇_max [rad/s], (4,).
 
     Returns:
-        Rows DRIVE [N·m], JUMP [rad], STUCK [readings], AGE [s] (module docstring).
+        Rows DRIVE [N·m], JUMP [rad], STUCK [readings], AGE [s] (module docstring),
+        and the torque-sensor consistency's CONSIST [N·m] (:mod:`.consistency`).
         The drive residual's limit is :data:`DRIVE_RESIDUAL_NM` at Δt ≤ 1 ms and
         grows ∝ Δt beyond (the half-tick speed offset and the plant's implicit
         step grow with it): 300 N·m at 100 Hz, beyond any drive's torque, so
         the check is in effect off at such coarse rates.
 
     """
-    del motor
     jump = (
         np.asarray(speed_limit, dtype=float) * dt
         + 2.0 * sensors.encoder_resolution_rad
@@ -188,6 +193,7 @@ def plausibility_limits(
             jump,
             np.full(4, min(stuck, big)),
             np.full(4, 0.5 * dt),
+            consistency_limit(motor, sensors, dt),
         )
     )
 
@@ -213,6 +219,7 @@ def plausibility_record(motor: MotorParams, sensors: SensorParams, dt: float) ->
     s["phi"] = -math.expm1(-x) / x
     # Three time constants of the filter F (95 % settled), in ticks, at least one.
     s["settle"] = max(math.ceil(3.0 / (2.0 * math.pi * sensors.velocity_filter_hz * dt)), 1)
+    init_consistency(state, motor, sensors, dt)
     return state
 
 

@@ -56,6 +56,25 @@ patient stopped mid-gait came to rest in 1.9 s, tests/safety/test_stop_reaction.
 bounds the drift speed under the nominal models' gravity error Δτ_g to
 Δτ_g/d_y.
 
+**The ramp** (:attr:`YieldCommand.ramp_s`).  The ramp from the last
+command U_0 holds part of U_0, and a held voltage is a speed command: the
+drive's back-EMF pulls the joint toward its speed at the stop ω_0 with
+(1 − α) D (ω − ω_0), D = i_G k_m (i_G/k_E)/R = 208 N·m·s/rad.  A patient
+in charge leaves ω_0 at up to q̈_p (:data:`PATIENT_ACCELERATION_RAD_S2`),
+so over a ramp of T_y that torque peaks at D q̈_p T_y / 4 (t = T_y/2); kept
+within the damping's share of the cuff budget, d_y ω_max = σ F_lim r:
+
+.. math::  T_y = \min_j \frac{4\, d_{y,j}\, ω_{max,j}}{D\, q̈_p},
+
+11 ms with the defaults (the knees; 16 ms at the hips), against the
+hold's 0.2 s.  Measured on the transparent campaign (tools/faults.py
+--mode transparent, seeds 0–3, every fault; the transparent law of the
+time): the worst thigh/shank forces after the stop 196/198 N with the
+0.2 s ramp, 143/173 N with 50 ms, 139/140 N with 20 ms, 137/110 N with
+11 ms, 158/86 N switching at once; with 0.2 s a slipped cuff's free leg
+was driven on at its hip's speed at the stop, 237 N on the thigh cuff.
+The per-tick step of the command is |U_y − U_0| Δt / T_y.
+
 **The speed \hat ω**: the encoder's difference (q_k − q_{k−1})/Δt through a
 first-order filter of :data:`SPEED_FILTER_HZ` = 150 Hz (as the interaction
 modes' back-EMF compensation, :class:`~exo_ctrl.control.modes.ModeParams`),
@@ -66,9 +85,24 @@ exoskeleton inertia is about 0.5 kg·m² plus 0.29 kg·m² of rotor); 150 Hz
 leaves 0.2 kg·m².  It is clipped to ± the joint's speed limit (beyond it
 the power is cut anyway).
 
-**When the yield ends.**  (a) A joint beyond its speed limit or outside its
-range of motion (the supervisor's limits), checked from the end of the
-ramp on: power cut (the short-circuit brake above). (b) The legs at rest:
+**When the yield ends.**  (a) A joint beyond its speed limit (the
+supervisor's limit), checked from the end of the ramp on: power cut (the
+short-circuit brake above).  A joint outside its range of motion, checked
+likewise, is braked alone and only outward: the short-circuit brake's
+damping D on its outward speed (:meth:`YieldCommand.brake_outside`), so it
+goes no further out than its yield torque over D allows and comes back
+freely; the patient segments it carries are no longer carried (their mass
+dropped from the yield's patient model until the next stop: an attached
+patient joint cannot leave its range, so beyond it the leg is taken as
+off the exoskeleton, and pushing less is the safe side if it is not); the
+others keep yielding.  A shank cuff slipped off in ``transparent`` lets
+the free exoskeleton knee swing out of its range 0.6–1.7 s after the slip
+(tools/faults.py, seeds 0–7).  Cutting every drive then locked the leg
+against the walking patient (thigh cuff 244–431 N over the seeds that
+stopped); braking the knee outward alone still left the yield lifting
+the straight exoskeleton leg with the weight of a patient shank it no
+longer carried (247 N, seed 6); with that weight dropped, 56–144 N.
+(b) The legs at rest:
 every joint's speed reading below :data:`REST_SPEED_RAD_S` for
 :data:`REST_TIME_S`: the supervisor ramps to the hold at the posture of
 that tick (from the yield's command, over the same ramp), and holds as
@@ -106,6 +140,7 @@ from ..plant.motor import drive_model, steady_voltage
 from .limits import ResolvedLimits
 
 __all__ = [
+    "PATIENT_ACCELERATION_RAD_S2",
     "REST_SPEED_RAD_S",
     "REST_TIME_S",
     "SPEED_FILTER_HZ",
@@ -130,6 +165,11 @@ YIELD_FORCE_SHARE = 0.5
 
 #: Cut-off of the yield's speed filter on the encoder difference [Hz].
 SPEED_FILTER_HZ = 150.0
+
+#: q̈_p, the largest joint acceleration of a patient in charge [rad/s²]: the
+#: healthy active patient in ``transparent`` reached 32 rad/s² at the hips and
+#: 46 rad/s² at the knees (true, 5 ms means; rounded up); sets the yield's ramp.
+PATIENT_ACCELERATION_RAD_S2 = 50.0
 
 #: The legs are at rest when every joint's speed reading stays below this
 #: [rad/s] (ten times the default speed reading's noise, 0.005 rad/s) ...
@@ -230,38 +270,22 @@ def hold_breach(
 
 
 def yield_breach(
-    q: np.ndarray,
-    speed: np.ndarray,
-    q_lower: np.ndarray,
-    q_upper: np.ndarray,
-    speed_limit: np.ndarray,
+    speed: np.ndarray, speed_limit: np.ndarray
 ) -> tuple[str, float, float, str] | None:
-    """The first limit the yield breaks, as (quantity, value, limit, message); None: none.
+    """The speed limit that ends the yield, as (quantity, value, limit, message); None: none.
 
     Args:
-        q: joint angles [rad], (4,).
         speed: joint speed magnitudes |q̇| [rad/s], (4,).
-        q_lower: the range of motion's lower ends [rad], (4,).
-        q_upper: its upper ends [rad], (4,).
         speed_limit: the speed limits [rad/s], (4,).
 
-    The speed first (the first joint beyond), then the range.
+    The first joint beyond its limit.  (A joint outside its range of motion
+    does not end the yield: :meth:`YieldCommand.brake_outside` brakes it alone.)
 
     """
     for j in range(4):
         if speed[j] > speed_limit[j]:
             v, lim, name = float(speed[j]), float(speed_limit[j]), JOINT_NAMES[j]
             return f"yield speed {name}", v, lim, f"yield ended: {name} at {v:.4g} rad/s > {lim:g}"
-    for j in range(4):
-        lim = q_upper[j] if q[j] > q_upper[j] else (q_lower[j] if q[j] < q_lower[j] else None)
-        if lim is not None:
-            v, name = float(q[j]), JOINT_NAMES[j]
-            return (
-                f"yield angle {name}",
-                v,
-                float(lim),
-                f"yield ended: {name} at {v:.4g} rad, outside [{q_lower[j]:.4g}, {q_upper[j]:.4g}]",
-            )
     return None
 
 
@@ -308,19 +332,41 @@ class YieldCommand:
             if body is not None:
                 model = pin.Model(body.model)
                 self._bodies.append((model, model.createData(), body, np.zeros(model.nq)))
+        # The patient model's inertias, and per joint its subtree (the segments it carries).
+        ids = () if patient is None else patient.joint_ids
+        self._patient = self._bodies[1] if patient is not None else None
+        self._inertias = [] if patient is None else [i.copy() for i in patient.model.inertias]
+        self._carried = [[] if patient is None else _subtree(patient.model, i) for i in ids]
         self._drive = drive_model(motor)
+        #: D_b, the short-circuit brake's damping i_G k_m (i_G/k_E)/R [N·m·s/rad]
+        #: (:meth:`brake_outside`).
+        self.brake_damping = (
+            motor.torque_per_amp_Nm_per_A * motor.back_emf_V_per_rad_s / motor.resistance_ohm
+        )
         self._limit = np.array(speed_limit, dtype=float)
+        #: T_y, the ramp to the yield [s]: min over the joints of
+        #: 4 d_y ω_max / (D q̈_p) (module docstring, "The ramp").
+        self.ramp_s = float(
+            np.min(4.0 * self.damping * self._limit)
+            / (self.brake_damping * PATIENT_ACCELERATION_RAD_S2)
+        )
         self._dt = dt
         self._alpha = 1.0 - math.exp(-2.0 * math.pi * SPEED_FILTER_HZ * dt)
         self.speed = np.zeros(4)
         self.torque = np.zeros(4)
         self._q_prev = np.zeros(4)
+        #: The joints that left their range of motion in this yield (:meth:`brake_outside`).
+        self.braked = np.zeros(4, dtype=bool)
 
     def start(self, q: np.ndarray, dq: np.ndarray) -> None:
         """Start the speed filter at the stop: ω̂ from the speed reading, q_{k−1} = q."""
         self.speed[:] = np.where(np.isfinite(dq), dq, 0.0)
         np.clip(self.speed, -self._limit, self._limit, out=self.speed)
         self._q_prev[:] = q
+        self.braked[:] = False
+        if self._patient is not None:  # the patient's segments all carried again
+            for i, inertia in enumerate(self._inertias):
+                self._patient[0].inertias[i] = inertia
 
     @property
     def posture(self) -> np.ndarray:
@@ -351,3 +397,58 @@ class YieldCommand:
         for j in range(4):
             out[j] = steady_voltage(tau[j], self.speed[j], self._drive)
         return out
+
+    def brake_outside(
+        self, q: np.ndarray, q_lower: np.ndarray, q_upper: np.ndarray, out: np.ndarray
+    ) -> list[tuple[str, float, float, str]]:
+        """Brake the joints outside [q_lower, q_upper] [rad] against moving further out.
+
+        On such a joint τ_y gains −D_b ω̂_out, ω̂_out the outward part of its
+        speed (max(ω̂, 0) above the range, min(ω̂, 0) below), D_b = i_G k_m
+        (i_G/k_E)/R the short-circuit brake's damping (the power cut's, on
+        that joint and in that direction alone), and its voltage in ``out``
+        is rewritten: it is driven further out no faster than τ/D_b, comes
+        back freely, and the other joints keep yielding (module docstring).
+
+        Returns:
+            The breaches of the joints out of their range for the first time
+            in this yield: (quantity, value [rad], limit [rad], message) each.
+
+        """
+        new = []
+        for j in range(4):
+            lim = q_upper[j] if q[j] > q_upper[j] else (q_lower[j] if q[j] < q_lower[j] else None)
+            if lim is None:
+                continue
+            w = self.speed[j]
+            outward = max(w, 0.0) if q[j] > q_upper[j] else min(w, 0.0)
+            out[j] = steady_voltage(self.torque[j] - self.brake_damping * outward, w, self._drive)
+            if not self.braked[j]:
+                self.braked[j] = True
+                self._drop(j)
+                v, name = float(q[j]), JOINT_NAMES[j]
+                message = (
+                    f"yield: {name} at {v:.4g} rad, outside [{q_lower[j]:.4g}, "
+                    f"{q_upper[j]:.4g}]: braked outward, its patient segments no longer "
+                    "carried, the other joints still yield"
+                )
+                new.append((f"yield angle {name}", v, float(lim), message))
+        return new
+
+    def _drop(self, j: int) -> None:
+        """Stop carrying the patient segments joint j carries (their mass to zero in the model)."""
+        if self._patient is not None:
+            for i in self._carried[j]:
+                self._patient[0].inertias[i] = pin.Inertia.Zero()
+
+
+def _subtree(model: pin.Model, joint_id: int) -> list[int]:
+    """The joints of ``model`` at or below ``joint_id``: the bodies that joint carries."""
+    out = []
+    for i in range(1, model.njoints):
+        k = i
+        while k not in (0, joint_id):
+            k = model.parents[k]
+        if k == joint_id:
+            out.append(i)
+    return out

@@ -4,12 +4,11 @@ The supervisor sits between the controller and the drives.  Every control
 tick it checks what the device can measure — joint angles, speeds and torques
 from the sensors, cuff forces (measured, or estimated from the joint torques),
 drive currents — and the controller's command against :class:`SafetyLimits`
-(:mod:`exo_ctrl.safety.limits`, :mod:`exo_ctrl.safety.monitor`) and the
-plausibility monitors (:mod:`exo_ctrl.safety.plausibility`), in one compiled
-call (:mod:`exo_ctrl.safety.tick_check`), after the belt monitor with the belt
-(:mod:`exo_ctrl.safety.belt_monitor`).  While nothing is wrong it returns the
-controller's command unchanged (and allocates no array).  Its state is one
-record, :attr:`SafetySupervisor.record`, whose ``state`` field the log reads.
+(:mod:`.limits`, :mod:`.monitor`) and the plausibility monitors (:mod:`.plausibility`;
+the torque sensor against the current, :mod:`.consistency`) in one compiled call
+(:mod:`.tick_check`), after the belt monitor with the belt (:mod:`.belt_monitor`).
+While nothing is wrong it returns the controller's command unchanged (and allocates
+no array).  Its state is one record, :attr:`record`, whose ``state`` field the log reads.
 
 **Controlled stop.**  On the first violation, on a non-finite reading or at
 the emergency-stop time, it stops the gait:
@@ -47,14 +46,13 @@ the emergency-stop time, it stops the gait:
    give no braking; not modelled.)
 
 **Stop reaction** (``stop_reaction``; :mod:`.stop_reaction`).  The above is
-``hold``.  ``yield`` ramps the same way to gravity compensation at the
-present posture with damping injection instead, state ``"yielding"``
-after the ramp, no posture held, so an active patient moves the legs with
-a bounded interaction force; a joint beyond its speed limit or range of
-motion then cuts the power, legs at rest end in the hold.  A hold the
-patient pushes against (a cuff force over its limit while holding, on
-readings no plausibility monitor has doubted since the stop) ramps to the
-yield.
+``hold``.  ``yield`` ramps, over its own shorter ramp, to gravity compensation
+at the present posture with damping injection instead (``"yielding"`` after
+the ramp, no posture held): an active patient moves the legs with a bounded
+interaction force; a joint beyond its speed limit cuts the power, one out of
+its range is braked alone, legs at rest end in the hold.  A hold the patient
+pushes against (a cuff force over its limit while holding, on readings no
+plausibility monitor has doubted since the stop) ramps to the yield.
 
 Every violation and every state change is an event dict
 ``{"t", "kind", "quantity", "value", "limit", "message"}`` in
@@ -114,7 +112,7 @@ class SafetySupervisor:
         estop_at_s: emergency-stop time [s] (None: no e-stop).
         use_estimate: the cuff forces given to :meth:`step` are estimates
             (only changes the event wording).
-        ramp_s: duration of the ramp to the hold command [s] (0: switch at once).
+        ramp_s: duration of the ramp [s] (0: switch at once; to a yield at most its ramp_s).
         hold_tolerance_rad: largest posture error during the hold [rad].
         hold_kp: hold PD proportional gain [V/rad] (default: the PD gain, 100).
         hold_kd: hold PD derivative gain [V·s/rad] (default: the PD gain, 2).
@@ -126,7 +124,7 @@ class SafetySupervisor:
             encoder step, stuck torque sensor, command age).
         compliant_drives: the joints are compliant (the torque sensors read
             a spring, :mod:`exo_ctrl.plant.compliance`): the rigid drive
-            model's check is off, the other monitors stay.
+            model's and the consistency checks are off, the others stay.
         belt: the belt monitor's readings (belt encoder, foot load cells,
             drive's report) and datasheet (:mod:`exo_ctrl.safety.belt_monitor`;
             None: no belt monitor).
@@ -220,8 +218,8 @@ class SafetySupervisor:
             # A compliant joint's sensor reads the spring, τ_d − J_r θ̈ with the
             # rotor's θ̈ unmeasured: the rigid drive model's residual carries
             # J_r (θ̈ − q̈) of the rotor's ~42 Hz mode (measured 31 N·m on the
-            # default PD run), so that check is off; the others stay.
-            self.plausibility_limits[0] = np.finfo(float).max
+            # default PD run), so it and the consistency check (.consistency) are off.
+            self.plausibility_limits[[0, 4]] = np.finfo(float).max
         if self._checks:
             self.record["limit"][0][LIMIT_GROUPS:BELT] = self.plausibility_limits
         self._u_sent = self.plausibility_record["u_prev"][0]
@@ -396,9 +394,10 @@ class SafetySupervisor:
         return u
 
     def _ramp(self, t: float, u: np.ndarray, then: str) -> None:
-        """U = U_0 + α (U - U_0) in place, α = (t - t_0)/ramp_s; at α = 1 the state ``then``."""
+        """U_0 + α (U - U_0) in place, α = (t - t_0)/T (ramp_s, a yield's ≤ its own); ``then``."""
         elapsed = t - self._ramp_t0 + 1e-9 * self.dt  # rounding of t = k Δt
-        alpha = elapsed / self.ramp_s if self.ramp_s > 0.0 else 1.0
+        ramp = min(self.ramp_s, self.yield_command.ramp_s if self.reaction == "yield" else math.inf)
+        alpha = elapsed / ramp if ramp > 0.0 else 1.0
         if alpha >= 1.0:
             self._set_state(t, then, "ramp done")
         else:
@@ -414,7 +413,9 @@ class SafetySupervisor:
             return u
         q = self.yield_command.posture  # the last finite reading per joint
         dq = np.abs(np.asarray(sensors.dq, dtype=float))
-        breach = yield_breach(q, dq, self.q_lower, self.q_upper, self.speed_limit)
+        for braked in self.yield_command.brake_outside(q, self.q_lower, self.q_upper, u):
+            self._event(t, "violation", *braked)  # out of its range: braked outward alone
+        breach = yield_breach(dq, self.speed_limit)
         if breach is not None:
             self._event(t, "violation", *breach)
             self._set_state(t, "power_cut", "yield ended: drive voltages set to zero")
@@ -431,8 +432,7 @@ class SafetySupervisor:
         return u
 
     def _hold_failed(self, t: float, e: np.ndarray, speed: np.ndarray) -> bool:
-        breach = hold_breach(e, speed, self.hold_tolerance_rad, self.speed_limit)
-        if breach is None:
+        if (breach := hold_breach(e, speed, self.hold_tolerance_rad, self.speed_limit)) is None:
             return False
         self._event(t, "violation", *breach)
         self._set_state(t, "power_cut", "hold failed: drive voltages set to zero")

@@ -2,12 +2,14 @@
 
 The plausibility monitors (:func:`~exo_ctrl.safety.plausibility.plausibility`:
 drive model, encoder step, stuck torque sensor, command age; rows DRIVE …
-AGE of the monitor record's ``excess``) and then the limit monitor
+AGE of the monitor record's ``excess``), the torque sensor's consistency
+with the drive's current (:func:`~exo_ctrl.safety.consistency.consistency`,
+row CONSIST, inputs of length 4 only) and then the limit monitor
 (:func:`~exo_ctrl.safety.monitor.monitor`: its own rows, ``worst`` and
 ``passed`` over every row), as :class:`~exo_ctrl.safety.SafetySupervisor`
-runs them each tick.  One call instead of two saves a dispatch (about
-0.3 µs plus the repeated arguments, :mod:`exo_ctrl.sim.tick`); the
-arithmetic is the two kernels'.
+runs them each tick.  One call instead of three saves two dispatches (about
+0.3 µs each plus the repeated arguments, :mod:`exo_ctrl.sim.tick`); the
+arithmetic is the three kernels'.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import kernel
+from .consistency import consistency
 from .monitor import monitor
 from .plausibility import plausibility
 
@@ -35,7 +38,10 @@ def check_readings(
     plausible: np.ndarray,
     state: np.ndarray,
 ) -> int:  # pragma: no cover - compiled
-    """The plausibility monitors (when ``checks``), then the limit monitor; the latter's status.
+    """The plausibility monitors (``checks``), then the limit monitor; the latter's status.
+
+    With ``checks`` the torque-sensor consistency (:mod:`.consistency`) runs
+    after the plausibility monitors when q, q̇, τ and the currents are 4 each.
 
     Args:
         cuff_force: cuff forces (x, z), (4, 2) [N].
@@ -58,4 +64,6 @@ def check_readings(
     """
     if checks:
         plausibility(q, dq, tau, u_cmd, age_s, plausible, state)
+        if q.shape[0] == dq.shape[0] == tau.shape[0] == current_A.shape[0] == 4:
+            consistency(q, dq, tau, current_A, plausible, state)
     return monitor(cuff_force, q, dq, tau, current_A, u_cmd, t, state)

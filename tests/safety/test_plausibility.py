@@ -30,7 +30,7 @@ LIMITS = ResolvedLimits(*(np.full(4, 1e9) for _ in range(5)))
 
 def fresh(sensors: SensorParams) -> tuple[np.ndarray, np.ndarray]:
     mon = monitor_record(LIMITS, math.inf)
-    mon["limit"][0][DRIVE : AGE + 1] = plausibility_limits(MOTOR, sensors, DT, np.full(4, 6.0))
+    mon["limit"][0][DRIVE : AGE + 2] = plausibility_limits(MOTOR, sensors, DT, np.full(4, 6.0))
     return plausibility_record(MOTOR, sensors, DT), mon
 
 

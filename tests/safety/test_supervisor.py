@@ -414,8 +414,9 @@ def test_normal_step_returns_the_command_and_allocates_nothing() -> None:
     motor = plant.motor_params
     held = np.full(4, motor.torque_per_amp_Nm_per_A / motor.resistance_ohm)
     sensors = SensorReadings(q=setup.plan.q[0].copy(), dq=np.zeros(4), tau=held)
-    # The plant's own buffers, as the loop passes them (the force is a transposed view).
-    force, current, u = plant.cuff_force, plant.motors.mean_current_A, np.ones(4)
+    # The plant's own force buffer, as the loop passes it (a transposed view); the current
+    # a held drive draws, 1 V / R (the torque reading's, for the consistency check).
+    force, current, u = plant.cuff_force, np.full(4, 1.0 / motor.resistance_ohm), np.ones(4)
 
     # A compiled call boxes each array argument in a small block that it frees
     # on return (numba's reference counting): the floor is a compiled call

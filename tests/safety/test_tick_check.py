@@ -1,11 +1,13 @@
-"""The supervisor's one-call check equals the plausibility monitors, then the limit monitor.
+"""The supervisor's one-call check equals the plausibility monitors, the torque-sensor
+consistency, then the limit monitor.
 
 Checks: over 300 ticks of a moving joint state with realistic limits (some
 channels violated, a NaN frame, a stale command), :func:`check_readings`
-leaves the plausibility and monitor records byte for byte as the two
+leaves the plausibility and monitor records byte for byte as the three
 kernels called in turn, and returns the monitor's status; with the checks
 off the plausibility record and its rows are untouched; a wrong length is
-the monitor's WRONG_LENGTH, with the records as the two kernels leave them.
+the monitor's WRONG_LENGTH, with the records as the kernels leave them (the
+consistency check runs only on inputs of length 4).
 """
 
 from __future__ import annotations
@@ -17,9 +19,9 @@ import numpy as np
 from exo_ctrl._jit import Status
 from exo_ctrl.plant import MotorParams
 from exo_ctrl.safety import ResolvedLimits, monitor, monitor_record
+from exo_ctrl.safety.consistency import CONSIST, consistency
 from exo_ctrl.safety.monitor import LIMIT_GROUPS
 from exo_ctrl.safety.plausibility import (
-    AGE,
     DRIVE,
     plausibility,
     plausibility_limits,
@@ -39,8 +41,9 @@ LIMITS = ResolvedLimits(
 def records() -> tuple[np.ndarray, np.ndarray]:
     sensors = SensorParams()
     mon = monitor_record(LIMITS, 0.25)  # an e-stop time inside the run
-    mon["limit"][0][DRIVE : AGE + 1] = plausibility_limits(MOTOR, sensors, DT, SPEED)
-    mon["limit"][0][DRIVE] = np.finfo(float).max  # the made-up torques fit no drive model
+    mon["limit"][0][DRIVE : CONSIST + 1] = plausibility_limits(MOTOR, sensors, DT, SPEED)
+    # The made-up torques fit no drive model, nor the made-up currents.
+    mon["limit"][0][[DRIVE, CONSIST]] = np.finfo(float).max
     return plausibility_record(MOTOR, sensors, DT), mon
 
 
@@ -59,7 +62,7 @@ def tick_inputs(k: int) -> tuple:
     return f, q, dq, tau, current, u, age, t
 
 
-def test_one_call_equals_the_two_kernels_in_turn() -> None:
+def test_one_call_equals_the_three_kernels_in_turn() -> None:
     plaus_a, mon_a = records()
     plaus_b, mon_b = records()
     violated = 0
@@ -67,6 +70,7 @@ def test_one_call_equals_the_two_kernels_in_turn() -> None:
         f, q, dq, tau, current, u, age, t = tick_inputs(k)
         status = check_readings(f, q, dq, tau, current, u, age, t, True, plaus_a, mon_a)
         plausibility(q, dq, tau, u, age, plaus_b, mon_b)
+        consistency(q, dq, tau, current, plaus_b, mon_b)
         expected = monitor(f, q, dq, tau, current, u, t, mon_b)
         assert status == expected == Status.OK.value
         assert plaus_a.tobytes() == plaus_b.tobytes(), k
@@ -86,9 +90,10 @@ def test_with_the_checks_off_the_plausibility_rows_are_untouched() -> None:
 
 
 def test_a_wrong_length_is_the_monitors_status() -> None:
-    """A short angle array: nothing written; a short current array: as the two kernels in turn.
+    """A short angle array: nothing written; a short current array: as the kernels in turn.
 
-    (The plausibility monitors do not read the currents: they run, the limit monitor refuses.)
+    (The plausibility monitors do not read the currents: they run, the consistency check
+    does not, the limit monitor refuses.)
     """
     for which in (1, 4):  # q, the current reading
         plaus_a, mon_a = records()
