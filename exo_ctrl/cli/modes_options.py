@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from ..control.modes import MODES, ModeParams, PathParams
+from ..control.modes.params import FORCE_GAINS
 from ..exceptions import InvalidParameter
 from ..plant.patient_active import ActiveParams
 from ..safety import STOP_REACTIONS
@@ -67,17 +68,22 @@ def add_mode_options(p: argparse.ArgumentParser) -> None:
         type=float,
         default=m.guidance,
         metavar="G",
-        help="guidance share G in [0, 1], no unit: 1 tracking, 0 transparent "
+        help="guidance share G in [0, 1], no unit: 1 tracking, 0 the free command "
+        "(transparent's compensation with guidance's force gain) "
         f"(default {m.guidance:g})",
     )
+    kalman = FORCE_GAINS[("transparent", "kalman")]
+    momentum = FORCE_GAINS[("transparent", "momentum")]
     g.add_argument(
         "--force-gain",
         type=float,
-        default=m.force_gain[0],
+        default=None,
         metavar="K",
         help="force feedback gain, no unit, on the estimated interaction torque in transparent "
-        "and guidance: "
-        f"the exoskeleton's inertia is felt divided by 1 + K (default {m.force_gain[0]:g})",
+        "and guidance, all joints: the exoskeleton's inertia is felt divided by 1 + K "
+        f"(default per mode and estimator: transparent {kalman[0]:g} at the hips, "
+        f"{kalman[1]:g} at the knees with the Kalman filter, {momentum[0]:g} with the "
+        f"momentum observer; guidance {FORCE_GAINS[('guidance', 'kalman')][0]:g})",
     )
     g.add_argument(
         "--aan-forgetting",

@@ -323,6 +323,24 @@ class CuffForceKalman:
         for name in ("tau_ext", "cuff_normal", "cuff_along", "cuff_force"):
             self.record[name] = 0.0
 
+    def set_torque_rate(self, rate_Nm_per_sqrt_s: float | None) -> None:
+        """Set σ_d, the random walk's intensity of the patient's unknown torques [N·m/√s].
+
+        From the next prediction on, Q's d block is h σ_d² (the state and
+        covariance are kept).  None restores :attr:`noise`'s value.  An
+        interaction mode that expects the patient's torques to change fast
+        raises it (``transparent``:
+        :meth:`~exo_ctrl.control.modes.InteractionController.tune_estimator`).
+
+        Raises:
+            InvalidParameter: a rate that is not a finite number >= 0.
+
+        """
+        if rate_Nm_per_sqrt_s is None:
+            rate_Nm_per_sqrt_s = self.noise.patient_torque_rate_Nm_per_sqrt_s
+        rate = v.non_negative("patient_torque_rate", rate_Nm_per_sqrt_s, "N·m/√s")
+        self.record["var_rate"] = rate**2
+
     def update(self, sensors: SensorReadings) -> np.ndarray:
         """Advance by one control period with this tick's readings.
 

@@ -17,6 +17,7 @@ answer to a known truth.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -166,6 +167,7 @@ def kalman_series(
     dq: np.ndarray | None,
     tau_sensor: np.ndarray,
     kalman: CuffForceKalman,
+    torque_rates: Sequence[tuple[int, float | None]] = (),
 ) -> EstimateSeries:
     """Run a fresh Kalman filter along a logged series of sensor readings.
 
@@ -184,6 +186,9 @@ def kalman_series(
         tau_sensor: joint torque sensor readings [N·m], (N, 4).
         kalman: the filter, on the device's exoskeleton, patient, cuff and
             sensor models; it is restarted (:meth:`~CuffForceKalman.reset`).
+        torque_rates: (row, σ_d) pairs: before stepping that row the filter's
+            σ_d is set (:meth:`~CuffForceKalman.set_torque_rate`; None: its
+            own), as the live run's modes set it.
 
     Raises:
         InvalidLog: shapes differ, a value is not finite, t does not
@@ -201,7 +206,10 @@ def kalman_series(
     normal = np.zeros((n, 4))
     force = np.zeros((n, 4, 2))
     tau_ext = np.zeros((n, 4))
+    rates = dict(torque_rates)
     for k in range(n):
+        if k in rates:
+            kalman.set_torque_rate(rates[k])
         kalman.step(q[k], dq[k], tau[k])
         normal[k] = kalman.normal
         force[k] = kalman.force

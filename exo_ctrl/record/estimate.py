@@ -59,7 +59,7 @@ from .estimate_checks import (
     startup_ticks,
     worse_than_none,
 )
-from .estimate_models import chosen_estimator, recorded_kalman
+from .estimate_models import chosen_estimator, recorded_kalman, torque_rate_schedule
 from .format import TIME
 from .reader import RecordingIntegrity, read_recording_integrity
 
@@ -346,7 +346,8 @@ def _from_recording(
     gain = config.observer_gain_per_s if gain_per_s is None else gain_per_s
     if estimator == "kalman":
         kalman = recorded_kalman(path, config, body)
-        series = kalman_series(log.t, log.q, log.dq, log.tau, kalman)
+        rates = torque_rate_schedule(config)
+        series = kalman_series(log.t, log.q, log.dq, log.tau, kalman, rates)
     else:
         series = estimate_series(
             log.t,

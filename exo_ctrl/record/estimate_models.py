@@ -16,7 +16,10 @@ device models):
   (:func:`~exo_ctrl.sim.belief.device_models` with the fitted, coaxial true
   patient's leg lengths: the nominal de Leva model, the truth or the user's
   URDF), the device's cuff model (``belief.cuff_model``), the run's sensor
-  datasheet (noise and resolution) and its control period.
+  datasheet (noise and resolution) and its control period; and the
+  filter's σ_d as the run's modes set it over time
+  (:func:`torque_rate_schedule`: ``transparent`` and ``path`` raise it from
+  their first tick, a session's switch from the tick after it).
 
 A CSV log holds readings only, none of these models: it is estimated with
 the momentum observer.
@@ -32,7 +35,7 @@ from ..model import BodyModel, load_patient
 from ..sim.belief import device_models
 from ..sim.config import SimConfig
 
-__all__ = ["chosen_estimator", "recorded_kalman"]
+__all__ = ["chosen_estimator", "recorded_kalman", "torque_rate_schedule"]
 
 
 def chosen_estimator(
@@ -101,3 +104,21 @@ def recorded_kalman(
     return CuffForceKalman(
         exo, patient, config.dt, cuffs=config.belief.cuff_model, sensors=config.sensors
     )
+
+
+def torque_rate_schedule(config: SimConfig) -> list[tuple[int, float | None]]:
+    """The rows at which the live run's modes set the Kalman filter's σ_d, with the value.
+
+    ``(row, σ_d [N·m/√s] or None: the filter's own)``: the run's mode from
+    row 0 (:meth:`~exo_ctrl.control.modes.ModeParams.torque_rate_for`); in a
+    session each segment's from the row after its switch (the live tick
+    updates the filter before the controller switches), the first from row 0.
+    """
+    session = config.session
+    if session is None:
+        return [(0, config.modes.torque_rate_for(config.mode))]
+    schedule = []
+    for i, (seg, start) in enumerate(zip(session.segments, session.starts_s, strict=True)):
+        row = 0 if i == 0 else round(start / config.dt) + 1
+        schedule.append((row, seg.mode_params(config.modes).torque_rate_for(seg.mode)))
+    return schedule

@@ -282,7 +282,8 @@ class Sensors:
 #: ``period`` T_s [s] (0: every tick), ``res_q`` Δq [rad], ``filter_hz`` f_v
 #: [Hz], ``res_tau`` Δτ [N·m] and the flags ``noisy_q``, ``noisy_tau``,
 #: ``has_bias``, ``true_speed``; state: ``started``, ``last_t`` the time of
-#: the last sample [s], ``next_t`` that of the next [s], ``row`` of the noise
+#: the last sample [s], ``next_t`` that of the next [s], ``t0`` the first's [s]
+#: (the grid's origin), ``row`` of the noise
 #: block for the next sample, ``samples`` taken, ``depleted`` (the last read
 #: used the block up: draw the next); ``noise``, the blocks (encoder, torque).
 SENSOR_FIELDS = [
@@ -297,6 +298,7 @@ SENSOR_FIELDS = [
     ("res_tau", np.float64),
     ("last_t", np.float64),
     ("next_t", np.float64),
+    ("t0", np.float64),
     ("row", np.int64),
     ("samples", np.int64),
     ("noisy_q", np.bool_),
@@ -365,10 +367,17 @@ def read_joints(k, q_true, dq_true, tau_true, sensors):
         if noisy_tau:
             tau = tau + noise[1, i, j]
         s.tau[j] = _quantise(tau, res_tau)
-    # Samples on the grid t_0 + n T_s set by the first sample.
+    # Samples on the grid t_0 + n T_s set by the first sample: the next grid
+    # time after t, as t_0 + n T_s (a sum of periods drifts by rounding: at
+    # 1 kHz it held one frame a tick at 7.984 s).
     period_s = s.period
-    nxt = s.next_t + period_s if started else t + period_s
-    s.next_t = nxt if nxt > t else t + period_s
+    if not started:
+        s.t0 = t
+    if period_s > 0.0:
+        n = math.floor((t - s.t0) / period_s + 1e-6) + 1
+        s.next_t = s.t0 + n * period_s
+    else:
+        s.next_t = t
     s.last_t = t
     s.started = True
     s.row = i + 1

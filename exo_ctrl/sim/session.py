@@ -345,10 +345,14 @@ def session_controller(
         if seg.mode == "tracking":
             ctrl = tracking()
         elif seg.mode == "path":
-            ctrl = PathController(seg.path_params(config.path), modes, plan, exo, motor, config.dt)
+            ctrl = PathController(
+                seg.path_params(config.path), modes, plan, exo, motor, config.dt, config.estimator
+            )
         else:
             inner = tracking() if seg.mode == "guidance" else None
-            ctrl = InteractionController(seg.mode, modes, plan, exo, motor, inner, config.dt)
+            ctrl = InteractionController(
+                seg.mode, modes, plan, exo, motor, inner, config.dt, config.estimator
+            )
         controllers.append(ctrl)
         names.append(seg.mode)
     starts = [round(t / config.dt) for t in session.starts_s]

@@ -155,7 +155,13 @@ def build(config: SimConfig) -> Setup:
         )
     elif config.mode == "path":  # the tunnel with free timing, on the device's models
         controller = PathController(  # type: ignore[assignment]
-            config.path, config.modes, plan, model_exo, model_motor, dt=config.dt
+            config.path,
+            config.modes,
+            plan,
+            model_exo,
+            model_motor,
+            dt=config.dt,
+            estimator=config.estimator,
         )
     elif config.mode != "tracking":  # an interaction mode on the device's models
         controller = InteractionController(  # type: ignore[assignment]
@@ -166,6 +172,7 @@ def build(config: SimConfig) -> Setup:
             model_motor,
             tracking=controller if config.mode == "guidance" else None,
             dt=config.dt,
+            estimator=config.estimator,
         )
     return Setup(
         config,

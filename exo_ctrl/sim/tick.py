@@ -115,6 +115,9 @@ class Runner:
                 config.observer_gain_per_s,
                 stiffness_ratio=config.cuff_stiffness_ratio,
             )
+        tune = getattr(setup.controller, "tune_estimator", None)
+        if tune is not None:  # a mode's tuning of the estimator (transparent: the filter's σ_d)
+            tune(self.estimator)
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
         #: The foot plates' load cells (sensing/foot_load.py; read with the belt only).

@@ -63,15 +63,16 @@ def test_guidance_low_passes_the_fed_back_torque(setup, mode: str, g: float) -> 
     row = setup.plan.row(k0)
     q, dq = setup.plan.q[row].copy(), setup.plan.dq[row].copy()
     force = np.array([[30.0, -20.0], [10.0, 40.0], [-25.0, 5.0], [15.0, -35.0]])
-    ctrl = _mode(setup, mode, guidance=g, force_filter_hz=f_f)
-    ref = _mode(setup, mode, guidance=g, force_filter_hz=f_f)
+    no_lead = {"force_lead_s": 0.0}  # transparent's lead: tests/control/test_modes.py
+    ctrl = _mode(setup, mode, guidance=g, force_filter_hz=f_f, **no_lead)
+    ref = _mode(setup, mode, guidance=g, force_filter_hz=f_f, **no_lead)
     zero = SensorReadings(q=q, dq=dq, tau=np.zeros(4), cuff_force_est=np.zeros((4, 2)))
     step = SensorReadings(q=q, dq=dq, tau=np.zeros(4), cuff_force_est=force)
     ctrl.command(k0, zero)
     ref.command(k0, zero)
     filtered = 0.0 < g < 1.0 and mode == "guidance"
     alpha = 1.0 - math.exp(-2.0 * math.pi * f_f * dt) if filtered else 1.0
-    kf = np.asarray(ModeParams().force_gain)
+    kf = np.asarray(ModeParams().force_gain_for(mode))  # the Kalman filter's (the default)
     for n in range(1, 60):
         ctrl.command(k0, step)
         ref.command(k0, zero)

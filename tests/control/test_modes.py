@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 from exo_ctrl.control import PDController
-from exo_ctrl.control.modes import InteractionController, ModeParams
+from exo_ctrl.control.modes import FORCE_GAINS, InteractionController, ModeParams
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S
 from exo_ctrl.plant import MotorBank
@@ -46,13 +46,16 @@ def test_guidance_blends_tracking_and_the_free_command(setup) -> None:
 
     The free command's force feedback without guidance's low-pass (a cut-off
     whose step weight is 1); the filter itself:
-    tests/control/test_guidance_force_loop.py.
+    tests/control/test_guidance_force_loop.py.  U_free is transparent's law
+    with guidance's force gain and no lead (transparent's defaults differ:
+    FORCE_GAINS, FORCE_LEADS).
     """
     rng = np.random.default_rng(1)
     ticks = [0, 1, 2, 700, 1500, 2600, 4000]
     readings = [_readings(rng, setup, k) for k in ticks]
     pd = PDController(setup.plan, setup.config.gains)
-    free = _mode(setup, "transparent")
+    kf = ModeParams().force_gain_for("guidance")
+    free = _mode(setup, "transparent", force_gain=kf, force_lead_s=0.0)
     u_pd = [pd.command(k, r).copy() for k, r in zip(ticks, readings, strict=True)]
     u_free = [free.command(k, r).copy() for k, r in zip(ticks, readings, strict=True)]
     for g in (0.0, 0.3, 1.0):
@@ -179,6 +182,13 @@ def test_a_mode_needs_the_cuff_force_estimate(setup) -> None:
         ({"aan_bins": 0}, r"aan_bins must be an integer in \[1, 10000\]"),
         ({"aan_gain": (1.0, 2.0)}, "aan_gain must be a number or 4 numbers"),
         ({"force_filter_hz": 0.0}, r"force_filter_hz must be > 0 Hz; got 0.0"),
+        (
+            {"estimator_torque_rate_Nm_per_sqrt_s": -1.0},
+            r"estimator_torque_rate must be >= 0 N·m/√s; got -1.0",
+        ),
+        ({"force_lead_s": -0.01}, r"force_lead\[left_hip\] must be >= 0 s; got -0.01"),
+        ({"force_lead_filter_hz": 0.0}, r"force_lead_filter must be > 0 Hz; got 0.0"),
+        ({"force_lead_ramp_s": -1.0}, r"force_lead_ramp must be >= 0 s; got -1.0"),
     ],
 )
 def test_bad_mode_parameters_are_refused(params, message) -> None:
@@ -227,3 +237,96 @@ def test_a_nan_reading_commands_nan_and_keeps_the_state(setup, mode) -> None:
     assert np.all(np.isnan(faulted.command(ticks[1], bad)))
     expected = clean.command(ticks[2], r2).copy()
     np.testing.assert_array_equal(faulted.command(ticks[2], r2), expected)
+
+
+def test_force_gains_per_mode_and_estimator(setup) -> None:
+    """K_f: FORCE_GAINS for the mode and the estimator unless set; aan has none."""
+    params = ModeParams()
+    assert params.force_gain is None
+    assert params.force_gain_for("transparent") == (14.0, 10.0, 14.0, 10.0)
+    assert params.force_gain_for("transparent", "momentum") == (10.0,) * 4
+    assert params.force_gain_for("guidance", "momentum") == (10.0,) * 4
+    assert ModeParams(force_gain=5.0).force_gain_for("transparent") == (5.0,) * 4
+    for estimator in ("kalman", "momentum"):
+        for mode in ("transparent", "guidance", "aan"):
+            ctrl = InteractionController(
+                mode,
+                params,
+                setup.plan,
+                setup.device_exo,
+                setup.device_motor,
+                tracking=PDController(setup.plan, setup.config.gains),
+                dt=setup.config.dt,
+                estimator=estimator,
+            )
+            want = (0.0,) * 4 if mode == "aan" else FORCE_GAINS[(mode, estimator)]
+            np.testing.assert_array_equal(ctrl.record["force_gain"][0], want)
+
+
+def test_transparent_leads_the_estimated_interaction_torque(setup) -> None:
+    """τ_free − τ_free(no lead) = K_f λ_k T_L r_k, r the filtered rate of τ̂_int, λ_k = min(1, k/N).
+
+    r_k = r_{k−1} + α ((τ̂_k − τ̂_{k−1})/Δt − r_{k−1}), r_0 = 0, α = 1 − exp(−2π f Δt);
+    the same readings through a controller with T_L = 0.  Defaults: 15 ms on
+    every joint with the Kalman filter, none with the momentum observer or in
+    guidance.
+    """
+    assert ModeParams().force_lead_for("transparent") == (0.015,) * 4
+    assert ModeParams().force_lead_for("transparent", "momentum") == (0.0,) * 4
+    assert ModeParams().force_lead_for("guidance") == (0.0,) * 4
+    lead, f_hz, ramp_s, dt = np.array([0.015, 0.01, 0.02, 0.0]), 10.0, 0.005, setup.config.dt
+    ctrl = _mode(setup, "transparent", force_lead_s=tuple(lead), force_lead_filter_hz=f_hz,
+                 force_lead_ramp_s=ramp_s)  # fmt: skip
+    plain = _mode(setup, "transparent", force_lead_s=0.0)
+    alpha, n_ramp = 1.0 - np.exp(-2.0 * np.pi * f_hz * dt), round(ramp_s / dt)
+    kf = np.asarray(ModeParams().force_gain_for("transparent"))
+    rng = np.random.default_rng(5)
+    rate, previous = np.zeros(4), None
+    for k in range(12):
+        r = _readings(rng, setup, 1300 + k)
+        ctrl.command(1300 + k, r)
+        plain.command(1300 + k, r)
+        est = ctrl.record["tau_int_est"][0].copy()
+        if previous is not None:
+            rate += alpha * ((est - previous) / dt - rate)
+        previous = est
+        lam = min(1.0, k / n_ramp)
+        want = est + lam * lead * rate
+        np.testing.assert_allclose(ctrl.record["tau_int_lp"][0], want, rtol=1e-12, atol=1e-9)
+        diff = ctrl.record["tau_free"][0] - plain.record["tau_free"][0]
+        np.testing.assert_allclose(diff, kf * lam * lead * rate, rtol=1e-9, atol=1e-8)
+    assert np.all(np.abs(rate[:3]) > 100.0)  # the random forces' rate: the lead acted
+
+
+def test_transparent_tunes_the_kalman_filter_and_a_session_restores_it(setup) -> None:
+    """Transparent sets the filter's σ_d; other modes leave it; a switch applies the segment's."""
+    from exo_ctrl.control.modes.switch import SwitchedController
+    from exo_ctrl.estimation import CuffForceEstimator, CuffForceKalman
+
+    def kalman() -> CuffForceKalman:
+        return CuffForceKalman(setup.device_exo, setup.device_patient, setup.config.dt)
+
+    own = kalman().record["var_rate"][0]
+    rate = ModeParams().estimator_torque_rate_Nm_per_sqrt_s
+    for mode, want in (("transparent", rate**2), ("guidance", own), ("aan", own)):
+        est = kalman()
+        ctrl = _mode(setup, mode)
+        ctrl.tune_estimator(est)
+        assert est.record["var_rate"][0] == want
+    observer = CuffForceEstimator(setup.device_exo, setup.config.dt)
+    _mode(setup, "transparent").tune_estimator(observer)  # no such term: left alone
+    session = SwitchedController(
+        [_mode(setup, "guidance"), _mode(setup, "transparent"), _mode(setup, "aan")],
+        ["guidance", "transparent", "aan"],
+        [0, 3, 6],
+        blend_ticks=2,
+        dt=setup.config.dt,
+    )
+    est = kalman()
+    session.tune_estimator(est)
+    seen = []
+    rng = np.random.default_rng(4)
+    for k in range(9):
+        session.command(k, _readings(rng, setup, k))
+        seen.append(est.record["var_rate"][0])
+    assert seen == [own] * 3 + [rate**2] * 3 + [own] * 3

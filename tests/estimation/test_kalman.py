@@ -208,3 +208,38 @@ def test_refuses_bad_shapes_and_parameters(models) -> None:
     with pytest.raises(InvalidParameter) as e:
         KalmanNoise(initial_angle_rad=0.0)
     assert str(e.value) == "initial_angle must be > 0 rad; got 0.0"
+
+
+def test_the_torque_rate_sets_the_random_walk_of_d(models) -> None:
+    """set_torque_rate: Q's d block h σ_d² from the next step, a faster answer, None restores.
+
+    The exoskeleton held at Q0 and its hip's sensor torque stepped by 5 N·m:
+    the filter must put the step into the hip's external torque,
+    τ_ext = g − τ_s, so −5 N·m at the end whatever σ_d; a larger σ_d (a
+    faster random walk of the patient's torques) gets there sooner.
+    """
+    rise, h = {}, DT
+    for rate in (None, 100.0):
+        est = kalman(models)
+        est.set_torque_rate(rate)
+        for _ in range(3000):
+            est.step(Q0, np.zeros(4), models["tau"])
+        sigma = est.noise.patient_torque_rate_Nm_per_sqrt_s if rate is None else rate
+        np.testing.assert_allclose(est.record["Q"][0, :, 8, 8], h * sigma**2, rtol=1e-15)
+        before = est.tau_ext[0]
+        answer = []
+        for _ in range(400):
+            est.step(Q0, np.zeros(4), models["tau"] + np.array([5.0, 0.0, 0.0, 0.0]))
+            answer.append(est.tau_ext[0] - before)
+        assert answer[-1] == pytest.approx(-5.0, abs=1e-3)
+        rise[rate] = int(np.argmax(np.abs(answer) >= 0.632 * 5.0)) + 1
+    print(f"\nhip's external torque after a 5 N·m step: 63 % in {rise[None]} ms at σ_d = 10, "
+          f"{rise[100.0]} ms at 100 N·m/√s")  # fmt: skip
+    assert rise[100.0] < rise[None]
+    est, fresh = kalman(models), kalman(models)
+    est.set_torque_rate(100.0)
+    est.set_torque_rate(None)
+    assert est.record["var_rate"][0] == fresh.record["var_rate"][0]
+    with pytest.raises(InvalidParameter) as e:
+        est.set_torque_rate(-1.0)
+    assert str(e.value) == "patient_torque_rate must be >= 0 N·m/√s; got -1.0"

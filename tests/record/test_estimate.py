@@ -19,8 +19,10 @@ from exo_ctrl.estimation.errors import UNOBSERVABLE
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import CUFF_NAMES
 from exo_ctrl.record import RerunRecorder, estimate_file, write_estimate_recording
+from exo_ctrl.record.estimate_models import torque_rate_schedule
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
+from exo_ctrl.sim.session import Segment, SessionParams
 
 
 def _record(folder: Path, name: str, config: SimConfig):
@@ -243,3 +245,27 @@ def test_cli_estimator_option_names_the_estimator(runs, tmp_path: Path, capsys) 
     out = capsys.readouterr().out
     assert "(the Kalman filter on the device's models)" in out.splitlines()[0]
     assert "from the device's cuff and patient models" in out
+
+
+def test_a_mode_that_retunes_the_filter_is_estimated_offline_as_it_ran(tmp_path: Path) -> None:
+    """Transparent raises the filter's σ_d (control/modes); a session switches it back
+    and forth: the offline estimate follows the recorded modes' schedule and equals
+    the live one."""
+    session = SessionParams(
+        (Segment(0.6, "tracking"), Segment(0.6, "transparent"), Segment(0.4, "tracking"))
+    )
+    config = SimConfig(
+        controller="ct",
+        session=session,
+        duration_s=session.total_s,
+        patient_torque="active",
+        safety=False,
+    )
+    path, result = _record(tmp_path, "session", config)
+    rate = config.modes.estimator_torque_rate_Nm_per_sqrt_s
+    assert torque_rate_schedule(config) == [(0, None), (601, rate), (1201, None)]
+    est = estimate_file(path)
+    live = result.signals["cuff_force_est"]
+    np.testing.assert_allclose(est.series.force, live, rtol=0, atol=1e-9)
+    assert torque_rate_schedule(SimConfig(mode="transparent")) == [(0, rate)]
+    assert torque_rate_schedule(SimConfig()) == [(0, None)]

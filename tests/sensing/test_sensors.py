@@ -145,6 +145,24 @@ def test_sample_and_hold_at_a_lower_rate() -> None:
     assert taken == grid[: len(taken)] and len(taken) == 30
 
 
+def test_a_rate_equal_to_the_tick_samples_every_tick_however_long_the_run() -> None:
+    """The grid is t_0 + n T_s, not a running sum of T_s: at 1 kHz a sum of 0.001 drifts
+    past k Δt by more than the hold's tolerance (1e-9 Δt) near 8 s, and a frame was held."""
+    s = Sensors(noiseless(sample_rate_hz=1000.0), DT)
+    n = 20_000
+    x = np.zeros(4)
+    for k in range(n):
+        x[0] = float(k)
+        assert s.read(k, x, x, x).q[0] == k, f"tick {k} held the last sample"
+    assert s.samples == n
+    # the running sum itself: past the tolerance before the run's end
+    acc, drift = 0.0, []
+    for k in range(1, n):
+        acc += 1.0 / 1000.0
+        drift.append(acc - k * DT)
+    assert max(drift) > 1e-9 * DT
+
+
 def test_encoder_speed_is_exact_on_a_ramp_without_noise() -> None:
     """Finite difference of a ramp is its slope; the filter starts at the true speed."""
     s = Sensors(noiseless(velocity="encoder"), DT)

@@ -36,13 +36,30 @@ def _config(mode: str, patient: ActiveParams = HEALTHY, **kw) -> SimConfig:
 
 
 @functools.cache
-def _run(mode: str, guidance: float = 1.0, safety: bool = True, ideal: bool = False):
+def _run(
+    mode: str,
+    guidance: float = 1.0,
+    safety: bool = True,
+    ideal: bool = False,
+    estimator: str = "kalman",
+):
+    """A 6 s run of the healthy patient; ``ideal``: ideal sensors and no lead on τ̂_int.
+
+    Transparent's lead (ModeParams.force_lead_s, 15 ms) makes up for the lag
+    of the Kalman filter's hip estimate with the default 17-bit encoders
+    (16 ms); with noise-free angles the estimate has no such lag and the lead
+    overshoots (11.6 % of tracking's force against 7.7 % without), so the
+    ideal comparison runs without it (a device with other sensors is tuned
+    to them).
+    """
+    lead = {"force_lead_s": 0.0} if ideal else {}
     config = _config(
         mode,
-        modes=ModeParams(guidance=guidance),
+        modes=ModeParams(guidance=guidance, **lead),
         duration_s=6.0,
         safety=safety,
         sensors=SensorParams.ideal() if ideal else SensorParams(),
+        estimator=estimator,
     )
     return simulate(config)
 
@@ -66,32 +83,35 @@ def _foot_excursion(q: np.ndarray, t: np.ndarray) -> float:
 
 
 def test_transparent_leaves_the_healthy_patient_in_charge() -> None:
-    """Interaction force far below tracking's, and the patient's own step emerges.
+    """Interaction force below a tenth of tracking's (issue 18), and the patient's own step emerges.
 
     Tracking runs without the supervisor: this patient, fighting the plan,
     trips its 130 N estimated-force bound within a cycle and the hold would
-    end the comparison (the supervisor is tested below).  With the device's
-    default sensors the RMS true force falls to about an eighth of tracking's
-    with the Kalman filter, a fifth with the momentum observer
-    (the cuff-force estimate lags the 30 Hz speed filter and the observer's
-    100 rad/s, which bounds the force feedback at K_f ≈ 10); with ideal
-    sensors below a tenth.
+    end the comparison (the supervisor is tested below).  The default run
+    (default sensors, the Kalman filter, the nominal patient) and, printed
+    beside it, the momentum observer's and ideal sensors'.  What is left is
+    the exoskeleton's inertia, its rotors' and its drives' lag divided by
+    1 + K_f and the estimate's error (ModeParams' docstring).
     """
     tracking = _run("tracking", safety=False)
     transparent = _run("transparent")
+    momentum = _run("transparent", estimator="momentum")
     ideal_tracking = _run("tracking", safety=False, ideal=True)
     ideal = _run("transparent", ideal=True)
     f_track, f_free = _rms_force(tracking), _rms_force(transparent)
+    f_mom = _rms_force(momentum)
     f_track_i, f_free_i = _rms_force(ideal_tracking), _rms_force(ideal)
     print(
         f"\nRMS true cuff force: tracking {f_track:.1f} N, transparent {f_free:.1f} N "
         f"({f_free / f_track:.1%}); estimated in transparent "
-        f"{_rms_force(transparent, 'cuff_force_est'):.1f} N; ideal sensors: tracking "
+        f"{_rms_force(transparent, 'cuff_force_est'):.1f} N; the momentum observer "
+        f"{f_mom:.1f} N ({f_mom / f_track:.1%}); ideal sensors: tracking "
         f"{f_track_i:.1f} N, transparent {f_free_i:.1f} N ({f_free_i / f_track_i:.1%})"
     )
     assert transparent.summary()["safety_state"] == "normal"
-    assert f_free < 0.25 * f_track  # measured 12.8 % (momentum observer: 19.8 %)
-    assert f_free_i < 0.12 * f_track_i  # measured 9.8 % (momentum observer: 9.6 %)
+    assert momentum.summary()["safety_state"] == "normal"
+    assert f_free < 0.10 * f_track
+    assert f_free_i < 0.10 * f_track_i
     # The patient's own step: their foot's excursion against their own reference's.
     t = transparent.t
     own = _foot_excursion(transparent.signals["q_patient"], t)
@@ -107,6 +127,25 @@ def test_transparent_leaves_the_healthy_patient_in_charge() -> None:
     )
     assert own == pytest.approx(wanted, rel=0.1)
     assert abs(forced - wanted) > abs(own - wanted)
+
+
+def test_transparent_force_does_not_grow() -> None:
+    """12 s without the supervisor: no mode of the loop grows (the bound on K_f).
+
+    The force gain is bounded by a slow growth at 3–4 Hz (the patient's 60 ms
+    reflex with the estimate's lag; ModeParams' docstring): 14 at the knees
+    took the RMS force from 4.8 N over 2.2–6 s to 7.5 N over 8–12 s (1.55×),
+    16 to 2.6×.  Stable, the two windows differ by the patient's
+    cycle-to-cycle variability (within 8 % on patient seeds 0–5): the later
+    within 20 % of the earlier.
+    """
+    result = simulate(_config("transparent", duration_s=12.0, safety=False))
+    f = np.sum(result.signals["cuff_force"] ** 2, axis=(1, 2)) / 4
+    t = result.t
+    early = float(np.sqrt(f[(t > SETTLED_S) & (t <= 6.0)].mean()))
+    late = float(np.sqrt(f[t > 8.0].mean()))
+    print(f"\ntransparent, RMS true cuff force: 2.2-6 s {early:.2f} N, 8-12 s {late:.2f} N")
+    assert late < 1.2 * early
 
 
 def test_guidance_is_monotonic_in_G_and_G1_is_tracking() -> None:

@@ -8,10 +8,12 @@
 """
 
 from .controller import MODE_FIELDS, InteractionController, mode_command
-from .params import MODES, ModeParams
+from .params import FORCE_GAINS, FORCE_LEADS, MODES, ModeParams
 from .path import PATH_FIELDS, PathController, PathParams, path_command
 
 __all__ = [
+    "FORCE_GAINS",
+    "FORCE_LEADS",
     "MODES",
     "MODE_FIELDS",
     "PATH_FIELDS",

@@ -32,13 +32,25 @@ carry itself and follow the patient's push:
 
 The modes (``mode`` of :class:`~exo_ctrl.control.modes.params.ModeParams`):
 
-- ``transparent`` (patient-in-charge): U = U_free with F = 0.
+- ``transparent`` (patient-in-charge): U = U_free with F = 0, K_f per
+  joint for the run's estimator (:data:`~exo_ctrl.control.modes.params.FORCE_GAINS`:
+  hip 14, knee 10 with the Kalman filter; 10 with the momentum observer);
+  the force feedback acts on τ̂_int with a lead, τ̂_int + λ T_L r, r the
+  rate of τ̂_int (its difference through a first-order low-pass of
+  ``force_lead_filter_hz``), λ rising from 0 to 1 over
+  ``force_lead_ramp_s`` from the mode's start, T_L the estimate's lag
+  (:data:`~exo_ctrl.control.modes.params.FORCE_LEADS`: 15 ms with the
+  Kalman filter, none with the observer); and the Kalman filter's σ_d is
+  raised to 30 N·m/√s while it runs (:meth:`InteractionController.tune_estimator`):
+  the patient in charge changes their torques at the gait's rate (the
+  measurements: :class:`~exo_ctrl.control.modes.params.ModeParams`).
 - ``guidance`` G ∈ [0, 1]: U = G U_track + (1 − G) U_free, U_track the
   tracking controller's command (PD, CT or QP).  In torque,
   τ = G (k_t/R)(k_p e + k_d ė − (i_G/k_E) q̇) + (1 − G) τ_free (+ G τ_ff for
   CT): the tracking impedance, its back-EMF damping included, scaled by G
   around the plan, and the free share by 1 − G.  G = 1 gives U_track
-  exactly (1·U + 0·U_free: bit-equal), G = 0 gives ``transparent``.
+  exactly (1·U + 0·U_free: bit-equal), G = 0 gives the free command
+  (transparent's law with guidance's own K_f, 10, and the filter's own σ_d).
   For 0 < G < 1 the force feedback acts on τ̂_int through a first-order
   low-pass of ``force_filter_hz`` (ω_f = 100 rad/s by default),
   K_f ω_f/(s + ω_f) τ̂_int: the loop's bandwidth is the mode's own, not
@@ -122,7 +134,11 @@ _CODES = {"guidance": 1, "transparent": 2, "aan": 3}
 #: the last tick, error sum and count in it, completed cycles and support
 #: level (RMS of F over the table [N·m]); what the last tick computed:
 #: τ̂_int, τ_free, the support applied [N·m], U_free [V]; guidance's force
-#: loop low-pass: its step weight 1 − exp(−ω_f Δt) (1: none) and its output [N·m].
+#: loop low-pass: its step weight 1 − exp(−ω_f Δt) (1: none) and its output
+#: (transparent: with the lead) [N·m]; transparent's lead: on (any T_L > 0),
+#: T_L per joint [s], the rate filter's step weight, τ̂_int of the last tick
+#: [N·m] and its filtered rate [N·m/s], ticks since the start and the ramp's
+#: length [ticks].
 MODE_FIELDS: list[tuple[Any, ...]] = [
     ("mode", np.int64),
     ("guidance", np.float64),
@@ -152,6 +168,13 @@ MODE_FIELDS: list[tuple[Any, ...]] = [
     ("started", np.int64),
     ("force_alpha", np.float64),
     ("tau_int_lp", np.float64, (4,)),
+    ("force_lead_on", np.int64),
+    ("force_lead_s", np.float64, (4,)),
+    ("force_lead_alpha", np.float64),
+    ("tau_int_prev", np.float64, (4,)),
+    ("tau_int_rate", np.float64, (4,)),
+    ("force_lead_ticks", np.int64),
+    ("force_lead_ramp", np.int64),
 ]
 
 
@@ -167,11 +190,18 @@ class InteractionController(CommandCounters):
         tracking: the tracking controller (guidance: blended with; None for
             the others).
         dt: the control period Δt [s] (the torque loop's integration step).
+        estimator: the run's live cuff-force estimator, ``"kalman"`` or
+            ``"momentum"`` (the default force gains depend on it:
+            :meth:`ModeParams.force_gain_for`).
 
     Attributes:
         record: COMMAND_FIELDS and :data:`MODE_FIELDS`.
         support: aan's support table F, (bins, 4) [N·m] (zero for the others).
         support_history: aan's support level (RMS of F [N·m]) after each cycle.
+        estimator_torque_rate_Nm_per_sqrt_s: the Kalman filter's σ_d this
+            mode runs with [N·m/√s] (``transparent``:
+            ``params.estimator_torque_rate_Nm_per_sqrt_s``), or None (the
+            filter's own); :meth:`tune_estimator` applies it.
 
     """
 
@@ -184,6 +214,7 @@ class InteractionController(CommandCounters):
         motor: MotorParams,
         tracking: PDController | None = None,
         dt: float = 1e-3,
+        estimator: str = "kalman",
     ) -> None:
         self.name = mode
         self.plan = plan
@@ -195,7 +226,8 @@ class InteractionController(CommandCounters):
         s = rec[0]
         s["mode"] = _CODES[mode]
         s["guidance"] = params.guidance if mode == "guidance" else 0.0
-        s["force_gain"] = 0.0 if mode == "aan" else params.force_gain
+        s["force_gain"] = 0.0 if mode == "aan" else params.force_gain_for(mode, estimator)
+        self.estimator_torque_rate_Nm_per_sqrt_s = params.torque_rate_for(mode)
         s["drive"] = drive_model(motor)
         s["damping"], s["friction"] = exo.damping, exo.friction
         CuffGeometry.from_body(exo).fill(rec)
@@ -208,6 +240,12 @@ class InteractionController(CommandCounters):
         s["force_alpha"] = 1.0
         if mode == "guidance" and 0.0 < params.guidance < 1.0:
             s["force_alpha"] = 1.0 - math.exp(-2.0 * math.pi * params.force_filter_hz * dt)
+        if mode == "transparent":
+            s["force_lead_s"] = params.force_lead_for(mode, estimator)
+            s["force_lead_on"] = int(np.any(s["force_lead_s"] > 0.0))
+            w_lead = 2.0 * math.pi * params.force_lead_filter_hz
+            s["force_lead_alpha"] = 1.0 - math.exp(-w_lead * dt)
+            s["force_lead_ramp"] = max(1, round(params.force_lead_ramp_s / dt))
         self.support = np.zeros((params.aan_bins if mode == "aan" else 1, 4))
         self.support_history: list[float] = []
         self._m = pin.Model(exo.model)
@@ -218,6 +256,17 @@ class InteractionController(CommandCounters):
         self._aan = mode == "aan"
         if tracking is not None and hasattr(tracking, "refresh_row"):
             self.refresh_row = tracking.refresh_row
+
+    def tune_estimator(self, estimator: object) -> None:
+        """Give the run's estimator this mode's tuning: a Kalman filter's σ_d (transparent).
+
+        The filter's :meth:`~exo_ctrl.estimation.kalman.CuffForceKalman.set_torque_rate`
+        with :attr:`estimator_torque_rate_Nm_per_sqrt_s`; nothing for the
+        other modes or an estimator without the term (the momentum observer).
+        """
+        set_rate = getattr(estimator, "set_torque_rate", None)
+        if set_rate is not None and self.estimator_torque_rate_Nm_per_sqrt_s is not None:
+            set_rate(self.estimator_torque_rate_Nm_per_sqrt_s)
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """Drive voltages [V] for tick k: a view of ``record["u_cmd"]``.
@@ -317,11 +366,22 @@ def mode_command(state, k, u_track, g, q, dq, f_est, support, q_des):  # pragma:
         )
         s.tau_int_est[2 * leg] = sh * hip
         s.tau_int_est[2 * leg + 1] = sk * knee
-    for j in range(4):  # guidance's force-loop low-pass (weight 1: none)
+    # The torque fed back: τ̂ with transparent's lead, τ̂ + λ T_L r (r: τ̂'s difference
+    # low-passed; λ: 0 → 1 from the start), then the force loop's low-pass (weight 1: none).
+    ramp = min(1.0, s.force_lead_ticks / s.force_lead_ramp) if s.force_lead_on else 0.0
+    s.force_lead_ticks += s.force_lead_on
+    for j in range(4):
+        x = s.tau_int_est[j]
+        if s.force_lead_on:
+            if s.started != 0:
+                raw = (x - s.tau_int_prev[j]) / s.dt
+                s.tau_int_rate[j] += s.force_lead_alpha * (raw - s.tau_int_rate[j])
+            s.tau_int_prev[j] = x
+            x = x + ramp * s.force_lead_s[j] * s.tau_int_rate[j]
         if s.started == 0:
-            s.tau_int_lp[j] = s.tau_int_est[j]
+            s.tau_int_lp[j] = x
         else:
-            s.tau_int_lp[j] += s.force_alpha * (s.tau_int_est[j] - s.tau_int_lp[j])
+            s.tau_int_lp[j] += s.force_alpha * (x - s.tau_int_lp[j])
     s.started = 1
     # aan: the support of this tick's phase bin, and learning from its error.
     b = -1

@@ -162,6 +162,10 @@ class PathController(CommandCounters):
         exo: the exoskeleton model the DEVICE holds.
         motor: the drive the device believes in.
         dt: the control period Δt [s].
+        estimator: the run's live cuff-force estimator (``"kalman"`` or
+            ``"momentum"``): the free part's force gains, lead and the
+            filter's tuning are transparent's for it
+            (:class:`~exo_ctrl.control.modes.InteractionController`).
 
     Raises:
         InvalidParameter: a plan without a periodic part.
@@ -176,6 +180,7 @@ class PathController(CommandCounters):
         exo: BodyModel,
         motor: MotorParams,
         dt: float = 1e-3,
+        estimator: str = "kalman",
     ) -> None:
         lead, period, tail = plan.row_rule
         if period < 2:
@@ -185,7 +190,12 @@ class PathController(CommandCounters):
         self.name = "path"
         self.params = params
         self.plan = plan
-        self._free = InteractionController("transparent", modes, plan, exo, motor, dt=dt)
+        self._free = InteractionController(
+            "transparent", modes, plan, exo, motor, dt=dt, estimator=estimator
+        )
+        #: The Kalman filter's σ_d the free part runs with (transparent's).
+        self.estimator_torque_rate_Nm_per_sqrt_s = self._free.estimator_torque_rate_Nm_per_sqrt_s
+        self.tune_estimator = self._free.tune_estimator
         self.record = rec = record(COMMAND_FIELDS + PATH_FIELDS)
         s = rec[0]
         fill_legs(s, exo)

@@ -24,9 +24,14 @@ K_i and ΔU^{old} alone) shared over the window; the gap is at most 2 U_max
 (both commands within the supply ±U_max), so a switch adds at most
 2 U_max / (N_b + 1) per tick: 0.475 V with the default 24 V supply and
 0.1 s at 1 kHz (N_b = 100), against the whole gap at once without blending
-(tests/sim/test_session.py measures the gaps: 0.3 V tracking → aan, 2.6 V
+(tests/sim/test_session.py measures the gaps: 0.3 V tracking → aan, 3.6 V
 aan → transparent with a weak active patient).  Each switch is an event
 ``{"t", "kind": "mode_switch", "message"}`` in :attr:`SwitchedController.events`.
+
+A mode may tune the run's estimator (``transparent``: the Kalman filter's
+σ_d, :meth:`~exo_ctrl.control.modes.InteractionController.tune_estimator`):
+at each switch the new segment's controller's wish is applied, or the
+filter's own σ_d restored (``estimator_torque_rate_Nm_per_sqrt_s``: None).
 """
 
 from __future__ import annotations
@@ -99,11 +104,24 @@ class SwitchedController(CommandCounters):
         self._u = self.record["u_cmd"][0]
         self._seg = 0
         self._next = self.starts[1] if len(self.starts) > 1 else None
+        self._estimator: object | None = None
 
     @property
     def segment(self) -> int:
         """The segment running."""
         return self._seg
+
+    def tune_estimator(self, estimator: object) -> None:
+        """Keep the run's estimator to tune at each switch; tune it for the first segment."""
+        self._estimator = estimator
+        self._tune()
+
+    def _tune(self) -> None:
+        """The running segment's σ_d into a Kalman filter (None: the filter's own)."""
+        set_rate = getattr(self._estimator, "set_torque_rate", None)
+        if set_rate is not None:
+            ctrl = self.controllers[self._seg]
+            set_rate(getattr(ctrl, "estimator_torque_rate_Nm_per_sqrt_s", None))
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
         """Drive voltages [V] for tick k: a view of ``record["u_cmd"]``."""
@@ -127,6 +145,7 @@ class SwitchedController(CommandCounters):
         self.record["segment"] = self._seg
         after = self.names[self._seg]
         self._next = self.starts[self._seg + 1] if self._seg + 1 < len(self.starts) else None
+        self._tune()
         t = k * self.dt
         self.events.append(
             {
