@@ -16,10 +16,10 @@ and the hold posture (the angle read at the stop) after; and, with ``--out``,
 whether its recording holds every tick and the fault's event
 (:func:`recording_holds`).  ``belt_stop`` runs with the belt (contact on),
 twice: with the plan synchronised with the measured belt speed (sync on, not
-with the QP) and with the precomputed plan (sync off); for it the table also
-gives the feet's slip on the stopped belt after the onset (the largest slip
-speed and the distance slid, both feet, in contact).  Prints a Markdown
-table; exit 0.
+with the QP nor in aan and path, which need the precomputed plan) and with
+the precomputed plan (sync off); for it the table also gives the feet's
+slip on the stopped belt after the onset (the largest slip speed and the
+distance slid, both feet, in contact).  Prints a Markdown table; exit 0.
 
 ``--mode MODE`` (default ``tracking``) runs the campaign in an interaction
 mode (:mod:`exo_ctrl.control.modes`: guidance, transparent, aan, path) with
@@ -89,7 +89,8 @@ CAMPAIGN = {
 #: Why a fault cannot be detected (or injected), by kind (none at present).
 UNDETECTABLE: dict[str, str] = {}
 
-#: The runs of a belt fault: (label, SimConfig overrides); sync on is left out with the QP.
+#: The runs of a belt fault: (label, SimConfig overrides); sync on is left out with the QP
+#: and in aan and path (a precomputed periodic plan).
 BELT_VARIANTS = (
     ("sync on", {"contact": ContactParams(enabled=True), "sync": True}),
     ("sync off", {"contact": ContactParams(enabled=True), "sync": False}),
@@ -286,7 +287,10 @@ def run_campaign(
     """
     results = []
     references: dict[str, object] = {}  # per variant: the mode's run without a fault
-    belt = [(name, over) for name, over in BELT_VARIANTS if controller != "qp" or not over["sync"]]
+    # Sync on is left out where the plan must be precomputed: the QP, and aan and
+    # path (their phase bins and path are rows of a periodic precomputed plan).
+    precomputed = controller == "qp" or mode in ("aan", "path")
+    belt = [(name, over) for name, over in BELT_VARIANTS if not (precomputed and over["sync"])]
     runs = [
         (kind, seed, variant)
         for kind in kinds

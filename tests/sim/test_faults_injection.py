@@ -244,6 +244,16 @@ def test_the_belt_stop_is_detected_held_and_recorded(variant, tmp_path) -> None:
     assert r.slip_max_mps <= 0.6 and r.slip_distance_m <= 0.6 * 0.25
 
 
+def test_aan_and_path_run_the_belt_stop_on_their_precomputed_plan_only() -> None:
+    """aan's phase bins and path's path are rows of a precomputed periodic plan: the
+    campaign runs their belt stop with sync off only (sync on is refused by SimConfig),
+    and it is detected there."""
+    for mode in ("aan", "path"):
+        results = campaign.run_campaign(seeds=1, mode=mode, kinds=("belt_stop",))
+        assert [r.variant for r in results] == ["sync off"], mode
+        assert results[0].detected and results[0].channel == "belt speed deviation"
+
+
 def test_the_recording_holds_every_tick_and_the_fault_event(tmp_path) -> None:
     fault = campaign.plan_fault("drive_short", 0)
     r = campaign.run_fault(fault, out=tmp_path)
