@@ -54,7 +54,14 @@ from ..exceptions import InvalidParameter
 from ..model import SEXES, BodyModel, load_exo, load_patient, nominal_patient, write_urdf
 from ..plant import BeltParams, CuffParams, MotorParams
 
-__all__ = ["PAPER_PATIENT", "PATIENT_BELIEFS", "Belief", "device_models"]
+__all__ = [
+    "PAPER_PATIENT",
+    "PATIENT_BELIEFS",
+    "Belief",
+    "device_exo",
+    "device_models",
+    "device_patient",
+]
 
 #: The named patient models (anything else is a URDF path).
 PATIENT_BELIEFS = ("truth", "nominal")
@@ -167,11 +174,25 @@ def device_models(
         ExoCtrlError: a URDF that cannot be loaded.
 
     """
-    exo = load_exo(belief.exo if belief.exo is not None else exo_path)
+    return device_exo(belief, exo_path), device_patient(belief, patient_path, true_patient)
+
+
+def device_exo(belief: Belief, exo_path: str | None) -> BodyModel:
+    """The exoskeleton model the device holds: ``belief.exo``, else the true one's file, anew.
+
+    Raises:
+        ExoCtrlError: a URDF that cannot be loaded.
+
+    """
+    return load_exo(belief.exo if belief.exo is not None else exo_path)
+
+
+def device_patient(belief: Belief, patient_path: str | None, true_patient: BodyModel) -> BodyModel:
+    """The patient model the device holds (:func:`device_models`' arguments and errors)."""
     if belief.patient == "truth":
-        return exo, load_patient(patient_path)
+        return load_patient(patient_path)
     if belief.patient != "nominal":
-        return exo, load_patient(belief.patient)
+        return load_patient(belief.patient)
     height, mass = belief.patient_height_m, belief.patient_mass_kg
     if patient_path is not None and (height is None or mass is None):
         missing = "patient_height" if height is None else "patient_mass"
@@ -189,4 +210,4 @@ def device_models(
     params = nominal_patient(leg.thigh_length, leg.shank_length, height, mass, belief.patient_sex)
     with tempfile.TemporaryDirectory(prefix="exo_ctrl_nominal_") as folder:
         path = write_urdf(params, Path(folder) / "nominal_patient.urdf")
-        return exo, load_patient(str(path))
+        return load_patient(str(path))

@@ -44,7 +44,7 @@ from ..plant import (
 from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
 from ..plant.pelvis import moving_mass_kg
-from .belief import device_models
+from .belief import device_exo, device_patient
 from .config import SimConfig
 from .session import session_controller
 from .sync import online_gait, set_speeds
@@ -105,7 +105,7 @@ def build(config: SimConfig) -> Setup:
     rows = config.plan_layout
     motor = drive_for(config.motor, exo)
     online = None
-    model_exo, model_patient = device_models(config.belief, config.exo, config.patient, fitted)
+    model_exo = device_exo(config.belief, config.exo)
     sink = stance_sink_for(config, model_exo)
     if config.exercise == "calibration":
         times = rows.ticks() * config.dt
@@ -120,6 +120,7 @@ def build(config: SimConfig) -> Setup:
         )
     if not config.synced:  # the online plan's speeds are checked by online_gait
         check_followable(config, plan, exo, patient, motor)
+    model_patient = device_patient(config.belief, config.patient, fitted)
     if config.synced:  # generated each tick from the measured belt speed (sim/sync.py)
         online = online_gait(config, exo, patient, motor, model_exo, check_followable, sink)
         plan = online.plan
