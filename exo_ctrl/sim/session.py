@@ -325,7 +325,7 @@ def check_session(config: Any) -> None:
 
 
 def session_controller(
-    config: Any, plan: Any, exo: Any, motor: Any, tracking: Any
+    config: Any, plan: Any, exo: Any, motor: Any, tracking: Any, patient: Any = None
 ) -> SwitchedController:
     """The session's controllers, one per segment, behind a bumpless switch.
 
@@ -336,6 +336,7 @@ def session_controller(
         motor: the drive the device believes in.
         tracking: a function returning a new tracking controller (the run's
             PD, CT or QP), one per segment that tracks or guides.
+        patient: the patient model the DEVICE holds (path's wall damping).
 
     """
     session: SessionParams = config.session
@@ -346,7 +347,14 @@ def session_controller(
             ctrl = tracking()
         elif seg.mode == "path":
             ctrl = PathController(
-                seg.path_params(config.path), modes, plan, exo, motor, config.dt, config.estimator
+                seg.path_params(config.path),
+                modes,
+                plan,
+                exo,
+                motor,
+                config.dt,
+                config.estimator,
+                patient=patient,
             )
         else:
             inner = tracking() if seg.mode == "guidance" else None

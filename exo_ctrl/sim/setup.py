@@ -153,6 +153,7 @@ def build(config: SimConfig) -> Setup:
             model_exo,
             model_motor,
             lambda: _tracking(config, plan, model_exo, model_patient, model_motor),
+            patient=model_patient,
         )
     elif config.mode == "path":  # the tunnel with free timing, on the device's models
         controller = PathController(  # type: ignore[assignment]
@@ -163,6 +164,7 @@ def build(config: SimConfig) -> Setup:
             model_motor,
             dt=config.dt,
             estimator=config.estimator,
+            patient=model_patient,
         )
     elif config.mode != "tracking":  # an interaction mode on the device's models
         controller = InteractionController(  # type: ignore[assignment]

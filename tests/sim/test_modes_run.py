@@ -374,3 +374,25 @@ def test_path_error_is_the_feet_distance_from_the_path_at_the_devices_phase() ->
     other = _run("transparent")
     assert "path_error_rms_m" not in other.summary()["interaction"]["run"]
     assert np.all(other.signals["path_phase"] == -1.0)
+
+
+def test_path_leaves_the_healthy_patient_as_free_as_transparent() -> None:
+    """After the ramp-in the healthy patient's feet stay in the tunnel: transparent's force.
+
+    Inside the tunnel the wall's force is exactly zero (tests/control/test_path.py),
+    so with both feet inside on every tick after the ramp-in the device is
+    transparent's: the RMS interaction force within 5 % of transparent's
+    (what differs is the ramp-in, where the patient, at their own pace,
+    brushes the wall).
+    """
+    path, free = _run("path").summary()["interaction"]["run"], _run("transparent").summary()
+    free = free["interaction"]["run"]
+    print(
+        f"\nhealthy patient: path {path['rms_interaction_force_N']:.2f} N against transparent's "
+        f"{free['rms_interaction_force_N']:.2f} N; feet at most "
+        f"{1e3 * max(path['path_error_max_m'].values()):.1f} mm from the path"
+    )
+    assert all(share == 0.0 for share in path["path_outside_tunnel_share"].values())
+    assert path["rms_interaction_force_N"] == pytest.approx(
+        free["rms_interaction_force_N"], rel=0.05
+    )
