@@ -24,6 +24,16 @@ fields by name, so a layout is declared once, as a dtype, and numba checks
 every field's type and shape.  A call costs about 0.2 µs for one record
 against 0.12 µs per plain array argument.
 
+**Switches.**  A feature a run may leave off (the belt contact, the pelvis
+guide, compliant drives, split cuffs) is a branch of the kernel that calls
+it.  numba compiles every branch, callees included, unless the branch is
+pruned before typing, which it does for a test ``if arg is not None:`` on
+an argument that is None.  Such a kernel takes the feature's compile-time
+switch, :func:`switch` (``True`` or ``None``), as an argument and tests
+``if feature is not None and <the runtime flag>:``; a run that leaves the
+feature off passes None and compiles nothing of it.  Each pattern of
+switches is a signature of its own (compiled once per machine, as any).
+
 **Status.**  A kernel that can refuse its input returns a :class:`Status`
 as its integer value (``return Status.OK.value``: returning the enum member
 itself boxes an ``IntEnum`` on every call, about 0.5 µs); :func:`check`
@@ -46,7 +56,7 @@ from .exceptions import InvalidParameter, KernelStatusError, SimulationDiverged
 
 _jit_cache.refresh(Path(__file__).resolve().parent)
 
-__all__ = ["Status", "check", "kernel", "preload", "record", "shared_dtype"]
+__all__ = ["Status", "check", "kernel", "preload", "record", "shared_dtype", "switch"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -63,6 +73,15 @@ def preload(func: Any, *args: Any) -> None:
     takes milliseconds.
     """
     func.compile(tuple(numba.typeof(a) for a in args))
+
+
+def switch(on: bool) -> bool | None:
+    """The compile-time switch of a feature (module docstring): True when ``on``, else None.
+
+    Derive it from the same flag the kernel tests at run time: a None switch
+    with the flag set would skip the feature's code.
+    """
+    return True if on else None
 
 
 def record(fields: list[tuple[Any, ...]]) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Benchmark of the control tick, its library floor, the real-time factor and the cold start.
 
     .venv/bin/python tools/bench.py [--ticks N] [--json PATH] [--scenarios pd,ct,qp,qp_spastic]
-    .venv/bin/python tools/bench.py --cold [--scenarios ...]
+    .venv/bin/python tools/bench.py --cold [--repeat N] [--scenarios ...]
 
 For each scenario (:data:`SCENARIOS`: the default run with PD, CT and QP,
 and the QP on the spastic patient at a 150 N cuff bound, where its bound
@@ -20,7 +20,11 @@ Absolute times drift on shared machines; the ratio is the figure to compare.
 ``--cold`` measures instead the first run after an install: a short run of
 each scenario in a fresh process with a fresh, empty numba cache directory
 (``NUMBA_CACHE_DIR``), so every kernel it needs compiles, then the same run
-again in a new process that loads them from that cache.
+again in a new process that loads them from that cache.  Besides the wall
+times it prints the child process's CPU time (user + system), which a
+shared machine inflates less; ``--repeat N`` takes the best of N such pairs
+(each figure its smallest).  ``tools/compile_profile.py`` breaks a cold
+start down by kernel.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -238,13 +243,16 @@ def cold_start(name: str) -> dict[str, float]:
         code = _COLD_RUN.format(overrides=SCENARIOS[name])
         out = {}
         for kind in ("cold", "warm"):
-            t0 = time.perf_counter()
+            t0, before = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
             run = subprocess.run(
                 [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
             )
-            total = time.perf_counter() - t0
+            total, after = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
             imports, first = (float(x) for x in run.stdout.split())
             out[f"{kind}_total_s"] = total
+            out[f"{kind}_cpu_s"] = (after.ru_utime - before.ru_utime) + (
+                after.ru_stime - before.ru_stime
+            )
             out[f"{kind}_import_s"] = imports
             out[f"{kind}_run_s"] = first
     return out
@@ -262,6 +270,9 @@ def main() -> int:
     parser.add_argument(
         "--cold", action="store_true", help="measure the first run after an install instead"
     )
+    parser.add_argument(
+        "--repeat", type=int, default=1, help="--cold: the best of N measurements (default 1)"
+    )
     args = parser.parse_args()
     names = [name.strip() for name in args.scenarios.split(",")]
     unknown = [name for name in names if name not in SCENARIOS]
@@ -269,15 +280,16 @@ def main() -> int:
         parser.error(f"--scenarios: unknown {unknown}; allowed: {', '.join(SCENARIOS)}")
     results = {}
     if args.cold:
-        print(f"{'scenario':<12}{'cold: import':>13}{'run':>7}{'total':>8}"
-              f"{'warm: import':>14}{'run':>7}{'total':>8}")  # fmt: skip
+        print(f"{'scenario':<12}{'cold: import':>13}{'run':>7}{'total':>8}{'CPU':>7}"
+              f"{'warm: import':>14}{'run':>7}{'total':>8}{'CPU':>7}")  # fmt: skip
         for name in names:
-            r = cold_start(name)
+            runs = [cold_start(name) for _ in range(max(args.repeat, 1))]
+            r = {key: min(run[key] for run in runs) for key in runs[0]}
             results[name] = r
             print(
                 f"{name:<12}{r['cold_import_s']:>12.1f}s{r['cold_run_s']:>6.1f}s"
-                f"{r['cold_total_s']:>7.1f}s{r['warm_import_s']:>13.1f}s"
-                f"{r['warm_run_s']:>6.1f}s{r['warm_total_s']:>7.1f}s"
+                f"{r['cold_total_s']:>7.1f}s{r['cold_cpu_s']:>6.1f}s{r['warm_import_s']:>13.1f}s"
+                f"{r['warm_run_s']:>6.1f}s{r['warm_total_s']:>7.1f}s{r['warm_cpu_s']:>6.1f}s"
             )
     else:
         print(

@@ -386,6 +386,7 @@ class CuffForceKalman:
             pin.nonLinearEffects(mp, self._data_p, qp, vp),
             q,
             tau,
+            self.cuffs.split_switch,
         )
         if status == Status.NOT_FINITE.value:
             self._started = False  # the state left the finite numbers: restart at the next readings
@@ -418,5 +419,5 @@ class CuffForceKalman:
             + [n.initial_torque_Nm**2] * 2
         )
         rec["cov"][0] = np.diag(diag)
-        kalman_outputs(rec, self.cuffs.record)
+        kalman_outputs(rec, self.cuffs.record, self.cuffs.split_switch)
         self._started = True

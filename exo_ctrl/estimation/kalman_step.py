@@ -24,13 +24,16 @@ __all__ = [
 
 
 @kernel
-def kalman_outputs(state, cuffs):
-    """The device's cuff forces at the step's midpoint (q − ½ h v, v): f, n · f, u · f, J_eᵀ f."""
+def kalman_outputs(state, cuffs, split):
+    """The device's cuff forces at the step's midpoint (q − ½ h v, v): f, n · f, u · f, J_eᵀ f.
+
+    ``split``: the device's cuffs' switch (:attr:`~exo_ctrl.plant.cuffs.CuffSet.split_switch`).
+    """
     st = state[0]
     cr = cuffs[0]
     for i in range(8):
         st.q_mid[i] = st.q[i] - 0.5 * st.h * st.v[i]
-    forces_of(cr, st.q_mid, st.v)
+    forces_of(cr, st.q_mid[:], st.v[:], split)
     for c in range(4):
         fx, fz = cr.f[c], cr.f[4 + c]
         cc, sc = cr.cs[c], cr.cs[8 + c]
@@ -60,20 +63,20 @@ def cuff_jacobian(cuffs, jd):
 
 
 @kernel
-def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas):
+def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas, split):
     """One prediction and update of both legs in place (module docstring), then the outputs.
 
     ``mass_*``, ``nle_*``: M and n of the exoskeleton's link model and of the
-    patient model at the last posterior.  Returns a :class:`Status` value:
-    OK; WRONG_LENGTH (nothing done); NOT_FINITE when the state became
-    non-finite (the caller restarts the filter).
+    patient model at the last posterior; ``split``: as :func:`kalman_outputs`.
+    Returns a :class:`Status` value: OK; WRONG_LENGTH (nothing done);
+    NOT_FINITE when the state became non-finite (the caller restarts the filter).
     """
     if q_meas.shape[0] != 4 or tau_meas.shape[0] != 4:
         return Status.WRONG_LENGTH.value
     st = state[0]
     cr = cuffs[0]
     h = st.h
-    forces_of(cr, st.q, st.v)  # cuff forces and their generalised torques at the prior
+    forces_of(cr, st.q[:], st.v[:], split)  # cuff forces and their generalised torques at the prior
     cuff_jacobian(cuffs, st.jd)
     minv, kq, kv, acc = st.minv, st.kq, st.kv, st.acc
     for s in range(2):
@@ -91,7 +94,7 @@ def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas):
     for i in range(8):
         if not (math.isfinite(st.q[i]) and math.isfinite(st.v[i])):
             return Status.NOT_FINITE.value
-    kalman_outputs(state, cuffs)
+    kalman_outputs(state, cuffs, split)
     return Status.OK.value
 
 

@@ -270,7 +270,7 @@ def rotor_forces(p: Any, voltage_V: np.ndarray, qm: np.ndarray, vm: np.ndarray, 
     m = p.motors
     h = p.h
     half = 0.5 * h
-    step_drives(m, voltage_V, p.rotor_v)
+    step_drives(m, voltage_V, p.rotor_v[:])
     for j in range(4):
         mid = p.rotor_q[j] + p.rotor_v[j] * half
         rate = p.rotor_v[j] + p.rotor_acc[j] * half - vm[j]
@@ -312,7 +312,7 @@ def rotor_kick(p: Any) -> None:
         damper = spring - p.spring_k * p.deflection[j]
         travel = (p.rotor_v[j] + 0.5 * h * acc) - (p.v[j] + 0.5 * h * p.acc[j])
         p.spring_dissipated[j] += damper * travel * h
-    book_drives(m, p.rotor_v)  # ω held over the step: the rotor's at its start
+    book_drives(m, p.rotor_v[:])  # ω held over the step: the rotor's at its start
     half = 0.5 * h
     for j in range(4):
         p.rotor_v[j] += p.rotor_acc[j] * h

@@ -69,7 +69,7 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as v
-from .._jit import kernel, record
+from .._jit import kernel, record, switch
 from ..model import CUFF_NAMES, SIDES, BodyModel
 from .cuff_links import add_link_torques, link_turn
 from .cuff_split import split_forces
@@ -229,9 +229,9 @@ class CuffSet:
         self._k = float(params.stiffness_N_per_m)
         self._c = float(params.damping_N_s_per_m)
         #: The kernel's matrices, parameters and outputs, one record
-        #: (:data:`CUFF_FIELDS`), the argument of :func:`cuff_forces`.
+        #: (:data:`CUFF_FIELDS`); its element is the argument of :func:`forces_of`.
         self.record = record(CUFF_FIELDS) if into is None else into
-        c = self.record[0]
+        self._rec = c = self.record[0]
         c["select"] = sel
         c["dp"] = self._DP
         c["dpt"] = self._DPT
@@ -245,6 +245,9 @@ class CuffSet:
         #: u of each cuff at q = 0, (4, 2): the exo link's joint → cuff direction.
         self.along0 = self.record["along0"][0]
         self._split = bool(c["split"])
+        #: The split cuffs' compile-time switch (:func:`~exo_ctrl._jit.switch`), the
+        #: ``split`` argument of :func:`forces_of` and of the kernels calling it.
+        self.split_switch = switch(self._split)
         #: r₀ in the link's frame, (s_n, s_u) offsets captured at the fit [m], (4,) each.
         self.rest_normal = self.record["r0n"][0]
         self.rest_along = self.record["r0u"][0]
@@ -371,7 +374,7 @@ class CuffSet:
         -J_patientᵀ f on the patient's).  Returns :attr:`force`, overwritten
         by the next call.
         """
-        cuff_forces(self.record, q_all, v_all)
+        forces_of(self._rec, q_all, v_all, self.split_switch)
         return self.force
 
 
@@ -414,20 +417,19 @@ CUFF_FIELDS = [
 
 
 @kernel
-def cuff_forces(cuffs: np.ndarray, q_all: np.ndarray, v_all: np.ndarray) -> None:
+def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray, split: bool | None) -> None:
     """The module docstring's forces and generalised forces, in place.
 
-    ``cuffs``: the record array of :data:`CUFF_FIELDS`.
+    ``r``: a record of :data:`CUFF_FIELDS` (from Python the element of
+    :attr:`CuffSet.record`, in a kernel also a field of another record);
+    ``split``: the split cuffs' switch (:attr:`CuffSet.split_switch`; None:
+    isotropic cuffs only, :func:`split_forces` left out of the compiled kernel).
     u = (cos θ, sin θ), w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇); f = D P (-K u - C w) - K (D p₀ - r₀);
     τ = Sᵀ ((Pᵀ Dᵀ f) ⊙ (-sin θ, cos θ)) summed over the two halves.
+    Kernels pass ``q_all``, ``v_all`` as plain arrays (a record's field ``x`` as
+    ``x[:]``), as Python does: one compiled signature for every caller.
     """
-    forces_of(cuffs[0], q_all, v_all)
-
-
-@kernel
-def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
-    """:func:`cuff_forces` on the record ``r`` itself (also a field of another record)."""
-    if r.split:
+    if split is not None and r.split:
         split_forces(r, q_all, v_all)
         return
     k, c = r.k, r.c

@@ -85,7 +85,7 @@ from .pelvis import (
     pelvis_unpack,
 )
 from .plant_record import plant_fields
-from .step import MAX_JOINT_SPEED_RAD_S, drift_and_forces, kick_and_drift
+from .step import MAX_JOINT_SPEED_RAD_S, drift_and_forces, kick_and_drift, plant_switches
 
 __all__ = ["MAX_JOINT_SPEED_RAD_S", "Plant"]
 
@@ -233,6 +233,9 @@ class Plant:
         self.t = 0.0
         if self.motors is not None:
             self.motors.set_step(self.dt)
+        # The step kernels' switches: the features this plant leaves off are not compiled.
+        self._switches = plant_switches(self.record)
+        self._kick_switches = self._switches[:3]
 
     # ------------------------------------------------------------------ state
 
@@ -321,7 +324,7 @@ class Plant:
             voltage_V, patient_torque_Nm = _v.arrays(
                 (4,), voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm
             )
-        status = drift_and_forces(self.record, voltage_V, patient_torque_Nm, given)
+        status = drift_and_forces(self.record, voltage_V, patient_torque_Nm, given, *self._switches)
         if status:
             check(status, "Plant.step", voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
         if self._changed[0] and not self._pelvis_on:
@@ -329,11 +332,11 @@ class Plant:
         # Kick: accelerations of both bodies at mid-step, damping implicit
         # through the armature.
         self.t += self.dt
-        status = kick_and_drift(self.record, self._accelerations())
+        status = kick_and_drift(self.record, self._accelerations(), *self._kick_switches)
         while self._resolve[0]:  # a drive reached its current limit: at most 4 times
             if not self._pelvis_on:
                 self.model.armature = self._arm
-            status = kick_and_drift(self.record, self._accelerations())
+            status = kick_and_drift(self.record, self._accelerations(), *self._kick_switches)
         if status:
             self._diverged()
 

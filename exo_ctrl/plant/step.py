@@ -4,13 +4,18 @@ The two halves of :meth:`Plant.step <exo_ctrl.plant.plant.Plant.step>`
 around the ABA call (the scheme, its implicit damping and the current
 limit: :mod:`exo_ctrl.plant.plant`).  They read and write the plant's record
 (:func:`~exo_ctrl.plant.plant_record.plant_fields`).
+
+Both take the compile-time switches of the features a run may leave off
+(:func:`plant_switches`, :func:`~exo_ctrl._jit.switch`): the pelvis guide,
+the belt contact, compliant drives and, for the first, split cuffs.  A run
+without them compiles none of their kernels.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._jit import Status, kernel
+from .._jit import Status, kernel, switch
 from ..model import FRICTION_SMOOTHING_RAD_S
 from .compliance import rotor_forces, rotor_kick
 from .contact import contact_commit, contact_forces
@@ -20,10 +25,22 @@ from .energy import book_drives
 from .motor import drive_cap, hold_drive, step_drives
 from .pelvis import pelvis_drift, pelvis_kick
 
-__all__ = ["MAX_JOINT_SPEED_RAD_S", "drift_and_forces", "kick_and_drift"]
+__all__ = ["MAX_JOINT_SPEED_RAD_S", "drift_and_forces", "kick_and_drift", "plant_switches"]
 
 #: A joint speed above this is taken as divergence [rad/s].
 MAX_JOINT_SPEED_RAD_S = 100.0
+
+
+def plant_switches(plant: np.ndarray) -> tuple[bool | None, ...]:
+    """The switches (pelvis, contact, compliant, split) of the plant's record ``plant``.
+
+    From the record's own flags, set when the plant is built: the pelvis on
+    its guide, the belt contact on, compliant drives, split cuffs.  Pass the
+    first three to :func:`kick_and_drift`, all four to :func:`drift_and_forces`.
+    """
+    p = plant[0]
+    flags = (p["pelvis"]["on"], p["contact"]["on"], p["compliant"], p["cuffs"]["split"])
+    return tuple(switch(bool(flag)) for flag in flags)
 
 
 @kernel
@@ -32,12 +49,17 @@ def drift_and_forces(
     voltage_V: np.ndarray,
     patient_torque_Nm: np.ndarray,
     given: bool,
+    pelvis: bool | None,
+    contact: bool | None,
+    compliant: bool | None,
+    split: bool | None,
 ) -> int:
     """First half of :meth:`Plant.step`: drift to mid-step and every force there.
 
     q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
     + end stops(q½, v½) (+ patient torque, if ``given``) (+ drive torque of the exact motor
     step); the exo armature i_G² J_rotor + h b + h D_m (fields: PLANT_FIELDS).
+    ``pelvis``, ``contact``, ``compliant``, ``split``: :func:`plant_switches`.
     Returns ``Status.WRONG_LENGTH`` (nothing done) when the voltages or
     patient torques are not 4, else ``Status.OK``.
     """
@@ -50,26 +72,26 @@ def drift_and_forces(
     for i in range(8):
         qm[i] = q[i] + v[i] * half
         vm[i] = v[i] + acc[i] * half
-    if p.pelvis.on:  # the pelvis to mid-step; the feet ride on it
+    if pelvis is not None and p.pelvis.on:  # the pelvis to mid-step; the feet ride on it
         pelvis_drift(p.pelvis, h)
         p.contact.z_pelvis = p.pelvis.z_mid
         p.contact.vz_pelvis = p.pelvis.vz_mid
     c = p.cuffs
-    forces_of(c, qm, vm)
+    forces_of(c, qm[:], vm[:], split)
     for i in range(8):
         t = c.tau[i] - p.b[i] * v[i]
         if p.has_friction:
             t -= np.tanh(v[i] / FRICTION_SMOOTHING_RAD_S) * p.friction[i]
         tau[i] = t
     end_stop_torques(p, qm, vm, tau)
-    if p.contact.on:
+    if contact is not None and p.contact.on:
         contact_forces(p.contact, qm, vm, tau, h)
     if given:
         for j in range(4):
             p.patient_torque[j] = patient_torque_Nm[j]
             tau[4 + j] += p.patient_torque[j]
     changed = False
-    if p.compliant:
+    if compliant is not None and p.compliant:
         rotor_forces(p, voltage_V, qm, vm, tau)
     elif p.has_motors:
         m = p.motors
@@ -87,10 +109,17 @@ def drift_and_forces(
 
 
 @kernel
-def kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
+def kick_and_drift(
+    plant: np.ndarray,
+    acc_all: np.ndarray,
+    pelvis: bool | None,
+    contact: bool | None,
+    compliant: bool | None,
+) -> int:
     """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺.
 
-    ``acc_all``: the ABA accelerations of both bodies, (8,) in q_all order.
+    ``acc_all``: the ABA accelerations of both bodies, (8,) in q_all order;
+    ``pelvis``, ``contact``, ``compliant``: :func:`plant_switches`.
     With drives, the applied torque τ_m - h D_m a and the sensor torque
     τ_m - h D_m a - i_G² J_rotor a; the step's applied voltage, mean current
     and cuff forces.
@@ -137,10 +166,10 @@ def kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
     q, v, acc, qm = p.q, p.v, p.acc, p.q_mid
     for i in range(8):
         acc[i] = acc_all[i]
-    if p.compliant:
+    if compliant is not None and p.compliant:
         rotor_kick(p)
     elif p.has_motors:
-        book_drives(p.motors, v)  # the step is final; ω held: the start of step's
+        book_drives(p.motors, v[:])  # the step is final; ω held: the start of step's
         for j in range(4):
             p.drive_torque[j] = p.drive_torque[j] - p.damping_m[j] * acc[j]
             p.sensor_torque[j] = p.drive_torque[j] - p.arm_base[j] * acc[j]
@@ -151,7 +180,7 @@ def kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
         p.current[j] = m.mean[j]
         p.cuff_force[j, 0] = f[j]
         p.cuff_force[j, 1] = f[4 + j]
-    if p.contact.on:
+    if contact is not None and p.contact.on:
         contact_commit(p.contact, p.h)
     half = 0.5 * p.h
     speed2 = 0.0
@@ -159,6 +188,6 @@ def kick_and_drift(plant: np.ndarray, acc_all: np.ndarray) -> int:
         v[i] = v[i] + acc[i] * p.h
         q[i] = qm[i] + v[i] * half
         speed2 += v[i] * v[i]
-    if p.pelvis.on:
+    if pelvis is not None and p.pelvis.on:
         speed2 += pelvis_kick(p.pelvis, p.h)
     return Status.OK.value if speed2 < MAX_JOINT_SPEED_RAD_S**2 else Status.DIVERGED.value

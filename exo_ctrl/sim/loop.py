@@ -82,9 +82,7 @@ def simulate(
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)
-    bar.notice_after(
-        1.0, "compiling the kernels (the first run after an install only: 10-30 s) ..."
-    )
+    bar.notice_after(1.0, "compiling kernels, first run only (10-30 s; later runs load them) ...")
     chunk = runner.chunk
     chunk_start = 0
     row = 0

@@ -117,7 +117,7 @@ def test_simulate_summary_to_dev_full_is_exit_1(tmp_path: Path, capsys) -> None:
     lines = [
         line
         for line in capsys.readouterr().err.splitlines()
-        if not line.startswith("simulate: compiling the kernels")
+        if not line.startswith("simulate: compiling kernels, first run only")
     ]
     assert lines == ["exo-ctrl simulate: error: cannot write /dev/full: No space left on device"]
     assert stat.S_ISCHR(os.lstat("/dev/full").st_mode)

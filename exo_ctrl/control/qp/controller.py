@@ -416,7 +416,7 @@ class QPController(ComputedTorqueController):
         q, dq = sensors.q, sensors.dq
         if not (type(q) is type(dq) is np.ndarray):
             q, dq = v.arrays((4,), sensors_q=q, sensors_dq=dq)
-        rec, model = self.record, self._model_rec
+        rec, model, sw = self.record, self._model_rec, self.cuff_model.split_switch
         status = front(rec, model, self._q_des, self._dq_des, self._u_ff, k, q, dq)
         if status:
             self._refuse(status, k, q, dq)
@@ -425,9 +425,9 @@ class QPController(ComputedTorqueController):
         nle = pin.nonLinearEffects(pin_model, pin_data, self._q_all, self._v_all)
         est = sensors.cuff_force_est
         if est is None:
-            status = tail(rec, model, self._obs_rec, mass, nle, q, dq, self._no_force, False)
+            status = tail(rec, model, self._obs_rec, mass, nle, q, dq, self._no_force, False, sw)
         else:
-            status = tail(rec, model, self._obs_rec, mass, nle, q, dq, est, True)
+            status = tail(rec, model, self._obs_rec, mass, nle, q, dq, est, True, sw)
         if status:
             return self._refused(status, dq, est)
         if self._needs_solve[0]:

@@ -90,15 +90,15 @@ OBSERVER_FIELDS: list[tuple[Any, ...]] = [
 
 @kernel
 def observe(
-    o: np.void, m: np.void, force: np.ndarray, omega: np.ndarray
+    o: np.void, m: np.void, force: np.ndarray, omega: np.ndarray, split: bool | None
 ) -> bool:  # pragma: no cover - compiled
     """One observer tick per leg (module docstring) on observer record ``o``.
 
     ``m``: the record of a :class:`~exo_ctrl.control.qp.prediction.CuffHorizonModel`
     linearised at this tick (its patient mass, bias and cuff Jacobians).
     ``force``: f̂, (4, 2) [N]; ``omega``: q̇ [rad/s], (4,) (shapes checked by
-    the caller).  Returns False (and nothing done) if an entry of ``force``
-    is not finite.
+    the caller); ``split``: the model's switch (its ``split_switch``).
+    Returns False (and nothing done) if an entry of ``force`` is not finite.
     """
     for c in range(4):
         if not (math.isfinite(force[c, 0]) and math.isfinite(force[c, 1])):
@@ -119,7 +119,7 @@ def observe(
             fr = force[2 * leg + r // 2, r % 2]
             r1 += j0 * fr
             r2 += j1 * fr
-        if m.split:  # G_K δ + G_C δ̇ = g = −Jᵀ f̂; the patient's cuff load is g
+        if split is not None and m.split:  # G_K δ + G_C δ̇ = g = −Jᵀ f̂; the cuffs' load is g
             load1, load2 = -r1, -r2
             dd1, dd2 = filter_leg(o, m, leg, load1, load2)
         else:
@@ -166,7 +166,7 @@ def shorten_lag(o: np.void, force: np.ndarray) -> np.ndarray:  # pragma: no cove
 
 @kernel
 def _update(
-    state: np.ndarray, model: np.ndarray, force: np.ndarray, omega: np.ndarray
+    state: np.ndarray, model: np.ndarray, force: np.ndarray, omega: np.ndarray, split: bool | None
 ) -> int:  # pragma: no cover - compiled
     """:func:`observe` with the shapes checked; its outcome in ``state[0].observed``.
 
@@ -176,7 +176,7 @@ def _update(
     o = state[0]
     if force.shape[0] != 4 or force.shape[1] != 2 or omega.shape[0] != 4:
         return Status.WRONG_LENGTH.value
-    o.observed = observe(o, model[0], force, omega)
+    o.observed = observe(o, model[0], force, omega, split)
     return Status.OK.value
 
 
@@ -266,7 +266,7 @@ class CuffStateObserver:
         if force.ndim != 2 or omega.ndim != 1:
             v.refuse_shapes((4, 2), force_est=force)
             v.refuse_shapes((4,), omega=omega)
-        status = _update(self.record, model.record, force, omega)
+        status = _update(self.record, model.record, force, omega, model.split_switch)
         if status:
             v.refuse_shapes((4, 2), force_est=force)
             check(status, "CuffStateObserver.update", omega=omega)

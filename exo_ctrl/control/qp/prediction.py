@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..._jit import Status, kernel, record
+from ..._jit import Status, kernel, record, switch
 from ...exceptions import InvalidParameter
 from ...model import FRICTION_SMOOTHING_RAD_S, BodyModel, combined_model
 from ...plant.cuffs import CuffParams, CuffSet
@@ -151,7 +151,7 @@ def pair(m: np.void, q: np.ndarray, dq: np.ndarray) -> int:  # pragma: no cover 
 
 @kernel
 def gather(
-    m: np.void, mass: np.ndarray, nle: np.ndarray, q: np.ndarray, dq: np.ndarray
+    m: np.void, mass: np.ndarray, nle: np.ndarray, q: np.ndarray, dq: np.ndarray, split: bool | None
 ) -> None:  # pragma: no cover - compiled
     """Fill record ``m``'s linearisation from the Pinocchio results ``mass`` and ``nle``.
 
@@ -162,6 +162,7 @@ def gather(
     Jacobians, (x, z) rows on their leg's two joints, from the cuff points'
     form p = P (cos θ, sin θ) + p₀ with link rotations θ = S q_all (patient
     points 4-7, rotations 4-7): ∂p/∂q = Σ_j (−P_j sin θ_j + P_{8+j} cos θ_j) S_j.
+    ``split``: :attr:`CuffHorizonModel.split_switch` (None: split_cuffs' code not compiled).
     """
     losses, points, select = m.losses, m.points, m.select
     mass_e, mass_p, jac = m.mass_exo, m.mass_patient, m.jac
@@ -189,18 +190,18 @@ def gather(
                         cos_t, sin_t = math.cos(theta), math.sin(theta)
                         acc += s * (points[row, 8 + j] * cos_t - points[row, j] * sin_t)
                 jac[leg, 2 * k + axis, col] = acc
-    if m.split:
+    if split is not None and m.split:
         split_gains(m, q)
 
 
 @kernel
 def predict(
-    m: np.void, delta: np.ndarray, ddelta: np.ndarray, dist: np.ndarray
+    m: np.void, delta: np.ndarray, ddelta: np.ndarray, dist: np.ndarray, split: bool | None
 ) -> None:  # pragma: no cover - compiled
     """Fill ``m.A`` (8 P, 4) and ``m.b`` (8 P) from record ``m``'s linearisation (module docstring).
 
     ``delta`` δ [rad], ``ddelta`` δ̇ [rad/s], ``dist`` d [N·m]: the initial
-    cuff state and the patient's held torque, (4,) each.
+    cuff state and the patient's held torque, (4,) each; ``split``: as :func:`gather`.
     """
     powers, a_out, b_out = m.powers, m.A, m.b
     me, mp, jac, he, hp = m.mass_exo, m.mass_patient, m.jac, m.bias_exo, m.bias_patient
@@ -209,7 +210,7 @@ def predict(
     # As plain C arrays (``[:]``), the type of a slice of ``squares``: one
     # compiled version of mul_top and copy_top for every call (sv4: split cuffs).
     f, ge, gp, sv, sv_tmp, squares = m.f[:], m.ge[:], m.gp[:], m.sv[:], m.sv_tmp[:], m.squares
-    sv4, sv4_tmp, split = m.sv4[:], m.sv4_tmp[:], m.split
+    sv4, sv4_tmp, shear = m.sv4[:], m.sv4_tmp[:], m.split
     n_pts = powers.shape[0]
     n_sq = squares.shape[0]  # squares e^{FΔ 2^k}, k < n_sq: the bit length of the largest power
     for r in range(a_out.shape[0]):
@@ -221,7 +222,7 @@ def predict(
         # 2x2 blocks: exo mass (with armature), patient mass, G = J^T J.
         m11, m12, m22 = me[i0, i0], me[i0, i0 + 1], me[i0 + 1, i0 + 1]
         p11, p12, p22 = mp[i0, i0], mp[i0, i0 + 1], mp[i0 + 1, i0 + 1]
-        if split:  # G_K, G_C (split_cuffs)
+        if split is not None and shear:  # G_K, G_C (split_cuffs)
             k11, k12, k22 = m.gk[leg, 0, 0], m.gk[leg, 0, 1], m.gk[leg, 1, 1]
             c11, c12, c22 = m.gc[leg, 0, 0], m.gc[leg, 0, 1], m.gc[leg, 1, 1]
         else:  # K G, C G
@@ -282,7 +283,7 @@ def predict(
             while (n >> k) & 1 == 0:
                 k += 1
             sq = squares[k]
-            if split:  # rows δ and δ̇ = u_e − u_p; f = −W_K δ − W_C δ̇
+            if split is not None and shear:  # rows δ and δ̇ = u_e − u_p; f = −W_K δ − W_C δ̇
                 for r in range(2):
                     for c in range(NZ):
                         sv4[r, c] = sq[r, c]
@@ -315,17 +316,13 @@ def _pair(state: np.ndarray, q: np.ndarray, dq: np.ndarray) -> int:  # pragma: n
 
 
 @kernel
-def _gather(
-    state: np.ndarray, mass: np.ndarray, nle: np.ndarray, q: np.ndarray, dq: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    gather(state[0], mass, nle, q, dq)
+def _gather(state, mass, nle, q, dq, split) -> None:  # pragma: no cover - compiled
+    gather(state[0], mass, nle, q, dq, split)
 
 
 @kernel
-def _predict(
-    state: np.ndarray, delta: np.ndarray, ddelta: np.ndarray, dist: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    predict(state[0], delta, ddelta, dist)
+def _predict(state, delta, ddelta, dist, split) -> None:  # pragma: no cover - compiled
+    predict(state[0], delta, ddelta, dist, split)
 
 
 class CuffHorizonModel:
@@ -408,8 +405,10 @@ class CuffHorizonModel:
         self.damping = float(cuffs.damping_N_s_per_m)
         self.shear_stiffness = float(cuffs.shear_stiffness_N_per_m)
         self.shear_damping = float(cuffs.shear_damping_N_s_per_m)
-        #: Normal and shear apart (split_cuffs), else the isotropic arithmetic.
+        #: Normal and shear apart (split_cuffs), else the isotropic arithmetic; its
+        #: compile-time switch (:func:`~exo_ctrl._jit.switch`), the kernels' ``split``.
         self.split = (self.shear_stiffness, self.shear_damping) != (self.stiffness, self.damping)
+        self.split_switch = switch(self.split)
         self.record = record(horizon_fields(len(ticks), powers[-1].bit_length()))
         m = self.record[0]
         m["losses"] = np.stack((exo.damping, exo.friction, patient.damping, patient.friction))
@@ -462,7 +461,7 @@ class CuffHorizonModel:
 
         """
         mass, nle = self.terms(q, dq)
-        _gather(self.record, mass, nle, self.q_all[:4], self.v_all[:4])
+        _gather(self.record, mass, nle, self.q_all[:4], self.v_all[:4], self.split_switch)
 
     def predict(self, delta: np.ndarray, ddelta: np.ndarray, disturbance: np.ndarray) -> None:
         """Fill :attr:`A` and :attr:`b` from the state of the last :meth:`linearise`.
@@ -473,7 +472,8 @@ class CuffHorizonModel:
             disturbance: patient joint torque d, held over the horizon [N·m], (4,).
 
         """
-        _predict(self.record, *_fours(delta=delta, ddelta=ddelta, disturbance=disturbance))
+        fours = _fours(delta=delta, ddelta=ddelta, disturbance=disturbance)
+        _predict(self.record, *fours, self.split_switch)
 
     def update(
         self,

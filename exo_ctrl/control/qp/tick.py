@@ -105,29 +105,31 @@ def tail(
     dq: np.ndarray,
     force: np.ndarray,
     has_estimate: bool,
+    split: bool | None,
 ) -> int:  # pragma: no cover
     """The tick after Pinocchio, up to proxsuite (module docstring, "Cost").
 
     Linearisation, observer (force feedback on and an estimate given),
     prediction, octagon rows and the clip test.  If the clip meets every row,
     the tick is done: τ, zero slacks, the voltage ``u_cmd`` and the tick's
-    figures written; else ``needs_solve``.  Returns a
-    :class:`~exo_ctrl._jit.Status` value: WRONG_LENGTH (nothing done) if
-    ``force`` is not (4, 2), NOT_FINITE if the prediction is not finite.
+    figures written; else ``needs_solve``.  ``split``: the cuff model's switch
+    (:attr:`~exo_ctrl.control.qp.prediction.CuffHorizonModel.split_switch`).
+    Returns a :class:`~exo_ctrl._jit.Status` value: WRONG_LENGTH (nothing
+    done) if ``force`` is not (4, 2), NOT_FINITE if the prediction is not finite.
     """
     s, m = state[0], model[0]
     if force.shape[0] != 4 or force.shape[1] != 2:
         return Status.WRONG_LENGTH.value
-    gather(m, mass, nle, q, dq)
+    gather(m, mass, nle, q, dq, split)
     observed = False
     if s.force_feedback and has_estimate:
-        observed = observe(observer[0], m, force, dq)
+        observed = observe(observer[0], m, force, dq, split)
     if observed:
         o = observer[0]
         delta, ddelta, dist = o.delta, o.ddelta, o.disturbance
     else:  # the cuffs taken as fitted: δ = δ̇ = d = 0
         delta = ddelta = dist = s.fitted
-    predict(m, delta, ddelta, dist)
+    predict(m, delta, ddelta, dist, split)
     if not math.isfinite(bound_rows(s.directions, m.A, m.b, s.radius, s.rows, s.upper)):
         return Status.NOT_FINITE.value
     feasible, active = clip_if_feasible(

@@ -76,7 +76,8 @@ def test_split_filter_reduces_to_the_isotropic_one(exo, patient, motor, plan):
     isotropic a_δ: the same δ̂, δ̂̇ and d̂ to rounding."""
     cuffs = CuffParams.isotropic()
     models = [CuffHorizonModel(exo, patient, motor, cuffs) for _ in range(2)]
-    models[1].record["split"] = True  # the split kernels on isotropic parameters
+    models[1].record["split"] = True  # the split kernels on isotropic parameters,
+    models[1].split_switch = True  # compiled in (exo_ctrl._jit.switch)
     observers = [CuffStateObserver(8000.0, 100.0, 1e-3, 30.0) for _ in range(2)]
     rng = np.random.default_rng(2)
     for n in range(200):

@@ -366,7 +366,8 @@ def test_split_arithmetic_reduces_to_the_isotropic_one(exo, patient, motor, plan
     iso = CuffHorizonModel(exo, patient, motor, CuffParams.isotropic())
     forced = CuffHorizonModel(exo, patient, motor, CuffParams.isotropic())
     assert not iso.split
-    forced.record["split"] = True  # the split kernels on isotropic parameters
+    forced.record["split"] = True  # the split kernels on isotropic parameters,
+    forced.split_switch = True  # compiled in (exo_ctrl._jit.switch)
     rng = np.random.default_rng(5)
     for _ in range(5):
         k = int(rng.integers(0, 1200))
