@@ -126,6 +126,7 @@ __all__ = [
     "consistency_limit",
     "consistency_threshold",
     "detection_bound_s",
+    "gear_efficiency",
     "init_consistency",
 ]
 
@@ -253,7 +254,7 @@ def init_consistency(
 
 
 @kernel
-def _gear(lneta: float, inv_w: float, current: float, omega: float) -> float:
+def gear_efficiency(lneta: float, inv_w: float, current: float, omega: float) -> float:
     """η^s, s = sign(I) tanh(ω/ω_η) (:mod:`exo_ctrl.plant.drive`)."""
     th = math.tanh(omega * inv_w)
     s = th if current > 0.0 else (-th if current < 0.0 else 0.0)
@@ -296,10 +297,10 @@ def consistency(q, dq, tau, current, state, mon):  # pragma: no cover - compiled
             s.c_fresh[j] = 0.0
         w = (qj - s.c_q[j]) / dt
         s.c_q[j] = qj
-        torque = _gear(s.lneta, s.inv_w_eta, ij, w) * s.kt * ij
+        torque = gear_efficiency(s.lneta, s.inv_w_eta, ij, w) * s.kt * ij
         span = abs(
-            _gear(s.lneta, s.inv_w_eta, ij, w + s.c_dw)
-            - _gear(s.lneta, s.inv_w_eta, ij, w - s.c_dw)
+            gear_efficiency(s.lneta, s.inv_w_eta, ij, w + s.c_dw)
+            - gear_efficiency(s.lneta, s.inv_w_eta, ij, w - s.c_dw)
         )
         s.c_z[j] += dt * (torque - tj + s.c_r[j])
         r = s.c_gain * (s.c_jeff * w - s.c_z[j])

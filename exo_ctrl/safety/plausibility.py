@@ -85,7 +85,7 @@ from .._jit import Status, kernel, record
 from ..plant import MotorParams
 from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S
 from ..sensing import SensorParams
-from .consistency import CONSISTENCY_FIELDS, consistency_limit, init_consistency
+from .consistency import CONSISTENCY_FIELDS, consistency_limit, gear_efficiency, init_consistency
 
 __all__ = [
     "AGE",
@@ -224,14 +224,6 @@ def plausibility_record(motor: MotorParams, sensors: SensorParams, dt: float) ->
 
 
 @kernel
-def _gear(lneta: float, inv_w: float, current: float, omega: float) -> float:
-    """η^s, s = sign(I) tanh(ω/ω_η) (:mod:`exo_ctrl.plant.drive`)."""
-    th = math.tanh(omega * inv_w)
-    s = th if current > 0.0 else (-th if current < 0.0 else 0.0)
-    return math.exp(s * lneta)
-
-
-@kernel
 def plausibility(q, dq, tau, u_cmd, age_s, state, mon):
     """One tick of the plausibility monitors (module docstring).
 
@@ -269,7 +261,7 @@ def plausibility(q, dq, tau, u_cmd, age_s, state, mon):
             e[DRIVE, j] = e[JUMP, j] = e[STUCK, j] = 0.0
             continue
         if not s.started:
-            g = _gear(s.lneta, s.inv_w_eta, tj, wj)
+            g = gear_efficiency(s.lneta, s.inv_w_eta, tj, wj)
             s.i_m[j] = tj / (g * s.kt)
             s.u_f[j] = s.i_m[j] / s.inv_r + s.kb * wj  # r = 0 to start
             s.tau_f[j] = tj
@@ -290,7 +282,7 @@ def plausibility(q, dq, tau, u_cmd, age_s, state, mon):
         d0 = s.i_m[j] - i_inf
         i_m = min(max(i_inf + d0 * s.phi, -s.i_max), s.i_max)
         s.i_m[j] = min(max(i_inf + d0 * s.eps, -s.i_max), s.i_max)
-        g = _gear(s.lneta, s.inv_w_eta, i_m, wj)
+        g = gear_efficiency(s.lneta, s.inv_w_eta, i_m, wj)
         r = s.tau_f[j] + s.j_rotor * acc - g * s.kt * i_m
         s.residual[j] = r
         if s.blind[j] > 0.0:
