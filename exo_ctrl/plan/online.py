@@ -456,12 +456,12 @@ def online_start(state: np.ndarray, v0: float) -> int:  # pragma: no cover - com
     n = g.n_prof
     v_ref, a_ref = profile_at(g.prof_t[:n], g.prof_v[:n], 0.0)
     r, dr = _rate(g.law, v_ref, a_ref)
+    sig, dsig, _ = _ramp(0.0, g.ramp_in)
     g.rate, g.vbar, g.vlead = r, v0, v0
-    g.vset_bar = _ramp(0.0, g.ramp_in)[0] * v_ref
+    g.vset_bar = sig * v_ref
     g.phase[0], g.phase[1] = 0.0, 0.5
     g.x[0], g.dx[0] = 0.0, v0 / g.kv
     g.x[1], g.dx[1] = 0.0, -v0
-    sig, dsig, _ = _ramp(0.0, g.ramp_in)
     a_belt = dsig * v_ref + sig * a_ref
     g.a_set = a_belt
     g.w = 0.5 * g.law[4] * (a_belt - v0 * dr / r) / r
@@ -487,10 +487,10 @@ def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no 
     r, dr = _rate(g.law, v_ref, a_ref)
     r_mid = 0.5 * (g.rate + r)
     g.vbar += (v_meas - g.vbar) * g.dt / (g.filt + g.dt)
-    v_set = _ramp(t, g.ramp_in)[0] * v_ref
+    sig, dsig, _ = _ramp(t, g.ramp_in)
+    v_set = sig * v_ref
     g.vset_bar += (v_set - g.vset_bar) * g.dt / (g.filt + g.dt)
     g.vlead = g.vbar + (v_set - g.vset_bar)  # the filter's lag on the set speed, added back
-    sig, dsig, _ = _ramp(t, g.ramp_in)
     a_belt = dsig * v_ref + sig * a_ref
     g.a_set = a_belt
     # dL/2/dt of the touchdown point L/2 = v_l β / (2 r), with v_l' the planned belt rate
