@@ -65,7 +65,9 @@ def _time_calls(calls, repeats: int = 2000) -> float:
 def floor_calls(runner: Runner) -> list:
     """The Pinocchio calls one tick makes, as zero-argument callables.
 
-    Plant: one ABA of the model holding both bodies.  Estimator: CRBA and
+    Plant: one ABA of the model holding both bodies (with contact on and the
+    pelvis fixed, also a CRBA on the steps with a foot on the belt: added by
+    :func:`bench_scenario`, weighted by their share).  Estimator: CRBA and
     nonLinearEffects of the exoskeleton (the Kalman filter's: of the
     exoskeleton and of the patient).  CT: none (its
     feedforward is tabulated along the plan when the controller is built).
@@ -187,14 +189,25 @@ def bench_scenario(name: str, ticks: int) -> dict[str, float]:
     chunk = runner.chunk
     solve = np.zeros(n)  # the QP's own update + solve + checks, in the loop [µs]
     ctrl = setup.controller
+    plant = setup.plant
+    # With the pelvis fixed the plant adds a CRBA (its friction solve) on the
+    # steps that find a foot on the belt: counted per tick, weighted into the floor.
+    contact_any = plant.record["contact"]["any"]
+    crba_ticks = 0
     for k in range(n):
         t0 = time.perf_counter_ns()
         runner.tick(k, k % chunk)
         samples[k] = time.perf_counter_ns() - t0
         solve[k] = getattr(ctrl, "solve_time_us", 0.0)
+        crba_ticks += k >= n // 10 and bool(contact_any[0])
     tick = samples[n // 10 :] / 1e3  # skip warm-up
     floor = _time_calls(floor_calls(runner))
     extra = {}
+    if config.contact.enabled and plant.model.nq == 8:
+        q_now = plant.q.copy()
+        share = crba_ticks / tick.size
+        floor += share * _time_calls([lambda: pin.crba(plant.model, plant.data, q_now)])
+        extra["contact_crba_share"] = share
     if hasattr(ctrl, "solver_ticks"):
         share = ctrl.solver_ticks / n
         if ctrl.solver_ticks:
@@ -309,6 +322,11 @@ def main() -> int:
                     f"{'':<12}proxsuite called on {100 * r['qp_solver_share']:.1f} % of the ticks"
                     f"; their update + solve + checks: median "
                     f"{r['qp_solve_in_loop_median_us']:.1f} µs"
+                )
+            if "contact_crba_share" in r:
+                print(
+                    f"{'':<12}the plant's contact CRBA on {100 * r['contact_crba_share']:.0f} %"
+                    " of the ticks (in the floor)"
                 )
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
