@@ -39,6 +39,10 @@ force limit; what the supervisor's belt monitor predicts the belt with) is
 the installed treadmill's nominal values by default
 (:attr:`~exo_ctrl.plant.contact.ContactParams.belt`), a parameter set of its
 own, so that a belt heavier or lighter than its datasheet can be studied.
+The soles' contact law on the belt (stiffness k and exponent n of
+F = k δⁿ; what the loading phase of the plan sinks the stance feet by,
+:mod:`~exo_ctrl.plan.loading`) is likewise the installed soles' nominal
+values (:class:`~exo_ctrl.plant.contact.ContactParams`) unless given.
 
 Either way the device's models are objects of their own, never the plant's.
 """
@@ -52,7 +56,7 @@ from pathlib import Path
 from .. import _validate as v
 from ..exceptions import InvalidParameter
 from ..model import SEXES, BodyModel, load_exo, load_patient, nominal_patient, write_urdf
-from ..plant import BeltParams, CuffParams, MotorParams
+from ..plant import BeltParams, ContactParams, CuffParams, MotorParams
 
 __all__ = [
     "PAPER_PATIENT",
@@ -90,10 +94,14 @@ class Belief:
             nominal 8 N/mm and 100 N·s/m in every direction).
         belt: the treadmill's datasheet the device holds (None: the nominal
             values of the run's belt, ``SimConfig.contact.belt``).
+        soles: the soles' contact law the device holds, (k [N/m^n], n [-])
+            (None: the nominal values of the run's contact,
+            ``SimConfig.contact``).
 
     Raises:
         InvalidParameter: an unknown sex, a height or mass not > 0, a motor,
-            cuffs or belt that are not parameter sets.
+            cuffs or belt that are not parameter sets, soles that are not a
+            pair (k > 0, n ≥ 1).
 
     """
 
@@ -105,6 +113,7 @@ class Belief:
     motor: MotorParams | None = None
     cuffs: CuffParams | None = None
     belt: BeltParams | None = None
+    soles: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.patient, str) or not self.patient:
@@ -130,6 +139,16 @@ class Belief:
             raise InvalidParameter("belief cuffs", self.cuffs, "a CuffParams or None")
         if self.belt is not None and not isinstance(self.belt, BeltParams):
             raise InvalidParameter("belief belt", self.belt, "a BeltParams or None")
+        if self.soles is not None:
+            if not isinstance(self.soles, tuple) or len(self.soles) != 2:
+                raise InvalidParameter(
+                    "belief soles", self.soles, "a pair (k [N/m^n] > 0, n >= 1) or None"
+                )
+            k = v.positive("belief sole stiffness", self.soles[0], "N/m^n")
+            n = v.finite("belief sole exponent", self.soles[1])
+            if n < 1.0:
+                raise InvalidParameter("belief sole exponent", self.soles[1], ">= 1")
+            object.__setattr__(self, "soles", (k, n))
 
     @property
     def cuff_model(self) -> CuffParams:
@@ -155,6 +174,18 @@ class Belief:
 
         """
         return self.belt if self.belt is not None else installed
+
+    def sole_model(self, installed: ContactParams) -> tuple[float, float]:
+        """The soles' contact law the device believes in: (k [N/m^n], n [-]).
+
+        Args:
+            installed: the run's contact (``SimConfig.contact``): its nominal
+                values are the datasheet's.
+
+        """
+        if self.soles is not None:
+            return self.soles
+        return installed.stiffness_N_per_m_n, installed.exponent
 
 
 def device_models(

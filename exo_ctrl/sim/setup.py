@@ -262,19 +262,19 @@ def stance_sink_for(config: SimConfig, model_exo: BodyModel) -> StanceSink | Non
     """The plan's loading sink (:mod:`exo_ctrl.plan.loading`): a supported pelvis, else None.
 
     The static load W₀ = M g − F_s and the moving mass M as the device holds
-    them (:func:`stance_load_for`), k and n of the soles on the belt (the
-    contact law's datasheet values).  The plan uses it with double support
-    (β > ½) only.
+    them (:func:`stance_load_for`), k and n of the soles on the belt as the
+    device holds them (:meth:`~exo_ctrl.sim.belief.Belief.sole_model`: the
+    datasheet's).  The plan uses it with double support (β > ½) only.
     """
     load = stance_load_for(config, model_exo)
     if load is None or not config.contact.enabled:
         return None
-    contact = config.contact
+    k, n = config.belief.sole_model(config.contact)
     return StanceSink(
         max(0.0, load.mass_kg * load.gravity_mps2 - load.support_N),
         load.mass_kg,
-        contact.stiffness_N_per_m_n,
-        contact.exponent,
+        k,
+        n,
     )
 
 

@@ -338,6 +338,7 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
     ``drive`` (``"datasheet"``: the installed drive's nominal values, or
     ``"given"``), ``cuffs`` (``"isotropic"``, the nominal default, or
     ``"given"``), ``belt`` (the treadmill's datasheet: ``"datasheet"`` or
+    ``"given"``), ``soles`` (the soles' contact law: ``"datasheet"`` or
     ``"given"``), ``estimator``, ``plan`` (``"synchronised"`` with the
     measured belt, or ``"precomputed"``) and ``safety_cuff_force`` (``"estimate"``,
     or ``"truth"``: the plant's forces, a sensor per cuff).
@@ -353,6 +354,7 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
         "drive": "datasheet" if b.motor is None else "given",
         "cuffs": "isotropic" if b.cuffs is None else "given",
         "belt": "datasheet" if b.belt is None else "given",
+        "soles": "datasheet" if b.soles is None else "given",
         "estimator": config.estimator,
         "plan": "synchronised" if config.synced else "precomputed",
         "safety_cuff_force": "estimate" if config.safety_use_estimate else "truth",

@@ -23,7 +23,7 @@ from exo_ctrl.plant import BeltParams, ContactParams, PelvisParams
 from exo_ctrl.plant.motor import MotorBank
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
-from exo_ctrl.sim.setup import build
+from exo_ctrl.sim.setup import build, stance_sink_for
 from exo_ctrl.sim.tick import Runner
 
 SHORT = {"duration_s": 1.8, "safety": False}
@@ -225,3 +225,48 @@ def test_the_belt_monitor_holds_the_treadmills_datasheet_not_the_belt() -> None:
     assert wrong["device_belief"]["belt"] == "given"
     assert wrong["safety_state"] != "normal"
     assert "belt" in wrong["safety_events"][0]["message"]
+
+
+def test_the_loading_plan_sinks_the_feet_by_the_soles_the_device_holds() -> None:
+    """The plan's stance sink uses Belief.soles (the datasheet), not the plant's contact law.
+
+    A true sole twice as stiff as its datasheet: the plan still sinks each foot
+    standing by s₀ = (W₀ / 2k)^{1/n} with the datasheet's k, while the plant's
+    contact holds the true k; a device told the true k plans 2^{-1/n} of that.
+    """
+    base = SimConfig(
+        controller="ct",
+        contact=ContactParams(enabled=True, stiffness_N_per_m_n=1.0e6),
+        pelvis=PelvisParams(supported=True, bws_fraction=0.5),
+        gait=GaitParams(hip_height=1.0, duty_factor=0.6),
+        sync=False,
+        duration_s=3.0,
+    )
+    datasheet = dataclasses.replace(base, belief=Belief(soles=(5.0e5, 1.5)))
+    told = dataclasses.replace(base, belief=Belief(soles=(1.0e6, 1.5)))
+    exo = build(base).device_exo
+    sink, sink_true = stance_sink_for(datasheet, exo), stance_sink_for(told, exo)
+    assert stance_sink_for(base, exo) == sink_true  # by default: the installed soles' law
+    assert sink.stiffness_N_per_m_n == 5.0e5 and sink.weight_N == sink_true.weight_N > 0.0
+    w0 = sink.weight_N
+    assert sink.standing_sink_m == pytest.approx((0.5 * w0 / 5.0e5) ** (1 / 1.5), rel=1e-12)
+    ratio = sink_true.standing_sink_m / sink.standing_sink_m
+    assert ratio == pytest.approx(2.0 ** (-1 / 1.5), rel=1e-12)
+    run = build(datasheet)
+    assert run.plant.contact.params.stiffness_N_per_m_n == 1.0e6  # the truth is unchanged
+    assert np.max(np.abs(run.plan.q - build(told).plan.q)) > 1e-4  # the plan is not
+    assert simulate(datasheet).summary()["device_belief"]["soles"] == "given"
+
+
+@pytest.mark.parametrize(
+    ("soles", "message"),
+    [
+        ((0.0, 1.5), "belief sole stiffness must be > 0 N/m^n; got 0.0"),
+        ((5e5, 0.5), "belief sole exponent must be >= 1; got 0.5"),
+        ((5e5,), "belief soles must be a pair (k [N/m^n] > 0, n >= 1) or None; got (500000.0,)"),
+    ],
+)
+def test_bad_sole_beliefs_are_refused(soles: tuple, message: str) -> None:
+    with pytest.raises(InvalidParameter) as info:
+        Belief(soles=soles)
+    assert str(info.value) == message
