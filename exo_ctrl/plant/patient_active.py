@@ -279,8 +279,11 @@ class ActivePatient:
         s["delay_steps"] = round(p.delay_s / step_s)
         rng = np.random.default_rng(p.seed)
         n = math.ceil(duration_s / (period * 0.5)) + 4
-        times = period * np.clip(1.0 + p.period_cv * rng.standard_normal(n), 0.5, 1.5)
-        scale = np.clip(1.0 + p.step_cv * rng.standard_normal(n), 0.5, 1.5)
+        # One (period, excursion) pair of draws per cycle, cycle by cycle: cycle i's
+        # draws are the same in a run of any length.
+        draws = rng.standard_normal((n, 2))
+        times = period * np.clip(1.0 + p.period_cv * draws[:, 0], 0.5, 1.5)
+        scale = np.clip(1.0 + p.step_cv * draws[:, 1], 0.5, 1.5)
         #: Cycle i: start [s], duration T_i [s], excursion scale a_i.
         self.cycles = np.ascontiguousarray(
             np.column_stack((np.concatenate(([0.0], np.cumsum(times[:-1]))), times, scale))
