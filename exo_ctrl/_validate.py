@@ -69,6 +69,19 @@ def refuse_shapes(shape: tuple[int, ...], **values: object) -> None:
             raise InvalidParameter(name, value, f"an array of shape {shape}")
 
 
+def held_arrays(shape: tuple[int, ...], **values: object) -> None:
+    """Refuse the first ``name=value`` that is not a float64 ndarray of ``shape``.
+
+    For arrays a component holds and reads at each later call (checked once,
+    when it takes them).
+    """
+    for name, value in values.items():
+        if not (
+            type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape
+        ):
+            raise InvalidParameter(name, value, f"a float64 array of shape {shape}")
+
+
 #: The largest allocation [bytes] a user's number may set: 1 GiB (:func:`allocation`).
 MAX_ALLOCATION_BYTES = 1 << 30
 

@@ -76,6 +76,7 @@ therefore costs the estimate only while it lasts.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -388,11 +389,51 @@ class CuffForceKalman:
             tau,
             self.cuffs.split_switch,
         )
+        if status:
+            self._answer(status, q, tau)
+        return self.force
+
+    def bind(self, sensors: SensorReadings) -> Callable[[], np.ndarray]:
+        """:meth:`update` with ``sensors``, as a call without arguments, for the control tick.
+
+        The readings' arrays are checked once, here; the call then makes
+        :meth:`step`'s Pinocchio calls and kernel on them with nothing
+        around (about 1 µs less a tick than :meth:`update`), and reads the
+        arrays as they are at each call.
+
+        Raises:
+            InvalidParameter: q, dq or tau is not a float (4,) array.
+
+        """
+        q, dq, tau = sensors.q, sensors.dq, sensors.tau
+        v.held_arrays((4,), q=q, dq=dq, tau=tau)
+        rec, cuffs, split = self.record, self.cuffs.record, self.cuffs.split_switch
+        force = self.force
+        me, mp, de, dp = self._model_e, self._model_p, self._data_e, self._data_p
+        qe, qp, ve, vp = self._q_e, self._q_p, self._v_e, self._v_p
+        crba, nle = pin.crba, pin.nonLinearEffects
+
+        def update() -> np.ndarray:
+            if not self._started:
+                return self.step(q, dq, tau)
+            status = kalman_step(
+                rec, cuffs, crba(me, de, qe), nle(me, de, qe, ve), crba(mp, dp, qp),
+                nle(mp, dp, qp, vp), q, tau, split,
+            )  # fmt: skip
+            if status:
+                self._answer(status, q, tau)
+            return force
+
+        return update
+
+    # ------------------------------------------------------------------ internals
+
+    def _answer(self, status: int, q: np.ndarray, tau: np.ndarray) -> None:
+        """A step's status other than OK: NOT_FINITE restarts the filter, the rest raise."""
         if status == Status.NOT_FINITE.value:
             self._started = False  # the state left the finite numbers: restart at the next readings
-        elif status:
+        else:
             check(status, "CuffForceKalman.step", q=q, tau=tau)
-        return self.force
 
     # ------------------------------------------------------------------ internals
 

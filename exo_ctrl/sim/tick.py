@@ -210,12 +210,15 @@ class Runner:
             src = self.faults.readings if self.faults is not None else self.sensors
             self._est_in = SensorReadings(src.q, src.dq, self.foot_load.tau_known)
             self._contact_rec = plant.record["contact"]
+        est_in = self._est_in
+        if est_in is None:
+            est_in = self.faults.readings if self.faults is not None else self.sensors
         start_on_plan(setup)
         # The stages' per-tick methods and arguments, looked up once.
         self._stages = (
             self._device_sensors.read,
             (self._q_e, self._v_e, plant.sensor_torque),
-            self.estimator.update,
+            self.estimator.bind(est_in),
             setup.controller.command,
             sup.step if sup is not None else None,
             plant.step if self.patient_model is None and self._substeps == 1 else None,
@@ -244,9 +247,7 @@ class Runner:
             readings = faults.readings_at(k, readings)
         if self._est_in is not None:  # the feet's load, known from the foot plates
             self.foot_load.read(self._contact_rec, readings.q, readings.tau)
-            estimate(self._est_in)
-        else:
-            estimate(readings)
+        estimate()  # on this tick's readings (or the faulted device's, with the feet's load)
         log = self.log
         write_measured(log, row, *self._measured)
         u = command(k, readings)
