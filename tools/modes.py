@@ -15,7 +15,7 @@ of 1.2 s and 0.35 m (the preferences of ``tests/sim/test_modes_run.py``):
   defaults) on top.
 
 Each run is the default scenario otherwise (standing start, 1.2 s ramp-in,
-default sensors, the momentum observer, the supervisor on), ``--duration``
+default sensors, the default Kalman filter, the supervisor on), ``--duration``
 seconds in all (default 6.0: the ramp-in and four gait cycles).  From each
 run's summary, over the cycles after the ramp-in (:mod:`exo_ctrl.sim.interaction`,
 :mod:`exo_ctrl.sim.gait_score`), the table gives: the RMS interaction force,
