@@ -76,9 +76,7 @@ def held_arrays(shape: tuple[int, ...], **values: object) -> None:
     when it takes them).
     """
     for name, value in values.items():
-        if not (
-            type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape
-        ):
+        if not (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape):
             raise InvalidParameter(name, value, f"a float64 array of shape {shape}")
 
 
