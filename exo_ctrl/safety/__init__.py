@@ -4,10 +4,11 @@
   against the models and the drive;
 - :mod:`.monitor`: the compiled per-tick monitor (which channel exceeds its
   limit, by how much) and its record;
-- :mod:`.plausibility`, :mod:`.consistency`, :mod:`.belt_monitor`: whether
-  the readings can be true (drive model, encoder step, stuck sensor, command
-  age; the torque sensor against the drive's current and the encoder; the
-  belt's measured speed against the speed its drive's and the feet's forces predict);
+- :mod:`.plausibility`, :mod:`.consistency`, :mod:`.still`, :mod:`.belt_monitor`:
+  whether the readings can be true (drive model, encoder step, stuck sensor, command
+  age; the torque sensor against the drive's current and the encoder; a still
+  encoder against the current a still winding draws; the belt's measured speed
+  against the speed its drive's and the feet's forces predict);
 - :mod:`.stop_reaction`: how the stop ends: ``hold`` the posture or
   ``yield`` to an active patient (gravity compensation and damping), and
   the default per interaction mode;

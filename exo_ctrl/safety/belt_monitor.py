@@ -102,7 +102,7 @@ __all__ = [
 ]
 
 #: The monitor record's row of the belt channel (after the plausibility groups).
-BELT = 12
+BELT = 13
 
 #: The load cells' noise in the threshold, in standard deviations of r.
 NOISE_SIGMAS = 6.0

@@ -16,13 +16,14 @@ TORQUE     |τ| - DBL_MAX        N·m (finiteness only)
 VOLTAGE    |U| - DBL_MAX        V (finiteness only, the command)
 =========  ===================  ====================================
 
-Five more groups, the plausibility monitors (drive model residual, encoder
+Six more groups, the plausibility monitors (drive model residual, encoder
 step, torque sensor unchanged, command age; the torque sensor's consistency
-with the drive's current, :mod:`exo_ctrl.safety.consistency`), are written into the rows after
+with the drive's current, :mod:`exo_ctrl.safety.consistency`; a still encoder
+against the drive's current, :mod:`exo_ctrl.safety.still`), are written into the rows after
 these by :func:`exo_ctrl.safety.plausibility.plausibility` before this
 kernel runs, and a last one, the belt's speed against the speed its forces
 predict (one channel; :mod:`exo_ctrl.safety.belt_monitor`), with the belt; it counts them
-in ``worst`` and ``passed`` like its own (52 channels in all).
+in ``worst`` and ``passed`` like its own (56 channels in all).
 
 A channel is violated when ``not e <= 0``: e > 0, or e NaN (a NaN reading),
 or e = +inf (an infinite one).  The tick's ``worst`` is the sum of the
@@ -64,15 +65,16 @@ __all__ = [
 ]
 
 #: Channel groups: the rows of the record's ``excess`` and ``limit``.  The
-#: last six (drive, jump, stuck, age, consistency; belt) are the plausibility monitors'
-#: (:mod:`exo_ctrl.safety.plausibility`, :mod:`exo_ctrl.safety.consistency`) and the belt monitor's
+#: last seven (drive, jump, stuck, age, consistency, still; belt) are the plausibility
+#: monitors' (:mod:`exo_ctrl.safety.plausibility`, :mod:`exo_ctrl.safety.consistency`,
+#: :mod:`exo_ctrl.safety.still`) and the belt monitor's
 #: (:mod:`exo_ctrl.safety.belt_monitor`), written before this kernel runs
 #: (their limits +DBL_MAX, never violated, unless the supervisor sets them).
 CUFF, UPPER, LOWER, SPEED, CURRENT, TORQUE, VOLTAGE = range(7)
 #: The groups' names, in row order.
 GROUPS = (
     "cuff", "upper", "lower", "speed", "current", "torque", "voltage",
-    "drive", "jump", "stuck", "age", "consistency", "belt",
+    "drive", "jump", "stuck", "age", "consistency", "still", "belt",
 )  # fmt: skip
 #: Groups of the limit monitor itself (this kernel writes their excesses).
 LIMIT_GROUPS = 7
@@ -247,15 +249,16 @@ def channels(
     plausible: np.ndarray | None = None,
     belt_limit: float | None = None,
 ) -> tuple[Channel, ...]:
-    """The 52 channels in the order of the record's ``excess`` flattened (group-major).
+    """The 56 channels in the order of the record's ``excess`` flattened (group-major).
 
     Args:
         limits: the resolved limits (reported in the events).
         use_estimate: the cuff forces are estimates (``"estimated cuff force ..."``).
-        plausible: the plausibility groups' limits, (5, 4)
+        plausible: the plausibility groups' limits, (6, 4)
             (:func:`~exo_ctrl.safety.plausibility.plausibility_limits`; None: DBL_MAX).
             The consistency group's value is |r| less its model bound
-            (:mod:`~exo_ctrl.safety.consistency`).
+            (:mod:`~exo_ctrl.safety.consistency`); the still group's the mean
+            current outside the still winding's band (:mod:`~exo_ctrl.safety.still`).
         belt_limit: the belt speed deviation's limit [m/s]
             (:mod:`~exo_ctrl.safety.belt_monitor`; None: DBL_MAX, no belt).
             Its group's one channel is ``"belt speed deviation"``; the
@@ -274,13 +277,14 @@ def channels(
         ("voltage command", "V", zero, JOINT_NAMES),
     )
     if plausible is None:
-        plausible = np.full((5, 4), np.finfo(float).max)
+        plausible = np.full((6, 4), np.finfo(float).max)
     table += (
         ("drive model residual", "N·m", plausible[0], JOINT_NAMES),
         ("encoder step", "rad", plausible[1], JOINT_NAMES),
         ("equal torque readings", "", plausible[2], JOINT_NAMES),
         ("command age", "s", plausible[3], JOINT_NAMES),
         ("torque sensor vs current", "N·m", plausible[4], JOINT_NAMES),
+        ("still encoder vs current", "A", plausible[5], JOINT_NAMES),
     )
     big = np.finfo(float).max
     belt = (big if belt_limit is None else float(belt_limit), big, big, big)

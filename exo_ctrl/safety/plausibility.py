@@ -10,7 +10,9 @@ monitor record's rows :data:`DRIVE` … :data:`AGE` (the limit monitor then
 counts them with its own), and a fifth, the torque sensor against the
 drive's current reading and the encoder (:mod:`.consistency`, row
 :data:`~.consistency.CONSIST`; its state is this record's ``c_`` fields,
-its limit this module's fifth row; :mod:`.tick_check` runs it):
+its limit this module's fifth row; :mod:`.tick_check` runs it), and a
+sixth, a still encoder against the drive's current (:mod:`.still`, row
+:data:`~.still.STILL`; its state the ``st_`` fields, its limit the sixth row):
 
 **Drive model residual** (:data:`DRIVE`, N·m).  A drive with the voltage U
 across it at the joint speed ω carries I = (U - i_G ω / k_E) / R (the
@@ -86,6 +88,7 @@ from ..plant import MotorParams
 from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S
 from ..sensing import SensorParams
 from .consistency import CONSISTENCY_FIELDS, consistency_limit, gear_efficiency, init_consistency
+from .still import STILL_FIELDS, init_still, still_limit
 
 __all__ = [
     "AGE",
@@ -154,13 +157,14 @@ PLAUSIBILITY_FIELDS = [
     ),
     ("started", np.bool_),
     *CONSISTENCY_FIELDS,  # the torque-sensor consistency check's (.consistency)
+    *STILL_FIELDS,  # the still encoder against the current (.still)
 ]
 
 
 def plausibility_limits(
     motor: MotorParams, sensors: SensorParams, dt: float, speed_limit: np.ndarray
 ) -> np.ndarray:
-    """The limits of the five groups, (5 groups, 4 joints), in the monitor record's units.
+    """The limits of the six groups, (6 groups, 4 joints), in the monitor record's units.
 
     Args:
         motor: the drive (datasheet).
@@ -170,7 +174,8 @@ def plausibility_limits(
 
     Returns:
         Rows DRIVE [N·m], JUMP [rad], STUCK [readings], AGE [s] (module docstring),
-        and the torque-sensor consistency's CONSIST [N·m] (:mod:`.consistency`).
+        the torque-sensor consistency's CONSIST [N·m] (:mod:`.consistency`) and
+        the still encoder's STILL [A] (:mod:`.still`).
         The drive residual's limit is :data:`DRIVE_RESIDUAL_NM` at Δt ≤ 1 ms and
         grows ∝ Δt beyond (the half-tick speed offset and the plant's implicit
         step grow with it): 300 N·m at 100 Hz, beyond any drive's torque, so
@@ -194,6 +199,7 @@ def plausibility_limits(
             np.full(4, min(stuck, big)),
             np.full(4, 0.5 * dt),
             consistency_limit(motor, sensors, dt),
+            still_limit(motor, sensors, dt),
         )
     )
 
@@ -220,6 +226,7 @@ def plausibility_record(motor: MotorParams, sensors: SensorParams, dt: float) ->
     # Three time constants of the filter F (95 % settled), in ticks, at least one.
     s["settle"] = max(math.ceil(3.0 / (2.0 * math.pi * sensors.velocity_filter_hz * dt)), 1)
     init_consistency(state, motor, sensors, dt)
+    init_still(state, motor, sensors, dt)
     return state
 
 

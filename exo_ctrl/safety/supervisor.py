@@ -218,8 +218,8 @@ class SafetySupervisor:
             # A compliant joint's sensor reads the spring, τ_d − J_r θ̈ with the
             # rotor's θ̈ unmeasured: the rigid drive model's residual carries
             # J_r (θ̈ − q̈) of the rotor's ~42 Hz mode (measured 31 N·m on the
-            # default PD run), so it and the consistency check (.consistency) are off.
-            self.plausibility_limits[[0, 4]] = np.finfo(float).max
+            # default PD run): it, the consistency (.consistency) and still (.still) checks are off.
+            self.plausibility_limits[[0, 4, 5]] = np.finfo(float).max
         if self._checks:
             self.record["limit"][0][LIMIT_GROUPS:BELT] = self.plausibility_limits
         self._u_sent = self.plausibility_record["u_prev"][0]

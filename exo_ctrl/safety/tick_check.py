@@ -1,15 +1,17 @@
 """The supervisor's per-tick check of the readings, in one compiled call.
 
-The plausibility monitors (:func:`~exo_ctrl.safety.plausibility.plausibility`:
+A still encoder against the drive's current (:func:`~exo_ctrl.safety.still.still_winding`,
+row STILL, inputs of length 4 only; first, while the record holds the voltage
+sent last tick), the plausibility monitors (:func:`~exo_ctrl.safety.plausibility.plausibility`:
 drive model, encoder step, stuck torque sensor, command age; rows DRIVE …
 AGE of the monitor record's ``excess``), the torque sensor's consistency
 with the drive's current (:func:`~exo_ctrl.safety.consistency.consistency`,
 row CONSIST, inputs of length 4 only) and then the limit monitor
 (:func:`~exo_ctrl.safety.monitor.monitor`: its own rows, ``worst`` and
 ``passed`` over every row), as :class:`~exo_ctrl.safety.SafetySupervisor`
-runs them each tick.  One call instead of three saves two dispatches (about
+runs them each tick.  One call instead of four saves three dispatches (about
 0.3 µs each plus the repeated arguments, :mod:`exo_ctrl.sim.tick`); the
-arithmetic is the three kernels'.
+arithmetic is the four kernels'.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from .._jit import kernel
 from .consistency import consistency
 from .monitor import monitor
 from .plausibility import plausibility
+from .still import still_winding
 
 __all__ = ["check_readings"]
 
@@ -40,8 +43,9 @@ def check_readings(
 ) -> int:  # pragma: no cover - compiled
     """The plausibility monitors (``checks``), then the limit monitor; the latter's status.
 
-    With ``checks`` the torque-sensor consistency (:mod:`.consistency`) runs
-    after the plausibility monitors when q, q̇, τ and the currents are 4 each.
+    With ``checks``, when q, q̇, τ and the currents are 4 each, the still
+    encoder's check (:mod:`.still`) runs before the plausibility monitors and the
+    torque-sensor consistency (:mod:`.consistency`) after them.
 
     Args:
         cuff_force: cuff forces (x, z), (4, 2) [N].
@@ -63,7 +67,10 @@ def check_readings(
 
     """
     if checks:
+        fours = q.shape[0] == dq.shape[0] == tau.shape[0] == current_A.shape[0] == 4
+        if fours:
+            still_winding(q, current_A, plausible, state)
         plausibility(q, dq, tau, u_cmd, age_s, plausible, state)
-        if q.shape[0] == dq.shape[0] == tau.shape[0] == current_A.shape[0] == 4:
+        if fours:
             consistency(q, dq, tau, current_A, plausible, state)
     return monitor(cuff_force, q, dq, tau, current_A, u_cmd, t, state)

@@ -53,7 +53,7 @@ def test_every_channel_excess_is_value_minus_limit() -> None:
     assert s["worst"] == 0.0 and s["passed"]
     np.testing.assert_array_equal(s["q_last"], x["q"])
     np.testing.assert_array_equal(s["u_last"], x["u_cmd"])
-    assert len(GROUPS) == s["excess"].shape[0] == 13  # 7 limit groups, 5 plausibility, belt
+    assert len(GROUPS) == s["excess"].shape[0] == 14  # 7 limit groups, 6 plausibility, belt
 
 
 def test_worst_sums_the_violations_and_the_last_good_tick_is_kept() -> None:
@@ -110,10 +110,11 @@ def test_wrong_lengths_are_a_status_and_write_nothing(change) -> None:
 
 def test_channels_name_and_measure_each_violation() -> None:
     table = channels(LIMITS, use_estimate=False)
-    assert len(table) == 52
+    assert len(table) == 56
     assert table[44].quantity == "torque sensor vs current left_hip" and table[44].limit > 1e300
-    assert table[48].quantity == "belt speed deviation" and table[48].limit > 1e300
-    assert channels(LIMITS, False, belt_limit=0.1)[48].limit == 0.1
+    assert table[51].quantity == "still encoder vs current right_knee" and table[51].unit == "A"
+    assert table[52].quantity == "belt speed deviation" and table[52].limit > 1e300
+    assert channels(LIMITS, False, belt_limit=0.1)[52].limit == 0.1
     assert [c.quantity for c in table[:4]] == [f"cuff force {n}" for n in CUFF_NAMES]
     assert [c.quantity for c in table[4:8]] == [f"angle {n}" for n in JOINT_NAMES]
     assert table[8].quantity == "angle left_hip" and table[8].limit == -0.4

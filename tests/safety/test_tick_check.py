@@ -1,13 +1,13 @@
-"""The supervisor's one-call check equals the plausibility monitors, the torque-sensor
-consistency, then the limit monitor.
+"""The supervisor's one-call check equals the still encoder's check, the plausibility
+monitors, the torque-sensor consistency, then the limit monitor.
 
 Checks: over 300 ticks of a moving joint state with realistic limits (some
-channels violated, a NaN frame, a stale command), :func:`check_readings`
-leaves the plausibility and monitor records byte for byte as the three
+channels violated, a NaN frame, a stale command, a joint held still), :func:`check_readings`
+leaves the plausibility and monitor records byte for byte as the four
 kernels called in turn, and returns the monitor's status; with the checks
 off the plausibility record and its rows are untouched; a wrong length is
 the monitor's WRONG_LENGTH, with the records as the kernels leave them (the
-consistency check runs only on inputs of length 4).
+still and consistency checks run only on inputs of length 4).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from exo_ctrl.safety.plausibility import (
     plausibility_limits,
     plausibility_record,
 )
+from exo_ctrl.safety.still import STILL, still_winding
 from exo_ctrl.safety.tick_check import check_readings
 from exo_ctrl.sensing import SensorParams
 
@@ -41,7 +42,7 @@ LIMITS = ResolvedLimits(
 def records() -> tuple[np.ndarray, np.ndarray]:
     sensors = SensorParams()
     mon = monitor_record(LIMITS, 0.25)  # an e-stop time inside the run
-    mon["limit"][0][DRIVE : CONSIST + 1] = plausibility_limits(MOTOR, sensors, DT, SPEED)
+    mon["limit"][0][DRIVE : STILL + 1] = plausibility_limits(MOTOR, sensors, DT, SPEED)
     # The made-up torques fit no drive model, nor the made-up currents.
     mon["limit"][0][[DRIVE, CONSIST]] = np.finfo(float).max
     return plausibility_record(MOTOR, sensors, DT), mon
@@ -58,6 +59,8 @@ def tick_inputs(k: int) -> tuple:
     f = np.stack((120.0 * np.sin(t + ph), 140.0 * np.cos(3.0 * t + ph)), axis=1)
     if k == 120:  # a corrupted frame
         q[2] = dq[2] = tau[2] = math.nan
+    if k >= 150:  # the right knee held still from 0.15 s on (its still run and window fill)
+        q[3] = 0.4
     age = 2.0 * DT if 200 <= k < 210 else 0.0  # a stale command
     return f, q, dq, tau, current, u, age, t
 
@@ -69,6 +72,7 @@ def test_one_call_equals_the_three_kernels_in_turn() -> None:
     for k in range(300):
         f, q, dq, tau, current, u, age, t = tick_inputs(k)
         status = check_readings(f, q, dq, tau, current, u, age, t, True, plaus_a, mon_a)
+        still_winding(q, current, plaus_b, mon_b)
         plausibility(q, dq, tau, u, age, plaus_b, mon_b)
         consistency(q, dq, tau, current, plaus_b, mon_b)
         expected = monitor(f, q, dq, tau, current, u, t, mon_b)
@@ -77,6 +81,7 @@ def test_one_call_equals_the_three_kernels_in_turn() -> None:
         assert mon_a.tobytes() == mon_b.tobytes(), k
         violated += not mon_a["passed"][0]
     assert 0 < violated < 300  # the run passes and violates
+    assert mon_a["excess"][0][STILL, 3] > 0.0  # the made-up current is no still winding's
 
 
 def test_with_the_checks_off_the_plausibility_rows_are_untouched() -> None:
@@ -92,8 +97,8 @@ def test_with_the_checks_off_the_plausibility_rows_are_untouched() -> None:
 def test_a_wrong_length_is_the_monitors_status() -> None:
     """A short angle array: nothing written; a short current array: as the kernels in turn.
 
-    (The plausibility monitors do not read the currents: they run, the consistency check
-    does not, the limit monitor refuses.)
+    (The plausibility monitors do not read the currents: they run, the still and consistency
+    checks do not, the limit monitor refuses.)
     """
     for which in (1, 4):  # q, the current reading
         plaus_a, mon_a = records()

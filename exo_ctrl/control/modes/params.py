@@ -118,9 +118,10 @@ class ModeParams:
       the torque sensor's reading by cuff forces, a loop of gain ≈ K_f that
       a fast filter turns into a limit cycle between the current limits,
       where the supervisor's drive model residual is not evaluated (seed
-      0's frozen hip encoder went undetected at 100 without the lead; at 30
-      it is caught after 35 ms, at 10 after 103 ms; tools/faults.py --mode
-      transparent).
+      0's frozen hip encoder went undetected by it at 100 without the lead;
+      at 30 it is caught after 35 ms, at 10 after 103 ms; tools/faults.py
+      --mode transparent).  The still-encoder check (exo_ctrl/safety/still.py)
+      now names that limit cycle after 36 ms too.
     - The lead T_L = 15 ms, the hip estimate's lag at σ_d = 30 (none:
       9.0–9.6 %; 10 ms: 8.0–8.6 %; 20 ms: 7.3–7.9 %).  It is a property of
       the sensors: with noise-free angles the estimate has no such lag and
