@@ -1,11 +1,12 @@
 """Compile only what the run uses: feature switches, one signature per callee (exo_ctrl._jit).
 
 A feature the run leaves off (pelvis guide, belt contact, compliant drives,
-split cuffs) is pruned from its caller's compiled code when its switch is
-None, so its kernels are not compiled; and every caller of a shared callee
-passes the same argument types, so the callee compiles once.  Both are
-properties of the typed code, read here from a fresh, uncached compile of
-the caller (its callees' calls and their argument types).
+split cuffs, the patient's feet on the belt) is pruned from its caller's
+compiled code when its switch is None, so its kernels are not compiled; and
+every caller of a shared callee passes the same argument types, so the
+callee compiles once.  Both are properties of the typed code, read here from
+a fresh, uncached compile of the caller (its callees' calls and their
+argument types).
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ def test_switch_is_true_or_none() -> None:
 
 def test_the_switches_follow_the_plants_flags(exo, patient) -> None:
     plain = Plant(exo, patient, motors=MotorParams(), cuffs=CuffParams.isotropic())
-    assert plant_switches(plain.record) == (None, None, None, None)
+    assert plant_switches(plain.record) == (None, None, None, None, None)
     assert plain.cuffs.split_switch is None
     everything = Plant(
         exo,
@@ -61,11 +62,11 @@ def test_the_switches_follow_the_plants_flags(exo, patient) -> None:
         motors=MotorParams(),
         cuffs=CuffParams(),  # split by default
         compliance=CompliantJoint(enabled=True),
-        contact=ContactParams(enabled=True),
+        contact=ContactParams(enabled=True, patient_feet=True),
         pelvis=PelvisParams(supported=True),
         belt_height_m=GaitParams(hip_height=0.98).hip_height,
     )
-    assert plant_switches(everything.record) == (True, True, True, True)
+    assert plant_switches(everything.record) == (True, True, True, True, True)
     assert everything.cuffs.split_switch is True
 
 
@@ -78,9 +79,12 @@ def calls(exo, patient) -> dict[str, Any]:
     kf = CuffForceKalman(exo, patient, 1e-3, cuffs=CuffParams())  # split cuffs: switch on
     return {
         "plant": plant,
-        "drift off": callees(drift_and_forces, iso.record, u, u, False, None, None, None, None),
-        "drift on": callees(drift_and_forces, rec, u, u, False, True, True, True, True),
-        "kick on": callees(kick_and_drift, rec, a, True, True, True),
+        "drift off": callees(
+            drift_and_forces, iso.record, u, u, False, None, None, None, None, None
+        ),
+        "drift on": callees(drift_and_forces, rec, u, u, False, True, True, True, True, True),
+        "contact only": callees(kick_and_drift, rec, a, None, True, None, None),
+        "kick on": callees(kick_and_drift, rec, a, True, True, True, True),
         "rotor_forces": callees(rotor_forces, rec[0], u, a, a, a),
         "rotor_kick": callees(rotor_kick, rec[0]),
         "kalman": callees(kalman_outputs, kf.record, kf.cuffs.record, kf.cuffs.split_switch),
@@ -92,6 +96,9 @@ def test_switched_off_features_are_not_compiled_and_on_ones_are(calls) -> None:
     assert calls["drift off"]["forces_of"][0][-1] == types.none  # no split_forces either
     assert {"pelvis_drift", "contact_forces", "rotor_forces"} <= set(calls["drift on"])
     assert {"pelvis_kick", "contact_commit", "rotor_kick"} <= set(calls["kick on"])
+    assert "patient_forces" in calls["drift on"] and "feet_commit" in calls["kick on"]
+    assert "feet_commit" not in calls["contact only"]  # the patient's feet off: pruned
+    assert "contact_commit" in calls["contact only"]
 
 
 def test_every_caller_passes_plain_arrays_to_shared_callees(calls) -> None:

@@ -210,6 +210,15 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{summary['touchdown_slip_mps']:.4f} m/s; peak ground force [N]: {feet}; "
             f"belt speed error RMS {summary['belt_speed_error_rms_mps']:.4f} m/s"
         )
+    pf = summary.get("patient_feet")
+    if pf:  # --patient-feet on (exo_ctrl/plant/patient_feet.py)
+        lines.append(
+            "patient's feet on the belt: peak ground force [N] "
+            + ", ".join(f"{f} {x:.1f}" for f, x in pf["peak_ground_force_N"].items())
+            + "; after the ramp-in deepest in contact [mm] "
+            + ", ".join(f"{f} {x * 1e3:.2f}" for f, x in pf["max_penetration_m"].items())
+            + f", slip RMS {pf['slip_speed_rms_mps']:.4f} m/s"
+        )
     if "stance_knee_torque_rms_Nm" in summary:  # exo_ctrl/sim/load_stats.py
         rms, peak = summary["stance_knee_torque_rms_Nm"], summary["stance_knee_torque_peak_Nm"]
         lines.append(

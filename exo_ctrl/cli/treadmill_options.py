@@ -24,6 +24,15 @@ def add_treadmill_options(p: argparse.ArgumentParser) -> None:
         "air, as the paper)",
     )
     g.add_argument(
+        "--patient-feet",
+        choices=("on", "off"),
+        default="on" if c.patient_feet else "off",
+        help="the patient's foot points meet the belt too, with the soles' contact law "
+        "(exo_ctrl/plant/patient_feet.py; needs --contact on) (default "
+        f"{'on' if c.patient_feet else 'off'}: only the exoskeleton's feet, the patient's "
+        "foot free to sink below the belt)",
+    )
+    g.add_argument(
         "--friction",
         type=float,
         default=c.friction_coeff,
@@ -103,7 +112,10 @@ def treadmill_config_from(args: argparse.Namespace) -> dict[str, Any]:
     )
     return {
         "contact": ContactParams(
-            enabled=args.contact == "on", friction_coeff=args.friction, belt=belt
+            enabled=args.contact == "on",
+            friction_coeff=args.friction,
+            belt=belt,
+            patient_feet=args.patient_feet == "on",
         ),
         "speed_profile": None
         if args.speed_profile is None

@@ -8,6 +8,9 @@ In the sagittal plane, with the leg's absolute angles φ1 = φ1₀ + s_h q_hip,
 
     p = hip + l1 (cos φ1, sin φ1) + l2 (cos φ2, sin φ2),   ṗ = J q̇,
 
+and, with ``ContactParams.patient_feet``, the patient's foot points meet it
+too, by the same law (:func:`foot_on_belt`; :mod:`exo_ctrl.plant.patient_feet`).
+
 **Normal force** (Hunt & Crossley 1975), on the penetration δ = z_b - p_z:
 
     F_n = max(0, k δⁿ (1 + d δ̇)),   n = 3/2,   F_n = 0 for δ ≤ 0,
@@ -93,9 +96,13 @@ class ContactParams:
         dissipation_s_per_m: d [s/m].
         friction_coeff: μ [-], > 0.
         belt: the belt and its drive.
+        patient_feet: the patient's foot points meet the belt too, with the
+            same law (:mod:`exo_ctrl.plant.patient_feet`; off: only the
+            exoskeleton's feet, the patient's foot free to sink below the belt).
 
     Raises:
-        InvalidParameter: k not > 0, n < 1, d < 0, μ not > 0.
+        InvalidParameter: k not > 0, n < 1, d < 0, μ not > 0, patient_feet
+            without the contact enabled.
 
     """
 
@@ -105,6 +112,7 @@ class ContactParams:
     dissipation_s_per_m: float = 3.0
     friction_coeff: float = 0.8
     belt: BeltParams = field(default_factory=BeltParams)
+    patient_feet: bool = False
 
     def __post_init__(self) -> None:
         k = v.positive("contact stiffness", self.stiffness_N_per_m_n, "N/m^n")
@@ -123,6 +131,14 @@ class ContactParams:
         ):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "enabled", bool(self.enabled))
+        if not isinstance(self.patient_feet, (bool, np.bool_)):
+            raise InvalidParameter("patient_feet", self.patient_feet, "True or False")
+        if self.patient_feet and not self.enabled:
+            raise InvalidParameter(
+                "patient_feet", self.patient_feet, "False with the contact off (enabled=False)",
+                "the patient's feet meet the belt only with the belt contact on: --contact on",
+            )  # fmt: skip
+        object.__setattr__(self, "patient_feet", bool(self.patient_feet))
 
 
 #: Fields of the contact's record.  Geometry per leg (left, right): ``hip``
@@ -250,37 +266,53 @@ def contact_forces(c: Any, qm: np.ndarray, vm: np.ndarray, tau: np.ndarray, h: f
     ``c``: a contact record (:data:`CONTACT_FIELDS`); ``tau`` (8,) gets
     J_zᵀ F_n on each leg's hip and knee.
     """
-    b = c.belt
-    belt_drive(b, h)
+    belt_drive(c.belt, h)
     c.any = False
     for leg in range(2):
-        i = 2 * leg
         c.imp[leg] = 0.0
-        x, z, c.jx[leg, 0], c.jx[leg, 1], c.jz[leg, 0], c.jz[leg, 1] = foot_point(
-            c, leg, qm[i], qm[i + 1]
-        )
-        c.pos[leg, 0] = c.hip[leg, 0] + x
-        c.pos[leg, 1] = c.hip[leg, 1] + c.z_pelvis + z
-        vx = c.jx[leg, 0] * vm[i] + c.jx[leg, 1] * vm[i + 1]
-        vz = c.jz[leg, 0] * vm[i] + c.jz[leg, 1] * vm[i + 1] + c.vz_pelvis
-        c.vel[leg, 0], c.vel[leg, 1] = vx, vz
-        pen = c.z_belt - c.pos[leg, 1]
-        c.pen[leg] = pen
-        fn = 0.0
-        if pen > 0.0:
-            fn = c.k * pen**c.n * (1.0 - c.d * vz)
-            if fn < 0.0:
-                fn = 0.0
-        if fn > 0.0:
-            c.any = True
-            if c.state[leg] == 0.0:  # touchdown: the foot's speed relative to the belt
-                c.td_vx[leg] = vx + b.v
-                c.td_vz[leg] = vz
-        c.fn[leg] = fn
-        c.fn_rate[leg] = (fn - c.fn_prev[leg]) / h
-        tau[i] += c.jz[leg, 0] * fn
-        tau[i + 1] += c.jz[leg, 1] * fn
+        foot_on_belt(c, c, leg, 2 * leg, qm, vm, tau, h)
     c.fz = c.fn[0] + c.fn[1]
+
+
+@kernel
+def foot_on_belt(
+    c: Any, g: Any, leg: int, i: int, qm: np.ndarray, vm: np.ndarray, tau: np.ndarray, h: float
+) -> None:
+    """One foot at mid-step: its point, penetration, Hunt–Crossley force (module docstring).
+
+    ``c``: the contact record (belt, law, pelvis); ``g``: the record of the
+    legs the foot ends (the exoskeleton's: ``c`` itself; the patient's:
+    :data:`~exo_ctrl.plant.patient_feet.PATIENT_FEET_FIELDS`), leg ``leg``
+    whose hip and knee are ``qm[i]``, ``qm[i + 1]``; sets its ``pos``,
+    ``vel``, ``jx``, ``jz``, ``pen``, ``fn``, ``fn_rate`` and at a
+    touchdown ``td_vx``, ``td_vz``, ``c.any`` when it touches; adds
+    J_zᵀ F_n to ``tau[i]``, ``tau[i + 1]``.
+    """
+    b = c.belt
+    x, z, g.jx[leg, 0], g.jx[leg, 1], g.jz[leg, 0], g.jz[leg, 1] = foot_point(
+        g, leg, qm[i], qm[i + 1]
+    )
+    g.pos[leg, 0] = g.hip[leg, 0] + x
+    g.pos[leg, 1] = g.hip[leg, 1] + c.z_pelvis + z
+    vx = g.jx[leg, 0] * vm[i] + g.jx[leg, 1] * vm[i + 1]
+    vz = g.jz[leg, 0] * vm[i] + g.jz[leg, 1] * vm[i + 1] + c.vz_pelvis
+    g.vel[leg, 0], g.vel[leg, 1] = vx, vz
+    pen = c.z_belt - g.pos[leg, 1]
+    g.pen[leg] = pen
+    fn = 0.0
+    if pen > 0.0:
+        fn = c.k * pen**c.n * (1.0 - c.d * vz)
+        if fn < 0.0:
+            fn = 0.0
+    if fn > 0.0:
+        c.any = True
+        if g.state[leg] == 0.0:  # touchdown: the foot's speed relative to the belt
+            g.td_vx[leg] = vx + b.v
+            g.td_vz[leg] = vz
+    g.fn[leg] = fn
+    g.fn_rate[leg] = (fn - g.fn_prev[leg]) / h
+    tau[i] += g.jz[leg, 0] * fn
+    tau[i + 1] += g.jz[leg, 1] * fn
 
 
 @kernel

@@ -13,7 +13,9 @@ joint angles q_p solve the static balance
 g_p the patient's gravity torque (Pinocchio's RNEA at v = a = 0), τ_{c,p} =
 -J_pᵀ f the cuffs' generalised force on the patient (f = -K (Δp - r₀), no
 damping at rest), τ_h the patient's own joint torque at rest
-(:mod:`exo_ctrl.plant.patient`; zero for the paper's passive patient).
+(:mod:`exo_ctrl.plant.patient`; zero for the paper's passive patient) and,
+with the patient's feet on the belt (:mod:`exo_ctrl.plant.patient_feet`),
+less the belt's normal force at rest J_zᵀ k δⁿ (``ground``).
 :func:`settle_patient` solves it by Newton's method on the four angles from
 q_p = q₀, with a central finite-difference Jacobian (step
 :data:`FD_STEP_RAD`), to :data:`TOLERANCE_NM`.
@@ -26,6 +28,8 @@ URDF limits, which a plan does not reach.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -53,8 +57,10 @@ class _Balance:
         patient_model: pin.Model,
         q_exo: np.ndarray,
         patient_torque: PatientTorque | None,
+        ground: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
         self._cuffs = cuffs
+        self._ground = ground
         self._model = patient_model
         self._data = patient_model.createData()
         self._q = np.concatenate((np.asarray(q_exo, dtype=float), q_exo))
@@ -70,6 +76,8 @@ class _Balance:
         out -= self._cuffs.joint_torque[4:]
         if self._own is not None:
             out -= self._own(0.0, q_p, self._zero, self._tau_h)
+        if self._ground is not None:
+            out -= self._ground(q_p)
         return out
 
 
@@ -78,6 +86,7 @@ def settle_patient(
     patient_model: pin.Model,
     q_exo: np.ndarray,
     patient_torque: PatientTorque | None = None,
+    ground: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """Fit the cuffs slack at the aligned posture q₀, then solve F(q_p) = 0 for the patient.
 
@@ -86,6 +95,9 @@ def settle_patient(
         patient_model: the patient's Pinocchio model.
         q_exo: the exoskeleton's posture q₀ [rad], (4,).
         patient_torque: the patient's own joint torque model (None: none).
+        ground: the belt's generalised force on the patient's joints at rest
+            at angles q_p [N·m], (4,) (None: the feet free; with the patient's
+            feet on the belt, :meth:`~exo_ctrl.plant.patient_feet.PatientFeet.rest_torque`).
 
     Returns:
         q_p [rad], (4,): the patient's joint angles at static equilibrium.
@@ -99,7 +111,7 @@ def settle_patient(
     """
     q0 = np.asarray(q_exo, dtype=float)
     cuffs.fit(np.concatenate((q0, q0)))
-    balance = _Balance(cuffs, patient_model, q0, patient_torque)
+    balance = _Balance(cuffs, patient_model, q0, patient_torque, ground)
     q = q0.copy()
     f = balance(q)
     jac = np.empty((4, 4))

@@ -54,6 +54,10 @@ order [z, q_exo, q_patient]), stepped by the same leapfrog; the feet's
 heights and normal speeds include z and ż, their normal forces push on z,
 and the friction solve takes the full 9×9 mass matrix (the legs are coupled
 through the pelvis).
+
+With the patient's feet on the belt too (``ContactParams.patient_feet``,
+:mod:`exo_ctrl.plant.patient_feet`, off by default) their normal forces act
+on the patient's joints and the friction solve takes all four feet.
 """
 
 from __future__ import annotations
@@ -78,6 +82,7 @@ from .cuffs import CuffParams, CuffSet
 from .drive import MotorParams
 from .end_stops import EndStopParams
 from .motor import MotorBank
+from .patient_feet import PatientFeet, feet_friction, feet_friction_coupled
 from .pelvis import (
     PelvisParams,
     pelvis_model,
@@ -211,6 +216,14 @@ class Plant:
         self.contact = FootContact(exo, contact or ContactParams(), belt_height_m, r["contact"])
         self._contact_on = self.contact.params.enabled
         self._contact_any, self._contact_acc = r["contact"]["any"], r["contact"]["acc"][0]
+        #: The patient's feet on the belt (:mod:`exo_ctrl.plant.patient_feet`; off by default).
+        self.patient_feet = PatientFeet(
+            patient, self.contact.params, self.patient_offset_xz, self.contact.z_belt,
+            r["patient_feet"],
+        )  # fmt: skip
+        feet = self.patient_feet.on  # the friction solve of four feet, else of the exo's two
+        self._friction = feet_friction if feet else friction_impulse
+        self._friction_coupled = feet_friction_coupled if feet else friction_impulse_coupled
         #: The pelvis's guide and support (:mod:`exo_ctrl.plant.pelvis`).
         self.pelvis_params = pelvis if pelvis is not None else PelvisParams()
         self._pelvis_on = self.pelvis_params.supported
@@ -235,7 +248,7 @@ class Plant:
             self.motors.set_step(self.dt)
         # The step kernels' switches: the features this plant leaves off are not compiled.
         self._switches = plant_switches(self.record)
-        self._kick_switches = self._switches[:3]
+        self._kick_switches = (*self._switches[:3], self._switches[4])
 
     # ------------------------------------------------------------------ state
 
@@ -278,6 +291,7 @@ class Plant:
         self.sensor_torque[:] = self.drive_torque
         self.rotors.reset()
         self.contact.reset(self.contact.belt["v_set"][0])
+        self.patient_feet.reset()
         pel = self.pelvis[0]
         z = float(pelvis_z_m) if self._pelvis_on else 0.0
         pel["z"] = pel["z_mid"] = z
@@ -348,14 +362,14 @@ class Plant:
             acc = pin.aba(self.model, self.data, self._q9, self._v9, self._tau9)
             if self._contact_on and self._contact_any[0]:
                 mass = pin.crba(self.model, self.data, self._q9)
-                friction_impulse_coupled(self.record, acc, mass)
+                self._friction_coupled(self.record, acc, mass)
             else:
                 pelvis_unpack(self.pelvis[0], acc)
             return self._acc9_tail
         acc = pin.aba(self.model, self.data, self._q_mid, self._v_mid, self._tau)
         if self._contact_on and self._contact_any[0]:
             mass = pin.crba(self.model, self.data, self._q_mid)
-            friction_impulse(self.record, acc, mass)
+            self._friction(self.record, acc, mass)
             return self._contact_acc
         return acc
 
@@ -427,4 +441,7 @@ class Plant:
             energy += 0.5 * float(c["belt"]["mass"] * c["belt"]["v"] ** 2)
             n, depth = float(c["n"]), np.maximum(self.contact.penetration(self.q, z), 0.0)
             energy += float(c["k"]) * float(np.sum(depth ** (n + 1.0))) / (n + 1.0)
+            if self.patient_feet.on:  # the patient's feet's springs, the same law
+                depth = np.maximum(self.patient_feet.penetration(self.q, z), 0.0)
+                energy += float(c["k"]) * float(np.sum(depth ** (n + 1.0))) / (n + 1.0)
         return energy + self.rotors.energy()  # with compliance, the rotors' and springs'

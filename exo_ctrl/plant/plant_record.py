@@ -15,6 +15,7 @@ from .contact import CONTACT_FIELDS
 from .cuffs import CUFF_FIELDS
 from .end_stops import END_STOP_FIELDS
 from .motor import motor_fields
+from .patient_feet import PATIENT_FEET_FIELDS
 from .pelvis import PELVIS_FIELDS
 
 __all__ = ["PLANT_FIELDS", "plant_fields"]
@@ -37,7 +38,8 @@ __all__ = ["PLANT_FIELDS", "plant_fields"]
 #: a drive at its current limit and stepped nothing (solve the accelerations
 #: again).  :func:`plant_fields` adds the stops' and the compliance's fields,
 #: the drives' record ``motors``, the cuffs' record ``cuffs`` and the foot
-#: contact's ``contact`` (:mod:`exo_ctrl.plant.contact`) and the pelvis's
+#: contact's ``contact`` (:mod:`exo_ctrl.plant.contact`), the patient's feet on
+#: the belt ``patient_feet`` (:mod:`exo_ctrl.plant.patient_feet`) and the pelvis's
 #: ``pelvis`` (:mod:`exo_ctrl.plant.pelvis`).
 def plant_fields() -> list[tuple]:
     """The plant record's fields: PLANT_FIELDS and its components' fields and records."""
@@ -48,6 +50,7 @@ def plant_fields() -> list[tuple]:
         ("motors", shared_dtype(motor_fields(4), align=True)),
         ("cuffs", shared_dtype(CUFF_FIELDS, align=True)),
         ("contact", shared_dtype(CONTACT_FIELDS, align=True)),
+        ("patient_feet", shared_dtype(PATIENT_FEET_FIELDS, align=True)),
         ("pelvis", shared_dtype(PELVIS_FIELDS, align=True)),
     ]
 

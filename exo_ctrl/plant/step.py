@@ -7,8 +7,8 @@ limit: :mod:`exo_ctrl.plant.plant`).  They read and write the plant's record
 
 Both take the compile-time switches of the features a run may leave off
 (:func:`plant_switches`, :func:`~exo_ctrl._jit.switch`): the pelvis guide,
-the belt contact, compliant drives and, for the first, split cuffs.  A run
-without them compiles none of their kernels.
+the belt contact, compliant drives, the patient's feet on the belt and, for
+the first, split cuffs.  A run without them compiles none of their kernels.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from .cuffs import forces_of
 from .end_stops import end_stop_torques
 from .energy import book_drives
 from .motor import drive_cap, hold_drive, step_drives
+from .patient_feet import feet_commit, patient_forces
 from .pelvis import pelvis_drift, pelvis_kick
 
 __all__ = ["MAX_JOINT_SPEED_RAD_S", "drift_and_forces", "kick_and_drift", "plant_switches"]
@@ -32,14 +33,21 @@ MAX_JOINT_SPEED_RAD_S = 100.0
 
 
 def plant_switches(plant: np.ndarray) -> tuple[bool | None, ...]:
-    """The switches (pelvis, contact, compliant, split) of the plant's record ``plant``.
+    """The switches (pelvis, contact, compliant, split, feet) of the plant's record ``plant``.
 
     From the record's own flags, set when the plant is built: the pelvis on
-    its guide, the belt contact on, compliant drives, split cuffs.  Pass the
-    first three to :func:`kick_and_drift`, all four to :func:`drift_and_forces`.
+    its guide, the belt contact on, compliant drives, split cuffs, the
+    patient's feet on the belt.  Pass all five to :func:`drift_and_forces`,
+    all but ``split`` to :func:`kick_and_drift`.
     """
     p = plant[0]
-    flags = (p["pelvis"]["on"], p["contact"]["on"], p["compliant"], p["cuffs"]["split"])
+    flags = (
+        p["pelvis"]["on"],
+        p["contact"]["on"],
+        p["compliant"],
+        p["cuffs"]["split"],
+        p["patient_feet"]["on"],
+    )
     return tuple(switch(bool(flag)) for flag in flags)
 
 
@@ -53,13 +61,14 @@ def drift_and_forces(
     contact: bool | None,
     compliant: bool | None,
     split: bool | None,
+    feet: bool | None,
 ) -> int:
     """First half of :meth:`Plant.step`: drift to mid-step and every force there.
 
     q½ = q + (h/2) v, v½ = v + (h/2) a⁻; τ = cuffs(q½, v½) - b v - f_c tanh(v/ε)
     + end stops(q½, v½) (+ patient torque, if ``given``) (+ drive torque of the exact motor
     step); the exo armature i_G² J_rotor + h b + h D_m (fields: PLANT_FIELDS).
-    ``pelvis``, ``contact``, ``compliant``, ``split``: :func:`plant_switches`.
+    ``pelvis``, ``contact``, ``compliant``, ``split``, ``feet``: :func:`plant_switches`.
     Returns ``Status.WRONG_LENGTH`` (nothing done) when the voltages or
     patient torques are not 4, else ``Status.OK``.
     """
@@ -86,6 +95,8 @@ def drift_and_forces(
     end_stop_torques(p, qm, vm, tau)
     if contact is not None and p.contact.on:
         contact_forces(p.contact, qm, vm, tau, h)
+        if feet is not None and p.patient_feet.on:  # after the exo's feet: c.any, c.fz
+            patient_forces(p.contact, p.patient_feet, qm, vm, tau, h)
     if given:
         for j in range(4):
             p.patient_torque[j] = patient_torque_Nm[j]
@@ -115,11 +126,12 @@ def kick_and_drift(
     pelvis: bool | None,
     contact: bool | None,
     compliant: bool | None,
+    feet: bool | None,
 ) -> int:
     """Second half of :meth:`Plant.step`: v⁺ = v + h a, q⁺ = q½ + (h/2) v⁺.
 
     ``acc_all``: the ABA accelerations of both bodies, (8,) in q_all order;
-    ``pelvis``, ``contact``, ``compliant``: :func:`plant_switches`.
+    ``pelvis``, ``contact``, ``compliant``, ``feet``: :func:`plant_switches`.
     With drives, the applied torque τ_m - h D_m a and the sensor torque
     τ_m - h D_m a - i_G² J_rotor a; the step's applied voltage, mean current
     and cuff forces.
@@ -181,7 +193,10 @@ def kick_and_drift(
         p.cuff_force[j, 0] = f[j]
         p.cuff_force[j, 1] = f[4 + j]
     if contact is not None and p.contact.on:
-        contact_commit(p.contact, p.h)
+        if feet is not None and p.patient_feet.on:
+            feet_commit(p.contact, p.patient_feet, p.h)
+        else:
+            contact_commit(p.contact, p.h)
     half = 0.5 * p.h
     speed2 = 0.0
     for i in range(8):

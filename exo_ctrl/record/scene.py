@@ -176,8 +176,12 @@ def _strips(points: np.ndarray) -> pa.Array:
     return pa.ListArray.from_arrays(list_offsets(k, p), _vec3(points), type=_STRIP)
 
 
-def log_scene_static(rec: rr.RecordingStream, gait: GaitParams, exo: BodyModel) -> dict[str, float]:
+def log_scene_static(
+    rec: rr.RecordingStream, gait: GaitParams, exo: BodyModel, patient_feet: bool = False
+) -> dict[str, float]:
     """Styles of the moving entities, the belt and the planned foot paths (static).
+
+    ``patient_feet``: the run's patient feet meet the belt (their force arrows).
 
     The foot path of each leg is the plan's foot position relative to the hip
     (:meth:`GaitPlan.feet` over one period) plus the exo's hip position.  The
@@ -202,6 +206,8 @@ def log_scene_static(rec: rr.RecordingStream, gait: GaitParams, exo: BodyModel) 
     for side in SIDES:  # the belt's force on each exoskeleton foot (zero without contact)
         arrows = rr.Arrows3D.from_fields(radii=0.006, colors=COLORS["force"])
         _static(rec, f"world/ground_force/{side}", arrows)
+        if patient_feet:  # and on each patient foot (ContactParams.patient_feet)
+            _static(rec, f"world/patient_ground_force/{side}", arrows)
     data = exo.model.createData()
     pin.framesForwardKinematics(exo.model, data, pin.neutral(exo.model))
     hips = [data.oMi[exo.joint_ids[2 * s]].translation.copy() for s in range(2)]
@@ -246,6 +252,7 @@ def send_scene(
     v_belt: float,
     ground_force: np.ndarray | None = None,
     pelvis_z: np.ndarray | None = None,
+    patient_ground_force: np.ndarray | None = None,
 ) -> None:
     """Send the scene at the ticks ``ticks``, every entity in one record batch.
 
@@ -262,6 +269,8 @@ def send_scene(
             (x, z), drawn at the feet (None: not drawn).
         pelvis_z: the pelvis's height above its nominal (m,) [m]: both bodies
             ride on it (:mod:`exo_ctrl.plant.pelvis`; None: fixed).
+        patient_ground_force: the belt's force on each patient foot (m, 2, 2)
+            [N], drawn at the patient's feet (None: not drawn).
 
     """
     m = ticks.shape[0]
@@ -269,13 +278,15 @@ def send_scene(
     batch = EntityBatch(ticks, dt)
     one, two, three = list_offsets(m, 1), list_offsets(m, 2), list_offsets(m, 3)
     exo_cuffs, exo_feet = np.zeros((m, 4, 3)), np.zeros((m, 2, 3))
+    feet = {"exo": exo_feet, "patient": np.zeros((m, 2, 3))}
     for body, skeleton, q in bodies:
         legs, cuffs = skeleton.points(q)
         if pelvis_z is not None:  # both bodies hang from the pelvis
             legs[..., 2] += pelvis_z[:, None, None]
             cuffs[..., 2] += pelvis_z[:, None]
         if body == "exo":
-            exo_cuffs, exo_feet = cuffs, legs[:, :, 2]
+            exo_cuffs = cuffs
+        feet[body] = legs[:, :, 2]
         for s, side in enumerate(SIDES):
             base = f"world/{body}/{side}"
             batch.add(f"{base}/leg", _LINES, _strips(legs[:, s]), one)
@@ -286,11 +297,15 @@ def send_scene(
         vectors[:, [0, 2]] = FORCE_ARROW_M_PER_N * cuff_force[:, c]
         batch.add(f"world/cuff_force/{cuff}", _VECTORS, _vec3(vectors), one)
         batch.add(f"world/cuff_force/{cuff}", _ORIGINS, _vec3(exo_cuffs[:, c]), one)
-    for s, side in enumerate(SIDES if ground_force is not None else ()):
-        vectors = np.zeros((m, 3))
-        vectors[:, [0, 2]] = FORCE_ARROW_M_PER_N * ground_force[:, s]
-        batch.add(f"world/ground_force/{side}", _VECTORS, _vec3(vectors), one)
-        batch.add(f"world/ground_force/{side}", _ORIGINS, _vec3(exo_feet[:, s]), one)
+    for body, entity, force in (
+        ("exo", "ground_force", ground_force),
+        ("patient", "patient_ground_force", patient_ground_force),
+    ):
+        for s, side in enumerate(SIDES if force is not None else ()):
+            vectors = np.zeros((m, 3))
+            vectors[:, [0, 2]] = FORCE_ARROW_M_PER_N * force[:, s]
+            batch.add(f"world/{entity}/{side}", _VECTORS, _vec3(vectors), one)
+            batch.add(f"world/{entity}/{side}", _ORIGINS, _vec3(feet[body][:, s]), one)
     length = belt["length"]
     ns = max(1, int(length / _STRIPE_SPACING_M))
     x0 = (np.arange(ns) + 0.5) * (length / ns)

@@ -91,10 +91,10 @@ __all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder", "find_viewer", "spawn_viewe
 #: Default rate of the 3-D scene [Hz]: a display rate, far below the control rate.
 DEFAULT_SCENE_RATE_HZ = 50.0
 #: Estimated file size per tick [B], for the free-space check: the default
-#: run (3600 ticks at 1 kHz, 3-D scene at 50 Hz) writes 11.00 MB, 3057 B per
-#: tick with the fixed part (blueprint, parameters, geometry) spread over it;
-#: 7200 ticks write 21.35 MB (2873 B per tick beyond the first 3600).
-BYTES_PER_TICK_ESTIMATE = 3050
+#: run (3600 ticks at 1 kHz, 3-D scene at 50 Hz) writes 12.67 MB, 3519 B per
+#: tick with the fixed part (blueprint, parameters, geometry) spread over it
+#: (3057 B before the patient's feet's four signals were logged).
+BYTES_PER_TICK_ESTIMATE = 3520
 #: Longest wait for rerun to encode what was sent [s] (a 2000-tick chunk takes
 #: milliseconds); past it rerun raises, which becomes a RecordingError.
 FLUSH_TIMEOUT_S = 10.0
@@ -163,6 +163,7 @@ class RerunRecorder:
         self._columns = SignalColumns(layout({}))
         self._bodies: tuple[tuple[str, Skeleton, str], ...] = ()
         self._belt: dict[str, float] = {}
+        self._patient_feet = False  # the run's patient feet meet the belt: their arrows
 
     # ------------------------------------------------------------------ protocol
 
@@ -419,7 +420,8 @@ class RerunRecorder:
         for series in self._columns.layout.series:  # legend names and colours of the time series
             lines = rr.SeriesLines(names=series.names, colors=series.colors)
             rec.log(series.entity, lines, static=True, strict=True)
-        self._belt = log_scene_static(rec, config.gait, exo)
+        self._patient_feet = config.contact.patient_feet
+        self._belt = log_scene_static(rec, config.gait, exo, self._patient_feet)
 
     # ------------------------------------------------------------------ per chunk
 
@@ -437,7 +439,8 @@ class RerunRecorder:
         force = signal(source, n, "cuff_force")[picked]
         ground = signal(source, n, "ground_force")[picked]
         pelvis = signal(source, n, "pelvis_z")[picked]
-        send_scene(rec, shown, self._dt, bodies, force, self._belt, v, ground, pelvis)
+        feet = signal(source, n, "patient_ground_force")[picked] if self._patient_feet else None
+        send_scene(rec, shown, self._dt, bodies, force, self._belt, v, ground, pelvis, feet)
 
     # ------------------------------------------------------------------ end
 

@@ -6,9 +6,10 @@ drive's torque over stance is the figure a drive is sized on
 side, from the end of the ramp-in).  With the pelvis on its guide
 (:mod:`exo_ctrl.plant.pelvis`) the ``pelvis`` block checks the vertical
 balance: averaged over whole gait cycles the belt's vertical force on both
-feet (and the harness's, if its travel stops caught the pelvis or its
-brake locked it after a stop) equals the weight the support does not carry, M g − F_s (the
-vertical momentum returns each cycle), and reports the pelvis's excursion.
+feet (the patient's feet's too when they meet the belt; and the harness's,
+if its travel stops caught the pelvis or its brake locked it after a stop)
+equals the weight the support does not carry, M g − F_s (the vertical
+momentum returns each cycle), and reports the pelvis's excursion.
 """
 
 from __future__ import annotations
@@ -35,12 +36,21 @@ class LoadStats:
         pelvis: the pelvis block's constants (``bws_fraction``,
             ``support_N``, ``moving_mass_kg``, ``gravity_mps2``), or None
             with the pelvis fixed.
+        patient_feet: the patient's feet meet the belt too: their vertical
+            force joins the exoskeleton's feet's in the balance.
 
     """
 
-    def __init__(self, from_tick: int, cycle_end_tick: int, pelvis: dict[str, float] | None):
+    def __init__(
+        self,
+        from_tick: int,
+        cycle_end_tick: int,
+        pelvis: dict[str, float] | None,
+        patient_feet: bool = False,
+    ):
         self.from_tick, self.cycle_end_tick = int(from_tick), int(cycle_end_tick)
         self.pelvis = pelvis
+        self.patient_feet = bool(patient_feet)
         self._knee_sq = np.zeros(2)
         self._knee_n = np.zeros(2)
         self._knee_peak = np.zeros(2)
@@ -66,6 +76,8 @@ class LoadStats:
         end = min(max(self.cycle_end_tick - first_tick, 0), n)
         if end > start:
             self._fz_sum += float(rows["ground_force"][start:end, :, 1].sum())
+            if self.patient_feet:  # the patient's feet carry their share too
+                self._fz_sum += float(rows["patient_ground_force"][start:end, :, 1].sum())
             self._stop_sum += float(rows["pelvis_stop_force"][start:end].sum())
             self._fz_n += end - start
         z = rows["pelvis_z"][start:]
@@ -119,4 +131,4 @@ def load_stats(config: SimConfig, exo: BodyModel) -> LoadStats | None:
             "moving_mass_kg": moving_mass_kg(params, exo.model),
             "gravity_mps2": -float(exo.model.gravity.linear[2]),
         }
-    return LoadStats(start, end, pelvis)
+    return LoadStats(start, end, pelvis, config.contact.patient_feet)

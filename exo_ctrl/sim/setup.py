@@ -303,8 +303,8 @@ def start_on_plan(setup: Setup) -> None:
 
     - ``"equilibrium"``: fitted slack with the patient aligned, then the
       patient settled into them at static equilibrium
-      (:func:`~exo_ctrl.plant.equilibrium.settle_patient`), the patient at the
-      exoskeleton's speed;
+      (:func:`~exo_ctrl.plant.equilibrium.settle_patient`; with the patient's
+      feet on the belt, standing on it), the patient at the exoskeleton's speed;
     - ``"slack"``: fitted slack with the patient in the exoskeleton's posture
       (the patient then drops into the straps).
 
@@ -319,7 +319,9 @@ def start_on_plan(setup: Setup) -> None:
     q_p = q0
     if config.cuff_fit == "equilibrium":
         own = patient_torque_for(config, setup.patient)
-        q_p = settle_patient(plant.cuffs, setup.patient.model, q0, own)
+        feet = plant.patient_feet  # on the belt: the patient stands on it too
+        ground = feet.rest_torque if feet.on else None
+        q_p = settle_patient(plant.cuffs, setup.patient.model, q0, own, ground)
     if config.ramp_in > 0.0:
         tau0 = holding_torque(plant.cuffs, setup.exo.model, q0, q_p)
     else:

@@ -203,12 +203,18 @@ class ContactStats:
     Args:
         from_tick: first tick of the slip and touchdown figures.
         dt: control period Δt [s].
+        patient_feet: the patient's feet meet the belt too (``ContactParams.patient_feet``):
+            their block ``patient_feet`` (:meth:`summary`).
 
     """
 
-    def __init__(self, from_tick: int, dt: float) -> None:
+    def __init__(self, from_tick: int, dt: float, patient_feet: bool = False) -> None:
         self.from_tick = int(from_tick)
         self.dt = float(dt)
+        #: The patient's feet: peak force, deepest point in contact, Σ slip², ticks in contact.
+        self.patient: dict[str, Any] | None = None
+        if patient_feet:
+            self.patient = {"peak": np.zeros(2), "depth": np.zeros(2), "sq": 0.0, "n": np.zeros(2)}
         self._window = max(round(TOUCHDOWN_WINDOW_S / dt), 1)
         self._slip_sq = 0.0
         self._slip_n = 0
@@ -256,6 +262,23 @@ class ContactStats:
                 self._extend(f, int(r), rate[:, f])
             if n:
                 self._last_state[f] = state[-1, f]
+        if self.patient is not None:
+            self._update_patient(rows, start)
+
+    def _update_patient(self, rows: dict[str, np.ndarray], start: int) -> None:
+        """The patient's feet: peak force; depth, slip and ticks in contact from row ``start``."""
+        pat = self.patient
+        force = rows["patient_ground_force"]
+        if force.shape[0]:
+            peak = np.hypot(force[..., 0], force[..., 1]).max(axis=0)
+            pat["peak"] = np.maximum(pat["peak"], peak)
+        on = rows["patient_contact_state"][start:] > 0.0
+        depth = np.where(on, rows["patient_foot_penetration"][start:], 0.0)
+        if depth.shape[0]:
+            pat["depth"] = np.maximum(pat["depth"], depth.max(axis=0))
+        slip = rows["patient_foot_slip"][start:][on]
+        pat["sq"] += float(slip @ slip)
+        pat["n"] += on.sum(axis=0)
 
     def _extend(self, foot: int, start: int, rate: np.ndarray) -> None:
         """Carry foot ``foot``'s open touchdown window over ``rate[start:]``."""
@@ -279,10 +302,16 @@ class ContactStats:
         ``peak_normal_force_rate_N_per_s`` (worst within
         :data:`TOUCHDOWN_WINDOW_S` of a touchdown), ``peak_ground_force_N``
         (keyed by foot), ``belt_speed_error_rms_mps`` (belt - set speed) and
-        ``touchdowns`` (the first :data:`MAX_TOUCHDOWNS_LISTED`).
+        ``touchdowns`` (the first :data:`MAX_TOUCHDOWNS_LISTED`), all of the
+        exoskeleton's feet; with the patient's feet on the belt, their block
+        ``patient_feet``: ``peak_ground_force_N`` (keyed by foot, the whole
+        run), after the ramp-in ``max_penetration_m`` (deepest point in
+        contact, keyed by foot), ``slip_speed_rms_mps`` (both feet, in
+        contact) and ``contact_fraction`` (share of the ticks in contact,
+        keyed by foot).
         """
         td = self.touchdowns
-        return {
+        out = {
             "slip_speed_rms_mps": math.sqrt(self._slip_sq / max(self._slip_n, 1)),
             "slip_speed_max_mps": self._slip_max,
             "touchdown_speed_mps": max((abs(e["speed_z_mps"]) for e in td), default=0.0),
@@ -295,13 +324,24 @@ class ContactStats:
             "belt_speed_error_rms_mps": math.sqrt(self._belt_sq / max(self._belt_n, 1)),
             "touchdowns": td[:MAX_TOUCHDOWNS_LISTED],
         }
+        pat = self.patient
+        if pat is not None:
+            ticks = max(self._belt_n - self.from_tick, 1)
+            out["patient_feet"] = {
+                "peak_ground_force_N": _keyed(pat["peak"], SIDES),
+                "max_penetration_m": _keyed(pat["depth"], SIDES),
+                "slip_speed_rms_mps": math.sqrt(pat["sq"] / max(float(pat["n"].sum()), 1.0)),
+                "contact_fraction": _keyed(pat["n"] / ticks, SIDES),
+            }
+        return out
 
 
 def contact_stats(config: SimConfig) -> ContactStats | None:
     """The contact figures of a run with the belt (from the end of its ramp-in), else None."""
     if not config.contact.enabled:
         return None
-    return ContactStats(math.ceil(config.ramp_in / config.dt - 1e-9), config.dt)
+    start = math.ceil(config.ramp_in / config.dt - 1e-9)
+    return ContactStats(start, config.dt, config.contact.patient_feet)
 
 
 @kernel

@@ -371,7 +371,8 @@ def write_applied(log, row, controller, supervisor, plant, encoder, phase, foot)
     ``failures``); ``supervisor``: its record (``state``); ``plant``: its
     record (``voltage``, ``current``, ``drive_torque``, ``patient_torque``,
     ``stop_torque``, ``deflection``, ``cuff_force``; ``contact``,
-    :mod:`exo_ctrl.plant.contact`, all zero with contact off; ``pelvis``,
+    :mod:`exo_ctrl.plant.contact`, all zero with contact off; ``patient_feet``,
+    :mod:`exo_ctrl.plant.patient_feet`, zero with them off; ``pelvis``,
     height and speed zero when fixed); ``encoder``: the belt encoder's
     record (``speed``); ``phase``: the path mode's record, whose ``row`` is
     the plan row of the device's phase (-1 in other modes); ``foot``: the
@@ -404,6 +405,13 @@ def write_applied(log, row, controller, supervisor, plant, encoder, phase, foot)
         r.normal_force_rate[f] = ct.fn_rate[f]
         r.touchdown_velocity[f, 0] = ct.td_vx[f]
         r.touchdown_velocity[f, 1] = ct.td_vz[f]
+    pf = p.patient_feet  # zero unless the patient's feet meet the belt
+    for f in range(2):
+        r.patient_ground_force[f, 0] = pf.ft[f]
+        r.patient_ground_force[f, 1] = pf.fn[f]
+        r.patient_foot_slip[f] = pf.slip[f]
+        r.patient_foot_penetration[f] = pf.pen[f]
+        r.patient_contact_state[f] = pf.state[f]
     r.belt_speed = b.v
     r.belt_speed_set = b.v_set
     r.belt_speed_meas = encoder[0].speed

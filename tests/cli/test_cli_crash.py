@@ -28,6 +28,7 @@ import pytest
 
 from exo_ctrl.exceptions import RecordingError
 from exo_ctrl.record.reader import read_recording_integrity
+from exo_ctrl.record.writer import BYTES_PER_TICK_ESTIMATE
 from exo_ctrl.sim import SimResult, simulate
 
 EXO_CTRL = Path(sys.executable).parent / "exo-ctrl"
@@ -120,13 +121,18 @@ def test_a_full_device_is_exit_1_with_one_line(tmp_path: Path) -> None:
     )
 
 
+#: A file size [B] the first chunk fits in and the second does not: one and a half
+#: chunks at the recorder's estimate per tick (the parameters and footer fit in the half).
+FILE_LIMIT_B = int(1.5 * CHUNK * BYTES_PER_TICK_ESTIMATE)
+
+
 def _limit_file_size() -> None:
-    """In the child: files larger than 7 MB cannot be written (Python ignores SIGXFSZ)."""
-    resource.setrlimit(resource.RLIMIT_FSIZE, (7_000_000, 7_000_000))
+    """In the child: files larger than FILE_LIMIT_B cannot be written (Python ignores SIGXFSZ)."""
+    resource.setrlimit(resource.RLIMIT_FSIZE, (FILE_LIMIT_B, FILE_LIMIT_B))
 
 
 def test_a_disk_full_in_the_run_is_exit_1_and_keeps_a_whole_file(tmp_path: Path) -> None:
-    """The first chunk (about 5 MB with the parameters and footer) fits, the second does not."""
+    """The first chunk (about 7 MB with the parameters and footer) fits, the second does not."""
     rrd = tmp_path / "run.rrd"
     argv = [str(EXO_CTRL), "simulate", "--duration", "10", "--out", str(rrd)]
     proc = subprocess.run(
