@@ -375,16 +375,7 @@ def friction_impulse_coupled(plant: np.ndarray, acc_in: np.ndarray, mass: np.nda
     for i in range(n):
         pel.acc9[i] = acc_in[i]
     low = pel.chol
-    for j in range(n):  # M = L Lᵀ, from the upper triangle
-        d = mass[j, j]
-        for k in range(j):
-            d -= low[j, k] * low[j, k]
-        low[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            s = mass[j, i]
-            for k in range(j):
-                s -= low[i, k] * low[j, k]
-            low[i, j] = s / low[j, j]
+    cholesky(mass, low, n)  # M = L Lᵀ, from the upper triangle
     c.w_x = 0.0
     for leg in range(2):
         c.imp[leg] = 0.0
@@ -394,16 +385,7 @@ def friction_impulse_coupled(plant: np.ndarray, acc_in: np.ndarray, mass: np.nda
             continue
         i = 2 * leg + 1
         g[i], g[i + 1] = c.jx[leg, 0], c.jx[leg, 1]
-        for r in range(n):  # forward: L y = J_xᵀ
-            s = g[r]
-            for k in range(r):
-                s -= low[r, k] * g[k]
-            g[r] = s / low[r, r]
-        for r in range(n - 1, -1, -1):  # back: Lᵀ g = y
-            s = g[r]
-            for k in range(r + 1, n):
-                s -= low[k, r] * g[k]
-            g[r] = s / low[r, r]
+        cholesky_solve(low, g, n)  # g = M⁻¹ J_xᵀ
         c.w[leg] = c.jx[leg, 0] * g[i] + c.jx[leg, 1] * g[i + 1]
         vx = c.jx[leg, 0] * (p.v[i - 1] + h * acc_in[i])
         vx += c.jx[leg, 1] * (p.v[i] + h * acc_in[i + 1])
@@ -415,6 +397,36 @@ def friction_impulse_coupled(plant: np.ndarray, acc_in: np.ndarray, mass: np.nda
         for i in range(n):
             pel.acc9[i] += pel.g9[leg, i] * c.imp[leg] / h
     pel.az = pel.acc9[0]
+
+
+@kernel
+def cholesky(mass: np.ndarray, low: np.ndarray, n: int) -> None:
+    """M = L Lᵀ: L of M's leading n × n block, from its upper triangle, into ``low``."""
+    for j in range(n):
+        d = mass[j, j]
+        for k in range(j):
+            d -= low[j, k] * low[j, k]
+        low[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            s = mass[j, i]
+            for k in range(j):
+                s -= low[i, k] * low[j, k]
+            low[i, j] = s / low[j, j]
+
+
+@kernel
+def cholesky_solve(low: np.ndarray, g: np.ndarray, n: int) -> None:
+    """Solve M x = g in place (g ← x), M = L Lᵀ (:func:`cholesky`): L y = g, then Lᵀ x = y."""
+    for r in range(n):
+        s = g[r]
+        for k in range(r):
+            s -= low[r, k] * g[k]
+        g[r] = s / low[r, r]
+    for r in range(n - 1, -1, -1):
+        s = g[r]
+        for k in range(r + 1, n):
+            s -= low[k, r] * g[k]
+        g[r] = s / low[r, r]
 
 
 @kernel

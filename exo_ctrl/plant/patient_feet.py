@@ -72,7 +72,7 @@ from .._jit import kernel, record
 from ..model import SIDES, BodyModel
 from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
 from .belt import belt_commit, brake_holds
-from .contact import SWEEPS, ContactParams, foot_on_belt
+from .contact import SWEEPS, ContactParams, cholesky, cholesky_solve, foot_on_belt
 
 __all__ = ["PATIENT_FEET_FIELDS", "PatientFeet"]
 
@@ -246,16 +246,7 @@ def _solve_feet(p: Any, acc_in: np.ndarray, mass: np.ndarray, off: int, out: np.
     for i in range(n):
         out[i] = acc_in[i]
     low = f.chol
-    for j in range(n):  # M = L Lᵀ, from the upper triangle
-        d = mass[j, j]
-        for k in range(j):
-            d -= low[j, k] * low[j, k]
-        low[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            s = mass[j, i]
-            for k in range(j):
-                s -= low[i, k] * low[j, k]
-            low[i, j] = s / low[j, j]
+    cholesky(mass, low, n)  # M = L Lᵀ, from the upper triangle
     for foot in range(4):
         f.imp4[foot] = 0.0
         g = f.g4[foot]
@@ -265,16 +256,7 @@ def _solve_feet(p: Any, acc_in: np.ndarray, mass: np.ndarray, off: int, out: np.
         col = off + 2 * foot
         j0, j1 = _jac_x(c, f, foot)
         g[col], g[col + 1] = j0, j1
-        for r in range(n):  # forward: L y = J_xᵀ
-            s = g[r]
-            for k in range(r):
-                s -= low[r, k] * g[k]
-            g[r] = s / low[r, r]
-        for r in range(n - 1, -1, -1):  # back: Lᵀ g = y
-            s = g[r]
-            for k in range(r + 1, n):
-                s -= low[k, r] * g[k]
-            g[r] = s / low[r, r]
+        cholesky_solve(low, g, n)  # g = M⁻¹ J_xᵀ
         i = 2 * foot  # the leg's coordinates in q_all
         vx = j0 * (p.v[i] + h * acc_in[col]) + j1 * (p.v[i + 1] + h * acc_in[col + 1])
         f.s_free4[foot] = vx + v_free
