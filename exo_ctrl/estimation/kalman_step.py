@@ -201,21 +201,18 @@ def leg_covariance(st, s, minv, kq, kv):
             W[i, j] = P[i, j] + h * W[4 + i, j]
         W[8, j] = P[8, j]
         W[9, j] = P[9, j]
-    for i in range(10):  # P = W Fᵀ + Q, the upper triangle mirrored
-        w = W[i]
+    for i in range(10):  # P = W Fᵀ + Q by rows, then its upper triangle mirrored
         for c in range(4):
             y = 0.0
             for m in range(10):
-                y += w[m] * F[4 + c, m]
-            if c >= i:
-                P[i, c] = w[c] + h * y + Q[i, c]
-            if 4 + c >= i:
-                P[i, 4 + c] = y + Q[i, 4 + c]
-        for c in range(8, 10):
-            if c >= i:
-                P[i, c] = w[c] + Q[i, c]
-        for j in range(i):
-            P[i, j] = P[j, i]
+                y += W[i, m] * F[4 + c, m]
+            P[i, c] = W[i, c] + h * y + Q[i, c]
+            P[i, 4 + c] = y + Q[i, 4 + c]
+        P[i, 8] = W[i, 8] + Q[i, 8]
+        P[i, 9] = W[i, 9] + Q[i, 9]
+    for i in range(10):
+        for j in range(i + 1, 10):
+            P[j, i] = P[i, j]
 
 
 @kernel
