@@ -203,16 +203,15 @@ class Runner:
         self._phase = ctrl.record if isinstance(ctrl, PathController) else record(_NO_PHASE)
         if not isinstance(ctrl, PathController):
             self._phase["row"] = -1
-        # With the belt the estimator is given the torque sensors' reading plus the
-        # load cells' joint torque (the same arrays every tick; faulted or not).
+        # The estimator reads the device's readings (faulted or not: the same arrays
+        # every tick); with the belt the torque sensors' reading plus the load cells'
+        # joint torque.
+        src = self.faults.readings if self.faults is not None else self.sensors
         self._est_in: SensorReadings | None = None
         if config.contact.enabled:
-            src = self.faults.readings if self.faults is not None else self.sensors
             self._est_in = SensorReadings(src.q, src.dq, self.foot_load.tau_known)
             self._contact_rec = plant.record["contact"]
-        est_in = self._est_in
-        if est_in is None:
-            est_in = self.faults.readings if self.faults is not None else self.sensors
+        est_in = self._est_in if self._est_in is not None else src
         start_on_plan(setup)
         # The stages' per-tick methods and arguments, looked up once.
         self._stages = (

@@ -266,6 +266,7 @@ def test_plan_rows_are_the_ones_the_run_builds(kwargs: dict) -> None:
 
 def test_plan_rows_of_a_run_take_at_most_the_stated_bytes() -> None:
     gait = GaitParams(period=1.2003)  # not a whole number of ticks: a row per tick
+    build(SimConfig(gait=gait, duration_s=0.1, controller="ct"))  # compiled, warmed
     peaks = {
         d: traced_peak(lambda d=d: build(SimConfig(gait=gait, duration_s=d, controller="ct")))
         for d in (2.0, 42.0)
