@@ -284,7 +284,9 @@ def run_sweep(
         executor: where to run (any :class:`concurrent.futures.Executor`,
             e.g. a Dask ``Client.get_executor()``); not shut down here.
             None: a local process pool of ``workers`` (one worker: in this
-            process).
+            process); its first run is made in this process before the
+            workers start theirs, so that they load its compiled kernels
+            rather than compile them at the same time.
         workers: pool size (default ``os.cpu_count()``); with an
             ``executor``, the number of its workers (at most 2 × workers runs
             are queued at a time; None: all at once).
@@ -332,6 +334,14 @@ def run_sweep(
     interrupted = clean = False
     try:
         if executor is not None:
+            if owned is not None and not isinstance(owned, InlineExecutor):
+                # The first run in this process, before the pool's workers run any:
+                # they then load its compiled kernels from numba's cache instead of
+                # compiling them side by side (numba's cache index is not safe
+                # against two processes saving different signatures of one kernel
+                # at once; exo_ctrl/plant/cuffs.forces_of compiles two).
+                state.drive(InlineExecutor(), todo[:1], 1)
+                todo = todo[1:]
             state.drive(executor, todo, window)
         clean = True
     except KeyboardInterrupt:

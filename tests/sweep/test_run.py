@@ -240,3 +240,19 @@ def test_dask_cluster_gives_the_serial_table(
     # And the local process pool (2 workers) too.
     pool = run_sweep(spec, tmp_path / "pool.parquet", workers=2, progress=False, plots=False)
     assert_tables_equal(pool, serial)
+
+
+def test_a_local_pool_makes_its_first_run_here_and_the_rest_in_its_workers(
+    tmp_path, count_runs, make_spec, serial, assert_tables_equal
+):
+    """The first run compiles the kernels in this process; the workers then load them.
+
+    Workers compiling side by side could save different signatures of one
+    kernel into numba's cache index at once, which that index is not safe
+    against (exo_ctrl/sweep/run.py, run_sweep).
+    """
+    spec = make_spec("step_length=0.3,0.35,0.4")
+    pool = run_sweep(spec, tmp_path / "pool.parquet", workers=2, progress=False, plots=False)
+    assert [c.gait.step_length for c in count_runs] == [0.3]  # only the first, here
+    assert_tables_equal(pool, serial(spec, tmp_path / "serial.parquet"))
+    assert len(count_runs) == 4  # and the serial sweep's three
