@@ -13,7 +13,7 @@ device models):
 - the Kalman filter (:func:`recorded_kalman`) holds the device's
   exoskeleton, the device's patient rebuilt from the recorded config
   exactly as :func:`~exo_ctrl.sim.setup.build` does it
-  (:func:`~exo_ctrl.sim.belief.device_models` with the fitted, coaxial true
+  (:func:`~exo_ctrl.sim.belief.device_patient` with the fitted, coaxial true
   patient's leg lengths: the nominal de Leva model, the truth or the user's
   URDF), the device's cuff model (``belief.cuff_model``), the run's sensor
   datasheet (noise and resolution) and its control period; and the
@@ -32,7 +32,7 @@ import os
 from ..estimation import ESTIMATORS, CuffForceKalman
 from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
 from ..model import BodyModel, load_patient
-from ..sim.belief import device_models
+from ..sim.belief import device_patient
 from ..sim.config import SimConfig
 
 __all__ = ["chosen_estimator", "recorded_kalman", "torque_rate_schedule"]
@@ -95,7 +95,7 @@ def recorded_kalman(
     """
     try:
         fitted = load_patient(config.patient)  # as build() does: the coaxial true patient
-        _, patient = device_models(config.belief, config.exo, config.patient, fitted)
+        patient = device_patient(config.belief, config.patient, fitted)
     except ExoCtrlError as exc:
         raise RecordingError(
             f"cannot estimate from {path} with the kalman estimator: the device's patient "

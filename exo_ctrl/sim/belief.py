@@ -63,7 +63,6 @@ __all__ = [
     "PATIENT_BELIEFS",
     "Belief",
     "device_exo",
-    "device_models",
     "device_patient",
 ]
 
@@ -188,26 +187,6 @@ class Belief:
         return installed.stiffness_N_per_m_n, installed.exponent
 
 
-def device_models(
-    belief: Belief, exo_path: str | None, patient_path: str | None, true_patient: BodyModel
-) -> tuple[BodyModel, BodyModel]:
-    """The exoskeleton and patient models the device holds, each loaded anew.
-
-    Args:
-        belief: what the device believes.
-        exo_path: the true exoskeleton's URDF (None: the default).
-        patient_path: the true patient's URDF, ``"human"`` or None (the default).
-        true_patient: the true patient's model, for its measured leg lengths only.
-
-    Raises:
-        InvalidParameter: a nominal model of a patient other than the
-            default without its height and mass.
-        ExoCtrlError: a URDF that cannot be loaded.
-
-    """
-    return device_exo(belief, exo_path), device_patient(belief, patient_path, true_patient)
-
-
 def device_exo(belief: Belief, exo_path: str | None) -> BodyModel:
     """The exoskeleton model the device holds: ``belief.exo``, else the true one's file, anew.
 
@@ -219,7 +198,19 @@ def device_exo(belief: Belief, exo_path: str | None) -> BodyModel:
 
 
 def device_patient(belief: Belief, patient_path: str | None, true_patient: BodyModel) -> BodyModel:
-    """The patient model the device holds (:func:`device_models`' arguments and errors)."""
+    """The patient model the device holds, loaded anew (the truth's file, a URDF, or nominal).
+
+    Args:
+        belief: what the device believes.
+        patient_path: the true patient's URDF, ``"human"`` or None (the default).
+        true_patient: the true patient's model, for its measured leg lengths only.
+
+    Raises:
+        InvalidParameter: a nominal model of a patient other than the
+            default without its height and mass.
+        ExoCtrlError: a URDF that cannot be loaded.
+
+    """
     if belief.patient == "truth":
         return load_patient(patient_path)
     if belief.patient != "nominal":
