@@ -439,9 +439,9 @@ class Plant:
         if self._contact_on:  # the belt's kinetic energy, the contact springs' k δⁿ⁺¹ / (n + 1)
             c = self.contact.record[0]
             energy += 0.5 * float(c["belt"]["mass"] * c["belt"]["v"] ** 2)
-            n, depth = float(c["n"]), np.maximum(self.contact.penetration(self.q, z), 0.0)
-            energy += float(c["k"]) * float(np.sum(depth ** (n + 1.0))) / (n + 1.0)
+            depth = self.contact.penetration(self.q, z)
             if self.patient_feet.on:  # the patient's feet's springs, the same law
-                depth = np.maximum(self.patient_feet.penetration(self.q, z), 0.0)
-                energy += float(c["k"]) * float(np.sum(depth ** (n + 1.0))) / (n + 1.0)
+                depth = np.concatenate((depth, self.patient_feet.penetration(self.q, z)))
+            n, depth = float(c["n"]), np.maximum(depth, 0.0)
+            energy += float(c["k"]) * float(np.sum(depth ** (n + 1.0))) / (n + 1.0)
         return energy + self.rotors.energy()  # with compliance, the rotors' and springs'
