@@ -435,8 +435,6 @@ class CuffForceKalman:
         else:
             check(status, "CuffForceKalman.step", q=q, tau=tau)
 
-    # ------------------------------------------------------------------ internals
-
     def _start(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> None:
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
             return  # wait for finite readings
