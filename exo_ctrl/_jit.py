@@ -34,6 +34,15 @@ switch, :func:`switch` (``True`` or ``None``), as an argument and tests
 feature off passes None and compiles nothing of it.  Each pattern of
 switches is a signature of its own (compiled once per machine, as any).
 
+**One signature per kernel and run.**  Two processes that compile one run
+at once (:mod:`exo_ctrl.sim.warmup`) must never save two signatures of one
+kernel at the same moment: numba's cache index could cross them.  So within
+a run every kernel is called with one set of argument types: a callee shared
+by kernels of different records takes plain arrays, and a small callee that
+takes records of several types, or literal integers, is a :func:`leaf`:
+inlined into each caller's code before typing, it has no compiled
+signatures of its own (unless Python calls it).
+
 **Status.**  A kernel that can refuse its input returns a :class:`Status`
 as its integer value (``return Status.OK.value``: returning the enum member
 itself boxes an ``IntEnum`` on every call, about 0.5 µs); :func:`check`
@@ -56,7 +65,7 @@ from .exceptions import InvalidParameter, KernelStatusError, SimulationDiverged
 
 _jit_cache.refresh(Path(__file__).resolve().parent)
 
-__all__ = ["Status", "check", "kernel", "preload", "record", "shared_dtype", "switch"]
+__all__ = ["Status", "check", "kernel", "leaf", "preload", "record", "shared_dtype", "switch"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -64,6 +73,13 @@ F = TypeVar("F", bound=Callable[..., Any])
 def kernel(func: F) -> F:
     """Compile ``func`` as a cached, IEEE-exact tick kernel."""
     return numba.njit(cache=True, fastmath=False, error_model="numpy", nogil=True)(func)
+
+
+def leaf(func: F) -> F:
+    """A :func:`kernel` inlined into its callers (``inline="always"``; module docstring)."""
+    return numba.njit(cache=True, fastmath=False, error_model="numpy", nogil=True, inline="always")(
+        func
+    )
 
 
 def preload(func: Any, *args: Any) -> None:

@@ -2,7 +2,7 @@
 
 model < plan < plant < sensing < estimation < control < safety < sim < record
 < sweep < cli, with the small shared modules (exceptions, _jit, _jit_cache, _validate,
-_io, _progress) below them all.  A module may import its own package and the
+_io, _progress, _lifetime) below them all.  A module may import its own package and the
 packages below it, never one above; no module imports another of the
 project's lazily (inside a function), so no cycle can hide; the module graph
 has no cycle; the plant never imports control, and only the cli (and the
@@ -25,6 +25,7 @@ RANKS = {
     "_validate": 0,
     "_io": 0,
     "_progress": 0,
+    "_lifetime": 0,
     "model": 1,
     "plan": 2,
     "plant": 3,

@@ -1,7 +1,7 @@
 """Benchmark of the control tick, its library floor, the real-time factor and the cold start.
 
     .venv/bin/python tools/bench.py [--ticks N] [--json PATH] [--scenarios pd,ct,qp,qp_spastic]
-    .venv/bin/python tools/bench.py --cold [--repeat N] [--scenarios ...]
+    .venv/bin/python tools/bench.py --cold [--repeat N] [--helper on|off] [--scenarios ...]
 
 For each scenario (:data:`SCENARIOS`: the default run with PD, CT and QP,
 and the QP on the spastic patient at a 150 N cuff bound, where its bound
@@ -22,9 +22,11 @@ each scenario in a fresh process with a fresh, empty numba cache directory
 (``NUMBA_CACHE_DIR``), so every kernel it needs compiles, then the same run
 again in a new process that loads them from that cache.  Besides the wall
 times it prints the child process's CPU time (user + system), which a
-shared machine inflates less; ``--repeat N`` takes the best of N such pairs
-(each figure its smallest).  ``tools/compile_profile.py`` breaks a cold
-start down by kernel.
+shared machine inflates less, the compile helper's included; ``--repeat N``
+takes the best of N such pairs (each figure its smallest).  The run compiles
+as the CLI's does, with a helper process on the second core
+(:mod:`exo_ctrl.sim.warmup`); ``--helper off`` compiles in one process.
+``tools/compile_profile.py`` breaks a cold start down by kernel (in one process).
 """
 
 from __future__ import annotations
@@ -243,17 +245,21 @@ from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.plant import BeltParams, ContactParams, PelvisParams
 from exo_ctrl.plan import GaitParams
 t1 = time.perf_counter()
-result = simulate(SimConfig(**{overrides!r}, duration_s=0.05))
+result = simulate(SimConfig(**{overrides!r}, duration_s=0.05), warmup={warmup!r})
 t2 = time.perf_counter()
 print(t1 - t0, t2 - t1)
 """
 
 
-def cold_start(name: str) -> dict[str, float]:
-    """Import and first-run times [s] of one scenario with an empty and with a filled cache."""
+def cold_start(name: str, helper: bool = True) -> dict[str, float]:
+    """Import and first-run times [s] of one scenario with an empty and with a filled cache.
+
+    ``helper``: compile with the helper process as the CLI does
+    (:mod:`exo_ctrl.sim.warmup`; its CPU time is counted), or in one process.
+    """
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        code = _COLD_RUN.format(overrides=SCENARIOS[name])
+        code = _COLD_RUN.format(overrides=SCENARIOS[name], warmup=helper)
         out = {}
         for kind in ("cold", "warm"):
             t0, before = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -286,6 +292,12 @@ def main() -> int:
     parser.add_argument(
         "--repeat", type=int, default=1, help="--cold: the best of N measurements (default 1)"
     )
+    parser.add_argument(
+        "--helper",
+        choices=("on", "off"),
+        default="on",
+        help="--cold: compile with the helper process as the CLI does (on, default) or in one",
+    )
     args = parser.parse_args()
     names = [name.strip() for name in args.scenarios.split(",")]
     unknown = [name for name in names if name not in SCENARIOS]
@@ -296,7 +308,7 @@ def main() -> int:
         print(f"{'scenario':<12}{'cold: import':>13}{'run':>7}{'total':>8}{'CPU':>7}"
               f"{'warm: import':>14}{'run':>7}{'total':>8}{'CPU':>7}")  # fmt: skip
         for name in names:
-            runs = [cold_start(name) for _ in range(max(args.repeat, 1))]
+            runs = [cold_start(name, args.helper == "on") for _ in range(max(args.repeat, 1))]
             r = {key: min(run[key] for run in runs) for key in runs[0]}
             results[name] = r
             print(

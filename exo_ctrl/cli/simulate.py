@@ -405,7 +405,7 @@ def run(args: argparse.Namespace) -> int:
     points = OperatingPoints()
     if args.plots is not None:
         observers.append(points)
-    result = simulate(config, observers=observers, progress=True, keep_history=False)
+    result = simulate(config, observers=observers, progress=True, keep_history=False, warmup=True)
     summary = result.summary()
     if args.summary:
         write_json(args.summary, summary)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from .._jit import Status, kernel
-from ..plant.cuffs import forces_of
+from ..plant.cuffs import forces_of, isotropic_forces
 
 __all__ = [
     "cuff_jacobian",
@@ -33,7 +33,10 @@ def kalman_outputs(state, cuffs, split):
     cr = cuffs[0]
     for i in range(8):
         st.q_mid[i] = st.q[i] - 0.5 * st.h * st.v[i]
-    forces_of(cr, st.q_mid[:], st.v[:], split)
+    if split is None:  # the device's cuffs isotropic: the split cuffs' code not compiled in
+        isotropic_forces(cr, st.q_mid[:], st.v[:])
+    else:
+        forces_of(cr, st.q_mid[:], st.v[:])
     for c in range(4):
         fx, fz = cr.f[c], cr.f[4 + c]
         cc, sc = cr.cs[c], cr.cs[8 + c]
@@ -76,7 +79,11 @@ def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas, sp
     st = state[0]
     cr = cuffs[0]
     h = st.h
-    forces_of(cr, st.q[:], st.v[:], split)  # cuff forces and their generalised torques at the prior
+    # cuff forces and their generalised torques at the prior
+    if split is None:
+        isotropic_forces(cr, st.q[:], st.v[:])
+    else:
+        forces_of(cr, st.q[:], st.v[:])
     cuff_jacobian(cuffs, st.jd)
     minv, kq, kv, acc = st.minv, st.kq, st.kv, st.acc
     for s in range(2):

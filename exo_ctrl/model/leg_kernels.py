@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import kernel
+from .._jit import leaf, record
 from .loader import BodyModel
 from .names import SIDES
 
-__all__ = ["LEG_FIELDS", "fill_legs", "foot_bias", "foot_point"]
+__all__ = ["LEG_FIELDS", "fill_legs", "foot_bias", "foot_point", "legs_record"]
 
 #: A record's leg geometry, per leg (left, right): ``l1``, ``l2`` [m],
 #: ``s_h``, ``s_k`` [-], ``phi1_0``, ``phi2_0`` [rad].
@@ -42,7 +42,20 @@ def fill_legs(rec: Any, body: BodyModel) -> None:
         rec["phi1_0"][i], rec["phi2_0"][i] = leg.phi1_zero, leg.phi2_zero
 
 
-@kernel
+def legs_record(body: BodyModel) -> np.ndarray:
+    """A record of :data:`LEG_FIELDS` alone, filled with ``body``'s legs.
+
+    Python's argument to :func:`foot_point` and :func:`foot_bias`: kernels
+    inline them whatever record holds the legs, but a call from Python
+    compiles them for the record's type, so Python always passes this one
+    (one signature per kernel, :mod:`exo_ctrl._jit`).
+    """
+    legs = record(LEG_FIELDS)
+    fill_legs(legs[0], body)
+    return legs
+
+
+@leaf
 def foot_point(g: Any, leg: int, q_hip: float, q_knee: float) -> tuple:
     """(x, z, J_x hip, J_x knee, J_z hip, J_z knee) of leg ``leg``'s foot relative to its hip.
 
@@ -63,7 +76,7 @@ def foot_point(g: Any, leg: int, q_hip: float, q_knee: float) -> tuple:
     )
 
 
-@kernel
+@leaf
 def foot_bias(g: Any, leg: int, q_hip: float, q_knee: float, dq_hip: float, dq_knee: float):
     """J̇ q̇ of leg ``leg``'s foot point, (x, z) [m/s²] (module docstring)."""
     sh, sk = g.s_h[leg], g.s_k[leg]

@@ -74,7 +74,7 @@ import math
 
 import numpy as np
 
-from .._jit import Status, kernel, record
+from .._jit import Status, kernel, leaf, record
 from ..exceptions import InvalidParameter, SimulationDiverged
 from ..model import SIDES, BodyModel
 from ..model.leg_kernels import LEG_FIELDS, fill_legs
@@ -339,7 +339,7 @@ def _target(g, tau: float, r: float) -> tuple[float, float]:  # pragma: no cover
     return 0.5 * g.vlead * beta / r, -g.vlead
 
 
-@kernel
+@leaf
 def _swing(g, leg: int, tau: float, r: float, d: float, u: float):  # pragma: no cover - compiled
     """(x, ẋ, ẍ) at ``u`` of the cubic from the leg's (x, ẋ) to its segment's end in ``d`` s.
 

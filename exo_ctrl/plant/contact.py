@@ -72,10 +72,10 @@ from typing import Any
 import numpy as np
 
 from .. import _validate as v
-from .._jit import kernel, record, shared_dtype
+from .._jit import kernel, leaf, record, shared_dtype
 from ..exceptions import InvalidParameter
 from ..model import SIDES, BodyModel
-from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
+from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point, legs_record
 from .belt import BELT_FIELDS, BeltParams, belt_commit, belt_drive, brake_holds
 
 __all__ = ["CONTACT_FIELDS", "ContactParams", "FootContact"]
@@ -212,6 +212,7 @@ class FootContact:
         for i, side in enumerate(SIDES):
             c["hip"][i] = exo.legs[side].hip_xz
         fill_legs(c, exo)
+        self._legs = legs_record(exo)  # Python's calls of foot_point
         #: The belt's top in the exoskeleton's world [m].
         self.z_belt = float(exo.legs["left"].hip_xz[1]) - float(height)
         c["z_belt"] = self.z_belt
@@ -241,17 +242,16 @@ class FootContact:
         c = self.record[0]
         out = np.array(c["hip"], dtype=float)
         for leg in range(2):
-            x, z, *_ = foot_point(c, leg, float(q[2 * leg]), float(q[2 * leg + 1]))
+            x, z, *_ = foot_point(self._legs[0], leg, float(q[2 * leg]), float(q[2 * leg + 1]))
             out[leg] += (x, z)
         out[:, 1] += z_pelvis_m
         return out
 
     def normal_jacobian(self, q: np.ndarray) -> np.ndarray:
         """Rows ∂p_z/∂(q_hip, q_knee) of each foot at joint angles ``q`` [m/rad], (2, 2)."""
-        c = self.record[0]
         out = np.zeros((2, 2))
         for leg in range(2):
-            out[leg] = foot_point(c, leg, float(q[2 * leg]), float(q[2 * leg + 1]))[4:]
+            out[leg] = foot_point(self._legs[0], leg, float(q[2 * leg]), float(q[2 * leg + 1]))[4:]
         return out
 
     def penetration(self, q: np.ndarray, z_pelvis_m: float = 0.0) -> np.ndarray:
@@ -274,7 +274,7 @@ def contact_forces(c: Any, qm: np.ndarray, vm: np.ndarray, tau: np.ndarray, h: f
     c.fz = c.fn[0] + c.fn[1]
 
 
-@kernel
+@leaf
 def foot_on_belt(
     c: Any, g: Any, leg: int, i: int, qm: np.ndarray, vm: np.ndarray, tau: np.ndarray, h: float
 ) -> None:

@@ -246,8 +246,10 @@ class CuffSet:
         self.along0 = self.record["along0"][0]
         self._split = bool(c["split"])
         #: The split cuffs' compile-time switch (:func:`~exo_ctrl._jit.switch`), the
-        #: ``split`` argument of :func:`forces_of` and of the kernels calling it.
+        #: ``split`` argument of the kernels that compute these cuffs' forces: they
+        #: call :func:`forces_of` when it is True, :func:`isotropic_forces` when None.
         self.split_switch = switch(self._split)
+        self._forces = forces_of if self._split else isotropic_forces
         #: r₀ in the link's frame, (s_n, s_u) offsets captured at the fit [m], (4,) each.
         self.rest_normal = self.record["r0n"][0]
         self.rest_along = self.record["r0u"][0]
@@ -374,7 +376,7 @@ class CuffSet:
         -J_patientᵀ f on the patient's).  Returns :attr:`force`, overwritten
         by the next call.
         """
-        forces_of(self._rec, q_all, v_all, self.split_switch)
+        self._forces(self._rec, q_all, v_all)
         return self.force
 
 
@@ -417,21 +419,34 @@ CUFF_FIELDS = [
 
 
 @kernel
-def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray, split: bool | None) -> None:
-    """The module docstring's forces and generalised forces, in place.
+def forces_of(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
+    """The cuffs' forces and generalised forces, split or isotropic by the record's flag, in place.
 
     ``r``: a record of :data:`CUFF_FIELDS` (from Python the element of
-    :attr:`CuffSet.record`, in a kernel also a field of another record);
-    ``split``: the split cuffs' switch (:attr:`CuffSet.split_switch`; None:
-    isotropic cuffs only, :func:`split_forces` left out of the compiled kernel).
+    :attr:`CuffSet.record`, in a kernel also a field of another record).
+    ``r.split`` chooses :func:`~exo_ctrl.plant.cuff_split.split_forces` or
+    :func:`isotropic_forces` at run time.  A kernel that knows at compile
+    time that its cuffs are isotropic (its ``split`` switch None) calls
+    :func:`isotropic_forces` itself, and the split cuffs' code is not
+    compiled into it.  Each of the two kernels has one signature: kernels
+    pass ``q_all``, ``v_all`` as plain arrays (a record's field ``x`` as
+    ``x[:]``), as Python does.  (Two signatures of one kernel, saved by two
+    processes at the same moment, could cross in numba's cache index:
+    :mod:`exo_ctrl.sim.warmup`.)
+    """
+    if r.split:
+        split_forces(r, q_all, v_all)
+    else:
+        isotropic_forces(r, q_all, v_all)
+
+
+@kernel
+def isotropic_forces(r: Any, q_all: np.ndarray, v_all: np.ndarray) -> None:
+    """The module docstring's forces and generalised forces of isotropic cuffs, in place.
+
     u = (cos θ, sin θ), w = (-sin θ ⊙ θ̇, cos θ ⊙ θ̇); f = D P (-K u - C w) - K (D p₀ - r₀);
     τ = Sᵀ ((Pᵀ Dᵀ f) ⊙ (-sin θ, cos θ)) summed over the two halves.
-    Kernels pass ``q_all``, ``v_all`` as plain arrays (a record's field ``x`` as
-    ``x[:]``), as Python does: one compiled signature for every caller.
     """
-    if split is not None and r.split:
-        split_forces(r, q_all, v_all)
-        return
     k, c = r.k, r.c
     dp, k_offset = r.dp, r.k_offset
     f, tau, cs, y = r.f, r.tau, r.cs, r.y

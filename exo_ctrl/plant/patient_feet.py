@@ -68,9 +68,9 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import kernel, record
+from .._jit import kernel, leaf, record
 from ..model import SIDES, BodyModel
-from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
+from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point, legs_record
 from .belt import belt_commit, brake_holds
 from .contact import SWEEPS, ContactParams, cholesky, cholesky_solve, foot_on_belt
 
@@ -132,6 +132,7 @@ class PatientFeet:
             hip = patient.legs[side].hip_xz
             r["hip"][i] = (hip[0] + patient_offset_xz[0], hip[1] + patient_offset_xz[1])
         fill_legs(r, patient)
+        self._legs = legs_record(patient)  # Python's calls of foot_point
         r["on"] = params.enabled and params.patient_feet
         #: The belt's top in the exoskeleton's world [m].
         self.z_belt = float(z_belt)
@@ -157,7 +158,7 @@ class PatientFeet:
         r = self.record[0]
         out = np.array(r["hip"], dtype=float)
         for leg in range(2):
-            x, z, *_ = foot_point(r, leg, float(q[4 + 2 * leg]), float(q[5 + 2 * leg]))
+            x, z, *_ = foot_point(self._legs[0], leg, float(q[4 + 2 * leg]), float(q[5 + 2 * leg]))
             out[leg] += (x, z)
         out[:, 1] += z_pelvis_m
         return out
@@ -176,7 +177,7 @@ class PatientFeet:
         out = np.zeros(4)
         for leg in range(2):
             q_hip, q_knee = float(q_patient[2 * leg]), float(q_patient[2 * leg + 1])
-            _, z, _, _, jz0, jz1 = foot_point(r, leg, q_hip, q_knee)
+            _, z, _, _, jz0, jz1 = foot_point(self._legs[0], leg, q_hip, q_knee)
             depth = self.z_belt - (float(r["hip"][leg, 1]) + z)
             if depth > 0.0:
                 fn = p.stiffness_N_per_m_n * depth**p.exponent
@@ -315,7 +316,7 @@ def feet_commit(c: Any, f: Any, h: float) -> None:
     belt_commit(b, h)
 
 
-@kernel
+@leaf
 def _commit_foot(c: Any, f: Any, g: Any, leg: int, a: int, inv_mb: float, h: float) -> None:
     """Foot ``a`` of the four, leg ``leg`` of the record ``g`` (``c`` or ``f``): F_t, s⁺, state."""
     fn = g.fn[leg]

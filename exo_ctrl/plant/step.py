@@ -19,7 +19,7 @@ from .._jit import Status, kernel, switch
 from ..model import FRICTION_SMOOTHING_RAD_S
 from .compliance import rotor_forces, rotor_kick
 from .contact import contact_commit, contact_forces
-from .cuffs import forces_of
+from .cuffs import forces_of, isotropic_forces
 from .end_stops import end_stop_torques
 from .energy import book_drives
 from .motor import drive_cap, hold_drive, step_drives
@@ -86,7 +86,10 @@ def drift_and_forces(
         p.contact.z_pelvis = p.pelvis.z_mid
         p.contact.vz_pelvis = p.pelvis.vz_mid
     c = p.cuffs
-    forces_of(c, qm[:], vm[:], split)
+    if split is None:  # isotropic cuffs: the split cuffs' code not compiled in
+        isotropic_forces(c, qm[:], vm[:])
+    else:
+        forces_of(c, qm[:], vm[:])
     for i in range(8):
         t = c.tau[i] - p.b[i] * v[i]
         if p.has_friction:

@@ -43,14 +43,24 @@ def check_mode(config: Any) -> None:
         return
     if config.exercise != "gait":
         raise InvalidParameter("mode", config.mode, "tracking", "the calibration swing tracks")
-    if config.mode in ("aan", "path") and (not config.plan_periodic or config.synced):
+    if config.mode in ("aan", "path") and (not config.plan_layout.period or config.synced):
         raise InvalidParameter(
             "mode",
             config.mode,
             "tracking, guidance or transparent here",
             "assist-as-needed learns per phase (and path control follows the phase) of a "
-            "precomputed periodic plan (a period of a whole number of ticks, sync off)",
+            "precomputed periodic plan: " + periodic_plan_needs(config),
         )
+
+
+def periodic_plan_needs(config: Any) -> str:
+    """What a precomputed periodic plan needs, with this run's figures (for messages)."""
+    ramps = config.ramp_in + config.ramp_out_s
+    return (
+        f"a period of a whole number of ticks (here {config.gait.period / config.dt:g}), "
+        f"sync off, and a run of at least the ramps and one period "
+        f"({ramps + config.gait.period:g} s here; --duration {config.duration_s:g} s)"
+    )
 
 
 def check_estop(config: Any) -> None:

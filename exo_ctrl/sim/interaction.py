@@ -45,10 +45,10 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import kernel, record
+from .._jit import kernel
 from ..control.modes.path import PathController
 from ..model import JOINT_NAMES, SIDES, BodyModel
-from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
+from ..model.leg_kernels import foot_point, legs_record
 from ..plan.kinematics import JointTrajectory
 from .config import SimConfig
 
@@ -88,8 +88,7 @@ class PathReference:
     def of(cls, controller: PathController, plan: JointTrajectory, exo: BodyModel) -> PathReference:
         """The reference of a path controller on ``plan``, measured on the true ``exo``."""
         rec = controller.record[0]
-        legs = record(LEG_FIELDS)
-        fill_legs(legs[0], exo)
+        legs = legs_record(exo)
         return cls(
             foot_pos=np.asarray(plan.foot_pos, dtype=float),
             q_plan=np.asarray(plan.q, dtype=float),

@@ -25,9 +25,10 @@ from .interaction import interaction_stats
 from .load_stats import load_stats
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
-from .setup import build
+from .setup import Setup, build
 from .summary import RunStats, contact_stats
 from .tick import UNTIMED_TICKS, Runner
+from .warmup import Warmup
 
 __all__ = ["simulate"]
 
@@ -37,6 +38,7 @@ def simulate(
     observers: Sequence[SimObserver] = (),
     progress: bool = False,
     keep_history: bool = True,
+    warmup: bool = False,
 ) -> SimResult:
     """Run the closed loop.
 
@@ -47,6 +49,9 @@ def simulate(
         keep_history: keep every signal in the result (off: only the
             statistics and the chunk being written are held, for long
             recorded runs; ``result.t`` is then empty).
+        warmup: on the first run of these features after an install, compile
+            the tick's kernels in two processes (:mod:`exo_ctrl.sim.warmup`;
+            the CLI's choice; results are the same either way).
 
     Returns:
         The result; ``status`` says whether it completed.  A divergence or
@@ -57,8 +62,17 @@ def simulate(
     """
     if keep_history:
         config.check_history()  # before anything is built
-    setup = build(config)
-    runner = Runner(setup)
+    helper = Warmup(config, enabled=warmup)
+    result = None
+    try:
+        result = _run(config, observers, progress, keep_history)
+    finally:
+        helper.finish(result is not None and result.status == "completed")
+    return result
+
+
+def new_result(config: SimConfig, setup: Setup, keep_history: bool) -> SimResult:
+    """The result a run of ``setup`` fills: its history arrays (empty without), its statistics."""
     n = config.n_ticks
     hist_n = n if keep_history else 0
     history = {name: np.zeros((hist_n, *shape)) for name, shape in signal_shapes().items()}
@@ -79,6 +93,21 @@ def simulate(
     result.stats.load = load_stats(config, setup.exo)
     if config.mode == "aan":  # the support level per cycle, for the interaction block
         result.stats.support = setup.controller.support_history
+    return result
+
+
+def _run(
+    config: SimConfig,
+    observers: Sequence[SimObserver],
+    progress: bool,
+    keep_history: bool,
+) -> SimResult:
+    """:func:`simulate`'s run, the helper left out."""
+    setup = build(config)
+    runner = Runner(setup)
+    n = config.n_ticks
+    result = new_result(config, setup, keep_history)
+    history = result.signals
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)

@@ -36,6 +36,7 @@ from ..control.modes import MODES, InteractionController, ModeParams, PathContro
 from ..control.modes.switch import SwitchedController
 from ..exceptions import InvalidParameter
 from ..plan import SpeedProfile
+from .config_checks import periodic_plan_needs
 
 __all__ = [
     "SEGMENT_KEYS",
@@ -308,13 +309,13 @@ def check_session(config: Any) -> None:
     if config.exercise != "gait":
         raise InvalidParameter("session", session.source, "unset", "the calibration swing tracks")
     for i, seg in enumerate(session.segments, start=1):
-        if seg.mode in ("aan", "path") and (not config.plan_periodic or config.synced):
+        if seg.mode in ("aan", "path") and (not config.plan_layout.period or config.synced):
             raise InvalidParameter(
                 f"session segment {i} mode",
                 seg.mode,
                 "tracking, guidance or transparent here",
-                "it follows the phase of a precomputed periodic plan (a period of a whole "
-                "number of ticks, sync off)",
+                "it follows the phase of a precomputed periodic plan: "
+                + periodic_plan_needs(config),
             )
         if seg.belt_speed_mps is not None and not config.contact.enabled:
             raise InvalidParameter(

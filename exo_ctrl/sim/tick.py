@@ -46,6 +46,7 @@ from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
 from .schema import log_dtype
 from .setup import Setup, patient_torque_for, start_on_plan
+from .summary import RunStats
 
 __all__ = [
     "UNTIMED_TICKS",
@@ -88,10 +89,12 @@ class Runner:
 
     Args:
         setup: the run's pieces.
+        start: put the plant on the plan's first row (:func:`~exo_ctrl.sim.setup.start_on_plan`);
+            False only for :mod:`exo_ctrl.sim.warmup`'s helper, which compiles and never runs.
 
     """
 
-    def __init__(self, setup: Setup) -> None:
+    def __init__(self, setup: Setup, start: bool = True) -> None:
         self.setup = setup
         config = setup.config
         plant = setup.plant
@@ -212,7 +215,8 @@ class Runner:
             self._est_in = SensorReadings(src.q, src.dq, self.foot_load.tau_known)
             self._contact_rec = plant.record["contact"]
         est_in = self._est_in if self._est_in is not None else src
-        start_on_plan(setup)
+        if start:
+            start_on_plan(setup)
         # The stages' per-tick methods and arguments, looked up once.
         self._stages = (
             self._device_sensors.read,
@@ -262,6 +266,28 @@ class Runner:
         else:
             self._substep(u)
         write_applied(log, row, *self._applied)
+
+    def compile_back(self, stats: RunStats) -> None:
+        """Call the tick's later stages once, on a run that was not started: they compile.
+
+        For :mod:`exo_ctrl.sim.warmup`'s helper, which compiles the back half of
+        the tick while the run's own process compiles the front half: the
+        supervisor, the plant's step, the log's applied row and the chunk
+        statistics (``stats``: the run's, :func:`~exo_ctrl.sim.loop.new_result`),
+        then the controller, each with the arguments :meth:`tick` gives it.
+        The values are the unstarted run's (zeros): what they compute is thrown away.
+        """
+        _, _, _, command, supervise, step = self._stages
+        u = np.zeros(4)
+        if supervise is not None:
+            supervise(0, 0.0, self.sensors, self._sup_force, self._current, u, 0.0)
+        if step is not None:
+            step(u)
+        else:
+            self._substep(u)
+        write_applied(self.log, 0, *self._applied)
+        stats.preload(self.buf)
+        command(0, self.sensors)
 
     def _belt_tick(self, k: int, row: int) -> None:
         """Tick ``k``'s belt set speed and rate, its encoder and drive read; the plan's row."""

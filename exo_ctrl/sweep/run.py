@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
-import ctypes
 import dataclasses
 import hashlib
 import multiprocessing
@@ -24,11 +23,11 @@ import os
 import signal
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
+from .._lifetime import die_with_parent
 from .._progress import Progress
 from ..exceptions import ExoCtrlError, InvalidParameter, SweepError
 from ..model import BodyParams, urdf_xml, write_urdf
@@ -182,35 +181,18 @@ def run_point(
     return out
 
 
-_PR_SET_PDEATHSIG = 1  # prctl(2) option: the signal a process gets when its parent dies
-_PARENT_POLL_S = 0.5  # how often a worker checks that its parent is alive [s]
-
-
 def _init_worker(parent_pid: int) -> None:
     """Pool worker initializer: Ctrl-C is the parent's to handle; die with the parent.
 
     A worker holds both ends of the pool's pipes itself, so the parent's death
-    (SIGKILL) never ends it.  On Linux the kernel kills it when the parent
-    exits (``prctl(PR_SET_PDEATHSIG)``); everywhere a daemon thread ends it
-    once its parent is no longer ``parent_pid`` (also if that was before this ran).
+    (SIGKILL) never ends it without :func:`~exo_ctrl._lifetime.die_with_parent`.
 
     Args:
         parent_pid: the process id of the sweep that owns the pool.
 
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
-
-
-def _watch_parent(parent_pid: int) -> None:
-    """End this worker at once when its parent is no longer ``parent_pid``."""
-    while os.getppid() == parent_pid:
-        time.sleep(_PARENT_POLL_S)
-    os._exit(1)
+    die_with_parent(parent_pid)
 
 
 class InlineExecutor(cf.Executor):
@@ -339,7 +321,7 @@ def run_sweep(
                 # they then load its compiled kernels from numba's cache instead of
                 # compiling them side by side (numba's cache index is not safe
                 # against two processes saving different signatures of one kernel
-                # at once; exo_ctrl/plant/cuffs.forces_of compiles two).
+                # at once; a sweep's points can differ in their kernels' types).
                 state.drive(InlineExecutor(), todo[:1], 1)
                 todo = todo[1:]
             state.drive(executor, todo, window)

@@ -409,7 +409,7 @@ def mode_command(state, k, u_track, g, q, dq, f_est, support, q_des):  # pragma:
             s.err_count += 1
             for j in range(4):
                 s.err_sum[j] += q_des[row, j] - q[j]
-    dr = s.drive
+    dr = s.drive[:]  # a plain array: steady_voltage has one signature (exo_ctrl/_jit.py)
     blend = s.guidance
     for j in range(4):
         w = s.speed[j]

@@ -113,7 +113,7 @@ from ... import _validate as v
 from ..._jit import Status, check, kernel, record
 from ...exceptions import InvalidParameter
 from ...model import BodyModel
-from ...model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
+from ...model.leg_kernels import LEG_FIELDS, fill_legs, foot_point, legs_record
 from ...plan.kinematics import JointTrajectory
 from ...plan.rows import plan_row
 from ...plant.drive import MotorParams
@@ -328,7 +328,7 @@ class PathController(CommandCounters):
             plan.foot_vel, speed, out=np.zeros_like(plan.foot_vel), where=speed > 1e-9
         )
         gains = self._free.record["force_gain"][0]
-        self.foot_mass = foot_mass_table(plan.q, exo, patient, motor, gains, s)
+        self.foot_mass = foot_mass_table(plan.q, exo, patient, motor, gains, legs_record(exo)[0])
         #: The nominal patient for the leg-weight support (None: no support).
         self._weight = None
         if patient is not None and params.leg_weight_support > 0.0:
@@ -460,7 +460,7 @@ def path_command(state, free, k, q, pos, tan, mass):  # pragma: no cover - compi
         foot_kinematics(s, leg, q[2 * leg], q[2 * leg + 1], 0.0, 0.0, kin)
         s.tau_path[2 * leg] = kin[4] * (fx + sx) + kin[5] * (fz + sz)
         s.tau_path[2 * leg + 1] = kin[6] * (fx + sx) + kin[7] * (fz + sz)
-    dr = f.drive
+    dr = f.drive[:]  # a plain array: steady_voltage has one signature (exo_ctrl/_jit.py)
     for j in range(4):  # the wall as the force loop's reference (module docstring)
         tau = f.tau_free[j] + (1.0 + f.force_gain[j]) * (s.tau_path[j] + s.tau_weight[j])
         s.u_cmd[j] = steady_voltage(tau, f.speed[j], dr)

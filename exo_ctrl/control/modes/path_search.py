@@ -14,7 +14,7 @@ period.
 
 from __future__ import annotations
 
-from ..._jit import kernel
+from ..._jit import kernel, leaf
 
 __all__ = ["STRIDE", "nearest_point", "phase_step"]
 
@@ -73,7 +73,7 @@ def nearest_point(pos, leg, px, pz, row, window, lead, period, periodic, out):  
             out[0], out[1], out[2] = cx, cz, d2
 
 
-@kernel
+@leaf
 def phase_step(s, pos, lo, hi, stride):  # pragma: no cover - compiled
     """The step i ∈ [lo, hi] (every ``stride``-th) minimising Σ_legs |p − c(σ + i)|².
 

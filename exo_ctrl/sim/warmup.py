@@ -1,0 +1,157 @@
+"""The first run's compile on two cores: a helper process compiles the tick's back half.
+
+The first run of a feature set after an install compiles some 40–60 kernels
+(numba, ``cache=True``), 10–17 s on one core of these machines, while the
+second core idles.  numba compiles one kernel at a time per process (its
+compiler lock), but each process saves what it compiles to the cache on disk,
+and a kernel's first call with new argument types looks there before it
+compiles.  So :class:`Warmup`, when the cache holds no marker for the run's
+features (:func:`feature_key`), starts a helper: a child Python process that
+builds the same run and calls the tick's stages from its back (the supervisor,
+the plant's step, the log's applied row, the controller, the chunk
+statistics; :meth:`~exo_ctrl.sim.tick.Runner.compile_back`), while this
+process compiles from the front (the cuffs' fit, the sensors, the
+estimator).  Where they meet, each loads what the other saved.
+
+**Why it is safe.**  numba keeps one index file per kernel and saves an entry
+by reading the index, adding the entry under the next free data-file number
+and replacing the index, then the data file.  Two processes saving *different*
+signatures of one kernel at the same moment can both take the same number, and
+the index can end up naming the other signature's machine code.  Both
+processes here build the same run, and every kernel is called with one
+signature per run (``tests/sim/test_warmup.py`` checks the index files after a
+cold run), so the two can only save the same entry, under the same name, with
+equal contents.  A save the other process interrupts half-way (an index entry
+whose data file is missing) is compiled again by numba.
+
+**The helper** only compiles: it writes nothing but numba's cache, its output
+goes nowhere, and any error in it is ignored (it costs time, never a result).
+It dies with this process (``prctl(PR_SET_PDEATHSIG)`` on Linux and a watch on
+its parent), and :meth:`Warmup.finish` stops it when the run ends.  A run that
+completes leaves the marker, so later runs of these features start no helper.
+The CLI's ``simulate`` uses it; ``simulate(..., warmup=True)`` from Python;
+``EXO_CTRL_WARMUP=0`` turns it off.  Sweeps do not use it (their pools compile
+the first point in the parent, then share the cache).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import numba
+
+from .. import _jit_cache
+from .config import SimConfig
+
+__all__ = ["ENV", "Warmup", "feature_key", "marker_dir"]
+
+#: The environment variable that turns the helper off when "0".
+ENV = "EXO_CTRL_WARMUP"
+
+_PACKAGE = Path(__file__).resolve().parents[1]
+
+#: The largest configuration sent to the helper: what a pipe takes without a reader (Linux) [B].
+_PIPE_BYTES = 65536
+
+
+def feature_key(config: SimConfig) -> str:
+    """The run's features that set its kernels' argument types, hashed with the sources.
+
+    Two runs with equal keys compile the same kernels (the gait, gains and
+    durations change values, not types).  A feature left out of the key costs
+    at worst a helper that was not needed, or one not started: never a result.
+    """
+    belief = config.belief
+    features = (
+        config.controller,
+        config.mode,
+        config.estimator,
+        config.patient_torque,
+        config.safety,
+        config.stop_reaction,
+        config.estop_at_s is None,
+        tuple(sorted({type(f).__name__ + str(getattr(f, "kind", "")) for f in config.faults})),
+        config.exercise,
+        config.session is None,
+        config.speed_profile is None,
+        config.sync,
+        config.contact.enabled,
+        config.contact.patient_feet,
+        config.pelvis.supported,
+        config.joint_compliance.enabled,
+        config.plant_substeps == 1,
+        config.cuffs.is_isotropic,
+        belief.cuffs is None or belief.cuffs.is_isotropic,
+        belief.motor is None,
+        config.cuff_fit,
+        config.ramp_in_s == 0.0,
+    )
+    digest = hashlib.sha256(_jit_cache.source_hash(_PACKAGE).encode())
+    digest.update(repr(features).encode())
+    return digest.hexdigest()[:24]
+
+
+def marker_dir() -> Path | None:
+    """Where the markers live: beside numba's cache of the package; None if not writable."""
+    root = Path(numba.config.CACHE_DIR) if numba.config.CACHE_DIR else _PACKAGE / "__pycache__"
+    return root if os.access(root, os.W_OK) else None
+
+
+class Warmup:
+    """The helper of one run (module docstring): start it, then :meth:`finish` it.
+
+    Args:
+        config: the run.
+        enabled: False: no helper, no marker (as ``EXO_CTRL_WARMUP=0``).
+
+    Attributes:
+        process: the helper, or None when none was started (the cache is warm
+            for these features, no cache directory can be written, or it is off).
+
+    """
+
+    def __init__(self, config: SimConfig, enabled: bool = True) -> None:
+        self.process: subprocess.Popen | None = None
+        self._marker: Path | None = None
+        if not enabled or os.environ.get(ENV, "1") == "0":
+            return
+        where = marker_dir()
+        if where is None:
+            return
+        self._marker = where / f"exo_ctrl-warm-{feature_key(config)}"
+        if self._marker.exists():
+            return
+        try:
+            payload = pickle.dumps(config)
+        except Exception:  # a configuration that does not pickle: no helper
+            return
+        if len(payload) > _PIPE_BYTES:  # written at once, never waiting for the child
+            return
+        with contextlib.suppress(OSError):
+            self.process = subprocess.Popen(
+                [sys.executable, "-m", "exo_ctrl.sim.warmup_helper", str(os.getpid())],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+            if self.process.stdin is not None:
+                with contextlib.suppress(OSError):
+                    self.process.stdin.write(payload)
+                    self.process.stdin.close()
+
+    def finish(self, completed: bool) -> None:
+        """Stop the helper; mark the cache warm for these features if the run ``completed``."""
+        if self.process is not None:
+            if self.process.poll() is None:
+                self.process.kill()
+            self.process.wait()
+            self.process = None
+        if completed and self._marker is not None:
+            with contextlib.suppress(OSError):
+                self._marker.touch()

@@ -1,0 +1,141 @@
+"""The first run's compile helper (exo_ctrl/sim/warmup.py): safe, equal results, dies with parent.
+
+The helper is safe only because every kernel is called with one signature per
+run (exo_ctrl/_jit.py): then the two processes can only ever save the same
+entry of a kernel's cache index.  The cold runs here compile into a fresh,
+empty cache directory with the helper on and then read every index file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from exo_ctrl import SimConfig
+from exo_ctrl.plan import GaitParams
+from exo_ctrl.plant import ContactParams
+from exo_ctrl.sim.warmup import ENV, Warmup, feature_key
+
+EXO_CTRL = Path(sys.executable).parent / "exo-ctrl"
+
+
+def _index_entries(cache: Path) -> dict[str, int]:
+    """Each numba index file under ``cache``: its number of saved signatures."""
+    entries = {}
+    for index in cache.rglob("*.nbi"):
+        with index.open("rb") as f:
+            pickle.load(f)  # numba's version
+            _, overloads = pickle.loads(f.read())
+        entries[index.name] = len(overloads)
+    return entries
+
+
+def _cold_run(cache: Path, summary: Path, *options: str, helper: bool = True) -> dict:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), **{ENV: "1" if helper else "0"})
+    argv = [str(EXO_CTRL), "simulate", "--duration", "0.3", "--no-record", *options]
+    run = subprocess.run(
+        [*argv, "--summary", str(summary)], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert run.returncode == 0, run.stderr
+    return json.loads(summary.read_text())
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        (),  # PD, the Kalman filter, the supervisor, split cuffs against the device's isotropic
+        # the belt, the patient's feet, path control with the active patient (path control
+        # needs the ramp-in and a whole period of the plan: --duration 2.4)
+        (
+            *("--contact", "on", "--sync", "off", "--patient-feet", "on"),
+            *("--mode", "path", "--patient-torque", "active", "--duration", "2.4"),
+        ),
+    ],
+    ids=["default", "contact-feet-path"],
+)
+def test_a_cold_run_with_the_helper_saves_one_signature_per_kernel(tmp_path, options) -> None:
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    cold = _cold_run(cache, tmp_path / "cold.json", *options)
+    entries = _index_entries(cache)
+    many = {name: n for name, n in entries.items() if n > 1}
+    print(f"\n{len(entries)} kernels compiled, {len(many)} with more than one signature")
+    assert len(entries) > 30 and not many
+    assert list(cache.glob("exo_ctrl-warm-*")), "a completed run marks its features warm"
+    # The same run on the filled cache, helper off: the same numbers.
+    warm = _cold_run(cache, tmp_path / "warm.json", *options, helper=False)
+    for key in ("rms_tracking_error_rad", "peak_drive_torque_Nm", "peak_cuff_force_N"):
+        assert cold[key] == warm[key]
+
+
+def test_the_feature_key_follows_the_types_not_the_values() -> None:
+    base = feature_key(SimConfig())
+    assert feature_key(SimConfig(duration_s=9.0, gait=GaitParams(period=1.4))) == base
+    assert feature_key(SimConfig(controller="ct")) != base
+    assert feature_key(SimConfig(contact=ContactParams(enabled=True))) != base
+
+
+def test_no_helper_when_turned_off_or_marked(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv(ENV, "0")
+    assert Warmup(SimConfig()).process is None
+    monkeypatch.setenv(ENV, "1")
+    assert Warmup(SimConfig(), enabled=False).process is None
+    monkeypatch.setattr("exo_ctrl.sim.warmup.marker_dir", lambda: tmp_path)
+    first = Warmup(SimConfig(duration_s=0.01))
+    assert first.process is not None
+    first.finish(completed=False)  # stopped, not marked
+    assert first.process is None and not list(tmp_path.iterdir())
+    second = Warmup(SimConfig(duration_s=0.01))
+    second.finish(completed=True)
+    assert [p.name for p in tmp_path.iterdir()] == [f"exo_ctrl-warm-{feature_key(SimConfig())}"]
+    assert Warmup(SimConfig()).process is None  # marked: warm
+
+
+_PARENT = """
+import sys, time
+from exo_ctrl import SimConfig
+from exo_ctrl.sim.warmup import Warmup
+helper = Warmup(SimConfig(duration_s=0.01))
+print(helper.process.pid, flush=True)
+time.sleep(600)
+"""
+
+
+def test_the_helper_dies_with_its_parent(tmp_path) -> None:
+    """A parent killed with SIGKILL takes its helper with it.
+
+    At once (prctl) once the helper has imported the package; killed before
+    that, the helper sees its new parent when its imports are done (about a
+    second here, longer on a loaded machine) and exits.
+    """
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **{ENV: "1"})
+    parent = subprocess.Popen(
+        [sys.executable, "-c", _PARENT], env=env, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        pid = int(parent.stdout.readline())
+        assert Path(f"/proc/{pid}").exists()
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+    deadline = time.monotonic() + 30.0
+    while _alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(pid)
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, dead but not yet reaped by init, is not alive)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
