@@ -98,11 +98,11 @@ three plant steps per tick (1.69 over 1.47 N·m), so it is off (its limit
 DBL_MAX, :func:`consistency_limit`) in those cases; and with a noise-free
 encoder and torque sensor, where T (0.20 N·m, the current sensor's noise
 alone) is below what the model leaves out (|r| − B up to 0.44 N·m in
-transparent mode).  The current sensor's noise is the default driver's
-(:class:`~exo_ctrl.sensing.CurrentSensorParams`; the supervisor is not
-told the run's): a noisier one needs ``consistency_threshold(...,
-current=...)``.  A joint whose readings are not all finite is skipped and
-restarted from its next finite reading (the limit monitor flags it).
+transparent mode).  The current sensor's noise is that of the drives'
+current sensors (:class:`~exo_ctrl.sensing.CurrentSensorParams`, their
+datasheet, which the supervisor is given: ``current_sensor``).  A joint
+whose readings are not all finite is skipped and restarted from its next
+finite reading (the limit monitor flags it).
 """
 
 from __future__ import annotations

@@ -86,7 +86,7 @@ import numpy as np
 from .._jit import Status, kernel, record
 from ..plant import MotorParams
 from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S
-from ..sensing import SensorParams
+from ..sensing import CurrentSensorParams, SensorParams
 from .consistency import CONSISTENCY_FIELDS, consistency_limit, gear_efficiency, init_consistency
 from .still import STILL_FIELDS, init_still, still_limit
 
@@ -162,7 +162,11 @@ PLAUSIBILITY_FIELDS = [
 
 
 def plausibility_limits(
-    motor: MotorParams, sensors: SensorParams, dt: float, speed_limit: np.ndarray
+    motor: MotorParams,
+    sensors: SensorParams,
+    dt: float,
+    speed_limit: np.ndarray,
+    current: CurrentSensorParams | None = None,
 ) -> np.ndarray:
     """The limits of the six groups, (6 groups, 4 joints), in the monitor record's units.
 
@@ -171,6 +175,7 @@ def plausibility_limits(
         sensors: the sensors' parameters.
         dt: control period Δt [s].
         speed_limit: the joint speed limits q̇_max [rad/s], (4,).
+        current: the drives' current sensors (their datasheet; None: the default driver's).
 
     Returns:
         Rows DRIVE [N·m], JUMP [rad], STUCK [readings], AGE [s] (module docstring),
@@ -198,8 +203,8 @@ def plausibility_limits(
             jump,
             np.full(4, min(stuck, big)),
             np.full(4, 0.5 * dt),
-            consistency_limit(motor, sensors, dt),
-            still_limit(motor, sensors, dt),
+            consistency_limit(motor, sensors, dt, current),
+            still_limit(motor, sensors, dt, current),
         )
     )
 

@@ -197,7 +197,7 @@ def still_threshold(
         sensors: the joint sensors' parameters.
         dt: control period Δt [s].
         current: the current sensors' parameters (None: the default driver's; the
-            supervisor is not told the run's, as for :mod:`.consistency`).
+            supervisor passes the run's datasheet, ``current_sensor``).
 
     """
     current = current if current is not None else CurrentSensorParams()

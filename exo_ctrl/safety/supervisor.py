@@ -51,8 +51,8 @@ at the present posture with damping injection instead (``"yielding"`` after
 the ramp, no posture held): an active patient moves the legs with a bounded
 interaction force; a joint beyond its speed limit cuts the power, one out of
 its range is braked alone, legs at rest end in the hold.  A hold the patient
-pushes against (a cuff force over its limit while holding, on readings no
-plausibility monitor has doubted since the stop) ramps to the yield.
+pushes against (a release now would take a cuff past its limit, :mod:`.release`,
+on readings no plausibility monitor has doubted since the stop) yields at once.
 
 Every violation and every state change is an event dict
 ``{"t", "kind", "quantity", "value", "limit", "message"}`` in
@@ -79,11 +79,12 @@ from .. import _validate as v
 from .._jit import Status, check
 from ..model import JOINT_NAMES, BodyModel
 from ..plant import MotorParams
-from ..sensing import SensorParams, SensorReadings
+from ..sensing import CurrentSensorParams, SensorParams, SensorReadings
 from .belt_monitor import BELT, BeltMonitor, belt_monitor
 from .limits import STATES, SafetyLimits, resolve_limits
-from .monitor import CUFF, LIMIT_GROUPS, channels, monitor_record
+from .monitor import LIMIT_GROUPS, channels, monitor_record
 from .plausibility import plausibility_limits, plausibility_record
+from .release import ReleaseBound
 from .stop_reaction import (
     REST_SPEED_RAD_S,
     REST_TIME_S,
@@ -110,8 +111,7 @@ class SafetySupervisor:
             limit and the motor model for the hold voltage).
         dt: control period [s].
         estop_at_s: emergency-stop time [s] (None: no e-stop).
-        use_estimate: the cuff forces given to :meth:`step` are estimates
-            (only changes the event wording).
+        use_estimate: the cuff forces given to :meth:`step` are estimates (event wording).
         ramp_s: duration of the ramp [s] (0: switch at once; to a yield at most its ramp_s).
         hold_tolerance_rad: largest posture error during the hold [rad].
         hold_kp: hold PD proportional gain [V/rad] (default: the PD gain, 100).
@@ -120,8 +120,9 @@ class SafetySupervisor:
             logged at most once per this interval [s].
         sensors: the sensors' parameters, for the plausibility monitors'
             thresholds (:mod:`exo_ctrl.safety.plausibility`; None: the defaults).
-        plausibility_checks: run the plausibility monitors (drive model,
-            encoder step, stuck torque sensor, command age).
+        current_sensor: the drives' current sensors' datasheet, for the
+            consistency and still-encoder limits (None: the default driver's).
+        plausibility_checks: run the plausibility monitors (:mod:`.plausibility`).
         compliant_drives: the joints are compliant (the torque sensors read
             a spring, :mod:`exo_ctrl.plant.compliance`): the rigid drive
             model's and the consistency checks are off, the others stay.
@@ -134,6 +135,8 @@ class SafetySupervisor:
         yield_damping: the yield's joint damping d_y [N·m·s/rad], a number
             or 4 (None: :func:`~exo_ctrl.safety.stop_reaction.yield_damping`
             from the cuff limits, the lever arms and the speed limits).
+        cuff_stiffness: the cuffs' stiffness the device believes [N/m], for
+            when a pushed hold yields (:mod:`.release`; None: 8 N/mm).
 
     Attributes:
         state: ``"normal"``, ``"stopping"``, ``"holding"``, ``"power_cut"`` or ``"yielding"``.
@@ -146,8 +149,7 @@ class SafetySupervisor:
         stop_time_s: time of the stop [s] (None while normal).
         hold_posture_rad: the posture held, (4,) [rad] (NaN while normal).
         hold_voltage_gravity_V: gravity-compensation voltages of the hold, (4,) [V].
-        q_lower, q_upper, speed_limit, current_limit, cuff_limit: the
-            resolved limits, (4,) each [rad, rad, rad/s, A, N].
+        q_lower, q_upper, speed_limit, current_limit, cuff_limit: the limits, (4,) each.
 
     Raises:
         InvalidParameter: a bad argument (named in the message).
@@ -174,6 +176,8 @@ class SafetySupervisor:
         belt: BeltMonitor | None = None,
         stop_reaction: str | Sequence[tuple[float, str]] = "hold",
         yield_damping: float | Sequence[float] | None = None,
+        cuff_stiffness: float | None = None,
+        current_sensor: CurrentSensorParams | None = None,
     ) -> None:
         self.dt = v.positive("dt", dt, "s")
         self.estop_at_s = (
@@ -192,6 +196,7 @@ class SafetySupervisor:
         self.speed_limit = resolved.speed_limit
         self.current_limit = resolved.current_limit
         self.cuff_limit = resolved.cuff_limit
+        self._limit2 = self.cuff_limit**2
         if isinstance(stop_reaction, str):
             stop_reaction = ((0.0, stop_reaction),)
         #: The stop reaction's schedule ((start [s], reaction), ...).
@@ -202,6 +207,8 @@ class SafetySupervisor:
             damping = v.per_item("yield_damping", yield_damping, "N·m·s/rad", JOINT_NAMES)
         #: The yield's command (:class:`~exo_ctrl.safety.stop_reaction.YieldCommand`).
         self.yield_command = YieldCommand(exo, patient, motor, damping, self.speed_limit, self.dt)
+        #: The cuff forces a release of the hold reaches (:mod:`.release`).
+        self.release = ReleaseBound(exo, patient, motor, self.dt, cuff_stiffness)
         #: The reaction of the present stop ("" while normal).
         self.reaction = ""
         self._ramp_t0 = 0.0
@@ -211,7 +218,9 @@ class SafetySupervisor:
         self.record = monitor_record(resolved, self._estop)
         sensors = sensors if sensors is not None else SensorParams()
         #: The plausibility monitors' limits (4 groups, 4 joints) and state.
-        self.plausibility_limits = plausibility_limits(motor, sensors, self.dt, self.speed_limit)
+        self.plausibility_limits = plausibility_limits(
+            motor, sensors, self.dt, self.speed_limit, current_sensor
+        )
         self.plausibility_record = plausibility_record(motor, sensors, self.dt)
         self._checks = bool(plausibility_checks)
         if compliant_drives:
@@ -308,7 +317,7 @@ class SafetySupervisor:
             self._start_stop(t, sensors, u_cmd, worst)
         elif not worst <= 0.0:
             self._log_violations(t)
-        out = self._stop_command(t, sensors, clean=worst == worst)
+        out = self._stop_command(t, sensors, f, clean=worst == worst)
         np.copyto(self._u_sent, out)  # what the drives get, for the drive model
         return out
 
@@ -359,8 +368,10 @@ class SafetySupervisor:
         tau = self.yield_command.gravity(q)  # the device's models, as the yield's
         return self._motor.resistance_ohm * tau / self._motor.torque_per_amp_Nm_per_A
 
-    def _stop_command(self, t: float, sensors: SensorReadings, clean: bool) -> np.ndarray:
-        """The stop command [V]; ``clean``: every reading of the tick is finite."""
+    def _stop_command(
+        self, t: float, sensors: SensorReadings, f: np.ndarray, clean: bool
+    ) -> np.ndarray:
+        """The stop command [V]; f the cuff forces [N]; ``clean``: every reading is finite."""
         u, e, w = self._u, self._e, self._w
         if self.state_code == 3:
             u.fill(0.0)
@@ -375,10 +386,11 @@ class SafetySupervisor:
         if self.state_code == 2 and self._hold_failed(t, e, w):
             u.fill(0.0)
             return u
-        # Pushed: a cuff over its limit while holding, on readings not doubted since the stop.
-        excess = self.record["excess"][0]
-        self._doubt = self._doubt or bool(np.any(excess[LIMIT_GROUPS:] > 0.0))
-        pushed = self.state_code == 2 and not self._doubt and bool(np.any(excess[CUFF] > 0.0))
+        # Pushed: a release now would take a cuff past its limit (.release), on readings
+        # not doubted since the stop.
+        self._doubt = self._doubt or bool(np.any(self.record["excess"][0][LIMIT_GROUPS:] > 0.0))
+        peak = self.release.peak_squared(f, self.hold_posture_rad)
+        pushed = self.state_code == 2 and not self._doubt and bool(np.any(peak > self._limit2))
         # U_hold = U_g + k_p (q_h - q) - k_d q̇
         np.multiply(e, self.hold_kp, out=u)
         np.multiply(w, self.hold_kd, out=w)
@@ -386,11 +398,11 @@ class SafetySupervisor:
         np.add(u, self.hold_voltage_gravity_V, out=u)
         if self.state_code == 1:
             self._ramp(t, u, "holding")
-        elif pushed:  # the patient pushes against the hold past a cuff's limit: yield
-            self.reaction, self._ramp_t0 = "yield", float(t)
+        elif pushed:  # yield at once: a ramp keeps part of the lock (.stop_reaction, "The ramp")
+            self.reaction, self._rest_ticks = "yield", 0
             self.yield_command.start(np.asarray(sensors.q, dtype=float), sensors.dq)
-            self._u_start[:] = u
-            self._set_state(t, "stopping", "the patient pushes against the hold: ramp to yield")
+            self._set_state(t, "yielding", "the patient pushes against the hold: yield at once")
+            return self._yield(t, sensors)
         return u
 
     def _ramp(self, t: float, u: np.ndarray, then: str) -> None:
@@ -473,22 +485,10 @@ class SafetySupervisor:
         )
 
     def _event(
-        self,
-        t: float,
-        kind: str,
-        quantity: str,
-        value: Any,
-        limit: Any,
-        message: str,
+        self, t: float, kind: str, quantity: str, value: Any, limit: Any, message: str
     ) -> dict[str, Any]:
-        event = {
-            "t": float(t),
-            "kind": kind,
-            "quantity": quantity,
-            "value": value,
-            "limit": limit,
-            "message": message,
-        }
+        event = {"t": float(t), "kind": kind, "quantity": quantity}
+        event.update(value=value, limit=limit, message=message)
         self.events.append(event)
         return event
 

@@ -34,6 +34,7 @@ from ..plan.online import online_step
 from ..plant import PatientTorque
 from ..safety import SafetyLimits, SafetySupervisor
 from ..safety.belt_monitor import BeltMonitor
+from ..safety.cuff_load import CuffLoadMonitor, cuff_load_schedule
 from ..sensing import (
     BeltEncoder,
     CurrentSensor,
@@ -168,8 +169,19 @@ class Runner:
                 if config.safety and setup.belt_speed is not None
                 else None,
                 stop_reaction=config.stop_reactions,
+                cuff_stiffness=config.belief.cuff_model.stiffness_N_per_m,
+                current_sensor=config.current_sensor,
             )
         sup = self.supervisor
+        #: The supervisor's patient-load monitor (safety/cuff_load.py; None: off the whole
+        #: run), run on its normal ticks; its warnings go to the supervisor's events.
+        self.cuff_load: CuffLoadMonitor | None = None
+        schedule = cuff_load_schedule(config.mode, config.modes.guidance, config.session)
+        if config.safety and not all(why for _, why in schedule):
+            period, tau_ext = config.gait.period, self.estimator.tau_ext
+            self.cuff_load = CuffLoadMonitor(
+                setup.device_patient, tau_ext, config.dt, period, schedule
+            )
         #: On a stop the harness locks the pelvis (plant/pelvis.py) and the treadmill
         #: runs down to rest (BeltParams.stop_decel_mps2): :meth:`_device_stop`.
         self._stop_pending = sup is not None and config.contact.enabled
@@ -261,6 +273,9 @@ class Runner:
             u = supervise(k, k * self._dt, readings, self._sup_force, self._current, u, age)
             if self._stop_pending and self.supervisor.state_code:
                 self._device_stop(k)
+            load = self.cuff_load
+            if load is not None and not self.supervisor.state_code:
+                load.step(k, k * self._dt, readings.q, readings.dq, self.supervisor.events)
         if step is not None:
             step(u)
         else:

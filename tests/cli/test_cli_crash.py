@@ -66,6 +66,14 @@ class StopAfter:
         pass
 
 
+def _command_line(process: psutil.Process) -> str:
+    """The process's command line ("" for one that ended: a zombie has none)."""
+    try:
+        return " ".join(process.cmdline())
+    except psutil.Error:
+        return ""
+
+
 @pytest.mark.parametrize(("chunks", "wait_s"), [(1, 0.0), (2, 0.011), (3, 0.037)])
 def test_sigkill_leaves_a_recording_of_every_written_chunk(
     tmp_path: Path, chunks: int, wait_s: float
@@ -79,9 +87,10 @@ def test_sigkill_leaves_a_recording_of_every_written_chunk(
             assert proc.poll() is None, proc.stderr.read().decode()
             assert time.monotonic() < deadline, "the run did not record in time"
             time.sleep(0.005)
-        # the file's writer process (beside it, on a cold cache, the compile helper)
+        # the file's writer process (beside it, on a cold cache, the compile helper,
+        # perhaps ended and not yet reaped)
         children = psutil.Process(proc.pid).children()
-        (writer,) = [c for c in children if "write_process.py" in " ".join(c.cmdline())]
+        (writer,) = [c for c in children if "write_process.py" in _command_line(c)]
         time.sleep(wait_s)
     finally:
         proc.send_signal(signal.SIGKILL)
