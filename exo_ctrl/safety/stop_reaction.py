@@ -9,7 +9,8 @@ stops is its *stop reaction*:
   ACTIVE patient who keeps walking it is a position lock: the campaign
   (``tools/faults.py --mode transparent --stop-reaction hold``) measured
   263 N on a thigh cuff and 160 N on a shank cuff after the stop (ISO/TS
-  15066: 220 N, 130 N).
+  15066: 220 N, 130 N).  A hold the patient pushes against yields at once,
+  while a release still keeps every cuff within its limit (:mod:`.release`).
 - ``yield``: ramp (as the hold's ramp: U = U_0 + α (U_y − U_0), α = (t −
   t_stop)/ramp_s, no step) to a command that carries the device's own
   models and injects joint damping, and nothing else:
@@ -74,6 +75,22 @@ time): the worst thigh/shank forces after the stop 196/198 N with the
 11 ms, 158/86 N switching at once; with 0.2 s a slipped cuff's free leg
 was driven on at its hip's speed at the stop, 237 N on the thigh cuff.
 The per-tick step of the command is |U_y − U_0| Δt / T_y.
+
+*From a hold* the yield starts at once, with no ramp.  The premise above is
+a held speed command; the hold's command is a position lock, U_g +
+k_p (q_h − q) − k_d q̇ recomputed every tick (k_p = 100 V/rad is
+K_p = k_p i_G k_m / R = 4.5 kN·m/rad at the joint), and the patient who
+pushes against it has the joints at rest (ω_0 ≈ 0).  The (1 − α) of it a
+ramp keeps goes on holding the limb that loads the cuff, so the force goes
+on rising at its rate ḟ for about T_y/2 more: in tests/safety/test_hold_pushed.py,
+yielding on the force over its limit, the shank's true force peaked at
+144 N with T_y = 11 ms against 137 N switched at once (limit 130 N).  The
+step the switch makes in the drive torque is the hold's reaction to the
+cuff force, released; the cuff's spring keeps the force continuous while
+it accelerates the exoskeleton's link after the limb.  The rest of that
+overshoot was the trigger's (:mod:`.release`): yielding while a release
+still keeps the cuffs within their limits, the worst true forces from the
+switch on are 152 N (thigh) and 116 N (shank).
 
 **The speed \hat ω**: the encoder's difference (q_k − q_{k−1})/Δt through a
 first-order filter of :data:`SPEED_FILTER_HZ` = 150 Hz (as the interaction
