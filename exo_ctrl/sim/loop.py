@@ -71,7 +71,7 @@ def simulate(
     return result
 
 
-def new_result(config: SimConfig, setup: Setup, keep_history: bool) -> SimResult:
+def _new_result(config: SimConfig, setup: Setup, keep_history: bool) -> SimResult:
     """The result a run of ``setup`` fills: its history arrays (empty without), its statistics."""
     n = config.n_ticks
     hist_n = n if keep_history else 0
@@ -106,7 +106,7 @@ def _run(
     setup = build(config)
     runner = Runner(setup)
     n = config.n_ticks
-    result = new_result(config, setup, keep_history)
+    result = _new_result(config, setup, keep_history)
     history = result.signals
     for obs in observers:
         obs.start(result)

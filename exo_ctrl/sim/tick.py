@@ -47,7 +47,6 @@ from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
 from .schema import log_dtype
 from .setup import Setup, patient_torque_for, start_on_plan
-from .summary import RunStats
 
 __all__ = [
     "UNTIMED_TICKS",
@@ -282,26 +281,32 @@ class Runner:
             self._substep(u)
         write_applied(log, row, *self._applied)
 
-    def compile_back(self, stats: RunStats) -> None:
-        """Call the tick's later stages once, on a run that was not started: they compile.
+    def compile_back(self) -> None:
+        """Call the tick's stages once, last first, on a run that was not started: they compile.
 
-        For :mod:`exo_ctrl.sim.warmup`'s helper, which compiles the back half of
-        the tick while the run's own process compiles the front half: the
-        supervisor, the plant's step, the log's applied row and the chunk
-        statistics (``stats``: the run's, :func:`~exo_ctrl.sim.loop.new_result`),
-        then the controller, each with the arguments :meth:`tick` gives it.
-        The values are the unstarted run's (zeros): what they compute is thrown away.
+        For :mod:`exo_ctrl.sim.warmup`'s helper, which compiles while the run's
+        own process does, each from its end.  That process compiles in this
+        order: the cuffs' fit, the chunk statistics, the sensors, the
+        estimator's start, the measured row, the controller, the supervisor,
+        the plant's step, the applied row, and on the second tick the
+        estimator's step (the largest, some 3 s); so the helper takes them
+        the other way round: the plan's rows, the estimator's step (its first
+        call starts it, the second steps), the applied row, the plant's step,
+        the supervisor, the controller.  The values are the unstarted run's
+        (zeros): what they compute is thrown away.
         """
-        _, _, _, command, supervise, step = self._stages
+        _, _, estimate, command, supervise, step = self._stages
         u = np.zeros(4)
-        if supervise is not None:
-            supervise(0, 0.0, self.sensors, self._sup_force, self._current, u, 0.0)
+        self.fill_plan(0, 1)
+        estimate()
+        estimate()
+        write_applied(self.log, 0, *self._applied)
         if step is not None:
             step(u)
         else:
             self._substep(u)
-        write_applied(self.log, 0, *self._applied)
-        stats.preload(self.buf)
+        if supervise is not None:
+            supervise(0, 0.0, self.sensors, self._sup_force, self._current, u, 0.0)
         command(0, self.sensors)
 
     def _belt_tick(self, k: int, row: int) -> None:

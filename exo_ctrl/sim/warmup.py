@@ -7,11 +7,12 @@ compiler lock), but each process saves what it compiles to the cache on disk,
 and a kernel's first call with new argument types looks there before it
 compiles.  So :class:`Warmup`, when the cache holds no marker for the run's
 features (:func:`feature_key`), starts a helper: a child Python process that
-builds the same run and calls the tick's stages from its back (the supervisor,
-the plant's step, the log's applied row, the controller, the chunk
-statistics; :meth:`~exo_ctrl.sim.tick.Runner.compile_back`), while this
-process compiles from the front (the cuffs' fit, the sensors, the
-estimator).  Where they meet, each loads what the other saved.
+builds the same run and calls the tick's stages in the reverse of the order
+this process first calls them (the estimator's step, the applied log row,
+the plant's step, the supervisor, the controller;
+:meth:`~exo_ctrl.sim.tick.Runner.compile_back`), while this process compiles
+from the front (the cuffs' fit, the statistics, the sensors, the
+estimator's start).  Where they meet, each loads what the other saved.
 
 **Why it is safe.**  numba keeps one index file per kernel and saves an entry
 by reading the index, adding the entry under the next free data-file number

@@ -16,7 +16,6 @@ import pickle
 import sys
 
 from .._lifetime import die_with_parent
-from .loop import new_result
 from .setup import build
 from .tick import Runner
 
@@ -29,7 +28,7 @@ def compile_back_half(parent_pid: int) -> None:
     config = pickle.loads(sys.stdin.buffer.read())
     setup = build(config)
     runner = Runner(setup, start=False)
-    runner.compile_back(new_result(config, setup, keep_history=False).stats)
+    runner.compile_back()
 
 
 if __name__ == "__main__":
