@@ -31,7 +31,8 @@ It dies with this process (``prctl(PR_SET_PDEATHSIG)`` on Linux and a watch on
 its parent), and :meth:`Warmup.finish` stops it when the run ends.  A run that
 completes leaves the marker, so later runs of these features start no helper.
 The CLI's ``simulate`` uses it; ``simulate(..., warmup=True)`` from Python;
-``EXO_CTRL_WARMUP=0`` turns it off.  Sweeps do not use it (their pools compile
+``EXO_CTRL_WARMUP=0`` turns it off, ``EXO_CTRL_WARMUP=1`` starts it even
+when no core seems free (:func:`core_free`).  Sweeps do not use it (their pools compile
 the first point in the parent, then share the cache).
 """
 
@@ -50,9 +51,9 @@ import numba
 from .. import _jit_cache
 from .config import SimConfig
 
-__all__ = ["ENV", "Warmup", "feature_key", "marker_dir"]
+__all__ = ["ENV", "Warmup", "core_free", "feature_key", "marker_dir"]
 
-#: The environment variable that turns the helper off when "0".
+#: The environment variable: "0" turns the helper off, "1" starts it whatever the load.
 ENV = "EXO_CTRL_WARMUP"
 
 _PACKAGE = Path(__file__).resolve().parents[1]
@@ -104,6 +105,21 @@ def marker_dir() -> Path | None:
     return root if os.access(root, os.W_OK) else None
 
 
+def core_free() -> bool:
+    """Whether a core is free for the helper: the 1-minute load average below cores − ½.
+
+    On a machine whose cores are all busy the helper's compiles only take
+    time from this process's (measured here, PD, with one other busy process
+    on two cores: 16 → 20 s).
+    """
+    try:
+        cores = len(os.sched_getaffinity(0))
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return False
+    return cores >= 2 and load < cores - 0.5
+
+
 class Warmup:
     """The helper of one run (module docstring): start it, then :meth:`finish` it.
 
@@ -113,17 +129,19 @@ class Warmup:
 
     Attributes:
         process: the helper, or None when none was started (the cache is warm
-            for these features, no cache directory can be written, or it is off).
+            for these features, no cache directory can be written, no core is
+            free, :func:`core_free`, or it is off).
 
     """
 
     def __init__(self, config: SimConfig, enabled: bool = True) -> None:
         self.process: subprocess.Popen | None = None
         self._marker: Path | None = None
-        if not enabled or os.environ.get(ENV, "1") == "0":
+        setting = os.environ.get(ENV, "")
+        if not enabled or setting == "0":
             return
         where = marker_dir()
-        if where is None:
+        if where is None or (setting != "1" and not core_free()):
             return
         self._marker = where / f"exo_ctrl-warm-{feature_key(config)}"
         if self._marker.exists():

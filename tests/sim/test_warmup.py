@@ -22,7 +22,7 @@ import pytest
 from exo_ctrl import SimConfig
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant import ContactParams
-from exo_ctrl.sim.warmup import ENV, Warmup, feature_key
+from exo_ctrl.sim.warmup import ENV, Warmup, core_free, feature_key
 
 EXO_CTRL = Path(sys.executable).parent / "exo-ctrl"
 
@@ -83,7 +83,8 @@ def test_the_feature_key_follows_the_types_not_the_values() -> None:
     assert feature_key(SimConfig(contact=ContactParams(enabled=True))) != base
 
 
-def test_no_helper_when_turned_off_or_marked(tmp_path, monkeypatch) -> None:
+def test_no_helper_when_turned_off_or_marked_or_busy(tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr("exo_ctrl.sim.warmup.core_free", lambda: True)
     monkeypatch.setenv(ENV, "0")
     assert Warmup(SimConfig()).process is None
     monkeypatch.setenv(ENV, "1")
@@ -97,6 +98,23 @@ def test_no_helper_when_turned_off_or_marked(tmp_path, monkeypatch) -> None:
     second.finish(completed=True)
     assert [p.name for p in tmp_path.iterdir()] == [f"exo_ctrl-warm-{feature_key(SimConfig())}"]
     assert Warmup(SimConfig()).process is None  # marked: warm
+    monkeypatch.setattr("exo_ctrl.sim.warmup.core_free", lambda: False)
+    monkeypatch.delenv(ENV)
+    assert Warmup(SimConfig(controller="ct")).process is None  # not marked, but busy
+    monkeypatch.setenv(ENV, "1")  # started whatever the load
+    forced = Warmup(SimConfig(controller="ct", duration_s=0.01))
+    assert forced.process is not None
+    forced.finish(completed=False)
+
+
+def test_a_core_is_free_below_the_cores_less_a_half(monkeypatch) -> None:
+    monkeypatch.setattr("os.sched_getaffinity", lambda pid: {0, 1})
+    for load, free in ((0.9, True), (1.49, True), (1.5, False), (3.0, False)):
+        monkeypatch.setattr("os.getloadavg", lambda load=load: (load, 0.0, 0.0))
+        assert core_free() is free
+    monkeypatch.setattr("os.sched_getaffinity", lambda pid: {0})
+    monkeypatch.setattr("os.getloadavg", lambda: (0.0, 0.0, 0.0))
+    assert core_free() is False  # one core: nothing to share
 
 
 _PARENT = """
