@@ -258,7 +258,9 @@ def cold_start(name: str, helper: bool = True) -> dict[str, float]:
     (:mod:`exo_ctrl.sim.warmup`; its CPU time is counted), or in one process.
     """
     with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        # The helper forced on (or off): the load average a previous cold run leaves
+        # would otherwise keep it from starting (exo_ctrl/sim/warmup.py, core_free).
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, EXO_CTRL_WARMUP="1" if helper else "0")
         code = _COLD_RUN.format(overrides=SCENARIOS[name], warmup=helper)
         out = {}
         for kind in ("cold", "warm"):
