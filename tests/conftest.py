@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +15,15 @@ from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import JointTrajectory, plan_joints
 from exo_ctrl.plant.drive import MotorParams
 from exo_ctrl.sim import drive_for
+
+# The fault campaign (tools/faults.py), importable by the tests as ``fault_campaign``
+# (its dataclasses look their module up by that name).
+_spec = importlib.util.spec_from_file_location(
+    "fault_campaign", Path(__file__).resolve().parents[1] / "tools" / "faults.py"
+)
+_campaign = importlib.util.module_from_spec(_spec)
+sys.modules["fault_campaign"] = _campaign
+_spec.loader.exec_module(_campaign)
 
 #: Thigh and shank of the "other lengths" exoskeleton [m].
 SHORT_THIGH = 0.45

@@ -25,7 +25,7 @@ from .interaction import interaction_stats
 from .load_stats import load_stats
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
-from .setup import Setup, build
+from .setup import build
 from .summary import RunStats, contact_stats
 from .tick import UNTIMED_TICKS, Runner
 from .warmup import Warmup
@@ -71,8 +71,15 @@ def simulate(
     return result
 
 
-def _new_result(config: SimConfig, setup: Setup, keep_history: bool) -> SimResult:
-    """The result a run of ``setup`` fills: its history arrays (empty without), its statistics."""
+def _run(
+    config: SimConfig,
+    observers: Sequence[SimObserver],
+    progress: bool,
+    keep_history: bool,
+) -> SimResult:
+    """:func:`simulate`'s run, the helper left out."""
+    setup = build(config)
+    runner = Runner(setup)
     n = config.n_ticks
     hist_n = n if keep_history else 0
     history = {name: np.zeros((hist_n, *shape)) for name, shape in signal_shapes().items()}
@@ -93,21 +100,6 @@ def _new_result(config: SimConfig, setup: Setup, keep_history: bool) -> SimResul
     result.stats.load = load_stats(config, setup.exo)
     if config.mode == "aan":  # the support level per cycle, for the interaction block
         result.stats.support = setup.controller.support_history
-    return result
-
-
-def _run(
-    config: SimConfig,
-    observers: Sequence[SimObserver],
-    progress: bool,
-    keep_history: bool,
-) -> SimResult:
-    """:func:`simulate`'s run, the helper left out."""
-    setup = build(config)
-    runner = Runner(setup)
-    n = config.n_ticks
-    result = _new_result(config, setup, keep_history)
-    history = result.signals
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)

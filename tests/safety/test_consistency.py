@@ -19,11 +19,9 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
+import fault_campaign as campaign  # tools/faults.py, loaded by tests/conftest.py
 import numpy as np
 import pytest
 
@@ -62,12 +60,6 @@ from exo_ctrl.safety.stop_reaction import (
 from exo_ctrl.sensing import CurrentSensorParams, SensorParams
 from exo_ctrl.sim import SimConfig, build
 from exo_ctrl.sim.tick import Runner
-
-ROOT = Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("fault_campaign", ROOT / "tools" / "faults.py")
-campaign = importlib.util.module_from_spec(_spec)
-sys.modules["fault_campaign"] = campaign  # its dataclasses look their module up
-_spec.loader.exec_module(campaign)
 
 DT = 1e-3
 MOTOR = MotorParams()

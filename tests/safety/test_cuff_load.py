@@ -25,11 +25,9 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
+import fault_campaign as campaign  # tools/faults.py, loaded by tests/conftest.py
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -54,12 +52,6 @@ from exo_ctrl.sim.belief import Belief, device_patient
 from exo_ctrl.sim.faults import Fault
 from exo_ctrl.sim.session import Segment, SessionParams
 from exo_ctrl.sim.tick import Runner
-
-ROOT = Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("fault_campaign", ROOT / "tools" / "faults.py")
-campaign = importlib.util.module_from_spec(_spec)
-sys.modules["fault_campaign"] = campaign  # its dataclasses look their module up
-_spec.loader.exec_module(campaign)
 
 DT = 1e-3
 KNEE = JOINT_NAMES.index("left_knee")

@@ -52,11 +52,9 @@ Bounds (the default drive, sensors and supervisor; Δt = 1 ms):
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
+import fault_campaign as campaign  # tools/faults.py, loaded by tests/conftest.py
 import numpy as np
 import pytest
 
@@ -70,12 +68,6 @@ from exo_ctrl.safety.cuff_load import detection_bound_s as cuff_load_bound_s
 from exo_ctrl.sensing import SensorParams
 from exo_ctrl.sim import SimConfig, build, simulate
 from exo_ctrl.sim.faults import FAULT_KINDS, INJECTABLE, Fault
-
-ROOT = Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("fault_campaign", ROOT / "tools" / "faults.py")
-campaign = importlib.util.module_from_spec(_spec)
-sys.modules["fault_campaign"] = campaign  # its dataclasses look their module up
-_spec.loader.exec_module(campaign)
 
 SETTLE_S = 0.016
 HEALTHY_RESIDUAL_NM = 17.0
