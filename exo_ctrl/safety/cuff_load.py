@@ -117,7 +117,7 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as v
-from .._jit import kernel, record
+from .._jit import kernel, preload, record
 from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, JOINT_NAMES, BodyModel
 
@@ -293,6 +293,14 @@ class CuffLoadMonitor:
         self.off = self._schedule[0][1]
         self._switch_s = self._schedule[0][0]
         self._next = 0
+
+    def preload(self, q: np.ndarray, dq: np.ndarray) -> None:
+        """Load (or compile) the kernels for readings of these arrays' types, before the run.
+
+        Their first call comes some ticks into the run, inside its timed part.
+        """
+        preload(load_inputs, q, dq, self.record, self._q, self._v, self._a)
+        preload(load_update, self._v, dq, self._tau_ext, self.record, self.ring)
 
     def step(self, k: int, t: float, q: np.ndarray, dq: np.ndarray, events: list) -> None:
         """Tick ``k`` at t [s] with the readings q [rad], q̇ [rad/s]; a warning into ``events``.

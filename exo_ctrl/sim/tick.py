@@ -181,6 +181,7 @@ class Runner:
             self.cuff_load = CuffLoadMonitor(
                 setup.device_patient, tau_ext, config.dt, period, schedule
             )
+            self.cuff_load.preload(self.sensors.q, self.sensors.dq)
         #: On a stop the harness locks the pelvis (plant/pelvis.py) and the treadmill
         #: runs down to rest (BeltParams.stop_decel_mps2): :meth:`_device_stop`.
         self._stop_pending = sup is not None and config.contact.enabled
