@@ -6,11 +6,15 @@
 - :mod:`.scene`: the 3-D scene (both bodies' legs, cuff
   forces, belt, planned foot paths).
 - :mod:`.writer`: :class:`RerunRecorder`, the observer that
-  writes a run as it goes.
+  writes a run as it goes (:mod:`.columns`: a chunk's series;
+  :mod:`.omitted`: the signals of the features off in the run, left out;
+  :mod:`.outcome`: the events and the outcome at the end; :mod:`.size`: the
+  file's size per tick, for the free-space check).
 - :mod:`.rrd_file`, :mod:`.rrd_footer`, :mod:`.write_process`: the file
   itself, written from rerun's in-memory encoding with a footer after
   every chunk, by a process of its own (so that SIGKILL cannot cut it).
-- :mod:`.reader`: :func:`read_recording`, the run back from a file.
+- :mod:`.reader`: :func:`read_recording`, the run back from a file
+  (:mod:`.stored`: each signal from the entities that store it).
 - :mod:`.sizing_plot`: the drives' torque-speed operating points
   against their limits (a PNG).
 - :mod:`.estimate`: cuff-force estimation along a recording

@@ -14,6 +14,9 @@ Entity hierarchy (the one place it is defined)::
     world/{exo,patient}/{left,right}/cuffs   Points3D: thigh cuff, shank cuff
     world/cuff_force/{cuff}                  Arrows3D: cuff force on the exoskeleton, drawn at
                                              the exo cuff, FORCE_ARROW_M_PER_N metres per newton
+    world/ground_force/{left,right}          Arrows3D: the belt's force on each exoskeleton
+                                             foot (with the contact on), and
+    world/patient_ground_force/{left,right}  on each patient foot (with the patient's feet on)
     signals/joint_angle/{joint}              Scalars (desired, actual, patient) [rad]
     signals/joint_speed/{joint}              Scalars (desired, actual, patient) [rad/s]
     signals/drive_torque/{joint}             Scalars [N·m]
@@ -26,9 +29,12 @@ Entity hierarchy (the one place it is defined)::
                                              flattened row-major (named by joint or cuff
                                              for a (4,) signal labelled so)
     raw/{signal}                             Scalars: one row per tick holding the signal's
-                                             whole row (row-major), for every signal
+                                             whole row (row-major), for a signal some value
+                                             of which no series shows (none in the schema
+                                             today; version 1 files: every signal)
     raw/meta                                 TextDocument, static: JSON (format marker, config,
-                                             model sources, Δt, signal layout)
+                                             model sources, Δt, signal layout, where each
+                                             value is stored, the signals left out)
     raw/outcome                              TextDocument, static: JSON written at the end
                                              (status, error, events, ticks, and the other
                                              plain fields of SimResult)
@@ -42,16 +48,29 @@ t_k = k Δt, stored in whole nanoseconds) and ``tick`` (the sequence k).
 Everything under ``signals/`` and ``raw/`` is logged at every tick; the 3-D
 entities at the scene rate (ticks k with k mod round(f_ctrl / f_scene) = 0).
 
-Exactness.  Rerun stores scalars as float64, so ``raw/`` holds every signal
-bit for bit, and the ``signals/`` series hold copies of the same values
-(the magnitudes are ``hypot(x, z)``).  3-D positions are float32 (rerun's
-Vec3D), so they are within about 1e-7 m of Pinocchio's.
+Every value once (version 2).  Each logged value is stored once, in the
+series that shows it: ``raw/meta``'s ``"columns"`` says, per stored entity,
+which signal and which component of its row each of the entity's components
+holds (``null`` for a magnitude), and :func:`~.reader.read_recording`
+rebuilds every signal from it.  The signals of the features that are off in
+the run (:mod:`.omitted`: no contact, fixed pelvis, ...) are constant and
+not stored: ``raw/meta``'s ``"left_out"`` gives each one's constant, and the
+reader fills it in.  Version 1 files also held every signal whole under
+``raw/{signal}`` (a second copy: 43 more entities, about 40 % of the file)
+and every signal of every feature; the reader still reads them.
+
+Exactness.  Rerun stores scalars as float64, so the series hold every
+signal bit for bit (the magnitudes are ``hypot(x, z)``, computed).  3-D
+positions are float32 (rerun's Vec3D), so they are within about 1e-7 m of
+Pinocchio's.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -77,8 +96,9 @@ __all__ = [
 
 #: Marker stored in ``raw/meta``; :func:`~.reader.read_recording` refuses files without it.
 RECORDING_FORMAT = "exo_ctrl.recording"
-#: Version of the layout described in the module docstring.
-FORMAT_VERSION = 1
+#: Version of the layout described in the module docstring (1: every signal
+#: also under ``raw/``, nothing left out; read all the same).
+FORMAT_VERSION = 2
 #: Length of a cuff-force arrow per newton of force [m/N] (1 mm per N).
 FORCE_ARROW_M_PER_N = 1e-3
 #: The timelines: simulated time (a duration) and the tick number.
@@ -174,12 +194,11 @@ class Series:
 class Layout:
     """Where each signal sits in a chunk's flat rows, and the series built from them.
 
-    A chunk of n ticks is packed as one float64 vector: signal s, flattened to
-    w_s values per row, occupies the (n, w_s) row-major block starting at
-    ``n * offsets[s]``.  The series read an *extended row* of ``width +
-    len(magnitudes)`` columns: columns ``offsets[s] … offsets[s] + w_s - 1``
-    are signal s, and column ``width + m`` is the magnitude
-    hypot(x, z) of the column pair ``magnitudes[m]``.
+    A tick's row holds every signal flattened, side by side: signal s, w_s
+    values per row, is columns ``offsets[s] … offsets[s] + w_s - 1``.  The
+    series read an *extended row* of ``width + len(magnitudes)`` columns,
+    whose column ``width + m`` is the magnitude hypot(x, z) of the column
+    pair ``magnitudes[m]``.
 
     Attributes:
         shapes: name → row shape, in log order.
@@ -196,24 +215,45 @@ class Layout:
     magnitudes: tuple[tuple[int, int], ...]
     series: tuple[Series, ...]
 
-    def gather_index(self, n: int) -> np.ndarray:
-        """Index into ``[packed signals (n·width), magnitudes (n, m) row-major]`` of the series.
-
-        ``source[gather_index(n)]`` is every series' (n, c) block, row-major,
-        one after the other in :attr:`series` order.
-        """
-        extra = len(self.magnitudes)
-        base = np.empty(self.width + extra, dtype=np.int64)
-        stride = np.empty(self.width + extra, dtype=np.int64)
+    def column_of(self, column: int) -> tuple[str, int] | None:
+        """(signal, flat index in its row) of a column of the extended row; None for a magnitude."""
         for name, shape in self.shapes.items():
-            w, off = math.prod(shape), self.offsets[name]
-            base[off : off + w] = n * off + np.arange(w)
-            stride[off : off + w] = w
-        base[self.width :] = n * self.width + np.arange(extra)
-        stride[self.width :] = extra
-        rows = np.arange(n, dtype=np.int64)[:, None]
-        blocks = [base[list(s.columns)] + rows * stride[list(s.columns)] for s in self.series]
-        return np.concatenate([b.ravel() for b in blocks]) if blocks else np.zeros(0, np.int64)
+            off = self.offsets[name]
+            if off <= column < off + math.prod(shape):
+                return name, column - off
+        return None
+
+    def raw_signals(self) -> tuple[str, ...]:
+        """The signals some column of which no series shows: stored whole under ``raw/``."""
+        shown = {c for s in self.series for c in s.columns}
+        return tuple(
+            name
+            for name, shape in self.shapes.items()
+            if not all(self.offsets[name] + i in shown for i in range(math.prod(shape)))
+        )
+
+    def stored(self) -> dict[str, list[tuple[str, int] | None]]:
+        """Entity → what each of its components holds: (signal, flat index), None for a magnitude.
+
+        Every series, and ``raw/{signal}`` of :meth:`raw_signals`: where
+        :func:`~.reader.read_recording` finds each value (``raw/meta``'s
+        ``"columns"``).
+        """
+        out: dict[str, list[tuple[str, int] | None]] = {
+            s.entity: [self.column_of(c) for c in s.columns] for s in self.series
+        }
+        for name in self.raw_signals():
+            out[f"raw/{name}"] = [(name, i) for i in range(math.prod(self.shapes[name]))]
+        return out
+
+    def without(self, left_out: Iterable[str]) -> Layout:
+        """The layout without the series that show only signals of ``left_out``."""
+        gone = set(left_out)
+
+        def kept(s: Series) -> bool:
+            return any((c := self.column_of(i)) is not None and c[0] not in gone for i in s.columns)
+
+        return dataclasses.replace(self, series=tuple(s for s in self.series if kept(s)))
 
 
 def layout(shapes: dict[str, tuple[int, ...]] | None = None) -> Layout:
@@ -344,8 +384,9 @@ def params_markdown(result: SimResult, meta: dict[str, Any]) -> str:
     lines += [
         "## Reading back",
         "",
-        "`exo_ctrl.read_recording(path)` rebuilds the run (every signal under `raw/`, "
-        "float64, exact).",
+        "`exo_ctrl.read_recording(path)` rebuilds the run (every signal from the series "
+        "that show it, float64, exact; those of the features off in the run, constant, "
+        "from `raw/meta`).",
         "",
     ]
     return "\n".join(lines)

@@ -1,7 +1,8 @@
 """Reading a recording back: :func:`read_recording` rebuilds the run from its file.
 
-The file's layout is that of :mod:`.format`.  Every signal comes
-from its ``raw/<name>`` entity, bit for bit; ``t`` is rebuilt as k Δt from
+The file's layout is that of :mod:`.format`.  Every signal comes from the
+entities that store it, bit for bit (:mod:`.stored`: the series showing
+it, or ``raw/<name>`` in files of version 1); ``t`` is rebuilt as k Δt from
 the ``tick`` timeline (exactly as :func:`~exo_ctrl.sim.simulate` computes
 it), not from the nanosecond ``sim_time``.  A file cut short by a crash is
 read up to what reached the disk (see :func:`read_recording`);
@@ -14,7 +15,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
-import math
 import os
 import struct
 import tempfile
@@ -25,8 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.compute as pc
 from rerun.chunk import RrdReader
 
 from ..estimation import EstimateErrorStats
@@ -37,6 +35,7 @@ from ..sim.gait_score import gait_score_stats
 from ..sim.load_stats import load_stats
 from ..sim.summary import contact_stats
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
+from .stored import assemble, scalar_rows, where_stored
 
 __all__ = ["RecordingIntegrity", "read_recording", "read_recording_integrity"]
 
@@ -102,8 +101,12 @@ class RecordingIntegrity:
 def read_recording(path: str | os.PathLike[str]) -> SimResult:
     """Rebuild a run's :class:`~exo_ctrl.sim.SimResult` from its recording.
 
-    Every signal comes from ``raw/<name>`` bit for bit (float64); ``t`` is
-    ``k Δt`` for the ticks k = 0 … N-1 in the file.  Status, error, events,
+    Every signal comes bit for bit (float64) from the series that show it
+    (files of version 1: from ``raw/<name>``; :mod:`.stored`); a signal the
+    run left out, a feature that was off (:mod:`.omitted`), is the constant
+    ``raw/meta`` gives for it, so the result holds every signal the run
+    logged, as it logged it.  ``t`` is ``k Δt`` for the ticks k = 0 … N-1 in
+    the file.  Status, error, events,
     wall time and the other plain fields of the result come from
     ``raw/outcome``; a file without it (the process died before the run
     finished) reads as ``"interrupted"`` with the ticks that reached the disk.
@@ -136,10 +139,10 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
     note = f"; the file was cut at byte {cut} of {p.stat().st_size}" if cut is not None else ""
 
     texts: dict[str, str] = {}
-    raw: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    raw: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}  # entity → its chunks' rows
     for chunk in chunks:
         entity = chunk.entity_path.lstrip("/")
-        if not entity.startswith("raw/"):
+        if not entity.startswith(("raw/", "signals/")):
             continue
         batch = chunk.to_record_batch()
         if entity in ("raw/meta", "raw/outcome"):
@@ -149,7 +152,7 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
                     texts[entity] = values[-1][-1]
             continue
         if "Scalars:scalars" in batch.schema.names and TICK in batch.schema.names:
-            raw.setdefault(entity[4:], []).append(_scalar_rows(p, entity, batch))
+            raw.setdefault(entity, []).append(scalar_rows(p, entity, batch))
 
     if "raw/meta" not in texts:
         raise RecordingError(f"cannot read recording {p}: not written by exo_ctrl (no raw/meta)")
@@ -162,7 +165,8 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
     config = _config_from_dict(p, meta.get("config", {}))
     shapes = schema_shapes()
     stored = meta.get("signals") or shapes
-    signals = _assemble(p, {k: tuple(int(x) for x in v) for k, v in stored.items()}, raw)
+    stored = {k: tuple(int(x) for x in v) for k, v in stored.items()}
+    signals = assemble(p, stored, *where_stored(p, meta, stored), raw)
     n = next(iter(signals.values())).shape[0] if signals else 0
 
     outcome: dict[str, Any]
@@ -298,52 +302,6 @@ def _copy_bytes(src: Any, dst: Any, n: int, block: int = 1 << 20) -> None:
             break
         dst.write(data)
         n -= len(data)
-
-
-def _scalar_rows(path: Path, entity: str, batch: pa.RecordBatch) -> tuple[np.ndarray, np.ndarray]:
-    """(ticks (n,), values (n, width)) of one chunk of a multi-component Scalars entity."""
-    ticks = batch.column(TICK).to_numpy(zero_copy_only=False).astype(np.int64)
-    column = batch.column("Scalars:scalars")
-    lengths = pc.list_value_length(column).to_numpy(zero_copy_only=False)
-    n = ticks.shape[0]
-    if n == 0:
-        return ticks, np.zeros((0, 0))
-    width = int(lengths[0])
-    if column.null_count or np.any(lengths != width):
-        raise RecordingError(f"cannot read recording {path}: {entity} has rows of unequal width")
-    values = column.flatten().to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
-    return ticks, values.reshape(n, width)
-
-
-def _assemble(
-    path: Path,
-    layout: dict[str, tuple[int, ...]],
-    raw: dict[str, list[tuple[np.ndarray, np.ndarray]]],
-) -> dict[str, np.ndarray]:
-    """Signal arrays (name → (N, *shape)) over the ticks 0 … N-1 present in every signal."""
-    per_signal: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for name, shape in layout.items():
-        width = math.prod(shape)
-        parts = raw.get(name, [])
-        if parts:
-            ticks = np.concatenate([t for t, _ in parts])
-            values = np.concatenate([v.reshape(-1, width) for _, v in parts if v.size], axis=0)
-        else:
-            ticks, values = np.zeros(0, dtype=np.int64), np.zeros((0, width))
-        if values.shape[0] != ticks.shape[0]:
-            raise RecordingError(f"cannot read recording {path}: raw/{name} has a bad row width")
-        ticks, first = np.unique(ticks, return_index=True)  # sorted; duplicates dropped
-        values = values[first]
-        n = ticks.shape[0]
-        if n and (ticks[0] != 0 or ticks[-1] != n - 1):
-            missing = np.setdiff1d(np.arange(ticks[-1] + 1), ticks)
-            raise RecordingError(
-                f"cannot read recording {path}: raw/{name} misses {missing.size} ticks "
-                f"(first {int(missing[0])})"
-            )
-        per_signal[name] = (ticks, values.reshape(n, *shape))
-    n_common = min((t.shape[0] for t, _ in per_signal.values()), default=0)
-    return {name: values[:n_common].copy() for name, (_, values) in per_signal.items()}
 
 
 def _field_types(cls: type) -> dict[str, Any]:

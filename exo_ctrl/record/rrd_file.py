@@ -14,13 +14,15 @@ footer began (the file is cut there first, then the new messages and the
 new footer follow).  A kill in the middle of that write would leave the
 file ending in a cut message (every earlier append still readable by
 :func:`~.reader.read_recording`, but ``rerun rrd verify`` rejects it): with
-the default run writing about 5 MB per 2000-tick chunk and simulating a
-chunk in 30-40 ms, a kill at a random moment landed in a write 4 times in
-30.  So a regular file is written by a small process of its own
-(:mod:`.write_process`, in its own session): it carries a write out only
-once the whole request has arrived, and completes it even if the recording
-process is gone.  A SIGKILL of the recording process therefore never cuts a
-write (none in 30 random kills); what can still cut one is killing the
+the default run writing about 5 MB per 2000-tick chunk (format version 1;
+3 MB now) and simulating a chunk in 30-40 ms, a kill at a random moment
+landed in a write 4 times in 30.  So a regular file is written by a small
+process of its own (:mod:`.write_process`, in its own session): it carries
+a write out only once the whole request has arrived, and completes it even
+if the recording process is gone.  The bytes reach it through a buffer both
+map (a memfd, on Linux), not through the pipe, which carries the request.
+A SIGKILL of the recording process therefore never cuts a write (none in
+30 random kills); what can still cut one is killing the
 writer process itself, or the machine losing power, both of which leave
 the file readable up to its last complete append.  A special file
 (``/dev/null``, a FIFO) cannot be rewritten in place: it is written
@@ -33,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import mmap
 import os
 import signal
 import subprocess
@@ -69,24 +72,44 @@ class RrdFile:
         flags = os.O_WRONLY | (0 if self.special else os.O_CREAT | os.O_TRUNC)
         self._fd: int | None = os.open(self.path, flags | os.O_CLOEXEC, 0o666)
         self._writer: subprocess.Popen | None = None
+        self._shared: _Shared | None = None
         if not self.special:
+            with contextlib.suppress(OSError, AttributeError):  # not Linux: through the pipe
+                self._shared = _Shared()
             with contextlib.suppress(OSError):  # no interpreter to run it: write in place here
-                self._writer = _start_writer(self._fd)
+                self._writer = _start_writer(self._fd, self._shared)
         self._header: bytes | None = None
         self._end = 0  # end of the messages written so far
         self._tail = b""  # the footer at _end, as last written
         self._manifests = Manifests()
+        self._awaiting = False  # a request was sent, its answer not yet read
+        self._pending: tuple[bytes, int, bytes] | None = None  # header, end, tail once written
+
+    def reserve(self, size: int) -> None:
+        """Make room ahead for appends of up to ``size`` bytes (the writer's shared buffer)."""
+        if self._shared is not None:
+            self._shared.reserve(size)
 
     @property
     def bytes_written(self) -> int:
         """Bytes of messages in the file (the footer not counted)."""
         return self._end
 
-    def append(self, data: bytes | None) -> None:
+    def append(self, data: bytes | None, wait: bool = True) -> None:
         """Write the messages of one complete RRD stream, then the footer of the whole file.
 
         After a failed append the file is to be closed (:meth:`abandon`),
         not appended to again: the merged footer already holds that stream.
+
+        Args:
+            data: the stream (rerun's encoding since the last append).
+            wait: wait for the writer process's answer; with False, return
+                once the request is handed over (the write then completes
+                whatever happens to this process) and let :meth:`wait`
+                read the answer, in another thread (the write-behind
+                thread then takes the interpreter lock once less: each time
+                it takes it back from a busy loop cost that loop 1-3 ms
+                here, on a loaded machine).
 
         Raises:
             OSError: writing failed (disk full); a regular file is then put
@@ -98,10 +121,29 @@ class RrdFile:
         if not data:
             return
         with signals_held():
-            self._append(data)
+            self._append(data, wait)
 
-    def _append(self, data: bytes) -> None:
+    def wait(self) -> None:
+        """Wait for the answer to the last append's write, if it was not waited for.
+
+        Raises:
+            OSError: that write failed; the file is put back as it was before it.
+
+        """
+        if not self._awaiting:
+            return
+        with signals_held():
+            try:
+                self._answer()
+            except OSError:
+                self._pending = None
+                self._restore()
+                raise
+            self._commit()
+
+    def _append(self, data: bytes, wait: bool) -> None:
         """:meth:`append` with SIGINT and SIGTERM held (the footer's state and the file agree)."""
+        self.wait()  # the previous write's answer first (one request at a time)
         parts = split_stream(data)
         if self._header is not None and parts.header != self._header:
             raise RecordingError("rerun changed its stream header between two chunks")
@@ -110,13 +152,23 @@ class RrdFile:
         self._manifests.add(parts.footer, base - HEADER_SIZE)
         start, end = base - len(head), base + len(parts.body)
         tail = b"" if self.special else end_of_stream(self._manifests.encode(), end)
+        self._pending = (parts.header, end, tail)
         try:
-            self._write([head, parts.body, tail], start)
+            self._write([head, parts.body, tail], start, wait)
         except OSError:
+            self._pending = None
             self._restore()
             raise
-        self._header = self._header or parts.header
-        self._end, self._tail = end, tail
+        if not self._awaiting:
+            self._commit()
+
+    def _commit(self) -> None:
+        """The pending append is on disk: the file's state follows."""
+        if self._pending is not None:
+            header, end, tail = self._pending
+            self._pending = None
+            self._header = self._header or header
+            self._end, self._tail = end, tail
 
     def close(self) -> None:
         """Finish the file (a special file gets its footer now) and close it; idempotent.
@@ -128,6 +180,7 @@ class RrdFile:
         if self._fd is None:
             return
         try:
+            self.wait()
             if self.special and self._header is not None:
                 self._write([end_of_stream(self._manifests.encode(), self._end)], self._end)
         finally:
@@ -139,6 +192,9 @@ class RrdFile:
         writer, self._writer = self._writer, None
         if writer is not None:
             _stop_writer(writer)
+        shared, self._shared = self._shared, None
+        if shared is not None:
+            shared.close()
         if fd is not None:
             with contextlib.suppress(OSError):
                 os.close(fd)
@@ -154,17 +210,20 @@ class RrdFile:
         with contextlib.suppress(OSError):
             self._write([self._tail], self._end)
 
-    def _write(self, pieces: list, offset: int) -> None:
+    def _write(self, pieces: list, offset: int, wait: bool = True) -> None:
         """Write ``pieces`` (bytes-like) one after the other at ``offset``.
 
         A regular file is first cut at ``offset`` (the old footer goes), then
-        written, by the writer process (module docstring), or here if it
-        could not be started (no interpreter at ``sys.executable``: then a
-        kill of this process during the write can cut it); a special file is
-        written here, in one ``writev``.
+        written, by the writer process (module docstring; ``wait``: for its
+        answer, else :meth:`wait` reads it), or here if it could not be
+        started (no interpreter at ``sys.executable``: then a kill of this
+        process during the write can cut it); a special file is written
+        here, in one ``writev``.
         """
         if self._fd is None:
             raise RecordingError(f"recording {self.path} is closed")
+        if self._awaiting:  # one request at a time: the shared buffer is the writer's till then
+            self._answer()
         views = [memoryview(p).cast("B") for p in pieces if len(p)]
         if self._writer is None:
             if not self.special:
@@ -175,11 +234,27 @@ class RrdFile:
         stdin, stdout = self._writer.stdin, self._writer.stdout
         if stdin is None or stdout is None:
             raise RecordingError(f"recording {self.path}: its writer process has no pipes")
+        shared = self._shared is not None and self._shared.fill(views, total)
+        if shared:  # the bytes are in the shared buffer, not in the pipe
+            views = []
         try:
-            _write_all(stdin.fileno(), [memoryview(REQUEST.pack(offset, total)), *views])
-            answer = _read_exact(stdout.fileno(), ANSWER.size)
+            _write_all(stdin.fileno(), [memoryview(REQUEST.pack(offset, total, shared)), *views])
         except BrokenPipeError:
-            answer = None
+            raise OSError(errno.EPIPE, "the recording's writer process ended") from None
+        self._awaiting = True
+        if wait:
+            self._answer()
+
+    def _answer(self) -> None:
+        """Read the writer process's answer to the request sent last.
+
+        Raises:
+            OSError: the write failed (its errno), or the writer process ended.
+
+        """
+        self._awaiting = False
+        stdout = self._writer.stdout if self._writer is not None else None
+        answer = _read_exact(stdout.fileno(), ANSWER.size) if stdout is not None else None
         if answer is None:
             raise OSError(errno.EPIPE, "the recording's writer process ended")
         (error,) = ANSWER.unpack(answer)
@@ -187,14 +262,76 @@ class RrdFile:
             raise OSError(error, os.strerror(error))
 
 
-def _start_writer(fd: int) -> subprocess.Popen:
+class _Shared:
+    """The buffer the writer process reads a request's bytes from: a memfd both map.
+
+    It grows to the largest request (a quarter more, whole pages; or ahead,
+    :meth:`reserve`); it is filled only while the writer process waits for a
+    request (the protocol is one request, one answer), so the two never
+    touch it at once.
+
+    Raises:
+        OSError, AttributeError: no memfd (not Linux).
+
+    """
+
+    def __init__(self) -> None:
+        self.fd = os.memfd_create("exo-ctrl-rrd", os.MFD_CLOEXEC)
+        self._map: mmap.mmap | None = None
+
+    def reserve(self, total: int) -> bool:
+        """Grow the buffer to hold ``total`` bytes and a quarter more, its pages touched.
+
+        False if it cannot grow (the file-size limit, ``RLIMIT_FSIZE``, holds
+        for it too).  New pages cost a fault each on first touch (2-3 ms for
+        the 3 MB of a default chunk here): touched ahead, before the run.
+        """
+        if self._map is not None and len(self._map) >= total:
+            return True
+        size = -(-(total + total // 4) // mmap.PAGESIZE) * mmap.PAGESIZE
+        try:
+            os.ftruncate(self.fd, size)
+            grown = mmap.mmap(self.fd, size)
+        except OSError:
+            return False
+        if self._map is not None:
+            self._map.close()
+        self._map = grown
+        grown[:: mmap.PAGESIZE] = bytes(size // mmap.PAGESIZE)
+        return True
+
+    def fill(self, views: list[memoryview], total: int) -> bool:
+        """Copy ``views``, one after the other, to the buffer's start (``total`` bytes).
+
+        Returns False, the buffer unchanged, if it cannot grow to ``total``
+        (the file-size limit, ``RLIMIT_FSIZE``, holds for it too): the bytes
+        then go through the pipe.
+        """
+        if not self.reserve(total) or self._map is None:
+            return False
+        at = 0
+        for view in views:
+            self._map[at : at + len(view)] = view
+            at += len(view)
+        return True
+
+    def close(self) -> None:
+        if self._map is not None:
+            self._map.close()
+            self._map = None
+        with contextlib.suppress(OSError):
+            os.close(self.fd)
+
+
+def _start_writer(fd: int, shared: _Shared | None = None) -> subprocess.Popen:
     """The writer process for the file open as ``fd`` (its own session: see the module)."""
     script = Path(__file__).with_name("write_process.py")
+    fds = (fd,) if shared is None else (fd, shared.fd)
     writer = subprocess.Popen(
-        [sys.executable, "-I", "-S", str(script), str(fd)],
+        [sys.executable, "-I", "-S", str(script), *map(str, fds)],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
-        pass_fds=(fd,),
+        pass_fds=fds,
         start_new_session=True,
     )
     if writer.stdin is not None:  # fewer round trips for a chunk of a few MB (Linux)

@@ -30,7 +30,7 @@ import rerun as rr
 
 from ..model import CUFF_NAMES, SIDES, BodyModel
 from ..plan import GaitParams, GaitPlan
-from .columns import EntityBatch, list_offsets, pool_array
+from .columns import EntityBatch, list_offsets, pool_vector
 from .format import COLORS, FORCE_ARROW_M_PER_N
 
 __all__ = ["Skeleton", "log_scene_static", "send_scene"]
@@ -45,6 +45,8 @@ _POSITIONS = rr.Points3D.descriptor_positions()
 _LINES = rr.LineStrips3D.descriptor_strips()
 _ORIGINS = rr.Arrows3D.descriptor_origins()
 _VECTORS = rr.Arrows3D.descriptor_vectors()
+#: List offsets by (rows, items per row), kept (:func:`_offsets`).
+_OFFSETS: dict[tuple[int, int], pa.Array] = {}
 
 
 def _skew(a: np.ndarray) -> np.ndarray:
@@ -166,22 +168,40 @@ def _static(rec: rr.RecordingStream, entity: str, archetype: Any) -> None:
 
 def _vec3(points: np.ndarray) -> pa.Array:
     """Points (..., 3) [m] as rerun's Vec3D components (float32)."""
-    flat = pool_array(points.astype(np.float32), pa.float32())
+    vector, buffer = pool_vector(points.size, np.float32)
+    vector.reshape(points.shape)[...] = points
+    flat = pa.Array.from_buffers(pa.float32(), points.size, [None, buffer])
     return pa.FixedSizeListArray.from_arrays(flat, type=_VEC3)
+
+
+def _offsets(rows: int, per_row: int) -> pa.Array:
+    """:func:`list_offsets`, cached (the same every chunk; rerun only reads them)."""
+    key = (rows, per_row)
+    found = _OFFSETS.get(key)
+    if found is None:
+        if len(_OFFSETS) >= 64:
+            _OFFSETS.clear()
+        found = _OFFSETS[key] = list_offsets(rows, per_row)
+    return found
 
 
 def _strips(points: np.ndarray) -> pa.Array:
     """Line strips (k, p, 3) [m] as rerun's LineStrip3D components."""
     k, p = points.shape[:2]
-    return pa.ListArray.from_arrays(list_offsets(k, p), _vec3(points), type=_STRIP)
+    return pa.ListArray.from_arrays(_offsets(k, p), _vec3(points), type=_STRIP)
 
 
 def log_scene_static(
-    rec: rr.RecordingStream, gait: GaitParams, exo: BodyModel, patient_feet: bool = False
+    rec: rr.RecordingStream,
+    gait: GaitParams,
+    exo: BodyModel,
+    patient_feet: bool = False,
+    ground: bool = True,
 ) -> dict[str, float]:
     """Styles of the moving entities, the belt and the planned foot paths (static).
 
-    ``patient_feet``: the run's patient feet meet the belt (their force arrows).
+    ``patient_feet``: the run's patient feet meet the belt (their force arrows);
+    ``ground``: the belt's force on the exoskeleton's feet is drawn (the contact on).
 
     The foot path of each leg is the plan's foot position relative to the hip
     (:meth:`GaitPlan.feet` over one period) plus the exo's hip position.  The
@@ -203,9 +223,10 @@ def log_scene_static(
     for cuff in CUFF_NAMES:
         arrows = rr.Arrows3D.from_fields(radii=0.006, colors=COLORS["force"])
         _static(rec, f"world/cuff_force/{cuff}", arrows)
-    for side in SIDES:  # the belt's force on each exoskeleton foot (zero without contact)
+    for side in SIDES:  # the belt's force on each exoskeleton foot (with the contact on)
         arrows = rr.Arrows3D.from_fields(radii=0.006, colors=COLORS["force"])
-        _static(rec, f"world/ground_force/{side}", arrows)
+        if ground:
+            _static(rec, f"world/ground_force/{side}", arrows)
         if patient_feet:  # and on each patient foot (ContactParams.patient_feet)
             _static(rec, f"world/patient_ground_force/{side}", arrows)
     data = exo.model.createData()
@@ -276,7 +297,7 @@ def send_scene(
     m = ticks.shape[0]
     t = ticks * dt
     batch = EntityBatch(ticks, dt)
-    one, two, three = list_offsets(m, 1), list_offsets(m, 2), list_offsets(m, 3)
+    one, two, three = _offsets(m, 1), _offsets(m, 2), _offsets(m, 3)
     exo_cuffs, exo_feet = np.zeros((m, 4, 3)), np.zeros((m, 2, 3))
     feet = {"exo": exo_feet, "patient": np.zeros((m, 2, 3))}
     for body, skeleton, q in bodies:
@@ -315,5 +336,5 @@ def send_scene(
     stripes[..., 0, 1] = belt["y_min"]
     stripes[..., 1, 1] = belt["y_max"]
     stripes[..., 2] = belt["z"]
-    batch.add("world/belt/stripes", _LINES, _strips(stripes.reshape(-1, 2, 3)), list_offsets(m, ns))
+    batch.add("world/belt/stripes", _LINES, _strips(stripes.reshape(-1, 2, 3)), _offsets(m, ns))
     batch.send(rec)

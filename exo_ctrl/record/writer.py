@@ -1,10 +1,12 @@
 """Writing a run to a rerun ``.rrd`` file while it goes: :class:`RerunRecorder`.
 
 The recorder is a :class:`~exo_ctrl.sim.SimObserver`.  Per chunk of rows it
-packs every signal of the log schema into one float64 vector
-(:class:`~.format.Layout`), sends each entity with one ``send_columns`` call
-(no per-tick ``rr.log``), the 3-D scene at the scene rate only, and the time
-series at every tick.  The entity hierarchy is in :mod:`.format`.
+copies the components of every series straight from the rows into one
+float64 vector (:class:`~.columns.SignalColumns`), sends each entity with
+one ``send_columns`` call (no per-tick ``rr.log``), the 3-D scene at the
+scene rate only, and the time series at every tick.  Each value is stored
+once, and the signals of the features off in the run are left out
+(:mod:`.omitted`); the entity hierarchy is in :mod:`.format`.
 
 Failure safety.  Rerun encodes the recording into memory (a
 ``BinaryStream``, no file sink of its own); after :meth:`start`, each
@@ -16,7 +18,7 @@ complete recording that ``rerun rrd verify`` accepts, whatever happens
 next, SIGKILL of this process included (:mod:`.rrd_file` says what can
 still cut a write).  By default a chunk is written in a helper thread while
 the loop simulates the next one (``write_behind``): it is on disk, with its
-exact signals ``raw/``, its series ``signals/`` and its 3-D scene, by the
+series ``signals/`` and its 3-D scene, by the
 time the next chunk is handed over, :meth:`~RerunRecorder.sync` or
 :meth:`~RerunRecorder.finish` returns, so a hard kill loses at most the
 chunk being written; with ``write_behind=False`` it is on disk when
@@ -32,18 +34,25 @@ exits cleanly.  Every way a run ends (normal end, divergence, Ctrl-C,
 SIGTERM, an error in the loop or in an observer) reaches
 :meth:`~RerunRecorder.finish`, which logs the events and the outcome.
 
-Speed.  Measured here (rerun 0.41, 2 shared cores), a 2000-tick chunk of the
-default run costs the loop 13-17 ms with write-behind (27 ms without):
-rerun's own work per entity and chunk in the calling thread (about 7 ms for
-the 61 entities logged every tick and the 17 of the scene, and the 3-D
-scene's forward kinematics), then, in the helper thread, rerun encoding it
-into memory (about 11 ms, the interpreter lock released), the footer
-(2-3 ms) and handing about 5 MB to the writer process (4-6 ms).
+Speed.  Measured here (rerun 0.41, 2 cores shared with other work, CT,
+default run), a 2000-tick chunk costs the loop's thread 5 ms of CPU (8-10
+ms of wall time on a loaded machine): about 55-90 µs per ``send_columns``
+call (35 series, 15 scene entities), the copy into the series' vector
+(1 ms), the scene's forward kinematics; then the helper thread 12-18 ms
+(rerun's encoding 9-11 ms, the footer 3-6 ms) and the writer process 2 ms.
+Rerun's cost is per entity and row (each row of an entity carries a row id
+and both timelines, 36 B, against 8 B per value), so the entity count is
+what a recording costs: format version 1 (every signal twice, under
+``raw/`` too, and the 31 entities of the features off in the run) cost the
+loop's thread 15-20 ms and the helper 30-37 ms per chunk.  While the helper
+runs, the loop runs at about half speed on a loaded machine (the other core
+busy, and each time the helper takes the interpreter lock back from the
+loop, 1-3 ms): 20 ms of the loop's time per chunk, 40 with version 1.
 
-Memory.  The recorder keeps no rows between chunks: it packs the chunk it is
-given into arrays of pyarrow's memory pool, sends them, and rerun frees them
-once encoded; the encoded bytes are written and dropped at each chunk.
-What grows is the footer's index, one row per entity and chunk (about 80
+Memory.  The recorder keeps no rows between chunks: it copies the chunk it
+is given into arrays of pyarrow's memory pool, sends them, and rerun frees
+them once encoded; the encoded bytes are written and dropped at each chunk.
+What grows is the footer's index, one row per entity and chunk (about 50
 rows per chunk, a few hundred bytes each before compression), held as an
 Arrow table and rewritten compressed after every chunk; larger
 ``chunk_ticks`` shrink it.
@@ -52,9 +61,9 @@ Arrow table and rewritten compressed after every chunk; larger
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import math
 import os
+import queue
 import shutil
 import threading
 import warnings
@@ -68,47 +77,37 @@ from .._io import is_special, output_problem
 from ..exceptions import InvalidParameter, OutputError, RecordingError
 from ..model import BodyModel, load_body, load_patient
 from ..sim import SimResult
-from .biofeedback import log_biofeedback
 from .blueprint import make_blueprint
-from .columns import SignalColumns
+from .columns import EntityBatch, SignalColumns, log_styles
 from .format import (
     FORCE_ARROW_M_PER_N,
     FORMAT_VERSION,
-    NOT_IN_OUTCOME,
     RECORDING_FORMAT,
-    TICK,
-    TIME,
     dumps,
     layout,
     params_markdown,
 )
+from .omitted import left_out_signals
+from .outcome import log_outcome
 from .rrd_file import RrdFile, signals_held
 from .scene import Skeleton, log_scene_static, send_scene
+from .size import BYTES_PER_TICK_ESTIMATE, bytes_per_tick
 from .viewer import find_viewer, spawn_viewer
 
-__all__ = ["DEFAULT_SCENE_RATE_HZ", "RerunRecorder", "find_viewer", "spawn_viewer"]
+__all__ = [
+    "BYTES_PER_TICK_ESTIMATE",
+    "DEFAULT_SCENE_RATE_HZ",
+    "RerunRecorder",
+    "bytes_per_tick",
+    "find_viewer",
+    "spawn_viewer",
+]
 
 #: Default rate of the 3-D scene [Hz]: a display rate, far below the control rate.
 DEFAULT_SCENE_RATE_HZ = 50.0
-#: Estimated file size per tick [B], for the free-space check: the default
-#: run (3600 ticks at 1 kHz, 3-D scene at 50 Hz) writes 12.67 MB, 3519 B per
-#: tick with the fixed part (blueprint, parameters, geometry) spread over it
-#: (3057 B before the patient's feet's four signals were logged).
-BYTES_PER_TICK_ESTIMATE = 3520
 #: Longest wait for rerun to encode what was sent [s] (a 2000-tick chunk takes
 #: milliseconds); past it rerun raises, which becomes a RecordingError.
 FLUSH_TIMEOUT_S = 10.0
-
-#: TextLog level of an event or final status by kind.
-_LEVELS = {
-    "completed": "INFO",
-    "diverged": "ERROR",
-    "interrupted": "WARN",
-    "error": "ERROR",
-    "violation": "WARN",
-    "estop": "WARN",
-    "state": "INFO",
-}
 
 
 class RerunRecorder:
@@ -154,7 +153,13 @@ class RerunRecorder:
         self._stream: rr.BinaryStream | None = None
         self._file: RrdFile | None = None
         self._failed = False
-        self._pending: threading.Thread | None = None  # the write of the last chunk
+        # The helper thread that writes chunks behind the loop, its queue of
+        # jobs (the ticks on disk once done; None: stop), and "no job pending".
+        self._worker: threading.Thread | None = None
+        self._jobs: queue.SimpleQueue[int | None] = queue.SimpleQueue()
+        self._idle = threading.Event()
+        self._idle.set()
+        self._written: int | None = None  # ticks the last write hands over, once on disk
         self._pending_error: BaseException | None = None
         self._on_disk = 0  # ticks whose write has completed
         self._next_tick = 0
@@ -172,13 +177,14 @@ class RerunRecorder:
         if self._rec is not None:
             raise RecordingError(f"recorder for {self.path} is already recording a run")
         config = result.config
+        self._stride = max(1, round(config.control_rate_hz / self.scene_rate_hz))
+        lay = layout()  # the log schema as it is now, less the features off in the run
+        self._columns = SignalColumns(lay, left_out_signals(config, set(lay.shapes)))
         self._check_writable(config.n_ticks)
         self._failed = False
         self._pending_error = None
         self._next_tick = self._on_disk = 0
         self._dt = config.dt
-        self._stride = max(1, round(config.control_rate_hz / self.scene_rate_hz))
-        self._columns = SignalColumns(layout())  # the log schema as it is now
         self._columns.prepare(min(config.chunk_ticks, max(config.n_ticks, 1)))  # the loop's chunks
         exo = load_body(result.exo_source, name="exoskeleton")
         patient = load_patient(config.patient)
@@ -197,12 +203,16 @@ class RerunRecorder:
         sinks: list = [stream]
         if self.spawn and self._spawn_viewer(rec):
             sinks.append(rr.GrpcSink())
-        rec.set_sinks(*sinks, default_blueprint=make_blueprint())
+        rec.set_sinks(*sinks, default_blueprint=make_blueprint(self._columns.layout))
         self._rec, self._stream, self._file = rec, stream, file
+        chunk = min(config.chunk_ticks, max(config.n_ticks, 1))  # a chunk's bytes, ahead
+        file.reserve(chunk * bytes_per_tick(len(self._columns.layout.series), self._stride))
         try:
             rec.send_recording_name(self.path.stem)
             self._log_static(result, exo, offset)
             self._write()
+            if self.write_behind:
+                self._start_worker()
         except (RecordingError, RuntimeError, OSError) as exc:
             # The loop never calls finish() when start() fails: close here.
             self._failed = True
@@ -234,14 +244,18 @@ class RerunRecorder:
         n = total - skip
         columns = self._columns
         try:
-            source, values = columns.pack(rows, skip, n)
+            columns.check(rows)
         except RecordingError as exc:
             self._fail(exc)
         ticks = np.arange(start + skip, start + total, dtype=np.int64)
         try:
-            columns.send_raw(rec, ticks, self._dt, values)
-            self._send_scene(rec, ticks, source, n, result.belt_speed_mps)
-            columns.send_series(rec, ticks, self._dt, source)
+            log_styles(rec, columns.check_left_out(rows, skip))
+            values = columns.series_values(rows, skip, n)
+            batch = EntityBatch(ticks, self._dt)
+            columns.send_series(rec, batch, values)
+            if columns.raw:
+                columns.send_raw(rec, EntityBatch(ticks, self._dt), rows, skip)
+            self._send_scene(rec, ticks, rows, skip, result.belt_speed_mps)
         except (RecordingError, RuntimeError, OSError) as exc:
             self._fail(exc)
         self._next_tick = start + total
@@ -263,7 +277,7 @@ class RerunRecorder:
         try:
             error = self._join()
             if error is None and not self._failed:
-                self._log_outcome(rec, result)
+                log_outcome(rec, result, self._next_tick, self._dt)
                 self._write()
         except (RecordingError, RuntimeError, OSError) as exc:
             error = exc
@@ -296,6 +310,7 @@ class RerunRecorder:
 
         """
         self._join()
+        self._stop_worker()
         rec, self._rec, self._stream = self._rec, None, None
         file, self._file = self._file, None
         if rec is not None:
@@ -311,40 +326,72 @@ class RerunRecorder:
         except OSError as exc:
             self._fail(exc)
 
-    def _write(self) -> None:
-        """Write what rerun encoded since the last write (whole messages and a footer)."""
+    def _write(self, wait: bool = True) -> None:
+        """Write what rerun encoded since the last write (whole messages and a footer).
+
+        ``wait``: for the write's end (else :meth:`_join` waits, see
+        :meth:`RrdFile.append <.rrd_file.RrdFile.append>`).
+        """
         stream, file = self._stream, self._file
         if stream is None or file is None:
             return
         with signals_held():  # what rerun hands over reaches the file whole
-            file.append(stream.read(flush=True, flush_timeout_sec=FLUSH_TIMEOUT_S))
+            file.append(stream.read(flush=True, flush_timeout_sec=FLUSH_TIMEOUT_S), wait)
 
     def _write_behind(self, ticks: int) -> None:
-        """:meth:`_write` in a helper thread; ``ticks`` are on disk once it is done.
+        """:meth:`_write` in the helper thread; ``ticks`` are on disk once it is done.
 
         Rerun encodes while reading (``BinaryStream.read``, about 10 ms for a
         2000-tick chunk) and releases the interpreter lock meanwhile, as the
-        write does: the loop simulates the next chunk in the meantime.
+        write does: the loop simulates the next chunk in the meantime.  The
+        thread lives from :meth:`start` to :meth:`close` (starting one per
+        chunk cost the loop about 1 ms here).
         """
+        self._start_worker()
+        self._idle.clear()
+        self._jobs.put(ticks)
 
-        def job() -> None:
+    def _start_worker(self) -> None:
+        if self._worker is None or not self._worker.is_alive():
+            self._worker = threading.Thread(
+                target=self._serve,
+                args=(self._jobs, self._idle),
+                name="exo-ctrl-recorder-write",
+                daemon=True,
+            )
+            self._worker.start()
+
+    def _serve(self, jobs: queue.SimpleQueue[int | None], idle: threading.Event) -> None:
+        """The helper thread: each job is a :meth:`_write`; None ends it."""
+        while (ticks := jobs.get()) is not None:
             try:
-                self._write()
+                self._write(wait=False)  # handed to the writer process: _join waits for it
             except (RecordingError, RuntimeError, OSError) as exc:
                 self._pending_error = exc
             else:
-                self._on_disk = ticks
-
-        self._pending = threading.Thread(target=job, name="exo-ctrl-recorder-write", daemon=True)
-        self._pending.start()
+                self._written = ticks
+            finally:
+                idle.set()
 
     def _join(self) -> BaseException | None:
-        """Wait for the background write; its error, if it failed (cleared)."""
-        pending, self._pending = self._pending, None
-        if pending is not None:
-            pending.join()
+        """Wait for the background write to end; its error, if it failed (cleared)."""
+        self._idle.wait()
         error, self._pending_error = self._pending_error, None
+        written, self._written = self._written, None
+        if error is None and written is not None and self._file is not None:
+            try:
+                self._file.wait()
+            except OSError as exc:
+                error = exc
+            else:
+                self._on_disk = written
         return error
+
+    def _stop_worker(self) -> None:
+        worker, self._worker = self._worker, None
+        if worker is not None and worker.is_alive():
+            self._jobs.put(None)
+            worker.join()
 
     # ------------------------------------------------------------------ checks
 
@@ -384,7 +431,7 @@ class RerunRecorder:
             return  # a device (/dev/null) or a FIFO: no free-space figure applies
         with contextlib.suppress(OSError):
             free = shutil.disk_usage(parent).free
-            need = n_ticks * BYTES_PER_TICK_ESTIMATE
+            need = n_ticks * bytes_per_tick(len(self._columns.layout.series), self._stride)
             if free < need:
                 raise RecordingError(
                     f"cannot write recording {path}: about {need / 1e6:.1f} MB needed for "
@@ -412,62 +459,38 @@ class RerunRecorder:
             "scene_rate_hz": self.scene_rate_hz,
             "force_arrow_m_per_N": FORCE_ARROW_M_PER_N,
             "signals": {name: list(shape) for name, shape in self._columns.layout.shapes.items()},
+            "columns": self._columns.full.stored(),
+            "left_out": dict(self._columns.left_out),
         }
         text = rr.TextDocument(dumps(meta), media_type=rr.MediaType.TEXT)
         rec.log("raw/meta", text, static=True, strict=True)
         markdown = rr.TextDocument(params_markdown(result, meta), media_type=rr.MediaType.MARKDOWN)
         rec.log("params", markdown, static=True, strict=True)
-        for series in self._columns.layout.series:  # legend names and colours of the time series
-            lines = rr.SeriesLines(names=series.names, colors=series.colors)
-            rec.log(series.entity, lines, static=True, strict=True)
+        log_styles(rec, self._columns.layout.series)
         self._patient_feet = config.contact.patient_feet
-        self._belt = log_scene_static(rec, config.gait, exo, self._patient_feet)
+        ground = "ground_force" not in self._columns.left_out
+        self._belt = log_scene_static(rec, config.gait, exo, self._patient_feet, ground)
 
     # ------------------------------------------------------------------ per chunk
 
     def _send_scene(
-        self, rec: rr.RecordingStream, ticks: np.ndarray, source: np.ndarray, n: int, v: float
+        self,
+        rec: rr.RecordingStream,
+        ticks: np.ndarray,
+        rows: dict[str, np.ndarray],
+        skip: int,
+        v: float,
     ) -> None:
-        picked = np.arange((-int(ticks[0])) % self._stride, n, self._stride)
+        """The 3-D scene at the chunk's ticks k with k mod stride = 0 (rows ``skip:``)."""
+        picked = skip + np.arange((-int(ticks[0])) % self._stride, ticks.shape[0], self._stride)
         if picked.shape[0] == 0:
             return
-        signal = self._columns.signal
-        bodies = tuple(
-            (b, skeleton, signal(source, n, q)[picked]) for b, skeleton, q in self._bodies
-        )
-        shown = ticks[picked]
-        force = signal(source, n, "cuff_force")[picked]
-        ground = signal(source, n, "ground_force")[picked]
-        pelvis = signal(source, n, "pelvis_z")[picked]
-        feet = signal(source, n, "patient_ground_force")[picked] if self._patient_feet else None
+        left_out = self._columns.left_out
+        bodies = tuple((b, skeleton, rows[q][picked]) for b, skeleton, q in self._bodies)
+        shown = ticks[picked - skip]
+        force = rows["cuff_force"][picked]
+        # Not drawn while left out (zero: the contact off, the pelvis fixed).
+        ground = None if "ground_force" in left_out else rows["ground_force"][picked]
+        pelvis = None if "pelvis_z" in left_out else rows["pelvis_z"][picked]
+        feet = rows["patient_ground_force"][picked] if self._patient_feet else None
         send_scene(rec, shown, self._dt, bodies, force, self._belt, v, ground, pelvis, feet)
-
-    # ------------------------------------------------------------------ end
-
-    def _log_outcome(self, rec: rr.RecordingStream, result: SimResult) -> None:
-        log_biofeedback(rec, result)  # the per-cycle figures (exo_ctrl/record/biofeedback.py)
-        ticks, dt = self._next_tick, self._dt
-        events = [dict(ev) for ev in result.events]
-        for ev in events:
-            kind = str(ev.get("kind", "event"))
-            t = ev.get("t")
-            if not (isinstance(t, (int, float)) and math.isfinite(t)):
-                t = ticks * dt
-            text = f"{kind}: {ev.get('message', '')}"
-            self._log_event(rec, t, text, str(ev.get("level", _LEVELS.get(kind, "INFO"))))
-        text = f"run {result.status}: {ticks} of {result.config.n_ticks} ticks recorded"
-        text += f", t = {ticks * dt:.4f} s" + (f"; {result.error}" if result.error else "")
-        self._log_event(rec, ticks * dt, text, _LEVELS.get(result.status, "ERROR"))
-        outcome = {
-            f.name: getattr(result, f.name)
-            for f in dataclasses.fields(result)
-            if f.name not in NOT_IN_OUTCOME
-        }
-        outcome.update(events=events, ticks=ticks)
-        document = rr.TextDocument(dumps(outcome), media_type=rr.MediaType.TEXT)
-        rec.log("raw/outcome", document, static=True, strict=True)
-
-    def _log_event(self, rec: rr.RecordingStream, t: float, text: str, level: str) -> None:
-        rec.set_time(TIME, duration=t)
-        rec.set_time(TICK, sequence=max(0, round(t / self._dt)))
-        rec.log("events", rr.TextLog(text, level=level), strict=True)

@@ -142,7 +142,7 @@ def _limit_file_size() -> None:
 
 
 def test_a_disk_full_in_the_run_is_exit_1_and_keeps_a_whole_file(tmp_path: Path) -> None:
-    """The first chunk (about 7 MB with the parameters and footer) fits, the second does not."""
+    """The first chunk (about 3.2 MB with the parameters and footer) fits, the second does not."""
     rrd = tmp_path / "run.rrd"
     argv = [str(EXO_CTRL), "simulate", "--duration", "10", "--out", str(rrd)]
     proc = subprocess.run(

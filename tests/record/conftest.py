@@ -6,7 +6,7 @@ points are float32 in rerun, so they are compared to Pinocchio within 1e-6 m.
 The raw rerun reader (``rerun.chunk.RrdReader``) is used to look at entities
 directly, independently of :func:`read_recording`.
 
-The helpers are fixtures (``entity_columns``, ``assert_same_run``,
+The helpers are fixtures (``entity_columns``, ``ticks_by_entity``, ``assert_same_run``,
 ``verify``, ``raise_observer``) as test modules cannot import each other.
 """
 
@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rerun.chunk import RrdReader
 
 from exo_ctrl.record import RerunRecorder
 from exo_ctrl.record.reader import _read_chunks
@@ -65,6 +66,16 @@ def _entity_columns(path: Path, entity: str, column: str) -> tuple[np.ndarray, l
         return np.zeros(0, dtype=np.int64), values
     order = np.argsort(ticks, kind="stable")
     return np.asarray(ticks)[order], [values[i] for i in order]
+
+
+def _ticks_by_entity(path: Path) -> dict[str, list[int]]:
+    """Entity path → the ticks stored for it, straight from the file (static entities absent)."""
+    ticks: dict[str, list[int]] = {}
+    for chunk in RrdReader(str(path)).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if "tick" in batch.schema.names:
+            ticks.setdefault(chunk.entity_path, []).extend(batch.column("tick").to_pylist())
+    return ticks
 
 
 def _assert_same_run(back: SimResult, ref: SimResult, n: int | None = None) -> None:
@@ -123,6 +134,12 @@ def reference() -> SimResult:
 def entity_columns() -> Callable[[Path, str, str], tuple[np.ndarray, list]]:
     """``entity_columns(path, entity, column)``: (ticks, values) straight from the file."""
     return _entity_columns
+
+
+@pytest.fixture(scope="session")
+def ticks_by_entity() -> Callable[[Path], dict[str, list[int]]]:
+    """``ticks_by_entity(path)``: entity path → its stored ticks, straight from the file."""
+    return _ticks_by_entity
 
 
 @pytest.fixture(scope="session")

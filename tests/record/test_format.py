@@ -1,11 +1,16 @@
 """Tests of exo_ctrl.record.format: every signal of the log schema, and only it, is recorded.
 
 The layout is derived from :data:`exo_ctrl.sim.schema.SIGNALS` when a
-recording starts: a signal added there appears under ``raw/`` and
-``signals/`` and in :func:`read_recording`'s result with no other change.
+recording starts: a signal added there appears under ``signals/`` and in
+:func:`read_recording`'s result with no other change.  Each value is stored
+once (format version 2: no second copy under ``raw/``), and the signals of
+the features off in the run are left out of the file and read back as their
+constant.
 """
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 from rerun.chunk import RrdReader
@@ -13,6 +18,7 @@ from rerun.chunk import RrdReader
 from exo_ctrl.model import load_exo, load_patient
 from exo_ctrl.record import RerunRecorder, read_recording
 from exo_ctrl.record.format import layout
+from exo_ctrl.record.omitted import left_out_signals
 from exo_ctrl.sim import SimConfig, SimResult, schema, simulate
 from exo_ctrl.sim.schema import Signal, log_dtype, signal_shapes
 
@@ -33,10 +39,23 @@ JOINT_SERIES = {
 
 
 def test_human_friendly_series_match_signals(short_run, entity_columns):
-    """Every entry of SIGNALS, whatever it holds, has its series under signals/."""
+    """Every entry of SIGNALS, whatever it holds, has its series under signals/.
+
+    Unless its feature is off in the run (no contact, fixed pelvis, ...): then
+    it has none, ``raw/meta`` gives its constant, and that is what it held.
+    """
     result, path = short_run
+    _, meta = entity_columns(path, "raw/meta", "TextDocument:text")
+    left_out = json.loads(meta[-1][0])["left_out"]
+    assert left_out == left_out_signals(result.config)
+    assert {"ground_force", "pelvis_z", "patient_torque", "path_phase"} <= set(left_out)
+    stored = {c.entity_path for c in RrdReader(path).stream().to_chunks()}
     for name, shape in signal_shapes().items():
         values = result.signals[name]
+        if name in left_out:
+            assert np.all(values == left_out[name]), name
+            assert not any(e.startswith(f"/signals/{name}") for e in stored), name
+            continue
         if name in JOINT_SERIES:
             quantity, part = JOINT_SERIES[name]
             entity, expected = f"{quantity}/left_knee", values[:, 1]
@@ -73,7 +92,9 @@ def test_layout_falls_back_to_plain_series_for_signals_it_does_not_know():
     assert lay.width == 19 and lay.magnitudes == ()
 
 
-def test_a_signal_added_to_the_schema_is_recorded_and_read_back(tmp_path, monkeypatch):
+def test_a_signal_added_to_the_schema_is_recorded_and_read_back(
+    tmp_path, ticks_by_entity, monkeypatch
+):
     """A throwaway (3,) signal appended to SIGNALS: in the file and in read_recording.
 
     The recorder is driven as the loop drives it, with rows that are views of
@@ -109,13 +130,9 @@ def test_a_signal_added_to_the_schema_is_recorded_and_read_back(tmp_path, monkey
     assert back.signals["probe_xyz"].shape == (n, 3)
     for name in log.dtype.names:
         assert np.array_equal(back.signals[name], log[name]), name
-    ticks: dict[str, list[int]] = {}
-    for chunk in RrdReader(path).stream().to_chunks():
-        batch = chunk.to_record_batch()
-        if "tick" in batch.schema.names:
-            ticks.setdefault(chunk.entity_path, []).extend(batch.column("tick").to_pylist())
-    assert sorted(ticks["/raw/probe_xyz"]) == list(range(n))
+    ticks = ticks_by_entity(path)
     assert sorted(ticks["/signals/probe_xyz"]) == list(range(n))
+    assert not any(e.startswith("/raw/") for e in ticks)  # each value once, in its series
 
 
 def test_a_signal_added_to_the_schema_reaches_the_recording_of_a_run(tmp_path, monkeypatch):
@@ -130,7 +147,7 @@ def test_a_signal_added_to_the_schema_reaches_the_recording_of_a_run(tmp_path, m
     for name in signal_shapes():
         assert np.array_equal(back.signals[name], result.signals[name]), name
     entities = {c.entity_path for c in RrdReader(path).stream().to_chunks()}
-    assert {"/raw/probe_xyz", "/signals/probe_xyz"} <= entities
+    assert "/signals/probe_xyz" in entities and "/raw/probe_xyz" not in entities
 
 
 def test_a_file_without_a_schema_signal_reads_it_as_nan(short_run, monkeypatch):

@@ -51,7 +51,7 @@ def test_readback_of_a_non_default_config(tmp_path, assert_same_run, entity_colu
     assert back.safety_state == result.safety_state == "stopping"
     _, logs = entity_columns(path, "events", "TextLog:text")
     assert any("emergency stop" in text[0] for text in logs)
-    ticks, _ = entity_columns(path, "raw/q", "Scalars:scalars")
+    ticks, _ = entity_columns(path, "signals/q_meas", "Scalars:scalars")
     times, _ = entity_columns(path, "signals/joint_angle/left_hip", "Scalars:scalars")
     assert ticks.tolist() == list(range(40)) and times.tolist() == list(range(40))
 
@@ -59,7 +59,9 @@ def test_readback_of_a_non_default_config(tmp_path, assert_same_run, entity_colu
 def test_sim_time_timeline_is_tick_times_dt(short_run):
     _, path = short_run
     chunks = [
-        c for c in RrdReader(path).stream().to_chunks() if c.entity_path == "/raw/drive_torque"
+        c
+        for c in RrdReader(path).stream().to_chunks()
+        if c.entity_path == "/signals/drive_torque/left_hip" and "sim_time" in c.timeline_names
     ]
     ns = np.concatenate(
         [c.to_record_batch().column("sim_time").cast("int64").to_numpy() for c in chunks]

@@ -240,3 +240,36 @@ def test_a_shifted_offset_column_is_moved_by_the_file_position(tmp_path):
     moved = table.filter(pc.is_in(table.column("chunk_id"), value_set=ids))
     expected = [o + shift for o in alone.column("chunk_byte_offset").to_pylist()]
     assert sorted(moved.column("chunk_byte_offset").to_pylist()) == sorted(expected)
+
+
+SHARED_LIMIT_CHILD = """
+import os, resource, sys
+from exo_ctrl.record.rrd_file import RrdFile
+path, size, limit = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))  # the memfd's limit too
+file = RrdFile(path)
+assert file._writer is not None and file._shared is not None  # Linux: the shared buffer
+data = bytes(range(256)) * (size // 256)
+file._write([data[: size // 3], data[size // 3 :]], 0)  # in two pieces
+file._write([data[:4096]], len(data))  # a small one through the shared buffer again
+file.abandon()
+print(len(data))
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "memfd_create"), reason="no memfd: bytes go by the pipe")
+def test_bytes_go_through_the_pipe_when_the_shared_buffer_cannot_grow(tmp_path):
+    """Under a file-size limit the shared buffer (a request and a quarter) cannot reach.
+
+    The write of 900 kB fits a 1 MB limit; the buffer would need 1.1 MB: the
+    request carries its bytes through the pipe instead, and the file holds
+    them exactly; the next, small request uses the buffer.
+    """
+    path = tmp_path / "limited.bin"
+    size, limit = 900 * 1024, 1 << 20
+    args = [sys.executable, "-c", SHARED_LIMIT_CHILD, str(path), str(size), str(limit)]
+    proc = subprocess.run(args, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    n = int(proc.stdout)
+    data = bytes(range(256)) * (size // 256)
+    assert path.read_bytes() == data + data[:4096] and n == len(data)

@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 
 from exo_ctrl.exceptions import InvalidParameter, OutputError, RecordingError
-from exo_ctrl.plant import CuffParams
-from exo_ctrl.record import RerunRecorder, read_recording, writer
+from exo_ctrl.plant import ContactParams, CuffParams, PelvisParams
+from exo_ctrl.record import RerunRecorder, read_recording, size, writer
 from exo_ctrl.record.reader import read_recording_integrity
 from exo_ctrl.sim import SimConfig, simulate
 
@@ -67,7 +67,7 @@ def test_keyboard_interrupt_from_an_observer(
     n = 210 if recorder_first else 140
     back = read_recording(path)
     assert back.n_ticks == n
-    ticks, _ = entity_columns(path, "raw/q", "Scalars:scalars")
+    ticks, _ = entity_columns(path, "signals/joint_angle/left_hip", "Scalars:scalars")
     assert ticks.tolist() == list(range(n))  # each tick stored once
     assert_same_run(back, result, n=n)
     assert back.status == "interrupted" and back.error == result.error
@@ -193,11 +193,40 @@ def test_unwritable_paths_raise_at_start(tmp_path, raise_observer):
 
 
 def test_not_enough_free_space_raises_at_start(tmp_path, monkeypatch):
-    monkeypatch.setattr(writer, "BYTES_PER_TICK_ESTIMATE", 10**12)
+    monkeypatch.setattr(size, "BYTES_PER_TICK_BASE", 10**12)
     path = tmp_path / "big.rrd"
     with pytest.raises(RecordingError, match=r"MB needed for 300 ticks, .* MB free"):
         simulate(SHORT, observers=[RerunRecorder(path)])
     assert not path.exists()
+
+
+@pytest.mark.parametrize(
+    ("config", "rate_hz"),
+    [
+        (SimConfig(), 50.0),  # the default run: 35 series, BYTES_PER_TICK_ESTIMATE
+        (SimConfig(), 1000.0),  # the scene at every tick
+        (  # the belt with both bodies' feet on it, the pelvis on its guide: 55 series
+            SimConfig(
+                controller="ct",
+                contact=ContactParams(enabled=True, patient_feet=True),
+                pelvis=PelvisParams(supported=True, bws_fraction=0.5),
+                safety=False,
+            ),
+            50.0,
+        ),
+    ],
+)
+def test_the_size_estimate_follows_the_series_and_the_scene(tmp_path, config, rate_hz):
+    """The free-space check's bytes per tick are the file's within 10 %, whatever is left out."""
+    path = tmp_path / "size.rrd"
+    recorder = RerunRecorder(path, scene_rate_hz=rate_hz)
+    simulate(config, observers=[recorder])
+    series = len(recorder._columns.layout.series)
+    estimate = size.bytes_per_tick(series, max(1, round(config.control_rate_hz / rate_hz)))
+    per_tick = path.stat().st_size / config.n_ticks
+    assert 0.9 < per_tick / estimate < 1.1, (per_tick, estimate)
+    if rate_hz == 50.0 and config == SimConfig():
+        assert estimate == size.BYTES_PER_TICK_ESTIMATE == writer.BYTES_PER_TICK_ESTIMATE
 
 
 @pytest.mark.parametrize("rate", [0.0, -50.0, float("nan"), float("inf"), True, "50"])
@@ -210,11 +239,11 @@ def test_scene_rate_must_be_a_positive_rate(rate):
 def test_write_failure_mid_run_raises_output_error(
     tmp_path, reference, assert_same_run, verify, write_behind
 ):
-    """A 1.75 MB file-size limit makes the disk 'full' while the third chunk is written.
+    """A 0.915 MB file-size limit makes the disk 'full' while the third chunk is written.
 
-    The file grows by about 370 kB per 70-tick chunk (with the belt, contact,
-    load-cell and pelvis signals), footer included: 1566 kB with two chunks,
-    1936 kB with three.  The failed write is undone: the
+    The file grows by about 160 kB per 70-tick chunk (the features off in the
+    run left out), footer included: 834 kB with two chunks, 995 kB with
+    three.  The failed write is undone: the
     file is the whole two-chunk recording again, with its footer.  With
     write-behind the error surfaces at the next chunk() (or finish()).  The
     process then ends normally (no hang in the interpreter's shutdown: rerun
@@ -228,7 +257,7 @@ def test_write_failure_mid_run_raises_output_error(
         from exo_ctrl.record import RerunRecorder
         from exo_ctrl.sim import SimConfig, simulate
 
-        resource.setrlimit(resource.RLIMIT_FSIZE, (1_750_000, 1_750_000))  # SIGXFSZ: ignored
+        resource.setrlimit(resource.RLIMIT_FSIZE, (915_000, 915_000))  # SIGXFSZ: ignored
         recorder = RerunRecorder({str(path)!r}, write_behind={write_behind})
         try:
             simulate(SimConfig(duration_s=0.3, chunk_ticks=70), observers=[recorder])
