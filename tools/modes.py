@@ -138,7 +138,7 @@ def row_of(mode: str, patient: str, summary: dict[str, Any]) -> Row:
         gps_deg=gps["actual"],
         gps_planned_deg=gps["planned"],
         safety_state=summary["safety_state"],
-        stop_s=summary["safety_events"][0]["t"] if summary["safety_events"] else None,
+        stop_s=next((e["t"] for e in summary["safety_events"] if e["kind"] != "warning"), None),
         path_error_mm=1e3 * rms(path) if path is not None else math.nan,
     )
 

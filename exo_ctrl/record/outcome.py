@@ -28,6 +28,7 @@ _LEVELS = {
     "error": "ERROR",
     "violation": "WARN",
     "estop": "WARN",
+    "warning": "WARN",
     "state": "INFO",
 }
 

@@ -16,7 +16,11 @@ from .gait_score import GaitScoreStats
 from .interaction import InteractionStats
 from .load_stats import LoadStats
 
-__all__ = ["ContactStats", "RunOutcome", "RunStats", "contact_stats"]
+__all__ = ["SAFETY_EVENT_KINDS", "ContactStats", "RunOutcome", "RunStats", "contact_stats"]
+
+#: The event kinds a summary lists as ``safety_events``: the supervisor's
+#: violations and e-stops, and the monitors' warnings (the state left normal).
+SAFETY_EVENT_KINDS = ("violation", "estop", "warning")
 
 #: A touchdown's peak normal-force rate is taken over this span after it [s].
 TOUCHDOWN_WINDOW_S = 0.05
@@ -116,7 +120,8 @@ class RunStats:
         peak joint speed, peak mechanical power, peak and RMS motor current,
         peak voltage),
         ``safety_state`` (the supervisor's final state) and ``safety_events``
-        (violations and e-stops: t, quantity, value, limit, message),
+        (violations, e-stops and warnings such as the cuff-load monitor's,
+        :data:`SAFETY_EVENT_KINDS`: t, kind, quantity, value, limit, message),
         ``wall_time_s``, ``real_time_factor`` (simulated / wall time of the
         ticks the wall clock covers, :attr:`SimResult.wall_time_s`); with
         live estimation ``cuff_force_estimate_rms_error_N`` and
@@ -157,7 +162,7 @@ class RunStats:
             "peak_cuff_force_N": _keyed(cuff, CUFF_NAMES),
             "qp_failures": result.qp_failures,
             "safety_state": result.safety_state,
-            "safety_events": [e for e in result.events if e.get("kind") in ("violation", "estop")],
+            "safety_events": [e for e in result.events if e.get("kind") in SAFETY_EVENT_KINDS],
             "wall_time_s": wall,
             "real_time_factor": (result.timed_ticks * result.config.dt / wall if wall > 0 else 0.0),
             "drive_sizing": {

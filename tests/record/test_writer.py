@@ -22,6 +22,7 @@ from exo_ctrl.plant import ContactParams, CuffParams, PelvisParams
 from exo_ctrl.record import RerunRecorder, read_recording, size, writer
 from exo_ctrl.record.reader import read_recording_integrity
 from exo_ctrl.sim import SimConfig, simulate
+from exo_ctrl.sim.faults import Fault
 
 #: A short run; 70-tick chunks so the last chunk (300 = 4 x 70 + 20) is partial.
 SHORT = SimConfig(duration_s=0.3, chunk_ticks=70)
@@ -94,6 +95,22 @@ def test_observer_that_raises_leaves_a_complete_file(
     assert verify(path).returncode == 0
     recorder.close()  # a no-op after finish()
     assert read_recording(path).n_ticks == 210
+
+
+def test_a_monitors_warning_is_a_safety_event_logged_as_a_warning(tmp_path, entity_columns):
+    """A slipped shank cuff: the cuff-load monitor's warning (the state left normal) is in the
+    summary's safety events and in the recording's event log at level WARN."""
+    fault = Fault("cuff_slip", 2.0, "left_shank")
+    path = tmp_path / "slip.rrd"
+    result = simulate(SimConfig(faults=(fault,), duration_s=3.3), observers=[RerunRecorder(path)])
+    summary = result.summary()
+    assert summary["safety_state"] == "normal"
+    warned = [e for e in summary["safety_events"] if e["kind"] == "warning"]
+    assert [e["quantity"] for e in warned] == ["cuff load left_shank"]
+    _, texts = entity_columns(path, "events", "TextLog:text")
+    _, levels = entity_columns(path, "events", "TextLog:level")
+    logged = [lv for (text,), lv in zip(texts, levels, strict=True) if "cuff unloaded" in text]
+    assert logged == [["WARN"]]
 
 
 class OnDisk:
