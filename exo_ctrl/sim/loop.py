@@ -30,7 +30,15 @@ from .summary import RunStats, contact_stats
 from .tick import UNTIMED_TICKS, Runner
 from .warmup import Warmup
 
-__all__ = ["simulate"]
+__all__ = ["STARTING", "simulate"]
+
+#: The progress line of a start-up over a second, by whether the kernels are
+#: known compiled for these features (:attr:`Warmup.warm <.warmup.Warmup.warm>`):
+#: loading them can take a second on a loaded machine too.
+STARTING = {
+    False: "compiling kernels, first run only (10-30 s; later runs load them) ...",
+    True: "loading the compiled kernels ...",
+}
 
 
 def simulate(
@@ -65,7 +73,7 @@ def simulate(
     helper = Warmup(config, enabled=warmup)
     result = None
     try:
-        result = _run(config, observers, progress, keep_history)
+        result = _run(config, observers, progress, keep_history, STARTING[helper.warm])
     finally:
         helper.finish(result is not None and result.status == "completed")
     return result
@@ -76,8 +84,9 @@ def _run(
     observers: Sequence[SimObserver],
     progress: bool,
     keep_history: bool,
+    starting: str,
 ) -> SimResult:
-    """:func:`simulate`'s run, the helper left out."""
+    """:func:`simulate`'s run, the helper left out; ``starting``: the start-up's notice."""
     setup = build(config)
     runner = Runner(setup)
     n = config.n_ticks
@@ -103,7 +112,7 @@ def _run(
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)
-    bar.notice_after(1.0, "compiling kernels, first run only (10-30 s; later runs load them) ...")
+    bar.notice_after(1.0, starting)
     chunk = runner.chunk
     chunk_start = 0
     row = 0

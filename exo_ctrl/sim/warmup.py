@@ -131,20 +131,25 @@ class Warmup:
         process: the helper, or None when none was started (the cache is warm
             for these features, no cache directory can be written, no core is
             free, :func:`core_free`, or it is off).
+        warm: a run of these features has completed with the helper enabled
+            (started or not) since the cache was made: its kernels are
+            loaded, not compiled (the marker; False when unknown).
 
     """
 
     def __init__(self, config: SimConfig, enabled: bool = True) -> None:
         self.process: subprocess.Popen | None = None
         self._marker: Path | None = None
+        self.warm = False
         setting = os.environ.get(ENV, "")
         if not enabled or setting == "0":
             return
         where = marker_dir()
-        if where is None or (setting != "1" and not core_free()):
+        if where is None:
             return
         self._marker = where / f"exo_ctrl-warm-{feature_key(config)}"
-        if self._marker.exists():
+        self.warm = self._marker.exists()
+        if self.warm or (setting != "1" and not core_free()):
             return
         try:
             payload = pickle.dumps(config)

@@ -97,10 +97,16 @@ def test_no_helper_when_turned_off_or_marked_or_busy(tmp_path, monkeypatch) -> N
     second = Warmup(SimConfig(duration_s=0.01))
     second.finish(completed=True)
     assert [p.name for p in tmp_path.iterdir()] == [f"exo_ctrl-warm-{feature_key(SimConfig())}"]
-    assert Warmup(SimConfig()).process is None  # marked: warm
+    warm = Warmup(SimConfig())
+    assert warm.process is None and warm.warm  # marked: warm
+    assert not second.warm
     monkeypatch.setattr("exo_ctrl.sim.warmup.core_free", lambda: False)
     monkeypatch.delenv(ENV)
-    assert Warmup(SimConfig(controller="ct")).process is None  # not marked, but busy
+    busy = Warmup(SimConfig(controller="ct"))
+    assert busy.process is None and not busy.warm  # not marked, but busy
+    busy.finish(completed=True)  # a run without the helper marks its features warm too
+    assert Warmup(SimConfig(controller="ct")).warm
+    (tmp_path / f"exo_ctrl-warm-{feature_key(SimConfig(controller='ct'))}").unlink()
     monkeypatch.setenv(ENV, "1")  # started whatever the load
     forced = Warmup(SimConfig(controller="ct", duration_s=0.01))
     assert forced.process is not None
