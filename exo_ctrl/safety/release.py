@@ -50,9 +50,11 @@ the switch and peaked at 137 N.
 the truth adds (2–4 ms of the Kalman filter: 7 N at the switch above).  On
 the nine variants of the test that stop (sensor seeds 0–2, the patient's
 period 0.9 or 1.1 s, steps of 0.35 m, the momentum observer, the true
-forces, the isotropic cuff belief) the worst true force from the switch on
-was 209 N at a thigh and 127 N at a shank (on the force over the limit and
-the ramp: 209 N and 149 N).
+forces, the isotropic cuff belief) the worst true force from a switch in
+the hold on was 186 N at a thigh and 127 N at a shank (on the force over
+the limit and the ramp: 209 N and 149 N); from a switch in the ramp (four
+of them, below), 202 N and 146 N: a cuff the stop found over its limit
+stays over it for the catch-up.
 
 **Only a loading cuff** (f·ḟ > 0) adds its term.  Unloading, the limb moves
 away from the link and the hold lets it; should it turn and load the cuff
@@ -62,6 +64,29 @@ damper's, C v̇: an e-stop switched to the hold at once (ramp 0,
 tests/safety/test_supervisor.py) stops the link under the limb, and the
 shank's force fell at 8.6 N/ms from 52 N, which would read as a release
 peak of 243 N; it never exceeded the 52 N it fell from.
+
+**In the ramp** to the hold (0.2 s, :mod:`.supervisor`) the command
+stiffens towards the lock, and a patient who walks on meets it as a hold:
+the bound is checked there too.  The stop may have come on a cuff over its
+limit, whose bound is over F_lim² from the first tick whatever the patient
+does next: such a cuff yields once its bound passes
+(:data:`RAMP_MARGIN` · |f_stop|)², the force the stop found and 5 %
+(1730 N² at a shank's 130 N, nearly three times the rate term's noise,
+below).  Unchecked, an active
+patient at 1.1 s steps against the plan's 1.2 s loaded the cuffs to true
+250 N (thigh) and 175 N (shank) over the ramp, the yield coming at its
+end; checked, the yield comes on the next tick and they peak at 202 and
+146 N (the shank was at 139 N at the stop: the estimate's lag).  On the
+nine variants above (four now yield in the ramp): at most 229 / 135 N from
+the stop on (unchecked: 250 / 175 N).  A sensor fault that stops the run
+on the estimate can yield there before a plausibility monitor doubts the
+readings (they need 20 ms or more): an encoder frozen at the hip's current
+limit (tests/safety/test_still.py) yields 1 ms after its stop, and the
+faulty hip moves 0.02 rad (the hold drove it 0.24 rad on the frozen
+reading), the cuffs within 113 N.  The spastic passive patient of the default run, stopped on
+the estimate's over-read of a shank cuff it does not push (true 98 N),
+keeps the hold (0.08 rad of excursion; yielding, its spasm moved the leg
+0.74 rad).
 
 ḟ is the readings' difference over one tick; its noise (0.3–1 N/ms RMS on
 the Kalman estimate) adds up to ḟᵀ Λ ḟ / k ≈ 640 N² at a shank and 800 N²
@@ -78,7 +103,11 @@ from .. import _validate as v
 from ..model import BodyModel
 from ..plant import CuffParams, MotorParams
 
-__all__ = ["ReleaseBound"]
+__all__ = ["RAMP_MARGIN", "ReleaseBound"]
+
+#: In the ramp to the hold, a cuff over its limit at the stop yields once its
+#: bound passes this factor times its force at the stop (module docstring, "In the ramp").
+RAMP_MARGIN = 1.05
 
 
 class ReleaseBound:
@@ -121,6 +150,28 @@ class ReleaseBound:
         self.inertia = np.zeros((4, 2, 2))
         self._posture = np.full(4, np.nan)
         self._last = np.full((4, 2), np.nan)
+        self._found: np.ndarray | None = None
+
+    def begin(self) -> None:
+        """A ramp to the hold begins (a stop, a yield's rest): :meth:`pushed` forgets the last."""
+        self._found = None
+
+    def pushed(self, f: np.ndarray, q_hold: np.ndarray, limit: np.ndarray, ramp: bool) -> bool:
+        """Whether the hold must yield now: a release would take a cuff past its limit.
+
+        Args:
+            f: this tick's cuff forces [N], (4, 2).
+            q_hold: the hold posture [rad], (4,).
+            limit: F_lim per cuff [N], (4,).
+            ramp: the command still ramps to the hold: a cuff must pass the
+                bound the stop's first tick found too (a cuff over its limit
+                stops the run; module docstring, "In the ramp").
+
+        """
+        peak, limit2 = self.peak_squared(f, q_hold), limit * limit
+        if self._found is None:
+            self._found = np.maximum(peak * RAMP_MARGIN**2, limit2)
+        return bool(np.any(peak > (self._found if ramp else limit2)))
 
     def start(self, q: np.ndarray) -> None:
         """Λ_c at the hold posture q [rad], (4,); the next reading has no predecessor."""

@@ -50,9 +50,10 @@ the emergency-stop time, it stops the gait:
 at the present posture with damping injection instead (``"yielding"`` after
 the ramp, no posture held): an active patient moves the legs with a bounded
 interaction force; a joint beyond its speed limit cuts the power, one out of
-its range is braked alone, legs at rest end in the hold.  A hold the patient
-pushes against (a release now would take a cuff past its limit, :mod:`.release`,
-on readings no plausibility monitor has doubted since the stop) yields at once.
+its range is braked alone, legs at rest end in the hold.  A hold or its ramp
+the patient pushes against (a release would take a cuff past its limit, or
+in the ramp past what the stop found, :mod:`.release`; on readings no
+plausibility monitor has doubted since the stop) yields at once.
 
 Every violation and every state change is an event dict
 ``{"t", "kind", "quantity", "value", "limit", "message"}`` in
@@ -196,7 +197,6 @@ class SafetySupervisor:
         self.speed_limit = resolved.speed_limit
         self.current_limit = resolved.current_limit
         self.cuff_limit = resolved.cuff_limit
-        self._limit2 = self.cuff_limit**2
         if isinstance(stop_reaction, str):
             stop_reaction = ((0.0, stop_reaction),)
         #: The stop reaction's schedule ((start [s], reaction), ...).
@@ -224,10 +224,9 @@ class SafetySupervisor:
         self.plausibility_record = plausibility_record(motor, sensors, self.dt)
         self._checks = bool(plausibility_checks)
         if compliant_drives:
-            # A compliant joint's sensor reads the spring, τ_d − J_r θ̈ with the
-            # rotor's θ̈ unmeasured: the rigid drive model's residual carries
-            # J_r (θ̈ − q̈) of the rotor's ~42 Hz mode (measured 31 N·m on the
-            # default PD run): it, the consistency (.consistency) and still (.still) checks are off.
+            # A compliant joint's sensor reads the spring, τ_d − J_r θ̈ with the rotor's θ̈
+            # unmeasured: the rigid drive model's residual carries J_r (θ̈ − q̈) of the rotor's
+            # ~42 Hz mode (31 N·m on the default PD run): it, .consistency and .still are off.
             self.plausibility_limits[[0, 4, 5]] = np.finfo(float).max
         if self._checks:
             self.record["limit"][0][LIMIT_GROUPS:BELT] = self.plausibility_limits
@@ -348,6 +347,7 @@ class SafetySupervisor:
             )
         self.stop_time_s = self._ramp_t0 = float(t)
         self._doubt = False
+        self.release.begin()
         self.reaction = reaction_at(self.stop_reactions, t)
         q = np.asarray(sensors.q, dtype=float)
         finite = np.isfinite(q)
@@ -386,23 +386,22 @@ class SafetySupervisor:
         if self.state_code == 2 and self._hold_failed(t, e, w):
             u.fill(0.0)
             return u
-        # Pushed: a release now would take a cuff past its limit (.release), on readings
-        # not doubted since the stop.
         self._doubt = self._doubt or bool(np.any(self.record["excess"][0][LIMIT_GROUPS:] > 0.0))
-        peak = self.release.peak_squared(f, self.hold_posture_rad)
-        pushed = self.state_code == 2 and not self._doubt and bool(np.any(peak > self._limit2))
+        ramp = self.state_code == 1  # pushed: module docstring
+        pushed = self.release.pushed(f, self.hold_posture_rad, self.cuff_limit, ramp)
         # U_hold = U_g + k_p (q_h - q) - k_d q̇
         np.multiply(e, self.hold_kp, out=u)
         np.multiply(w, self.hold_kd, out=w)
         np.subtract(u, w, out=u)
         np.add(u, self.hold_voltage_gravity_V, out=u)
-        if self.state_code == 1:
-            self._ramp(t, u, "holding")
-        elif pushed:  # yield at once: a ramp keeps part of the lock (.stop_reaction, "The ramp")
+        if pushed and not self._doubt:  # yield at once (a ramp keeps part of the lock)
             self.reaction, self._rest_ticks = "yield", 0
             self.yield_command.start(np.asarray(sensors.q, dtype=float), sensors.dq)
-            self._set_state(t, "yielding", "the patient pushes against the hold: yield at once")
+            why = f"the patient pushes against the {'ramp to the ' * ramp}hold: yield at once"
+            self._set_state(t, "yielding", why)
             return self._yield(t, sensors)
+        if ramp:
+            self._ramp(t, u, "holding")
         return u
 
     def _ramp(self, t: float, u: np.ndarray, then: str) -> None:
@@ -437,6 +436,7 @@ class SafetySupervisor:
         if self._rest_ticks >= self._rest_needed:  # the legs at rest: hold them there
             self.reaction = "hold"
             self._ramp_t0 = float(t)
+            self.release.begin()
             self.hold_posture_rad = q.copy()
             self.hold_voltage_gravity_V = self._gravity_voltage(self.hold_posture_rad)
             self._u_start[:] = u

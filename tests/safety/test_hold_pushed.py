@@ -65,3 +65,40 @@ def test_a_patient_pushing_against_the_hold_gets_the_yield_within_the_limits() -
     assert estimate[k, 0::2].max() < THIGH and estimate[k, 1::2].max() < SHANK
     # From the switch on, every true force within its limit: no transient over it.
     assert worst["from"][:, 0::2].max() < THIGH and worst["from"][:, 1::2].max() < SHANK
+
+
+def test_a_patient_pushing_in_the_ramp_to_the_hold_gets_the_yield_there() -> None:
+    """The ramp to the hold is a hold the patient can push against too.
+
+    An active patient at 1.1 s steps against the plan's 1.2 s loads the left
+    shank cuff past its 130 N limit (the stop) and keeps loading both left
+    cuffs.  When the ramp was not checked, the hold stiffened for 0.2 s
+    against the walking patient: true 250 N at the thigh and 175 N at the
+    shank before the ramp's end, where the yield came.  Checked, a cuff past
+    its limit (the thigh) or past 1.05 × what the stop found (the shank)
+    yields on the next tick.
+    """
+    config = SimConfig(
+        patient_torque="active",
+        patient_active=ActiveParams(period_s=1.1, step_length_m=0.30),
+        duration_s=2.6,
+        belief=Belief(cuffs=CuffParams()),
+    )
+    result = simulate(config)
+    events = [e for e in result.events if e["kind"] == "state"]
+    assert [e["value"] for e in events[:2]] == ["stopping", "yielding"], events
+    stop, switch = events[0]["t"], events[1]["t"]
+    assert switch - stop < 0.2  # in the ramp, not at its end
+    force = np.linalg.norm(result.signals["cuff_force"], axis=-1)  # the truth
+    after = result.t >= stop
+    k = int(np.flatnonzero(after)[0])
+    thigh, shank = force[after][:, 0::2].max(), force[after][:, 1::2].max()
+    print(
+        f"\nstop {stop:.3f} s (true shank {force[k, 1::2].max():.1f} N), yield {switch:.3f} s; "
+        f"worst true thigh/shank from the stop {thigh:.1f} / {shank:.1f} N "
+        "(the ramp unchecked: 250 / 175)"
+    )
+    assert thigh < THIGH  # the thigh never reaches its limit
+    # The shank, over its limit at the stop (its estimate's lag), rises by less than 10 N
+    # after it (7.5 N here: the catch-up of the yield).
+    assert shank < force[k, 1::2].max() + 10.0
