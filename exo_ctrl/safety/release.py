@@ -69,24 +69,23 @@ peak of 243 N; it never exceeded the 52 N it fell from.
 stiffens towards the lock, and a patient who walks on meets it as a hold:
 the bound is checked there too.  The stop may have come on a cuff over its
 limit, whose bound is over F_lim² from the first tick whatever the patient
-does next: such a cuff yields once its bound passes
-(:data:`RAMP_MARGIN` · |f_stop|)², the force the stop found and 5 %
-(1730 N² at a shank's 130 N, nearly three times the rate term's noise,
-below).  Unchecked, an active
+does next: such a cuff yields once its bound passes (:data:`RAMP_MARGIN` ·
+|f_stop|)², the force the stop found and 5 % (1730 N² at a shank's 130 N,
+nearly three times the rate term's noise, below).  Unchecked, an active
 patient at 1.1 s steps against the plan's 1.2 s loaded the cuffs to true
-250 N (thigh) and 175 N (shank) over the ramp, the yield coming at its
-end; checked, the yield comes on the next tick and they peak at 202 and
-146 N (the shank was at 139 N at the stop: the estimate's lag).  On the
-nine variants above (four now yield in the ramp): at most 229 / 135 N from
-the stop on (unchecked: 250 / 175 N).  A sensor fault that stops the run
-on the estimate can yield there before a plausibility monitor doubts the
-readings (they need 20 ms or more): an encoder frozen at the hip's current
-limit (tests/safety/test_still.py) yields 1 ms after its stop, and the
-faulty hip moves 0.02 rad (the hold drove it 0.24 rad on the frozen
-reading), the cuffs within 113 N.  The spastic passive patient of the default run, stopped on
-the estimate's over-read of a shank cuff it does not push (true 98 N),
-keeps the hold (0.08 rad of excursion; yielding, its spasm moved the leg
-0.74 rad).
+250 N (thigh) and 175 N (shank) over the ramp, the yield coming at its end;
+checked, the yield comes on the next tick and they peak at 202 and 146 N
+(the shank was at 139 N at the stop: the estimate's lag).  On the nine
+variants above (four now yield in the ramp): at most 229 / 135 N from the
+stop on (unchecked: 250 / 175 N).  A sensor fault that stops the run on the
+estimate can yield there before a plausibility monitor doubts the readings
+(they need 20 ms or more): an encoder frozen at the hip's current limit
+(tests/safety/test_still.py) yields 1 ms after its stop, and the faulty hip
+moves 0.02 rad (the hold drove it 0.24 rad on the frozen reading), the
+cuffs within 113 N.  The spastic passive patient of the default run,
+stopped on the estimate's over-read of a shank cuff it does not push (true
+98 N), keeps the hold (0.08 rad of excursion; yielding, its spasm moved the
+leg 0.74 rad).
 
 ḟ is the readings' difference over one tick; its noise (0.3–1 N/ms RMS on
 the Kalman estimate) adds up to ḟᵀ Λ ḟ / k ≈ 640 N² at a shank and 800 N²
