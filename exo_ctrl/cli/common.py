@@ -182,12 +182,14 @@ def format_summary(summary: dict[str, Any]) -> str:
     lines.append(f"peak cuff force [N]: {cuffs}")
     lines.append(
         f"{'drive sizing':<12}{'rms τ [N·m]':>12}{'peak q̇ [rad/s]':>16}{'peak P [W]':>11}"
-        f"{'rms I [A]':>10}"
+        f"{'rms I [A]':>10}{'at τ, I, U limit [% of ticks]':>31}"
     )
     for j, d in summary["drive_sizing"].items():
+        shares = (d[f"share_at_{x}"] for x in ("torque_limit", "current_limit", "supply_voltage"))
         lines.append(
             f"{j:<12}{d['rms_torque_Nm']:>12.1f}{d['peak_speed_rad_s']:>16.2f}"
             f"{d['peak_power_W']:>11.1f}{d['rms_current_A']:>10.2f}"
+            f"{', '.join(f'{100 * x:.1f}' for x in shares):>31}"
         )
     if "energy_balance_residual_rel" in summary:
         residual = summary["energy_balance_residual_rel"]

@@ -33,7 +33,7 @@ from ..model import load_body
 from ..sim import RunStats, SimConfig, SimResult
 from ..sim.gait_score import gait_score_stats
 from ..sim.load_stats import load_stats
-from ..sim.summary import contact_stats
+from ..sim.summary import contact_stats, drive_limits
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
 from .stored import assemble, scalar_rows, where_stored
 
@@ -224,7 +224,8 @@ def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
         estimate = EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt)
     except (ExoCtrlError, TypeError):  # the model moved, or an older layout
         estimate = None
-    stats = RunStats(estimate, contact)
+    limits = drive_limits(config, estimate.exo.effort_limit) if estimate is not None else None
+    stats = RunStats(estimate, contact, limits=limits)
     stats.gait = gait_score_stats(config)  # the gait scores (exo_ctrl/sim/gait_score.py)
     if estimate is not None:  # the stance legs' load (exo_ctrl/sim/load_stats.py)
         stats.load = load_stats(config, estimate.exo)

@@ -26,7 +26,7 @@ from .load_stats import load_stats
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
 from .setup import build
-from .summary import RunStats, contact_stats
+from .summary import RunStats, contact_stats, drive_limits
 from .tick import UNTIMED_TICKS, Runner
 from .warmup import Warmup
 
@@ -103,6 +103,7 @@ def _run(
             EstimateErrorStats(setup.exo, config.dt),
             contact_stats(config),
             interaction_stats(config, setup.controller, setup.plan, setup.exo),
+            drive_limits(config, setup.exo.effort_limit),
         ),
     )
     result.stats.gait = gait_score_stats(config)

@@ -16,7 +16,14 @@ from .gait_score import GaitScoreStats
 from .interaction import InteractionStats
 from .load_stats import LoadStats
 
-__all__ = ["SAFETY_EVENT_KINDS", "ContactStats", "RunOutcome", "RunStats", "contact_stats"]
+__all__ = [
+    "SAFETY_EVENT_KINDS",
+    "ContactStats",
+    "RunOutcome",
+    "RunStats",
+    "contact_stats",
+    "drive_limits",
+]
 
 #: The event kinds a summary lists as ``safety_events``: the supervisor's
 #: violations and e-stops, and the monitors' warnings (the state left normal).
@@ -58,6 +65,7 @@ class RunStats:
         estimate: EstimateErrorStats | None = None,
         contact: ContactStats | None = None,
         interaction: InteractionStats | None = None,
+        limits: np.ndarray | None = None,
     ) -> None:
         self.estimate = estimate
         self.contact = contact
@@ -74,6 +82,9 @@ class RunStats:
         # |τ q̇|, cuff |f|, |q̇|), a row of 4 each: :func:`_accumulate`'s buffers.
         self._sums = np.zeros((3, 4))
         self._peaks = np.zeros((7, 4))
+        #: The drives' limits (:func:`drive_limits`; none: infinite) and the ticks at each.
+        self._limits = np.full((3, 4), np.inf) if limits is None else np.asarray(limits, float)
+        self._at_limit = np.zeros((3, 4))
 
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
@@ -102,7 +113,8 @@ class RunStats:
 
     def _accumulate_args(self, rows: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
         names = ("q", "q_des", "drive_torque", "current", "voltage", "dq", "cuff_force")
-        return (*(rows[name] for name in names), self._sums, self._peaks)
+        buffers = (self._sums, self._peaks, self._limits, self._at_limit)
+        return (*(rows[name] for name in names), *buffers)
 
     def summary(self, result: RunOutcome) -> dict[str, Any]:
         """The JSON summary of a run.
@@ -113,12 +125,19 @@ class RunStats:
         exoskeleton angle), ``peak_drive_torque_Nm``, ``rms_drive_torque_Nm``,
         ``peak_motor_current_A``, ``peak_motor_voltage_V``,
         ``peak_mechanical_power_W`` (|τ q̇|; keyed by joint),
+        ``share_at_torque_limit`` and ``share_at_current_limit`` (keyed by
+        joint: the shares of the ticks the drive was clipped at the rated
+        effort or the driver's current limit, as in ``drive_sizing``),
         ``peak_cuff_force_N`` (magnitude of the sagittal force, keyed by cuff),
         ``rms_motor_current_A`` (what heats a motor) and
         ``peak_joint_speed_rad_s`` (keyed by joint), ``drive_sizing`` (per
         joint, the figures that size a drive: peak and RMS joint torque,
         peak joint speed, peak mechanical power, peak and RMS motor current,
-        peak voltage),
+        peak voltage, and the shares of the ticks at the drive's limits,
+        ``share_at_torque_limit`` (the joint's rated effort, the URDF's),
+        ``share_at_current_limit`` (the driver's) and
+        ``share_at_supply_voltage``: a peak at a limit says the drive was
+        clipped there, the share how often),
         ``safety_state`` (the supervisor's final state) and ``safety_events``
         (violations, e-stops and warnings such as the cuff-load monitor's,
         :data:`SAFETY_EVENT_KINDS`: t, kind, quantity, value, limit, message),
@@ -159,6 +178,8 @@ class RunStats:
             "peak_joint_speed_rad_s": _keyed(speed, JOINT_NAMES),
             "peak_motor_voltage_V": _keyed(voltage, JOINT_NAMES),
             "peak_mechanical_power_W": _keyed(power, JOINT_NAMES),
+            "share_at_torque_limit": _keyed(self._at_limit[0] / n, JOINT_NAMES),
+            "share_at_current_limit": _keyed(self._at_limit[1] / n, JOINT_NAMES),
             "peak_cuff_force_N": _keyed(cuff, CUFF_NAMES),
             "qp_failures": result.qp_failures,
             "safety_state": result.safety_state,
@@ -174,6 +195,9 @@ class RunStats:
                     "peak_current_A": float(current[j]),
                     "rms_current_A": float(rms_current[j]),
                     "peak_voltage_V": float(voltage[j]),
+                    "share_at_torque_limit": float(self._at_limit[0, j] / n),
+                    "share_at_current_limit": float(self._at_limit[1, j] / n),
+                    "share_at_supply_voltage": float(self._at_limit[2, j] / n),
                 }
                 for j, joint in enumerate(JOINT_NAMES)
             },
@@ -350,14 +374,19 @@ def contact_stats(config: SimConfig) -> ContactStats | None:
 
 
 @kernel
-def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks):
+def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks, limits, at_limit):
     """Add rows to the running sums and peaks of :class:`RunStats` (its buffers' layout).
 
     One pass over the rows in place of a dozen numpy reductions over the
     strided columns of the chunk buffer (1.4 ms → a few µs per 2000 rows).
+    ``at_limit[i, j]`` counts the rows with |τ|, |I|, |U| (i = 0, 1, 2) at
+    ``limits[i, j]`` (within 1e-9 of it: the drive clips to it exactly).
     """
     for r in range(q.shape[0]):
         for j in range(4):
+            at_limit[0, j] += abs(tau[r, j]) >= limits[0, j] * (1.0 - 1e-9)
+            at_limit[1, j] += abs(current[r, j]) >= limits[1, j] * (1.0 - 1e-9)
+            at_limit[2, j] += abs(voltage[r, j]) >= limits[2, j] * (1.0 - 1e-9)
             err = q_des[r, j] - q[r, j]
             t = tau[r, j]
             sums[0, j] += err * err
@@ -371,6 +400,18 @@ def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks):
             fx, fz = cuff_force[r, j, 0], cuff_force[r, j, 1]
             peaks[5, j] = max(peaks[5, j], math.sqrt(fx * fx + fz * fz))
             peaks[6, j] = max(peaks[6, j], abs(dq[r, j]))
+
+
+def drive_limits(config: SimConfig, effort: np.ndarray) -> np.ndarray:
+    """The true drives' limits per joint, (3, 4): the rated effort [N·m], I_max [A], U_max [V].
+
+    ``effort``: the exoskeleton URDF's joint effort limits [N·m] (not finite
+    or not positive: none, infinite), as the plant clips the drive torque.
+    """
+    effort = np.asarray(effort, dtype=float)
+    effort = np.where(np.isfinite(effort) & (effort > 0.0), effort, np.inf)
+    m = config.motor
+    return np.array([effort, np.full(4, m.current_limit_A), np.full(4, m.supply_voltage_V)])
 
 
 def device_belief(config: SimConfig) -> dict[str, Any]:

@@ -33,6 +33,8 @@ METRICS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("rms_motor_current_A", JOINT_NAMES),
     ("peak_joint_speed_rad_s", JOINT_NAMES),
     ("peak_motor_voltage_V", JOINT_NAMES),
+    ("share_at_torque_limit", JOINT_NAMES),
+    ("share_at_current_limit", JOINT_NAMES),
     ("peak_cuff_force_N", CUFF_NAMES),
     ("rms_tracking_error_rad", JOINT_NAMES),
     ("max_tracking_error_rad", JOINT_NAMES),
@@ -40,8 +42,9 @@ METRICS: tuple[tuple[str, tuple[str, ...]], ...] = (
 
 #: Output columns of the table after the run id and the swept parameters:
 #: name → Arrow type name.  Per-joint and per-cuff figures are flat columns
-#: ``<summary key>_<joint or cuff>`` (units in the name); ``safety_events``
-#: counts the supervisor's violations and e-stops, ``safety_state`` is its
+#: ``<summary key>_<joint or cuff>`` (units in the name; ``share_at_*_limit``:
+#: fractions of the run's ticks); ``safety_events`` counts the supervisor's
+#: violations and e-stops and the monitors' warnings, ``safety_state`` is its
 #: final state, ``qp_failures`` the QP controller's fallbacks (0 and "" when
 #: the summary has no such key); ``sim_duration_s`` is the simulated time
 #: reached; ``wall_time_s`` the run's wall-clock time, set-up included.

@@ -98,3 +98,28 @@ def test_a_stop_locks_the_harness_and_runs_the_belt_down() -> None:
     expected = np.maximum(v0 - 1.0 * (t[after] - t[k]), 0.0)
     np.testing.assert_allclose(s["belt_speed_set"][after], expected, atol=1e-12)
     assert s["belt_speed_set"][-1] == 0.0 and abs(s["belt_speed"][-1]) < 0.01
+
+
+def test_the_drives_clipped_at_their_limits_are_counted(supported) -> None:
+    """Half the body weight on the stance legs clips the drives at the weight transfers:
+    the summary counts the ticks at the URDF's rated effort (150 N·m) and at the driver's
+    current limit, the same shares as the logged torques and currents give."""
+    summary, s = supported.summary(), supported.signals
+    effort = np.asarray(load_exo().effort_limit, dtype=float)
+    i_max = supported.config.motor.current_limit_A
+    lines = []
+    for j, joint in enumerate(("left_hip", "left_knee", "right_hip", "right_knee")):
+        sizing = summary["drive_sizing"][joint]
+        at_effort = np.mean(np.abs(s["drive_torque"][:, j]) >= effort[j] * (1 - 1e-9))
+        at_current = np.mean(np.abs(s["current"][:, j]) >= i_max * (1 - 1e-9))
+        assert sizing["share_at_torque_limit"] == pytest.approx(at_effort, abs=1e-12)
+        assert sizing["share_at_current_limit"] == pytest.approx(at_current, abs=1e-12)
+        assert summary["share_at_torque_limit"][joint] == sizing["share_at_torque_limit"]
+        # A peak at the limit is a clipped drive, not a drive that just reached it.
+        assert (sizing["peak_torque_Nm"] >= effort[j] * (1 - 1e-9)) == (at_effort > 0)
+        lines.append(
+            f"{joint} {100 * at_effort:.1f} % at {effort[j]:.0f} N·m, "
+            f"{100 * at_current:.1f} % at {i_max:.0f} A"
+        )
+    print("\n50 % support: " + "; ".join(lines))
+    assert max(summary["share_at_torque_limit"].values()) > 0.0  # the finding: clipped

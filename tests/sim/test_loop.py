@@ -428,3 +428,6 @@ def test_drive_sizing_figures_equal_the_signals(pd_run) -> None:
         assert sizing["peak_torque_Nm"] == np.max(np.abs(tau[:, j]))
         assert sizing["peak_power_W"] == np.max(np.abs(tau[:, j] * dq[:, j]))
         assert sizing["rms_current_A"] <= sizing["peak_current_A"]
+        # The default run stays within its drives' limits: no tick clipped.
+        assert sizing["share_at_torque_limit"] == sizing["share_at_current_limit"] == 0.0
+        assert sizing["peak_current_A"] < pd_run.config.motor.current_limit_A
