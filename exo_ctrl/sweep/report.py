@@ -93,6 +93,18 @@ def _worst(cols: dict[str, np.ndarray], key: str, names: Sequence[str], ok: np.n
     return row, names[col], float(values[row, col]), int(np.sum(per_row == per_row[row]))
 
 
+def _clipped(cols: dict[str, np.ndarray], joint: str, ok: np.ndarray) -> str:
+    """How many completed runs clipped ``joint``'s drive at its torque or current limit.
+
+    "–" for a table written before these columns existed (a resumed sweep).
+    """
+    keys = [f"share_at_{x}_limit_{joint}" for x in ("torque", "current")]
+    if any(k not in cols for k in keys):
+        return "–"
+    shares = np.column_stack([cols[k][ok].astype(float) for k in keys])
+    return str(int((np.nan_to_num(shares) > 0.0).any(axis=1).sum()))
+
+
 def write_report(table: Any, spec: SweepSpec, path: str | os.PathLike[str]) -> Path:
     """Write the text report: worst cases with their parameters, maxima, failures.
 
@@ -126,13 +138,16 @@ def write_report(table: Any, spec: SweepSpec, path: str | os.PathLike[str]) -> P
             if ties > 1:
                 lines.append(f"  ({ties} completed runs reach the same value)")
         lines.append("maxima over completed runs:")
-        lines.append(f"  {'joint':<12}{'torque [N·m]':>14}{'power [W]':>12}{'current [A]':>13}")
+        lines.append(
+            f"  {'joint':<12}{'torque [N·m]':>14}{'power [W]':>12}{'current [A]':>13}"
+            f"{'runs clipped':>14}"
+        )
         for j in JOINT_NAMES:
             tau, pw, cur = (
                 float(np.nanmax(cols[f"{k}_{j}"][ok].astype(float)))
                 for k in ("peak_drive_torque_Nm", "peak_mechanical_power_W", "peak_motor_current_A")
             )
-            lines.append(f"  {j:<12}{tau:>14.4g}{pw:>12.4g}{cur:>13.4g}")
+            lines.append(f"  {j:<12}{tau:>14.4g}{pw:>12.4g}{cur:>13.4g}{_clipped(cols, j, ok):>14}")
         flagged = int((cols["safety_events"][ok].astype(int) > 0).sum())
         lines.append(f"completed runs with safety events: {flagged}")
     else:

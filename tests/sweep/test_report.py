@@ -39,6 +39,13 @@ def test_plots_and_report_name_the_worst_case(tmp_path, make_spec):
             f"worst {title}: {per_run[row]:.6g} {unit} at {name}, run {row} "
             f"({cols['run_id'][row]}): {point}"
         )
+    # The maxima table counts, per joint, the completed runs whose drive was clipped.
+    head = report.index("maxima over completed runs:")
+    for i, j in enumerate(JOINT_NAMES):
+        shares = [cols[f"share_at_{x}_limit_{j}"][ok].astype(float) for x in ("torque", "current")]
+        clipped = int(((shares[0] > 0) | (shares[1] > 0)).sum())
+        assert report[head + 2 + i].split()[0] == j
+        assert report[head + 2 + i].split()[-1] == str(clipped)
     failures = [s for s in report if s.startswith("  run ")]
     assert len(failures) == int((~ok).sum())
     assert all("lift_height=0.5 m" in s for s in failures)
