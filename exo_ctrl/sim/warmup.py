@@ -29,7 +29,8 @@ whose data file is missing) is compiled again by numba.
 goes nowhere, and any error in it is ignored (it costs time, never a result).
 It dies with this process (``prctl(PR_SET_PDEATHSIG)`` on Linux and a watch on
 its parent), and :meth:`Warmup.finish` stops it when the run ends.  A run that
-completes leaves the marker, so later runs of these features start no helper.
+completes leaves the marker (with the helper off too: a library run), so
+later runs of these features start no helper, and say they load the kernels.
 The CLI's ``simulate`` uses it; ``simulate(..., warmup=True)`` from Python;
 ``EXO_CTRL_WARMUP=0`` turns it off, ``EXO_CTRL_WARMUP=1`` starts it even
 when no core seems free (:func:`core_free`).  Sweeps do not use it (their pools compile
@@ -125,15 +126,17 @@ class Warmup:
 
     Args:
         config: the run.
-        enabled: False: no helper, no marker (as ``EXO_CTRL_WARMUP=0``).
+        enabled: False: no helper (as ``EXO_CTRL_WARMUP=0``); the marker
+            is still read and, after a completed run, written.
 
     Attributes:
         process: the helper, or None when none was started (the cache is warm
             for these features, no cache directory can be written, no core is
             free, :func:`core_free`, or it is off).
-        warm: a run of these features has completed with the helper enabled
-            (started or not) since the cache was made: its kernels are
-            loaded, not compiled (the marker; False when unknown).
+        warm: a run of these features has completed since the cache was
+            made (with or without a helper, from the command line or the
+            library): its kernels are loaded, not compiled (the marker;
+            False when unknown).
 
     """
 
@@ -141,14 +144,14 @@ class Warmup:
         self.process: subprocess.Popen | None = None
         self._marker: Path | None = None
         self.warm = False
-        setting = os.environ.get(ENV, "")
-        if not enabled or setting == "0":
-            return
         where = marker_dir()
         if where is None:
             return
         self._marker = where / f"exo_ctrl-warm-{feature_key(config)}"
         self.warm = self._marker.exists()
+        setting = os.environ.get(ENV, "")
+        if not enabled or setting == "0":
+            return
         if self.warm or (setting != "1" and not core_free()):
             return
         try:

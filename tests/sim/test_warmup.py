@@ -111,6 +111,10 @@ def test_no_helper_when_turned_off_or_marked_or_busy(tmp_path, monkeypatch) -> N
     forced = Warmup(SimConfig(controller="ct", duration_s=0.01))
     assert forced.process is not None
     forced.finish(completed=False)
+    library = Warmup(SimConfig(controller="qp"), enabled=False)  # simulate()'s default
+    assert library.process is None and not library.warm
+    library.finish(completed=True)  # a completed library run marks its features warm too
+    assert Warmup(SimConfig(controller="qp"), enabled=False).warm
 
 
 def test_a_core_is_free_below_the_cores_less_a_half(monkeypatch) -> None:
