@@ -32,14 +32,20 @@ from exo_ctrl.sim.belief import Belief
 THIGH, SHANK = 220.0, 130.0  # ISO/TS 15066, the supervisor's defaults
 
 
-def test_a_patient_pushing_against_the_hold_gets_the_yield_within_the_limits() -> None:
+def _walking_on(period_s: float, duration_s: float):
+    """The active patient's own 0.30 m steps at ``period_s`` against tracking's plan, on a
+    device that holds the published split cuff model (its estimate right: a true stop)."""
     config = SimConfig(
         patient_torque="active",
-        patient_active=ActiveParams(period_s=1.0, step_length_m=0.30),
-        duration_s=6.0,
+        patient_active=ActiveParams(period_s=period_s, step_length_m=0.30),
+        duration_s=duration_s,
         belief=Belief(cuffs=CuffParams()),
     )
-    result = simulate(config)
+    return simulate(config)
+
+
+def test_a_patient_pushing_against_the_hold_gets_the_yield_within_the_limits() -> None:
+    result = _walking_on(period_s=1.0, duration_s=6.0)
     events = [e for e in result.events if e["kind"] == "state"]
     states = [e["value"] for e in events]
     messages = [e["message"] for e in events]
@@ -78,13 +84,7 @@ def test_a_patient_pushing_in_the_ramp_to_the_hold_gets_the_yield_there() -> Non
     its limit (the thigh) or past 1.05 × what the stop found (the shank)
     yields on the next tick.
     """
-    config = SimConfig(
-        patient_torque="active",
-        patient_active=ActiveParams(period_s=1.1, step_length_m=0.30),
-        duration_s=2.6,
-        belief=Belief(cuffs=CuffParams()),
-    )
-    result = simulate(config)
+    result = _walking_on(period_s=1.1, duration_s=2.6)
     events = [e for e in result.events if e["kind"] == "state"]
     assert [e["value"] for e in events[:2]] == ["stopping", "yielding"], events
     stop, switch = events[0]["t"], events[1]["t"]
