@@ -14,7 +14,11 @@ same run (:func:`floor_calls`, and for the QP proxsuite's share, see
 :data:`RTF_PAIRS` runs each), and their ratio, the median of the ratios of
 pairs of runs made one after the other (the ratio of the two bests moved
 from 0.63 to 1.18 between two scenarios that are the same run, pd and
-pd_kalman, on a machine whose speed drifts).  For the
+pd_kalman, on a machine whose speed drifts); and, as "whole run", the same
+median over each ``simulate`` call's wall time, set-up and the recorder's
+start (its writer process, the blueprint, the static scene) and end (the
+outcome, the last write) included, which the real-time factor leaves out:
+what a short recorded run costs.  For the
 QP also the share of ticks that called proxsuite and the median of its
 update + solve + checks on those ticks (a tick's solve takes a few
 iterations, the floor's warm re-solve of a solved problem none).
@@ -224,11 +228,15 @@ def bench_scenario(name: str, ticks: int) -> dict[str, float]:
         extra["qp_solver_share"] = share
         extra["qp_solve_in_loop_median_us"] = float(np.median(solved)) if solved.size else 0.0
     plain, recorded = np.empty(RTF_PAIRS), np.empty(RTF_PAIRS)
+    whole = np.empty((RTF_PAIRS, 2))  # each simulate() call's wall time [s], without, with
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(RTF_PAIRS):  # alternating: a change of the machine's speed hits both
+            t0 = time.perf_counter()
             plain[i] = simulate(config).summary()["real_time_factor"]
+            t1 = time.perf_counter()
             recorder = RerunRecorder(Path(tmp) / f"b{i}.rrd")
             recorded[i] = simulate(config, observers=[recorder]).summary()["real_time_factor"]
+            whole[i] = (t1 - t0, time.perf_counter() - t1)
     median = float(np.median(tick))
     return {
         "tick_median_us": median,
@@ -238,6 +246,7 @@ def bench_scenario(name: str, ticks: int) -> dict[str, float]:
         "real_time_factor": float(plain.max()),
         "real_time_factor_recording": float(recorded.max()),
         "recording_ratio": float(np.median(recorded / plain)),
+        "recording_ratio_whole_run": float(np.median(whole[:, 0] / whole[:, 1])),
         **extra,
     }
 
@@ -325,7 +334,7 @@ def main() -> int:
     else:
         print(
             f"{'scenario':<12}{'tick median':>12}{'tick p99':>10}{'floor':>8}{'ratio':>7}"
-            f"{'RTF':>7}{'RTF rec':>9}{'rec/no rec':>12}"
+            f"{'RTF':>7}{'RTF rec':>9}{'rec/no rec':>12}{'whole run':>11}"
         )
         for name in names:
             r = bench_scenario(name, args.ticks)
@@ -334,6 +343,7 @@ def main() -> int:
                 f"{name:<12}{r['tick_median_us']:>10.1f}µs{r['tick_p99_us']:>8.1f}µs"
                 f"{r['floor_us']:>6.1f}µs{r['ratio']:>7.2f}{r['real_time_factor']:>7.1f}"
                 f"{r['real_time_factor_recording']:>9.1f}{r['recording_ratio']:>12.2f}"
+                f"{r['recording_ratio_whole_run']:>11.2f}"
             )
             if "qp_solver_share" in r:
                 print(
