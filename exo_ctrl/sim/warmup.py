@@ -40,6 +40,7 @@ the first point in the parent, then share the cache).
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import os
 import pickle
@@ -95,9 +96,19 @@ def feature_key(config: SimConfig) -> str:
         config.cuff_fit,
         config.ramp_in_s == 0.0,
     )
-    digest = hashlib.sha256(_jit_cache.source_hash(_PACKAGE).encode())
+    digest = hashlib.sha256(_package_sources().encode())
     digest.update(repr(features).encode())
     return digest.hexdigest()[:24]
+
+
+@functools.cache
+def _package_sources() -> str:
+    """The package's source hash, once per process (8 ms here: every ``.py`` file read).
+
+    The compiled kernels of a process are those of the sources it imported,
+    so a hash taken later in the same process would name the same kernels.
+    """
+    return _jit_cache.source_hash(_PACKAGE)
 
 
 def marker_dir() -> Path | None:
