@@ -29,6 +29,7 @@ runs, and cannot wait on the lock at exit.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -49,8 +50,6 @@ __all__ = [
 ]
 
 _SCALARS = rr.Scalars.descriptor_scalars()
-#: Cached list offsets kept at most, 4 per width (one per chunk length in use).
-_CACHE_MAX = 8
 
 
 def pool_vector(size: int, dtype: type = np.float64) -> tuple[np.ndarray, pa.Buffer]:
@@ -67,8 +66,13 @@ def pool_array(values: np.ndarray, kind: pa.DataType) -> pa.Array:
     return pa.Array.from_buffers(kind, flat.size, [None, buffer])
 
 
+@functools.lru_cache(maxsize=64)
 def list_offsets(rows: int, per_row: int) -> pa.Array:
-    """Offsets 0, w, 2w, … rows·w (int32) of ``rows`` rows of ``per_row`` instances each."""
+    """Offsets 0, w, 2w, … rows·w (int32) of ``rows`` rows of ``per_row`` instances each.
+
+    Cached (a few chunk lengths and widths in use; the series' and the
+    scene's alike): the same every chunk, and rerun only reads them.
+    """
     return pool_array(np.arange(0, rows * per_row + 1, per_row, dtype=np.int32), pa.int32())
 
 
@@ -154,7 +158,6 @@ class SignalColumns:
         #: The signals sent whole under ``raw/``.
         self.raw = layout.raw_signals()
         self._widths = {name: math.prod(shape) for name, shape in layout.shapes.items()}
-        self._offsets: dict[tuple[int, int], pa.Array] = {}
         self._select()
 
     def _select(self) -> None:
@@ -178,7 +181,7 @@ class SignalColumns:
     def prepare(self, n: int) -> None:
         """Build the cached list offsets of chunks of ``n`` ticks ahead of the first one."""
         for w in {*self._widths.values(), *(len(s.columns) for s in self.layout.series)}:
-            self._list_offsets(n, w)
+            list_offsets(n, w)
 
     def check(self, rows: dict[str, np.ndarray]) -> None:
         """Raise RecordingError if ``rows`` lacks a signal of the layout."""
@@ -231,7 +234,7 @@ class SignalColumns:
         at = 0
         for s in self.layout.series:
             w = len(s.columns)
-            batch.add(s.entity, _SCALARS, values.slice(at, n * w), self._list_offsets(n, w))
+            batch.add(s.entity, _SCALARS, values.slice(at, n * w), list_offsets(n, w))
             at += n * w
         batch.send(rec)
 
@@ -245,21 +248,12 @@ class SignalColumns:
         n = batch.n
         for name in self.raw:
             values = pool_array(self._flat(rows[name], skip), pa.float64())
-            batch.add(f"raw/{name}", _SCALARS, values, self._list_offsets(n, self._widths[name]))
+            batch.add(f"raw/{name}", _SCALARS, values, list_offsets(n, self._widths[name]))
         batch.send(rec)
 
     def _flat(self, rows: np.ndarray, skip: int) -> np.ndarray:
         """Rows ``skip:`` of a signal as (n, width) (a view where the strides allow)."""
         return rows[skip:].reshape(rows.shape[0] - skip, -1)
-
-    def _list_offsets(self, n: int, width: int) -> pa.Array:
-        """Offsets of n rows of ``width`` scalars (cached: rerun may hold them)."""
-        key = (n, width)
-        if key not in self._offsets:
-            if len(self._offsets) >= 4 * _CACHE_MAX:
-                self._offsets.clear()
-            self._offsets[key] = list_offsets(n, width)
-        return self._offsets[key]
 
 
 def log_styles(rec: rr.RecordingStream, series: tuple[Series, ...]) -> None:

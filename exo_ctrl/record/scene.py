@@ -45,8 +45,6 @@ _POSITIONS = rr.Points3D.descriptor_positions()
 _LINES = rr.LineStrips3D.descriptor_strips()
 _ORIGINS = rr.Arrows3D.descriptor_origins()
 _VECTORS = rr.Arrows3D.descriptor_vectors()
-#: List offsets by (rows, items per row), kept (:func:`_offsets`).
-_OFFSETS: dict[tuple[int, int], pa.Array] = {}
 
 
 def _skew(a: np.ndarray) -> np.ndarray:
@@ -174,21 +172,10 @@ def _vec3(points: np.ndarray) -> pa.Array:
     return pa.FixedSizeListArray.from_arrays(flat, type=_VEC3)
 
 
-def _offsets(rows: int, per_row: int) -> pa.Array:
-    """:func:`list_offsets`, cached (the same every chunk; rerun only reads them)."""
-    key = (rows, per_row)
-    found = _OFFSETS.get(key)
-    if found is None:
-        if len(_OFFSETS) >= 64:
-            _OFFSETS.clear()
-        found = _OFFSETS[key] = list_offsets(rows, per_row)
-    return found
-
-
 def _strips(points: np.ndarray) -> pa.Array:
     """Line strips (k, p, 3) [m] as rerun's LineStrip3D components."""
     k, p = points.shape[:2]
-    return pa.ListArray.from_arrays(_offsets(k, p), _vec3(points), type=_STRIP)
+    return pa.ListArray.from_arrays(list_offsets(k, p), _vec3(points), type=_STRIP)
 
 
 def log_scene_static(
@@ -297,7 +284,7 @@ def send_scene(
     m = ticks.shape[0]
     t = ticks * dt
     batch = EntityBatch(ticks, dt)
-    one, two, three = _offsets(m, 1), _offsets(m, 2), _offsets(m, 3)
+    one, two, three = list_offsets(m, 1), list_offsets(m, 2), list_offsets(m, 3)
     exo_cuffs, exo_feet = np.zeros((m, 4, 3)), np.zeros((m, 2, 3))
     feet = {"exo": exo_feet, "patient": np.zeros((m, 2, 3))}
     for body, skeleton, q in bodies:
@@ -336,5 +323,5 @@ def send_scene(
     stripes[..., 0, 1] = belt["y_min"]
     stripes[..., 1, 1] = belt["y_max"]
     stripes[..., 2] = belt["z"]
-    batch.add("world/belt/stripes", _LINES, _strips(stripes.reshape(-1, 2, 3)), _offsets(m, ns))
+    batch.add("world/belt/stripes", _LINES, _strips(stripes.reshape(-1, 2, 3)), list_offsets(m, ns))
     batch.send(rec)
