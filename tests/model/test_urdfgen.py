@@ -18,6 +18,9 @@ from exo_ctrl.model import (
     DEFAULT_URDF_NAMES,
     BodyParams,
     build_urdf,
+    draw_cohort,
+    fitted_exo,
+    nominal_patient,
     segment_inertia,
     urdf_xml,
     write_urdf,
@@ -78,6 +81,29 @@ def test_xml_is_deterministic_and_parameter_dependent() -> None:
     assert urdf_xml(EXO) == urdf_xml(BodyParams.exo_default())
     assert urdf_xml(EXO) != urdf_xml(BodyParams.exo_default(joint_damping=0.6))
     assert urdf_xml(EXO) != urdf_xml(PATIENT)
+
+
+def _yourdfpy_text(params: BodyParams) -> str:
+    """yourdfpy's own serialisation of :func:`build_urdf`'s model (lxml, pretty-printed)."""
+    buffer = io.BytesIO()
+    build_urdf(params, scene=False).write_xml().write(
+        buffer, xml_declaration=True, pretty_print=True, encoding="UTF-8"
+    )
+    return buffer.getvalue().decode("utf-8")
+
+
+# the defaults, a short pair, a drawn cohort (random lengths, masses, cuffs) and their
+# fitted exoskeletons, and a nominal patient with an odd stature and mass
+COHORT = draw_cohort(6, seed=3, height_m=1.62, mass_kg=57.3, sex="female")
+ODD = nominal_patient(0.431, 0.397, 1.58, 61.7)
+VARIED = [*ALL, *COHORT, *(fitted_exo(p) for p in COHORT), ODD]
+
+
+@pytest.mark.parametrize("params", VARIED)
+def test_text_is_yourdfpys_serialisation_of_the_built_model(params: BodyParams) -> None:
+    # urdf_xml writes the description with the standard library; build_urdf makes
+    # yourdfpy's objects of it, which lxml writes: the two texts are one, byte for byte
+    assert urdf_xml(params) == _yourdfpy_text(params)
 
 
 def test_yourdfpy_round_trip() -> None:
@@ -306,6 +332,11 @@ def test_write_urdf_failure_keeps_old_file(tmp_path: Path, monkeypatch: pytest.M
 
 
 def test_yourdfpy_is_imported_only_to_build_a_model() -> None:
-    code = "import sys, exo_ctrl.model; print('yourdfpy' in sys.modules)"
+    # a model's text, file and Pinocchio model (what a run needs) do without it
+    code = (
+        "import sys, tempfile, exo_ctrl.model as m; p = m.BodyParams.patient_default(); "
+        "m.urdf_xml(p); m.load_patient(str(m.write_urdf(p, tempfile.mkdtemp()))); "
+        "print('yourdfpy' in sys.modules); m.build_urdf(p); print('yourdfpy' in sys.modules)"
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert run.stdout.strip() == "False"
+    assert run.stdout.split() == ["False", "True"]
