@@ -1,6 +1,7 @@
 """Stage-by-stage cost of one control tick (``Runner.tick``), for the scenarios of ``bench.py``.
 
     .venv/bin/python tools/tick_profile.py [--scenarios pd,ct] [--ticks N]
+    .venv/bin/python tools/tick_profile.py --boundary [--scenarios pd,ct,qp]
 
 Runs the scenario's ticks through :meth:`Runner.tick` with its stage calls
 wrapped by a timer: each stage's per-tick method (the device's sensors read,
@@ -15,6 +16,16 @@ and compiled work beside the library) shows.
 
 The figures are medians over the ticks after the first tenth; the machine is
 noisy, so compare within one run.
+
+``--boundary`` splits the tick instead into what it is made of (:func:`anatomy`):
+the library calls (``bench.py``'s floor), the compiled kernels' own work,
+the cost of crossing into them (numba's dispatch: typing and unboxing each
+argument, measured as an empty kernel called with the same arguments), and
+the Python around them (the rest).  Every kernel the tick calls from Python
+is found by wrapping the numba dispatchers among the package's module
+globals for a few ticks (a kernel held elsewhere, as an attribute, counts as
+Python); each is then timed on copies of its last arguments, the run's state
+untouched.
 """
 
 from __future__ import annotations
@@ -25,6 +36,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+import numba
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -123,11 +135,220 @@ def profile(name: str, ticks: int) -> dict[str, float]:
     return out
 
 
+def _is_kernel(obj: object) -> bool:
+    return callable(obj) and hasattr(obj, "py_func") and hasattr(obj, "signatures")
+
+
+def _kernel_holders(runner: Runner) -> list[tuple[object, str, object]]:
+    """(holder, name, kernel) for every kernel the tick can call from Python.
+
+    The package's module globals (a kernel of its own or imported: each call
+    site looks up its own module's), and kernels the run's objects hold as
+    attributes (the plant's contact solve, the cuffs' force kernel), found by
+    walking the runner's objects a few levels deep.
+    """
+    found = []
+    for mod_name, mod in list(sys.modules.items()):
+        if mod_name.startswith("exo_ctrl") and mod is not None:
+            found += [(mod, a, obj) for a, obj in list(vars(mod).items()) if _is_kernel(obj)]
+    seen: set[int] = set()
+
+    def walk(obj: object, depth: int) -> None:
+        attrs = getattr(obj, "__dict__", None)
+        if id(obj) in seen or depth > 4 or attrs is None:
+            return
+        seen.add(id(obj))
+        for a, value in list(attrs.items()):
+            if _is_kernel(value):
+                found.append((obj, a, value))
+            elif type(value).__module__.startswith("exo_ctrl"):
+                walk(value, depth + 1)
+
+    walk(runner, 0)
+    return found
+
+
+def _captured_calls(runner: Runner, start: int, ticks: int) -> dict[str, list]:
+    """Kernel name → [dispatcher, calls per tick, arguments of its last call], over ``ticks``."""
+    seen: dict[str, list] = {}
+    patched = _kernel_holders(runner)
+
+    def capture(name, kernel):
+        def call(*args):
+            entry = seen.setdefault(name, [kernel, 0, None])
+            entry[1] += 1
+            entry[2] = args
+            return kernel(*args)
+
+        return call
+
+    for holder, attr, obj in patched:
+        own = f"{obj.py_func.__module__.removeprefix('exo_ctrl.')}.{obj.py_func.__name__}"
+        setattr(holder, attr, capture(own, obj))
+    try:
+        for k in range(start, start + ticks):
+            runner.tick(k, k % runner.chunk)
+    finally:
+        for holder, attr, obj in patched:
+            setattr(holder, attr, obj)
+    for entry in seen.values():
+        entry[1] /= ticks
+    return seen
+
+
+def _copied(args: tuple) -> tuple:
+    """Copies of the arrays among ``args``, a record's noise ``row`` back at its block's start.
+
+    A sensor's kernel takes its next noise sample from row ``row`` of its
+    block and leaves the refill to Python when the block runs out: called
+    again and again it would read past the block's end.  From row 0 a batch
+    of :data:`_BATCH` calls stays inside any block (1000 rows, sensing/sensors.py).
+    """
+    out = []
+    for a in args:
+        if isinstance(a, np.ndarray):
+            a = a.copy()
+            if a.dtype.names and "row" in a.dtype.names and "noise" in a.dtype.names:
+                a["row"] = 0
+        out.append(a)
+    return tuple(out)
+
+
+#: Calls per timed batch (each on fresh copies of the arguments, :func:`_copied`).
+_BATCH = 200
+
+
+def _per_call_us(func, args: tuple, batches: int = 25) -> float:
+    """Best of ``batches`` batches of :data:`_BATCH` calls on copies of ``args`` [µs a call]."""
+    best = np.inf
+    for _ in range(batches):
+        own = _copied(args)
+        t0 = _NS()
+        for _ in range(_BATCH):
+            func(*own)
+        best = min(best, (_NS() - t0) / _BATCH)
+    return best / 1e3
+
+
+def _empty_kernel(n: int):
+    """A compiled kernel of ``n`` arguments that does nothing (not cached)."""
+    names = ", ".join(f"a{i}" for i in range(n))
+    space: dict = {}
+    exec(f"def empty({names}):\n    return 0\n", space)
+    return numba.njit(space["empty"])
+
+
+def _kind(a: object) -> str:
+    if isinstance(a, np.ndarray):
+        return "record" if a.dtype.names else "array"
+    return "other"
+
+
+def _median_tick(runner: Runner, start: int, n: int) -> tuple[float, float]:
+    """Median cost of ticks ``start`` … ``start + n - 1`` [µs], and their share with a contact CRBA.
+
+    With contact on and the pelvis fixed the plant makes a CRBA (its friction
+    solve) on the steps that find a foot on the belt (``bench.py``).
+    """
+    samples = np.empty(n)
+    contact_any = runner.setup.plant.record["contact"]["any"]
+    crba = 0
+    for i in range(n):
+        t0 = _NS()
+        runner.tick(start + i, (start + i) % runner.chunk)
+        samples[i] = _NS() - t0
+        crba += bool(contact_any[0])
+    return float(np.median(samples)) / 1e3, crba / n
+
+
+def anatomy(name: str, ticks: int) -> dict:
+    """The tick of scenario ``name`` as floor + kernels' work + call boundary + Python [µs].
+
+    The ticks are timed before and after the kernels (the machine's speed
+    drifts); the faster median is the tick's figure.
+    """
+    from bench import _time_calls, floor_calls
+
+    setup = build(SimConfig(**SCENARIOS[name]))
+    runner = Runner(setup)
+    n = min(ticks, setup.config.n_ticks // 3)
+    warm = n // 10
+    for k in range(warm):
+        runner.tick(k, k % runner.chunk)
+    before, share = _median_tick(runner, warm, n)
+    plant = setup.plant
+    floor = _time_calls(floor_calls(runner))
+    if setup.config.contact.enabled and plant.model.nq == 8:
+        q_now = plant.q.copy()
+        floor += share * _time_calls([lambda: pin.crba(plant.model, plant.data, q_now)])
+    calls = _captured_calls(runner, warm + n, min(200, n))
+    rows = []
+    for kname, (kernel, per_tick, args) in sorted(calls.items()):
+        real = _per_call_us(kernel, args)
+        empty = _empty_kernel(len(args))
+        empty(*args)
+        boundary = _per_call_us(empty, args)
+        kinds = [_kind(a) for a in args]
+        rows.append(
+            {
+                "kernel": kname,
+                "calls_per_tick": per_tick,
+                "records": kinds.count("record"),
+                "arrays": kinds.count("array"),
+                "other": kinds.count("other"),
+                "call_us": real,
+                "boundary_us": boundary,
+            }
+        )
+    after, _ = _median_tick(runner, warm + n + min(200, n), n)
+    tick = min(before, after)
+    called = sum(r["calls_per_tick"] * r["call_us"] for r in rows)
+    boundary = sum(r["calls_per_tick"] * r["boundary_us"] for r in rows)
+    return {
+        "tick_us": tick,
+        "floor_us": floor,
+        "kernel_work_us": called - boundary,
+        "boundary_us": boundary,
+        "python_us": tick - floor - called,
+        "kernels": rows,
+    }
+
+
+def _print_anatomy(name: str, out: dict) -> None:
+    rows = out["kernels"]
+    kinds = ("records", "arrays", "other")
+    args = {k: sum(r["calls_per_tick"] * r[k] for r in rows) for k in kinds}
+    print(
+        f"{name}: tick {out['tick_us']:.1f} µs = floor {out['floor_us']:.1f} (library calls)"
+        f" + kernels' work {out['kernel_work_us']:.1f} + call boundary {out['boundary_us']:.1f}"
+        f" + Python {out['python_us']:.1f}"
+    )
+    print(
+        f"  {sum(r['calls_per_tick'] for r in rows):.1f} kernel calls a tick with"
+        f" {args['records']:.0f} record, {args['arrays']:.0f} array and {args['other']:.0f}"
+        f" other arguments; 2x the floor leaves {out['floor_us']:.1f} µs for all but the floor"
+    )
+    print(f"  {'kernel':<40}{'calls/tick':>11}{'R/a/o args':>12}{'call µs':>9}{'boundary µs':>13}")
+    for r in rows:
+        kinds = f"{r['records']}/{r['arrays']}/{r['other']}"
+        print(
+            f"  {r['kernel']:<40}{r['calls_per_tick']:>11.2f}{kinds:>12}"
+            f"{r['call_us']:>9.2f}{r['boundary_us']:>13.2f}"
+        )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=2400)
     parser.add_argument("--scenarios", default="pd,ct")
+    parser.add_argument(
+        "--boundary", action="store_true", help="floor, kernels' work, call boundary, Python"
+    )
     args = parser.parse_args()
+    if args.boundary:
+        for name in args.scenarios.split(","):
+            _print_anatomy(name.strip(), anatomy(name.strip(), args.ticks))
+        return 0
     for name in args.scenarios.split(","):
         out = profile(name.strip(), args.ticks)
         print(f"{name}:")
