@@ -3,6 +3,10 @@
 The pieces meet as: gait plan → inverse kinematics → controller → motors →
 plant (exoskeleton + patient + cuffs) → sensors → estimator, with a recorder
 watching.  Units are SI throughout; see the README for frames and signs.
+
+:func:`read_recording` is the recorder package's, imported on its first use:
+that package imports rerun (about 0.3 s here), which a run without a
+recording (a library run, a sweep's worker) never needs.
 """
 
 from .exceptions import (
@@ -36,7 +40,6 @@ from .plan.kinematics import (
     joint_rates,
     plan_joints,
 )
-from .record import read_recording
 from .sim import SimConfig, SimResult, simulate
 
 __version__ = "0.1.0"
@@ -75,3 +78,12 @@ __all__ = [
     "read_recording",
     "simulate",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """``read_recording``, from :mod:`exo_ctrl.record` on first use (module docstring)."""
+    if name == "read_recording":
+        from .record import read_recording
+
+        return read_recording
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

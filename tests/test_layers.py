@@ -12,6 +12,8 @@ package's public face) import the recorder.
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -149,3 +151,23 @@ def test_the_walk_sees_the_imports() -> None:
     found = dict(imports_of(ROOT / "sim" / "tick.py"))
     assert any(layer(t) == "estimation" for t in found)
     assert any(layer(t) == "plant" for t in found)
+
+
+def test_the_public_face_imports_the_recorder_on_first_use_of_read_recording() -> None:
+    # rerun (the recorder's) is not loaded by `import exo_ctrl`, nor by a sweep's worker
+    # module; `read_recording` (attribute, from-import or star-import) is the recorder's own
+    code = (
+        "import sys, exo_ctrl, exo_ctrl.sweep.run; print('rerun' in sys.modules); "
+        "from exo_ctrl import read_recording; import exo_ctrl.record as r; "
+        "print('rerun' in sys.modules, read_recording is r.read_recording); "
+        "ns = {}; exec('from exo_ctrl import *', ns); "
+        "print(ns['read_recording'] is r.read_recording)\n"
+        "try:\n    exo_ctrl.no_such_name\nexcept AttributeError as e:\n    print(e)"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.splitlines() == [
+        "False",
+        "True True",
+        "True",
+        "module 'exo_ctrl' has no attribute 'no_such_name'",
+    ]
