@@ -171,3 +171,10 @@ def test_the_public_face_imports_the_recorder_on_first_use_of_read_recording() -
         "True",
         "module 'exo_ctrl' has no attribute 'no_such_name'",
     ]
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_a_module_holds_a_few_hundred_lines(path: Path) -> None:
+    # one concept a module, none over 500 lines (the package layout's rule)
+    lines = len(path.read_text(encoding="utf-8").splitlines())
+    assert lines <= 500, f"{path.relative_to(ROOT)} has {lines} lines"

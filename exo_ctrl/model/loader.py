@@ -128,6 +128,31 @@ class BodyModel:
                 self.source, "", f"{who} needs exactly the joints {JOINT_NAMES} in that order"
             )
 
+    def require_leg_chains(self, who: str) -> None:
+        """:meth:`require_legs_only`, and each leg a hip on the fixed frame and a knee on the hip.
+
+        The two-link legs a closed-form leg model assumes (each cuff's frame on
+        its link is the loader's own check, :mod:`exo_ctrl.model.geometry`).
+
+        Args:
+            who: what needs it, for the message (``"the QP cuff model"``).
+
+        Raises:
+            InvalidModel: the joints of :meth:`require_legs_only`, or the first
+                leg that is not such a chain, named by its hip.
+
+        """
+        self.require_legs_only(who)
+        parents = self.model.parents
+        for leg in (0, 1):
+            hip, knee = self.joint_ids[2 * leg], self.joint_ids[2 * leg + 1]
+            if parents[hip] != 0 or parents[knee] != hip:
+                raise InvalidModel(
+                    self.source,
+                    self.model.names[hip],
+                    f"{who} needs each leg as a hip on the fixed frame and a knee on the hip",
+                )
+
     def to_model_q(self, q: np.ndarray) -> np.ndarray:
         """Joint vector in JOINT_NAMES order → the model's own q ordering."""
         out = np.zeros(self.model.nq)

@@ -81,6 +81,7 @@ from ..model.leg_kernels import LEG_FIELDS, fill_legs
 from .adapt import SpeedAdaptation
 from .kinematics import JointTrajectory
 from .loading import StanceSink, sink_phase
+from .phase_curves import cubic, hip_rise, lift, phase_rate, ramp_factor
 from .profile import SpeedProfile, profile_at
 
 __all__ = ["FILTER_S", "FREEZE_S", "MAX_PROFILE_POINTS", "ONLINE_FIELDS", "OnlineGait"]
@@ -201,7 +202,7 @@ class OnlineGait:
 
     def belt_speed(self, t: float) -> tuple[float, float]:
         """The belt's set speed σ(t) v(t) [m/s] and its rate [m/s²] at time ``t`` [s]."""
-        sig, dsig, _ = _ramp(t, float(self.record[0]["ramp_in"]))
+        sig, dsig, _ = ramp_factor(t, float(self.record[0]["ramp_in"]))
         v, a = profile_at(self._times, self._speeds, t)
         return sig * v, dsig * v + sig * a
 
@@ -245,86 +246,12 @@ class OnlineGait:
 
 
 @kernel
-def _ramp(t: float, t_r: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
-    """σ, σ̇ [1/s], σ̈ [1/s²] of the quintic ramp-in over ``t_r`` (1, 0, 0 without one)."""
-    if t_r <= 0.0 or t >= t_r:
-        return 1.0, 0.0, 0.0
-    if t <= 0.0:
-        return 0.0, 0.0, 0.0
-    u = t / t_r
-    w = 1.0 - u
-    return (
-        u**3 * (10.0 - 15.0 * u + 6.0 * u * u),
-        30.0 * (u * w) ** 2 / t_r,
-        (60.0 * u * w * (1.0 - 2.0 * u) / (t_r * t_r)),
-    )
-
-
-@kernel
-def _rate(law: np.ndarray, v: float, a: float) -> tuple[float, float]:  # pragma: no cover
-    """The phase rate r = 1 / T(v) [1/s] and ṙ = dr/dv · v̇ [1/s²] (:mod:`exo_ctrl.plan.adapt`)."""
-    s = law[0] * (v / law[1]) ** law[2]
-    expo = 1.0 - law[2]
-    if s >= law[3]:
-        s = law[3]
-        expo = 1.0
-    r = law[4] * v / s
-    return r, expo * r / v * a
-
-
-@kernel
-def _cubic(
-    x0: float, dx0: float, x1: float, dx1: float, d: float, u: float
-) -> tuple[float, float, float]:  # pragma: no cover - compiled
-    """Position, velocity, acceleration at ``u`` of the cubic on [0, d] meeting (x0, x1, ẋ0, ẋ1)."""
-    if d <= 0.0:
-        return x1, dx1, 0.0
-    delta = x1 - x0
-    k2 = (3.0 * delta - (2.0 * dx0 + dx1) * d) / (d * d)
-    k3 = (-2.0 * delta + (dx0 + dx1) * d) / (d * d * d)
-    return (
-        x0 + u * (dx0 + u * (k2 + u * k3)),
-        dx0 + u * (2.0 * k2 + 3.0 * k3 * u),
-        2.0 * k2 + 6.0 * k3 * u,
-    )
-
-
-@kernel
-def _lift(tau: float, half: float, h: float) -> tuple[float, float, float]:  # pragma: no cover
-    """Z(τ), dZ/dτ, d²Z/dτ² of the swing's lift (0 in stance); ``half`` = τ_B = (1 - β)/2."""
-    if tau < half:  # A -> B: h down to 0
-        u = tau / half
-        return (
-            h * (1.0 - 3.0 * u * u + 2.0 * u**3),
-            h * 6.0 * u * (u - 1.0) / half,
-            (h * (12.0 * u - 6.0) / (half * half)),
-        )
-    if tau >= 1.0 - half:  # D -> A: 0 up to h
-        u = (tau - (1.0 - half)) / half
-        return (
-            h * (3.0 * u * u - 2.0 * u**3),
-            h * 6.0 * u * (1.0 - u) / half,
-            (h * (6.0 - 12.0 * u) / (half * half)),
-        )
-    return 0.0, 0.0, 0.0
-
-
-@kernel
-def _rise(tau: float, e: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
-    """The hip's rise at phase τ: ΔH = (e/2) cos(4π τ) [m], dΔH/dτ, d²ΔH/dτ² (module docstring)."""
-    w = 4.0 * math.pi
-    c, s = math.cos(w * tau), math.sin(w * tau)
-    a = 0.5 * e
-    return a * c, -a * w * s, -a * w * w * c
-
-
-@kernel
 def _write_hip(g, tau: float, r: float, dr: float, t: float) -> None:  # pragma: no cover
     """The record's ``hip``: σ ΔH and its time derivatives at phase τ, rate r and ṙ (docstring)."""
     if g.exc <= 0.0:
         return
-    sig, dsig, ddsig = _ramp(t, g.ramp_in)
-    h, h1, h2 = _rise(tau, g.exc)
+    sig, dsig, ddsig = ramp_factor(t, g.ramp_in)
+    h, h1, h2 = hip_rise(tau, g.exc)
     g.hip[0] = sig * h
     g.hip[1] = dsig * h + sig * h1 * r
     g.hip[2] = ddsig * h + 2.0 * dsig * h1 * r + sig * (h2 * r * r + h1 * dr)
@@ -361,7 +288,7 @@ def _swing(g, leg: int, tau: float, r: float, d: float, u: float):  # pragma: no
             g.xe[leg] = xt
             g.dxe[leg] = dxt + g.a_set * d / g.kv
         g.seg[leg] = seg
-    return _cubic(g.x[leg], g.dx[leg], g.xe[leg], g.dxe[leg], d, u)
+    return cubic(g.x[leg], g.dx[leg], g.xe[leg], g.dxe[leg], d, u)
 
 
 @kernel
@@ -405,10 +332,10 @@ def _write_leg(g, leg, tau, r, dr, a_belt, t) -> int:  # pragma: no cover - comp
     ddx = g.ddx[leg]  # swing: the acceleration of the cubic it followed, at its end
     if half <= tau < 1.0 - half:
         ddx = -a_belt
-    sig, dsig, ddsig = _ramp(t, g.ramp_in)
-    zz, z1, z2 = _lift(tau, half, g.h)
+    sig, dsig, ddsig = ramp_factor(t, g.ramp_in)
+    zz, z1, z2 = lift(tau, half, g.h)
     if g.exc > 0.0:  # relative to the moving hip: Z - ΔH
-        h, h1, h2 = _rise(g.phase[0], g.exc)  # one hip: the left leg's phase (ΔH has period ½)
+        h, h1, h2 = hip_rise(g.phase[0], g.exc)  # one hip: the left leg's phase (ΔH has period ½)
         zz, z1, z2 = zz - h, z1 - h1, z2 - h2
     if g.sink_on:  # into the belt by the load's sink: Z - ΔH - Δs
         s0, s1, s2 = sink_phase(g.sink, tau, g.phase[0], beta, r, g.exc)
@@ -455,8 +382,8 @@ def online_start(state: np.ndarray, v0: float) -> int:  # pragma: no cover - com
     g = state[0]
     n = g.n_prof
     v_ref, a_ref = profile_at(g.prof_t[:n], g.prof_v[:n], 0.0)
-    r, dr = _rate(g.law, v_ref, a_ref)
-    sig, dsig, _ = _ramp(0.0, g.ramp_in)
+    r, dr = phase_rate(g.law, v_ref, a_ref)
+    sig, dsig, _ = ramp_factor(0.0, g.ramp_in)
     g.rate, g.vbar, g.vlead = r, v0, v0
     g.vset_bar = sig * v_ref
     g.phase[0], g.phase[1] = 0.0, 0.5
@@ -484,10 +411,10 @@ def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no 
     t = k * g.dt
     n = g.n_prof
     v_ref, a_ref = profile_at(g.prof_t[:n], g.prof_v[:n], t)
-    r, dr = _rate(g.law, v_ref, a_ref)
+    r, dr = phase_rate(g.law, v_ref, a_ref)
     r_mid = 0.5 * (g.rate + r)
     g.vbar += (v_meas - g.vbar) * g.dt / (g.filt + g.dt)
-    sig, dsig, _ = _ramp(t, g.ramp_in)
+    sig, dsig, _ = ramp_factor(t, g.ramp_in)
     v_set = sig * v_ref
     g.vset_bar += (v_set - g.vset_bar) * g.dt / (g.filt + g.dt)
     g.vlead = g.vbar + (v_set - g.vset_bar)  # the filter's lag on the set speed, added back

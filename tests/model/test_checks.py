@@ -8,7 +8,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from exo_ctrl.exceptions import InvalidModel
+from exo_ctrl.model import default_urdf_path, load_exo, load_patient
 from exo_ctrl.model.checks import _inertia_fault
+from exo_ctrl.sim import SimConfig, build
 
 
 def test_malformed_xml(tmp_path: Path, broken, check_invalid) -> None:
@@ -137,3 +140,52 @@ def test_inertia_test_agrees_with_the_pseudo_inertia_of_pinocchio() -> None:
         assert mine == theirs, inertia
         verdicts.append(mine)
     assert 20 < sum(verdicts) < len(verdicts) - 20  # both verdicts exercised
+
+
+# --- the two-link legs a closed-form leg model assumes (BodyModel.require_leg_chains) --------
+
+QP_LEGS = "the QP cuff model needs each leg as a hip on the fixed frame and a knee on the hip"
+QP_ORDER = (
+    "the QP cuff model needs exactly the joints "
+    "('left_hip', 'left_knee', 'right_hip', 'right_knee') in that order"
+)
+
+
+def test_the_committed_models_have_two_link_legs() -> None:
+    for body in (load_exo(), load_patient(str(default_urdf_path("patient")))):
+        body.require_leg_chains("the QP cuff model")  # raises nothing
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "where", "reason"),
+    [
+        # the left hip on the right thigh: one chain of four joints, the right leg's
+        # first in Pinocchio's depth-first order
+        (
+            '<joint name="left_hip" type="revolute">\n    <parent link="pelvis"/>',
+            '<joint name="left_hip" type="revolute">\n    <parent link="right_thigh"/>',
+            "",
+            QP_ORDER,
+        ),
+        # the right knee on the pelvis: a leg of two parallel joints, not a chain
+        (
+            '<joint name="right_knee" type="revolute">\n    <parent link="right_thigh"/>',
+            '<joint name="right_knee" type="revolute">\n    <parent link="pelvis"/>',
+            "'right_hip' in ",
+            QP_LEGS,
+        ),
+    ],
+)
+def test_a_leg_that_is_not_a_hip_knee_chain_is_named(
+    tmp_path: Path, exo_text: str, broken, old: str, new: str, where: str, reason: str
+) -> None:
+    assert old in exo_text
+    path = broken(tmp_path, exo_text.replace(old, new))
+    body = load_exo(str(path))  # a valid URDF, loaded
+    with pytest.raises(InvalidModel) as info:
+        body.require_leg_chains("the QP cuff model")
+    assert str(info.value) == f"invalid model: {where}{body.source}: {reason}"
+    # a run refuses it when built: the plant first if the joints are out of order, else the QP
+    first = "the plant needs exactly the joints" if reason == QP_ORDER else reason
+    with pytest.raises(InvalidModel, match=first):
+        build(SimConfig(controller="qp", exo=str(path), duration_s=0.1))

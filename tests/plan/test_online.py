@@ -7,7 +7,8 @@ import pytest
 
 from exo_ctrl.model import load_exo
 from exo_ctrl.plan import GaitParams, GaitPlan, OnlineGait, SpeedAdaptation, plan_joints
-from exo_ctrl.plan.online import FILTER_S, _rate
+from exo_ctrl.plan.online import FILTER_S
+from exo_ctrl.plan.phase_curves import phase_rate
 from exo_ctrl.plan.profile import SpeedProfile
 
 DT = 1e-3
@@ -48,9 +49,9 @@ def test_at_a_steady_measured_speed_it_is_the_papers_plan(exo) -> None:
 def test_the_phase_rate_derivative_matches_finite_differences() -> None:
     law = SpeedAdaptation(GaitParams(), max_step_m=0.5).kernel_params()
     for v in (0.3, 0.7, 1.5):  # below the cap and on it
-        r, dr = _rate(law, v, 1.0)  # ṙ for v̇ = 1 m/s²
+        r, dr = phase_rate(law, v, 1.0)  # ṙ for v̇ = 1 m/s²
         h = 1e-6
-        fd = (_rate(law, v + h, 0.0)[0] - _rate(law, v - h, 0.0)[0]) / (2 * h)
+        fd = (phase_rate(law, v + h, 0.0)[0] - phase_rate(law, v - h, 0.0)[0]) / (2 * h)
         assert dr == pytest.approx(fd, rel=1e-7)
         assert 1.0 / r == pytest.approx(SpeedAdaptation(GaitParams(), 0.5).period(v), rel=1e-14)
 

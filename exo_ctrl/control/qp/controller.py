@@ -180,29 +180,6 @@ NO_BOUND = 1e9
 CONTROLLER_EPS_ABS = 1e-7
 
 
-def _check_legs(body: BodyModel) -> None:
-    model = body.model
-    if model.nq != 4 or model.nv != 4 or not np.array_equal(body.q_index, np.arange(4)):
-        raise InvalidModel(
-            body.source, "", "the QP controller needs exactly the four driven joints, in order"
-        )
-    for leg in (0, 1):
-        hip, knee = body.joint_ids[2 * leg], body.joint_ids[2 * leg + 1]
-        thigh, shank = body.cuff_frame_ids[2 * leg], body.cuff_frame_ids[2 * leg + 1]
-        if (
-            model.parents[hip] != 0
-            or model.parents[knee] != hip
-            or model.frames[thigh].parentJoint != hip
-            or model.frames[shank].parentJoint != knee
-        ):
-            raise InvalidModel(
-                body.source,
-                model.names[hip],
-                "the QP cuff model needs each leg as hip (on the fixed frame) → knee, "
-                "with the thigh cuff on the thigh and the shank cuff on the shank",
-            )
-
-
 class QPController(ComputedTorqueController):
     """CT+PD command made to respect the drive limits and a cuff-force bound (module docstring).
 
@@ -266,8 +243,9 @@ class QPController(ComputedTorqueController):
 
     Raises:
         InvalidParameter: a bad limit, weight, iteration count or estimator, or no patient.
-        InvalidModel: a model the cuff model cannot use (:func:`_check_legs`),
-            or an effort limit that is not > 0.
+        InvalidModel: a model the cuff model cannot use
+            (:meth:`~exo_ctrl.model.BodyModel.require_leg_chains`), or an effort limit
+            that is not > 0.
 
     """
 
@@ -313,8 +291,8 @@ class QPController(ComputedTorqueController):
         effort = exo.effort_limit
         if np.isnan(effort).any() or (effort <= 0).any():
             raise InvalidModel(exo.source, "", f"effort limits must be > 0 N·m; got {effort}")
-        _check_legs(exo)
-        _check_legs(patient)
+        exo.require_leg_chains("the QP cuff model")
+        patient.require_leg_chains("the QP cuff model")
         cuffs = cuffs or CuffParams.isotropic()
         self.cuff_model = CuffHorizonModel(exo, patient, motor, cuffs, dt, horizon_ticks)
         self.observer = CuffStateObserver(
