@@ -214,7 +214,11 @@ def urdf_xml(params: BodyParams) -> str:
 
 def _attrs(**values: object) -> str:
     """`` key="value"`` for each attribute, numbers as ``str`` (Python's shortest repr)."""
-    return "".join(f' {k}="{escape(str(v), {chr(34): "&quot;"})}"' for k, v in values.items())
+    parts = []
+    for key, value in values.items():
+        text = escape(str(value), {'"': "&quot;"})
+        parts.append(f' {key}="{text}"')
+    return "".join(parts)
 
 
 def _words(values: tuple[float, ...]) -> str:
