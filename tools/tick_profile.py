@@ -169,7 +169,11 @@ def _kernel_holders(runner: Runner) -> list[tuple[object, str, object]]:
 
 
 def _captured_calls(runner: Runner, start: int, ticks: int) -> dict[str, list]:
-    """Kernel name → [dispatcher, calls per tick, arguments of its last call], over ``ticks``."""
+    """Kernel name → [dispatcher, calls per tick, arguments of its last call], over ``ticks``.
+
+    Call it once the run's kernels are compiled (after a few ticks): a kernel
+    typed while a callee's global is wrapped would see a Python function.
+    """
     seen: dict[str, list] = {}
     patched = _kernel_holders(runner)
 
