@@ -10,7 +10,10 @@ So at import the project's Python sources are hashed together, and when the
 hash differs from the one recorded with the cache (:data:`STAMP_NAME` in the
 package's ``__pycache__``) every cached kernel of the package (``*.nbi``
 index and ``*.nbc`` data files in its ``__pycache__`` folders) is deleted
-before any is loaded, and the new hash recorded: the next calls compile
+before any is loaded, with the warm markers of the old sources
+(:data:`WARM_MARKERS`, :mod:`exo_ctrl.sim.warmup`: one empty file per
+feature set, named by a hash with the sources, that would otherwise pile
+up with every edit), and the new hash recorded: the next calls compile
 afresh.  Hashing the ~100 source files takes about 2 ms.  Where the package
 cannot be written (a read-only install) nothing is deleted; numba then caches
 elsewhere (its user cache folder), keyed the same way.
@@ -22,10 +25,13 @@ import hashlib
 import os
 from pathlib import Path
 
-__all__ = ["STAMP_NAME", "refresh", "source_hash"]
+__all__ = ["STAMP_NAME", "WARM_MARKERS", "refresh", "source_hash"]
 
 #: The file, in the package's ``__pycache__``, that records the hash the cache was made with.
 STAMP_NAME = "exo_ctrl_sources.sha256"
+
+#: The names of the warm markers (:mod:`exo_ctrl.sim.warmup`), a glob pattern.
+WARM_MARKERS = "exo_ctrl-warm-*"
 
 
 def source_hash(root: Path) -> str:
@@ -46,8 +52,8 @@ def refresh(root: Path) -> int:
         root: the package folder.
 
     Returns:
-        The number of cache files deleted (0 when the sources are unchanged,
-        or nothing could be written).
+        The number of cache files and warm markers deleted (0 when the
+        sources are unchanged, or nothing could be written).
 
     """
     stamp = root / "__pycache__" / STAMP_NAME
@@ -58,7 +64,7 @@ def refresh(root: Path) -> int:
     except OSError:
         pass
     deleted = 0
-    for pattern in ("*.nbi", "*.nbc"):
+    for pattern in ("*.nbi", "*.nbc", WARM_MARKERS):
         for path in root.rglob(f"__pycache__/{pattern}"):
             try:
                 path.unlink()

@@ -55,3 +55,17 @@ def test_the_hash_covers_paths_and_contents(tmp_path: Path) -> None:
     before = _jit_cache.source_hash(root)
     (root / "a.py").rename(root / "c.py")
     assert _jit_cache.source_hash(root) != before
+
+
+def test_changed_sources_delete_the_warm_markers_of_the_old_ones(tmp_path: Path) -> None:
+    # a marker says a feature set's kernels are compiled (exo_ctrl/sim/warmup.py); named
+    # by a hash with the sources, the old ones would pile up with every edit
+    root = _package(tmp_path)
+    _jit_cache.refresh(root)
+    marker = root / "__pycache__" / _jit_cache.WARM_MARKERS.replace("*", "0123abcd")
+    marker.write_bytes(b"")
+    assert _jit_cache.refresh(root) == 0  # unchanged sources: kept
+    assert marker.exists()
+    (root / "a.py").write_text("x = 2\n")
+    assert _jit_cache.refresh(root) == 1
+    assert not marker.exists()

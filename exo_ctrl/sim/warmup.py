@@ -158,7 +158,7 @@ class Warmup:
         where = marker_dir()
         if where is None:
             return
-        self._marker = where / f"exo_ctrl-warm-{feature_key(config)}"
+        self._marker = where / _jit_cache.WARM_MARKERS.replace("*", feature_key(config))
         self.warm = self._marker.exists()
         setting = os.environ.get(ENV, "")
         if not enabled or setting == "0":
