@@ -141,6 +141,30 @@ def floor_calls(runner: Runner) -> list:
     return calls
 
 
+def makes_contact_crba(runner: Runner) -> bool:
+    """Whether the plant makes a CRBA (its friction solve) on the steps with a foot on the belt.
+
+    With contact on and the pelvis fixed; on its guide the CRBA is every
+    step's, in :func:`floor_calls`.
+    """
+    return runner.setup.config.contact.enabled and runner.setup.plant.model.nq == 8
+
+
+def library_floor(runner: Runner, contact_share: float) -> float:
+    """The floor of one tick [µs]: :func:`floor_calls` timed, and the contact CRBA's share.
+
+    ``contact_share``: the share of the timed ticks with a foot on the belt
+    (:func:`makes_contact_crba`; ignored otherwise).  The QP's proxsuite
+    share is :func:`bench_scenario`'s.
+    """
+    floor = _time_calls(floor_calls(runner))
+    if makes_contact_crba(runner):
+        plant = runner.setup.plant
+        q_now = plant.q.copy()
+        floor += contact_share * _time_calls([lambda: pin.crba(plant.model, plant.data, q_now)])
+    return floor
+
+
 #: Pairs of runs, without and with a recording, for the real-time factors.
 RTF_PAIRS = 5
 
@@ -213,13 +237,10 @@ def bench_scenario(name: str, ticks: int) -> dict[str, float]:
         solve[k] = getattr(ctrl, "solve_time_us", 0.0)
         crba_ticks += k >= n // 10 and bool(contact_any[0])
     tick = samples[n // 10 :] / 1e3  # skip warm-up
-    floor = _time_calls(floor_calls(runner))
+    floor = library_floor(runner, crba_ticks / tick.size)
     extra = {}
-    if config.contact.enabled and plant.model.nq == 8:
-        q_now = plant.q.copy()
-        share = crba_ticks / tick.size
-        floor += share * _time_calls([lambda: pin.crba(plant.model, plant.data, q_now)])
-        extra["contact_crba_share"] = share
+    if makes_contact_crba(runner):
+        extra["contact_crba_share"] = crba_ticks / tick.size
     if hasattr(ctrl, "solver_ticks"):
         share = ctrl.solver_ticks / n
         if ctrl.solver_ticks:

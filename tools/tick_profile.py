@@ -271,7 +271,7 @@ def anatomy(name: str, ticks: int) -> dict:
     The ticks are timed before and after the kernels (the machine's speed
     drifts); the faster median is the tick's figure.
     """
-    from bench import _time_calls, floor_calls
+    from bench import library_floor
 
     setup = build(SimConfig(**SCENARIOS[name]))
     runner = Runner(setup)
@@ -280,11 +280,7 @@ def anatomy(name: str, ticks: int) -> dict:
     for k in range(warm):
         runner.tick(k, k % runner.chunk)
     before, share = _median_tick(runner, warm, n)
-    plant = setup.plant
-    floor = _time_calls(floor_calls(runner))
-    if setup.config.contact.enabled and plant.model.nq == 8:
-        q_now = plant.q.copy()
-        floor += share * _time_calls([lambda: pin.crba(plant.model, plant.data, q_now)])
+    floor = library_floor(runner, share)
     calls = _captured_calls(runner, warm + n, min(200, n))
     rows = []
     for kname, (kernel, per_tick, args) in sorted(calls.items()):
