@@ -336,12 +336,17 @@ def test_the_interaction_block_sums_the_cycles() -> None:
     assert all(x == 0.0 for x in effort["patient_positive_work_J"].values())
 
 
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    """Distance of point p from the segment [a, b] [m] (a = b: from the point)."""
-    ab = b - a
-    length2 = float(ab @ ab)
-    u = 0.0 if length2 == 0.0 else min(max(float((p - a) @ ab) / length2, 0.0), 1.0)
-    return float(np.linalg.norm(p - (a + u * ab)))
+def _polyline_distance(p: np.ndarray, pts: np.ndarray) -> float:
+    """Least distance of point p (2,) from the segments [pts[i], pts[i + 1]] [m].
+
+    Each segment's nearest point a + u (b − a), u = clip((p − a)·(b − a)/|b − a|², 0, 1)
+    (u = 0 where a = b), for every segment at once.
+    """
+    a, ab = pts[:-1], np.diff(pts, axis=0)
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    along = np.einsum("ij,ij->i", p - a, ab)
+    u = np.clip(np.divide(along, length2, out=np.zeros_like(along), where=length2 > 0), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(p - (a + u[:, None] * ab), axis=1)))
 
 
 def test_path_error_is_the_feet_distance_from_the_path_at_the_devices_phase() -> None:
@@ -385,10 +390,7 @@ def test_path_error_is_the_feet_distance_from_the_path_at_the_devices_phase() ->
         for leg in range(2):
             rel = data.oMf[frames[leg]].translation - data.oMi[hips[leg]].translation
             p = rel[[0, 2]]
-            pts = plan.foot_pos[rows, leg]
-            dist[n, leg] = min(
-                _segment_distance(p, pts[i], pts[i + 1]) for i in range(len(rows) - 1)
-            )
+            dist[n, leg] = _polyline_distance(p, plan.foot_pos[rows, leg])
     run = block["run"]
     got = np.array([run["path_error_rms_m"][s] for s in SIDES])
     rms = np.sqrt(np.mean(dist**2, axis=0))
