@@ -52,6 +52,7 @@ turns a status into the matching exception, in this one place.
 from __future__ import annotations
 
 import enum
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -63,7 +64,8 @@ from . import _jit_cache
 from ._validate import refuse_shapes
 from .exceptions import InvalidParameter, KernelStatusError, SimulationDiverged
 
-_jit_cache.refresh(Path(__file__).resolve().parent)
+# The package's folder as imported (numba names its cache folders by that path).
+_jit_cache.refresh(Path(os.path.abspath(os.path.dirname(__file__))), numba.config.CACHE_DIR)
 
 __all__ = ["Status", "check", "kernel", "leaf", "preload", "record", "shared_dtype", "switch"]
 

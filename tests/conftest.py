@@ -3,8 +3,22 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 import sys
 from pathlib import Path
+
+# Under pytest-xdist (the suite's default, pyproject.toml) each worker keeps its
+# own numba cache, set before numba is imported: two processes compiling two
+# signatures of one kernel at once can cross numba's cache index
+# (exo_ctrl/sim/warmup.py), and the workers run tests of different feature sets
+# side by side.  ``.pytest_cache/numba/<worker>`` (or ``$NUMBA_CACHE_DIR/<worker>``),
+# refreshed on source changes as the package's own (exo_ctrl/_jit_cache.py).
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER")
+if _WORKER:
+    _CACHE = os.environ.get("NUMBA_CACHE_DIR") or Path(__file__).resolve().parents[1] / (
+        ".pytest_cache/numba"
+    )
+    os.environ["NUMBA_CACHE_DIR"] = str(Path(_CACHE) / _WORKER)
 
 import numpy as np
 import pytest
@@ -97,3 +111,14 @@ def write_short_urdf():
         return write_urdf(short_exo_params(), path)
 
     return write
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The tests marked ``heavy`` first (in their order), the rest after, in theirs.
+
+    pytest-xdist's workers take tests in order; a long test (a cold compile, a
+    process pool, a cluster) that starts last keeps one worker busy while the
+    others have nothing left to do.
+    """
+    items.sort(key=lambda item: item.get_closest_marker("heavy") is None)
+

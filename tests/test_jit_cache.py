@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 from exo_ctrl import _jit_cache
@@ -69,3 +72,45 @@ def test_changed_sources_delete_the_warm_markers_of_the_old_ones(tmp_path: Path)
     (root / "a.py").write_text("x = 2\n")
     assert _jit_cache.refresh(root) == 1
     assert not marker.exists()
+
+
+def test_the_cache_folders_with_numba_cache_dir_are_numbas_own(tmp_path: Path) -> None:
+    # numba, in a process of its own with NUMBA_CACHE_DIR set, caches a kernel of
+    # the package's sub-folder: in the folder cache_folders names for it
+    root = _package(tmp_path)
+    (root / "sub" / "k.py").write_text(
+        "import numba\n\n@numba.njit(cache=True)\ndef f(x):\n    return x + 1\n"
+    )
+    cache = tmp_path / "cache"
+    code = f"import sys; sys.path.insert(0, {str(root / 'sub')!r}); import k; k.f(1)"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    subprocess.run([sys.executable, "-c", code], env=env, check=True)
+    made = {p.parent for p in cache.rglob("*.nbi")}
+    folders = _jit_cache.cache_folders(root, str(cache))
+    assert made == {root_sub for root_sub in folders if root_sub.name.startswith("sub_")}
+    assert len(made) == 1 and len(folders) == 2  # the package's folder and sub/
+    assert _jit_cache.cache_folders(root) == [root / "__pycache__", root / "sub" / "__pycache__"]
+
+
+def test_a_changed_source_deletes_the_kernels_in_numba_cache_dir(tmp_path: Path) -> None:
+    root, cache = _package(tmp_path), str(tmp_path / "cache")
+    assert _jit_cache.refresh(root, cache) == 0  # the stamp written in the cache folder
+    stamp = _jit_cache.stamp_path(root, cache)
+    assert stamp.parent == tmp_path / "cache" and stamp.read_text() == _jit_cache.source_hash(root)
+    in_tree = _caches(root)  # not numba's cache while NUMBA_CACHE_DIR is set: left alone
+    kernels = []
+    for folder in _jit_cache.cache_folders(root, cache):
+        folder.mkdir(parents=True)
+        for name in ("k.f-1.py311.nbi", "k.f-1.py311.1.nbc"):
+            (folder / name).write_bytes(b"cached")
+            kernels.append(folder / name)
+    marker = stamp.parent / _jit_cache.WARM_MARKERS.replace("*", "0123abcd")
+    marker.write_bytes(b"")
+    assert _jit_cache.refresh(root, cache) == 0
+    (root / "sub" / "b.py").write_text("y = 3\n")
+    assert _jit_cache.refresh(root, cache) == len(kernels) + 1
+    assert not any(p.exists() for p in [*kernels, marker])
+    assert all(p.exists() for p in in_tree)
+    # another checkout sharing the cache folder keeps a stamp of its own
+    other = _package(tmp_path / "other")
+    assert _jit_cache.stamp_path(other, cache) != stamp

@@ -91,6 +91,7 @@ def calls(exo, patient) -> dict[str, Any]:
     }
 
 
+@pytest.mark.heavy
 def test_switched_off_features_are_not_compiled_and_on_ones_are(calls) -> None:
     # isotropic cuffs: isotropic_forces alone, not forces_of (which would compile split_forces)
     assert set(calls["drift off"]) == {"isotropic_forces", "end_stop_torques", "step_drives"}
@@ -101,6 +102,7 @@ def test_switched_off_features_are_not_compiled_and_on_ones_are(calls) -> None:
     assert "contact_commit" in calls["contact only"]
 
 
+@pytest.mark.heavy
 def test_every_caller_passes_plain_arrays_to_shared_callees(calls) -> None:
     """forces_of, step_drives and book_drives: one signature for all callers, Python's included.
 
@@ -123,6 +125,7 @@ def test_every_caller_passes_plain_arrays_to_shared_callees(calls) -> None:
     assert seen["book_drives"] == {(PLAIN,)}
 
 
+@pytest.mark.heavy
 def test_the_qp_compiles_the_split_cuffs_code_only_for_a_split_cuff_model(
     exo, patient, motor
 ) -> None:

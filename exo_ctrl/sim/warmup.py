@@ -112,8 +112,11 @@ def _package_sources() -> str:
 
 
 def marker_dir() -> Path | None:
-    """Where the markers live: beside numba's cache of the package; None if not writable."""
-    root = Path(numba.config.CACHE_DIR) if numba.config.CACHE_DIR else _PACKAGE / "__pycache__"
+    """Where the markers live: beside the cache's source stamp; None if not writable.
+
+    (:func:`exo_ctrl._jit_cache.stamp_path`: the stamp's refresh deletes the old markers.)
+    """
+    root = _jit_cache.stamp_path(_PACKAGE, numba.config.CACHE_DIR).parent
     return root if os.access(root, os.W_OK) else None
 
 

@@ -75,6 +75,7 @@ def _command_line(process: psutil.Process) -> str:
         return ""
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize(("chunks", "wait_s"), [(1, 0.0), (2, 0.011), (3, 0.037)])
 def test_sigkill_leaves_a_recording_of_every_written_chunk(
     tmp_path: Path, chunks: int, wait_s: float

@@ -133,6 +133,7 @@ def test_gait_limit_is_exact_at_the_stated_sample_count() -> None:
         gait_cli._check_size(args, 1.2, 100.0, most + 1)
 
 
+@pytest.mark.heavy
 def test_gait_memory_per_sample_is_bounded_by_the_stated_figure(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

@@ -331,6 +331,7 @@ MEMORY_CHILD = textwrap.dedent(
 )
 
 
+@pytest.mark.heavy
 def test_recording_memory_does_not_grow_with_run_length(tmp_path):
     """Peak RSS of a recorded 60 s run vs a 10 s one (keep_history=False), in children.
 

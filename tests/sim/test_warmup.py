@@ -48,6 +48,7 @@ def _cold_run(cache: Path, summary: Path, *options: str, helper: bool = True) ->
     return json.loads(summary.read_text())
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize(
     "options",
     [

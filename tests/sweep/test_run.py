@@ -193,6 +193,7 @@ def _listeners() -> set[tuple[int, str, int]]:
     return found
 
 
+@pytest.mark.heavy
 def test_dask_cluster_gives_the_serial_table(
     tmp_path, make_spec, serial, assert_tables_equal, duration
 ):

@@ -45,10 +45,12 @@ def _workers(parent: psutil.Process) -> list[psutil.Process]:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process tree checks on Linux")
 def test_workers_die_when_the_sweep_is_killed(tmp_path: Path) -> None:
     out = tmp_path / "k.parquet"
-    argv = [str(EXO_CTRL), "sweep", "--param", "step_length=0.30,0.31,0.32,0.33"]
-    # 600 s of simulated time: about 6 s of wall time a run, so the sweep is
+    # 50 gait cycles a run: the first point (made in this process before the pool's
+    # workers start) at the default 1.2 s period, 61 s of simulated time, about 1 s
+    # of wall time; the workers' at a 6 s period, 306 s, about 5 s: the sweep is
     # busy when it is killed.
-    argv += ["--duration", "600", "--workers", "2", "--no-plots", "--out", str(out)]
+    argv = [str(EXO_CTRL), "sweep", "--param", "period=1.2,6,6.1,6.2", "--cycles", "50"]
+    argv += ["--workers", "2", "--no-plots", "--out", str(out)]
     sweep = subprocess.Popen(
         argv, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
