@@ -27,7 +27,7 @@ def finite(name: str, value: float, unit: str = "") -> float:
         raise InvalidParameter(name, value, f"a finite number{_in(unit)}")
     try:
         x = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float's range
         raise InvalidParameter(name, value, f"a finite number{_in(unit)}") from None
     if not math.isfinite(x):
         raise InvalidParameter(name, value, f"a finite number{_in(unit)}")

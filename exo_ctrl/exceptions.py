@@ -30,6 +30,10 @@ class ExoCtrlError(Exception):
     """Base class of every error raised by exo_ctrl."""
 
 
+#: The longest integer an :class:`InvalidParameter` message shows whole [digits].
+_LONGEST_VALUE = 100
+
+
 class InvalidParameter(ExoCtrlError, ValueError):
     """A parameter is outside what is allowed.
 
@@ -44,7 +48,10 @@ class InvalidParameter(ExoCtrlError, ValueError):
         self.name = name
         self.value = value
         self.allowed = allowed
-        message = f"{name} must be {allowed}; got {value!r}"
+        shown = repr(value)
+        if isinstance(value, int) and len(shown) > _LONGEST_VALUE:  # a 400-digit number
+            shown = f"{shown[:40]}…{shown[-12:]} ({len(shown)} digits)"
+        message = f"{name} must be {allowed}; got {shown}"
         if detail:
             message += f" ({detail})"
         super().__init__(message)
@@ -76,6 +83,8 @@ class UnreachableFootTarget(ExoCtrlError, ValueError):
         reach: (min_reach, max_reach) distance hip to foot [m].
         time: time of the point on the plan [s], or None.
 
+    ``cause``: what set the point, appended to the message (the gait's parameters).
+
     """
 
     def __init__(
@@ -84,6 +93,7 @@ class UnreachableFootTarget(ExoCtrlError, ValueError):
         reach: tuple[float, float],
         time: float | None = None,
         what: str = "foot target",
+        cause: str = "",
     ) -> None:
         self.point = point
         self.reach = reach
@@ -93,7 +103,7 @@ class UnreachableFootTarget(ExoCtrlError, ValueError):
         super().__init__(
             f"{what} (x = {point[0]:.4g} m, z = {point[1]:.4g} m){at} is "
             f"{distance:.4g} m from the hip; the leg reaches from "
-            f"{reach[0]:.4g} m to {reach[1]:.4g} m"
+            f"{reach[0]:.4g} m to {reach[1]:.4g} m" + (f" ({cause})" if cause else "")
         )
 
 

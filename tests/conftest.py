@@ -121,4 +121,3 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     others have nothing left to do.
     """
     items.sort(key=lambda item: item.get_closest_marker("heavy") is None)
-

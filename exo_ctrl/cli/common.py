@@ -9,6 +9,7 @@ from dataclasses import asdict
 from typing import Any
 
 from .._io import atomic_write, check_output
+from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..plan import GaitParams
 
@@ -131,22 +132,44 @@ def gait_params_from(args: argparse.Namespace) -> GaitParams:
     )
 
 
-def check_outputs(args: argparse.Namespace, **options: str) -> None:
+def check_outputs(
+    args: argparse.Namespace, reads: dict[str, str] | None = None, **options: str
+) -> None:
     """Check the output paths given in ``args`` before any work starts.
 
     Args:
         args: the parsed options.
+        reads: the command's input files, a description → path
+            (``{"the input file": args.file}``): an output may not replace one.
         options: attribute of ``args`` → the option's name (``summary="--summary"``);
             an attribute that is None (not given) is skipped.
 
     Raises:
-        InvalidParameter: a path cannot be written (:func:`exo_ctrl._io.check_output`).
+        InvalidParameter: a path cannot be written (:func:`exo_ctrl._io.check_output`),
+            two options name one file, or an output names an input.
 
     """
+    taken = {_same_file_key(path): name for name, path in (reads or {}).items()}
     for attribute, option in options.items():
         path = getattr(args, attribute)
-        if path is not None:
-            check_output(path, option)
+        if path is None:
+            continue
+        check_output(path, option)
+        if os.path.exists(path) and not os.path.isfile(path):  # a device: /dev/null twice
+            continue
+        key = _same_file_key(path)
+        other = taken.get(key)
+        if other is not None:
+            what = other if other in (reads or {}) else f"{other}'s"
+            raise InvalidParameter(
+                option, str(path), f"a file other than {what}", "one would replace the other"
+            )
+        taken[key] = option
+
+
+def _same_file_key(path: str | os.PathLike[str]) -> str:
+    """A key equal for two paths naming one file (links and ``..`` resolved)."""
+    return os.path.realpath(os.path.abspath(path))
 
 
 def write_json(path: str | os.PathLike[str], data: dict[str, Any]) -> None:

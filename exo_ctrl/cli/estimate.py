@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
 
     The output paths are checked before the input is read.
     """
-    check_outputs(args, out="--out", summary="--summary")
+    check_outputs(args, {"the input file": args.file}, out="--out", summary="--summary")
     estimate = estimate_file(
         args.file,
         exo=args.exo,

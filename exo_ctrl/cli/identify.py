@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     is de Leva's patient of that stature, mass and sex
     (:func:`~exo_ctrl.model.nominal_patient`).
     """
-    check_outputs(args, out="--out", summary="--summary")
+    check_outputs(args, {"the input file": args.file}, out="--out", summary="--summary")
     path = Path(args.file)
     height, mass, sex = args.height, args.mass, args.sex
     log = read_sensor_log(path, args.exo)

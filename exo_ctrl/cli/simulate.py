@@ -28,7 +28,7 @@ from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
 from ..record.viewer import find_viewer
 from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
 from ..sim.belief import Belief
-from ..sim.config import CUFF_FITS
+from ..sim.config import CUFF_FITS, MAX_DURATION_S
 from .common import (
     add_gait_options,
     check_outputs,
@@ -322,6 +322,14 @@ def sim_config(args: argparse.Namespace) -> SimConfig:
         cycles = 2.0 if args.cycles is None else v.positive("cycles", args.cycles)
         lead = gait.period if ramp_in is None else ramp_in
         duration = lead + cycles * gait.period + ramp_out
+        if duration > MAX_DURATION_S:
+            most = (MAX_DURATION_S - lead - ramp_out) / gait.period
+            raise InvalidParameter(
+                "cycles",
+                args.cycles,
+                f"at most {most:.6g} at the {gait.period:g} s period",
+                f"the run would last {duration:.4g} s, beyond {MAX_DURATION_S:g} s",
+            )
     motor = motor_preset(args.motor)
     stiffness = v.non_negative("joint_stiffness", args.joint_stiffness, "N·m/rad")
     rigid = CompliantJoint(damping_Nm_s_per_rad=args.joint_damping)  # checks the damping

@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     """Write the URDF; a cuff not given keeps its place as a fraction of its link."""
     if args.cohort is not None or args.seed is not None:
         return _run_cohort(args)
-    if Path(args.out).is_dir():  # a directory: the body's default file name in it
+    if args.out and Path(args.out).is_dir():  # a directory: the body's default file name in it
         args.out = str(Path(args.out) / DEFAULT_URDF_NAMES[args.kind])
     check_outputs(args, out="--out")
     base = _base(args)
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _cohort_paths(out: str, n: int, seed: int) -> list[Path]:
     """The cohort's output files: in a directory, or from a pattern with ``{i}``."""
-    if Path(out).is_dir():
+    if out and Path(out).is_dir():
         width = max(3, len(str(n - 1)))
         return [Path(out) / f"patient_s{seed}_{i:0{width}d}.urdf" for i in range(n)]
     allowed = "an existing directory or a file pattern with {i} (e.g. cohort/p{i:02d}.urdf)"

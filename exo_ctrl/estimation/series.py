@@ -130,7 +130,8 @@ def estimate_series(
         The estimate at every row.
 
     Raises:
-        InvalidLog: shapes differ, a value is not finite, or t does not increase.
+        InvalidLog: shapes differ, a value is not finite, t does not increase,
+            or the estimate is not finite (readings too large for the model).
 
     """
     t, q, dq, tau = _check_series(t, q, dq, tau_sensor)
@@ -158,7 +159,26 @@ def estimate_series(
         normal[k] = est.normal
         force[k] = est.force
         tau_ext[k] = est.tau_ext
+    _require_finite(t, normal)
     return EstimateSeries(t=t, normal=normal, force=force, tau_ext=tau_ext, gain_per_s=gain_per_s)
+
+
+def _require_finite(t: np.ndarray, normal: np.ndarray) -> None:
+    """Refuse an estimate that is not finite: finite readings too large for the model.
+
+    Raises:
+        InvalidLog: naming the first sample whose estimate is not finite.
+
+    """
+    bad = ~np.all(np.isfinite(normal), axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InvalidLog(
+            "arrays",
+            f"the estimate is not finite from sample {k} (t = {float(t[k])!r} s) on: "
+            "the readings there are finite but beyond what the model can take "
+            "(the dynamics overflow)",
+        )
 
 
 def kalman_series(
@@ -192,7 +212,7 @@ def kalman_series(
 
     Raises:
         InvalidLog: shapes differ, a value is not finite, t does not
-            increase, or t is not sampled every h.
+            increase, t is not sampled every h, or the estimate is not finite.
 
     """
     t, q, dq, tau = _check_series(t, q, dq, tau_sensor)
@@ -214,6 +234,7 @@ def kalman_series(
         normal[k] = kalman.normal
         force[k] = kalman.force
         tau_ext[k] = kalman.tau_ext
+    _require_finite(t, normal)
     return EstimateSeries(t, normal, force, tau_ext, gain_per_s=None, estimator="kalman")
 
 

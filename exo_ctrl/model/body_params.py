@@ -113,22 +113,28 @@ class BodyParams:
     def __post_init__(self) -> None:
         if self.kind not in _KINDS:
             raise InvalidParameter("kind", self.kind, "'exo' or 'patient'")
+        # (check, unit, the largest value: sanity bounds far beyond any leg or
+        # drive, that keep the inertias' squares finite)
         checks = {
-            "thigh_length": (v.positive, "m"),
-            "shank_length": (v.positive, "m"),
-            "thigh_mass": (v.positive, "kg"),
-            "shank_mass": (v.positive, "kg"),
-            "thigh_radius": (v.positive, "m"),
-            "shank_radius": (v.positive, "m"),
-            "hip_width": (v.positive, "m"),
-            "pelvis_mass": (v.positive, "kg"),
-            "effort_limit": (v.positive, "N·m"),
-            "velocity_limit": (v.positive, "rad/s"),
-            "joint_damping": (v.non_negative, "N·m·s/rad"),
-            "joint_friction": (v.non_negative, "N·m"),
+            "thigh_length": (v.positive, "m", 10.0),
+            "shank_length": (v.positive, "m", 10.0),
+            "thigh_mass": (v.positive, "kg", 1e4),
+            "shank_mass": (v.positive, "kg", 1e4),
+            "thigh_radius": (v.positive, "m", 10.0),
+            "shank_radius": (v.positive, "m", 10.0),
+            "hip_width": (v.positive, "m", 10.0),
+            "pelvis_mass": (v.positive, "kg", 1e4),
+            "effort_limit": (v.positive, "N·m", 1e6),
+            "velocity_limit": (v.positive, "rad/s", 1e4),
+            "joint_damping": (v.non_negative, "N·m·s/rad", 1e6),
+            "joint_friction": (v.non_negative, "N·m", 1e6),
         }
-        for name, (check, unit) in checks.items():
-            self._set(name, check(name, getattr(self, name), unit))
+        for name, (check, unit, most) in checks.items():
+            value = check(name, getattr(self, name), unit)
+            if value > most:
+                low = "(0" if check is v.positive else "[0"
+                raise InvalidParameter(name, value, f"in {low}, {most:g}] {unit}")
+            self._set(name, value)
         for seg in ("thigh", "shank"):
             length = getattr(self, f"{seg}_length")
             cuff = v.finite(f"{seg}_cuff", getattr(self, f"{seg}_cuff"), "m")

@@ -65,11 +65,15 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter, UnreachableFootTarget
 from .loading import StanceSink, sink_samples
 
-__all__ = ["FootTrajectory", "GaitParams", "GaitPlan"]
+__all__ = ["MIN_PERIOD_S", "FootTrajectory", "GaitParams", "GaitPlan"]
 
 #: Smallest knee flexion the plan may ask for [rad]; a straighter knee is
 #: close to the kinematic singularity, where joint speeds blow up.
 MIN_KNEE_FLEXION_RAD = 0.1
+
+
+#: The shortest gait period the planner takes [s].
+MIN_PERIOD_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -113,6 +117,14 @@ class GaitParams:
             ("period", "s"),
         ):
             object.__setattr__(self, name, v.positive(name, getattr(self, name), unit))
+        if self.period < MIN_PERIOD_S:
+            raise InvalidParameter(
+                "period",
+                self.period,
+                f">= {MIN_PERIOD_S:g} s",
+                "ten gait cycles a second is no gait, and the plan's cubic pieces need "
+                "durations whose squares do not underflow",
+            )
         d = v.finite("duty_factor", self.duty_factor)
         if not 0.5 <= d < 1.0:
             raise InvalidParameter("duty_factor", self.duty_factor, "in [0.5, 1)")
@@ -348,11 +360,14 @@ class GaitPlan:
             return None
         i = bad[np.argmax(np.maximum(r[bad] - r_max, r_min - r[bad]))]
         x, z = feet.pos[i, 0]
+        p = self.params
         return UnreachableFootTarget(
             (float(x), float(z)),
             (r_min, r_max),
             time=float(t[i]),
             what=f"{side} foot path point",
+            cause=f"set by step_length = {p.step_length:g} m, hip_height = {p.hip_height:g} m, "
+            f"lift_height = {p.lift_height:g} m, pelvis_excursion = {p.pelvis_excursion:g} m",
         )
 
 

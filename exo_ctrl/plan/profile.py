@@ -1,7 +1,8 @@
 """A session's belt-speed profile: the set speed a therapist schedules over time.
 
 ``"T1:V1,T2:V2,..."`` (s and m/s) is a piecewise-linear speed v(t) through
-the points (T_i, V_i): times strictly increasing and ≥ 0, speeds > 0.
+the points (T_i, V_i): times strictly increasing and ≥ 0, speeds ≥
+:data:`MIN_SPEED_MPS`.
 Before T1 the profile holds V1, after the last point the last speed:
 
     v(t) = V_1                                             t ≤ T_1
@@ -24,7 +25,12 @@ import numpy as np
 from .._jit import kernel
 from ..exceptions import InvalidParameter
 
-__all__ = ["PROFILE_FORMAT", "SpeedProfile", "profile_at"]
+__all__ = ["MIN_SPEED_MPS", "PROFILE_FORMAT", "SpeedProfile", "profile_at"]
+
+#: The slowest belt a profile sets [m/s]: the adapted gait's period grows as
+#: 1/√v (:mod:`exo_ctrl.plan.adapt`), to about 9 s at 0.01 m/s for the default
+#: gait, and without bound below.
+MIN_SPEED_MPS = 0.01
 
 #: What a profile's text must look like (the messages quote it).
 PROFILE_FORMAT = 'points T:V separated by commas, T in s and V in m/s (e.g. "0:0.4,3:0.7")'
@@ -36,12 +42,13 @@ class SpeedProfile:
 
     Attributes:
         times: T_i [s], strictly increasing, ≥ 0.
-        speeds: V_i [m/s], > 0, one per time.
+        speeds: V_i [m/s], ≥ :data:`MIN_SPEED_MPS`, one per time.
 
     Raises:
         InvalidParameter: ``speed_profile`` with no point, times and speeds
             of different lengths, a value that is not a finite number, a
-            negative time, times out of order or a speed ≤ 0 (the point named).
+            negative time, times out of order or a speed below
+            :data:`MIN_SPEED_MPS` (the point named).
 
     """
 
@@ -63,8 +70,10 @@ class SpeedProfile:
                 raise InvalidParameter("speed_profile", text, "finite times and speeds", where)
             if t < 0.0:
                 raise InvalidParameter("speed_profile", text, "times >= 0 s", where)
-            if s <= 0.0:
-                raise InvalidParameter("speed_profile", text, "speeds > 0 m/s", where)
+            if s < MIN_SPEED_MPS:
+                raise InvalidParameter(
+                    "speed_profile", text, f"speeds >= {MIN_SPEED_MPS:g} m/s", where
+                )
             if i and t <= times[i - 1]:
                 raise InvalidParameter(
                     "speed_profile",

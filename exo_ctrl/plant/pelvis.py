@@ -74,6 +74,11 @@ PAPER_BODY_MASS_KG = 80.0
 G0 = 9.80665
 
 
+#: The heaviest body the pelvis guide takes [kg]: a sanity bound, twice the top of
+#: the body masses the anthropometric model covers (MASS_RANGE_KG, 35–150 kg).
+MAX_BODY_MASS_KG = 300.0
+
+
 @dataclass(frozen=True)
 class PelvisParams:
     """The pelvis's vertical guide and the body-weight support (module docstring).
@@ -108,9 +113,12 @@ class PelvisParams:
                 "bws", self.bws_fraction, "in [0, 1] (a fraction of body weight)"
             )
         if self.body_mass_kg is not None:
-            object.__setattr__(
-                self, "body_mass_kg", v.positive("body_mass", self.body_mass_kg, "kg")
-            )
+            mass = v.positive("body_mass", self.body_mass_kg, "kg")
+            if mass > MAX_BODY_MASS_KG:
+                raise InvalidParameter(
+                    "body_mass", self.body_mass_kg, f"in (0, {MAX_BODY_MASS_KG:g}] kg"
+                )
+            object.__setattr__(self, "body_mass_kg", mass)
         object.__setattr__(self, "bws_fraction", fraction)
         object.__setattr__(self, "travel_m", v.positive("pelvis travel", self.travel_m, "m"))
         object.__setattr__(

@@ -49,7 +49,7 @@ from ..estimation import (
     read_csv_log,
 )
 from ..estimation.errors import STARTUP_S
-from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
+from ..exceptions import ExoCtrlError, InvalidLog, InvalidParameter, RecordingError
 from ..model import CUFF_NAMES, JOINT_NAMES, BodyModel, load_exo
 from ..plant import CuffParams
 from .estimate_checks import (
@@ -325,7 +325,10 @@ def estimate_file(
         chosen = chosen_estimator(estimator, log.result.config, gain_per_s)
         return _warn(_from_recording(p, log, gain_per_s, chosen))
     gain = DEFAULT_GAIN_PER_S if gain_per_s is None else gain_per_s
-    series = estimate_series(log.t, log.q, log.dq, log.tau, log.exo, gain_per_s=gain)
+    try:
+        series = estimate_series(log.t, log.q, log.dq, log.tau, log.exo, gain_per_s=gain)
+    except InvalidLog as exc:  # the file, not "arrays"
+        raise InvalidLog(str(p), exc.reason) from None
     stiffness = CuffParams().stiffness_N_per_m
     notes = beyond_cuff_stretch(p, _peaks(series), stiffness, log.exo)
     return _warn(OfflineEstimate(str(p), series, warnings=notes))

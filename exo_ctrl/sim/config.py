@@ -35,7 +35,7 @@ from ..safety.stop_reaction import check_stop_reaction
 from ..sensing import BeltEncoderParams, CurrentSensorParams, FootLoadParams, SensorParams
 from . import config_checks as checks
 from .belief import Belief
-from .config_checks import PLAN_ROW_BYTES
+from .config_checks import MAX_DURATION_S, MAX_PLANT_SUBSTEPS, PLAN_ROW_BYTES
 from .faults import BELT_STOP_NEEDS, Fault, faults_of
 from .schema import log_dtype
 from .session import SessionParams, check_session
@@ -45,6 +45,8 @@ __all__ = [
     "CONTROLLERS",
     "CUFF_FITS",
     "HISTORY_BYTES_PER_TICK",
+    "MAX_DURATION_S",
+    "MAX_PLANT_SUBSTEPS",
     "PLAN_ROW_BYTES",
     "SimConfig",
 ]
@@ -251,14 +253,23 @@ class SimConfig:
             raise InvalidParameter(
                 "controller", self.controller, f"one of {', '.join(CONTROLLERS)}"
             )
-        v.positive("duration", self.duration_s, "s")
+        duration = v.positive("duration", self.duration_s, "s")
         rate = v.positive("control_rate", self.control_rate_hz, "Hz")
         if not 10.0 <= rate <= 100_000.0:
             raise InvalidParameter("control_rate", self.control_rate_hz, "in [10, 100000] Hz")
-        for name in ("plant_substeps", "chunk_ticks"):
+        if not 1.0 / rate - 1e-12 <= duration <= MAX_DURATION_S:
+            raise InvalidParameter(
+                "duration",
+                self.duration_s,
+                f"in [{1.0 / rate:g}, {MAX_DURATION_S:g}] s",
+                f"at least one control tick at {rate:g} Hz",
+            )
+        for name, most in (("plant_substeps", MAX_PLANT_SUBSTEPS), ("chunk_ticks", None)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise InvalidParameter(name, value, "an integer >= 1")
+            if most is not None and value > most:
+                raise InvalidParameter(name, value, f"an integer in [1, {most}]")
         if self.patient_torque not in PATIENT_KINDS:
             raise InvalidParameter(
                 "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_KINDS)}"

@@ -8,10 +8,11 @@ A session file is a JSON list of segments, run one after another::
       {"duration": 3.6, "mode": "transparent", "belt_speed": 0.5}
     ]
 
-Each segment has ``duration`` [s] (> 0), ``mode`` (one of
+Each segment has ``duration`` [s] (in (0, 10⁷]), ``mode`` (one of
 :data:`~exo_ctrl.control.modes.MODES`), optionally ``belt_speed`` [m/s]
-(> 0, with the belt: contact on) and its mode's parameters, overriding the
-run's: ``guidance``, ``force_gain``, ``aan_forgetting``, ``aan_gain``
+(≥ 0.01, :data:`~exo_ctrl.plan.profile.MIN_SPEED_MPS`; with the belt:
+contact on) and its mode's parameters, overriding the run's: ``guidance``,
+``force_gain``, ``aan_forgetting``, ``aan_gain``
 (:class:`~exo_ctrl.control.modes.ModeParams`), ``tunnel_width`` [m],
 ``path_support`` [N] (:class:`~exo_ctrl.control.modes.PathParams`).  The
 durations sum to the run's.  The controllers switch bumplessly
@@ -36,7 +37,8 @@ from ..control.modes import MODES, InteractionController, ModeParams, PathContro
 from ..control.modes.switch import SwitchedController
 from ..exceptions import InvalidParameter
 from ..plan import SpeedProfile
-from .config_checks import periodic_plan_needs
+from ..plan.profile import MIN_SPEED_MPS
+from .config_checks import MAX_DURATION_S, periodic_plan_needs
 
 __all__ = [
     "SEGMENT_KEYS",
@@ -66,8 +68,8 @@ class Segment:
     """One segment of a session.
 
     Raises:
-        InvalidParameter: a duration or belt speed not > 0, an unknown mode
-            or parameter.
+        InvalidParameter: a duration not in (0, 10⁷] s or a belt speed below
+            0.01 m/s, an unknown mode or parameter.
 
     Attributes:
         duration_s: its duration [s], > 0.
@@ -87,7 +89,11 @@ class Segment:
         if self.mode not in MODES:
             raise InvalidParameter("session segment mode", self.mode, f"one of {', '.join(MODES)}")
         if self.belt_speed_mps is not None:
-            v.positive("session segment belt_speed", self.belt_speed_mps, "m/s")
+            speed = v.finite("session segment belt_speed", self.belt_speed_mps, "m/s")
+            if speed < MIN_SPEED_MPS:
+                raise InvalidParameter(
+                    "session segment belt_speed", self.belt_speed_mps, f">= {MIN_SPEED_MPS:g} m/s"
+                )
         for key, _ in self.params:
             if key not in _PARAM_KEYS:
                 raise InvalidParameter(
@@ -114,16 +120,20 @@ class Segment:
             if key not in data:
                 raise InvalidParameter(f"{name} {key}", None, "given", "each segment has one")
         duration = _number(f"{name} duration", data["duration"])
-        if not duration > 0.0:
-            raise InvalidParameter(f"{name} duration", data["duration"], "> 0 s")
+        if not 0.0 < duration <= MAX_DURATION_S:
+            raise InvalidParameter(
+                f"{name} duration", data["duration"], f"in (0, {MAX_DURATION_S:g}] s"
+            )
         mode = data["mode"]
         if mode not in MODES:
             raise InvalidParameter(f"{name} mode", mode, f"one of {', '.join(MODES)}")
         speed = data.get("belt_speed")
         if speed is not None:
             speed = _number(f"{name} belt_speed", speed)
-            if not speed > 0.0:
-                raise InvalidParameter(f"{name} belt_speed", data["belt_speed"], "> 0 m/s")
+            if not speed >= MIN_SPEED_MPS:
+                raise InvalidParameter(
+                    f"{name} belt_speed", data["belt_speed"], f">= {MIN_SPEED_MPS:g} m/s"
+                )
         params = tuple((k, _number(f"{name} {k}", data[k])) for k in _PARAM_KEYS if k in data)
         seg = cls(duration, mode, speed, params)
         try:  # each parameter checked by its own dataclass
@@ -269,7 +279,12 @@ def load_session(path: str, blend_s: float = 0.1) -> SessionParams:
 
     """
     if not os.path.isfile(path):
-        raise InvalidParameter("session", path, "an existing JSON file", "no such file")
+        why = "no such file"
+        if os.path.isdir(path):
+            why = "a directory"
+        elif os.path.exists(path):
+            why = "not a regular file"
+        raise InvalidParameter("session", path, "an existing JSON file", why)
     try:
         with open(path, encoding="utf-8") as fh:
             data = json.load(fh)

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..exceptions import InvalidParameter
 from ..model import BodyParams
+from ..plan.gait import MIN_PERIOD_S
 from ..sim import CONTROLLERS, SimConfig
 
 __all__ = [
@@ -119,7 +120,7 @@ PARAMETERS: dict[str, ParamInfo] = {
         _p("hip_height", "gait", "hip_height", "m", 0.0, 2.0, "hip above belt", lo_open=True),
         _p("pelvis_excursion", "gait", "pelvis_excursion", "m", 0.0, 0.5, "hip's rise and fall"),
         _p("shape_coeff", "gait", "shape_coeff", "", 0.0, 10.0, "k_v = v_f / v_b", lo_open=True),
-        _p("period", "gait", "period", "s", 0.0, 10.0, "gait cycle T_s", lo_open=True),
+        _p("period", "gait", "period", "s", MIN_PERIOD_S, 10.0, "gait cycle T_s"),
         _p("duty_factor", "gait", "duty_factor", "", 0.5, 1.0, "stance fraction β", hi_open=True),
         _p("patient_thigh_mass", "patient", "thigh_mass", "kg", 7.0, 14.0, "Table I range"),
         _p("patient_shank_mass", "patient", "shank_mass", "kg", 3.0, 6.0, "with the foot"),

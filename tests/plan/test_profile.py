@@ -40,8 +40,8 @@ def test_profile_is_piecewise_linear_held_outside_its_points() -> None:
             "speed_profile must be times in increasing order; got '3:0.5,1:0.6' "
             "(point 2, 1:0.6 is not after 3 s)",
         ),
-        ("0:-0.5", "speed_profile must be speeds > 0 m/s; got '0:-0.5' (point 1, 0:-0.5)"),
-        ("0:0", "speed_profile must be speeds > 0 m/s; got '0:0' (point 1, 0:0)"),
+        ("0:-0.5", "speed_profile must be speeds >= 0.01 m/s; got '0:-0.5' (point 1, 0:-0.5)"),
+        ("0:0", "speed_profile must be speeds >= 0.01 m/s; got '0:0' (point 1, 0:0)"),
         ("-1:0.5", "speed_profile must be times >= 0 s; got '-1:0.5' (point 1, -1:0.5)"),
         (
             "0:0.5;1",

@@ -49,19 +49,23 @@ def test_default_scenario_is_well_within_every_limit() -> None:
     build(SimConfig())  # and nothing is refused
 
 
-def test_a_ten_millisecond_period_is_refused_not_diverged(
+def test_a_tenth_of_a_second_period_is_refused_not_diverged(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    """Before the check, ``--period 0.01`` ran and "diverged" (exit 1)."""
-    expected = message("left_knee", "258.0", "6 rad/s, the exoskeleton URDF's speed limit",
-                       "0.00869", "0.01")  # fmt: skip
+    """Before the check, ``--period 0.01`` ran and "diverged" (exit 1).
+
+    0.1 s is the shortest period a gait may have (GaitParams); the joint speeds
+    it asks for are refused by name.
+    """
+    expected = message("left_knee", "25.8", "6 rad/s, the exoskeleton URDF's speed limit",
+                       "0.0869", "0.1")  # fmt: skip
     back_emf = "5.18 rad/s, where the drive's back-EMF i_G ω / k_E (4.633 V·s/rad × ω) takes "
-    drive = message("left_knee", "258.0", back_emf + "the whole 24 V supply", "0.00869", "0.01")
+    drive = message("left_knee", "25.8", back_emf + "the whole 24 V supply", "0.0869", "0.1")
     with pytest.raises(InvalidParameter) as info:
-        simulate(SimConfig(gait=GaitParams(period=0.01), motor=HIGH_SUPPLY, **AT_SPEED))
+        simulate(SimConfig(gait=GaitParams(period=0.1), motor=HIGH_SUPPLY, **AT_SPEED))
     assert str(info.value) == expected
     out, summary = tmp_path / "run.rrd", tmp_path / "s.json"
-    argv = ["simulate", "--period", "0.01", "--ramp-in", "0", "--out", str(out)]
+    argv = ["simulate", "--period", "0.1", "--ramp-in", "0", "--out", str(out)]
     argv += ["--summary", str(summary)]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err

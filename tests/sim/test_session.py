@@ -151,7 +151,7 @@ def _write(tmp_path: Path, data: object, raw: str | None = None, name: str = "s"
         (
             [{"duration": 1.0, "mode": "tracking"}, {"duration": -2, "mode": "aan"}],
             None,
-            "session segment 2 duration must be > 0 s; got -2",
+            "session segment 2 duration must be in (0, 1e+07] s; got -2",
         ),
         (
             [{"duration": 1.0, "mode": "tracking", "speed": 0.3}],

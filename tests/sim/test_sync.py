@@ -122,7 +122,7 @@ def test_sync_off_keeps_the_precomputed_plan() -> None:
         ),
         (
             ["--speed-profile", "0:-0.5"],
-            "speed_profile must be speeds > 0 m/s; got '0:-0.5' (point 1, 0:-0.5)",
+            "speed_profile must be speeds >= 0.01 m/s; got '0:-0.5' (point 1, 0:-0.5)",
         ),
         (
             ["--speed-profile", "0:0.5;1"],
