@@ -123,8 +123,9 @@ class SimConfig:
             the gait adapting to the speed by :mod:`exo_ctrl.plan.adapt`);
             None: on with contact on (:attr:`synced`).  Off: the precomputed
             plan, which assumes the gait's v_f whatever the belt does.
-        duration_s: simulated time [s], ramps included.  Default 3.6 s: the
-            default ramp-in (one 1.2 s gait period) and two gait cycles.
+        duration_s: simulated time [s], ramps included, from one control
+            tick to :data:`MAX_DURATION_S`.  Default 3.6 s: the default
+            ramp-in (one 1.2 s gait period) and two gait cycles.
         ramp_in_s: the start's ramp from standing into the gait
             (:mod:`exo_ctrl.plan.ramp`) [s], within the run; None: one gait
             period (a shorter run ends within it; with a ramp-out, at most the
@@ -135,7 +136,8 @@ class SimConfig:
         cuff_fit: how the cuffs are fitted at the start, one of
             :data:`CUFF_FITS` (default ``"equilibrium"``).
         control_rate_hz: control rate [Hz] (default 1 kHz).
-        plant_substeps: plant steps per control tick (plant step = Δt / n).
+        plant_substeps: plant steps per control tick (plant step = Δt / n),
+            1 to :data:`MAX_PLANT_SUBSTEPS`.
         chunk_ticks: rows per logging chunk.
         sensors: encoder and joint torque sensor models (defaults: real
             hardware, :mod:`exo_ctrl.sensing.sensors`); ``SensorParams.ideal()`` for
