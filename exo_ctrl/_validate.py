@@ -143,6 +143,24 @@ def allocation(
     )
 
 
+def one_of(name: str, value: object, choices: Sequence[object]) -> object:
+    """Return ``value`` if it is one of ``choices`` (an array or unhashable value is none)."""
+    try:
+        ok = not isinstance(value, np.ndarray) and value in choices
+    except TypeError:
+        ok = False
+    if not ok:
+        raise InvalidParameter(name, value, f"one of {', '.join(str(c) for c in choices)}")
+    return value
+
+
+def flag(name: str, value: object) -> bool:
+    """Return ``value`` as a bool if it is True or False (numpy's included)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidParameter(name, value, "True or False")
+    return bool(value)
+
+
 def positive(name: str, value: float, unit: str = "") -> float:
     """Return ``value`` if it is finite and > 0."""
     x = finite(name, value, unit)

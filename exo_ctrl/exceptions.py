@@ -8,6 +8,7 @@ subclass carries the data that explains it as attributes.
 
 from __future__ import annotations
 
+import math
 import os
 
 __all__ = [
@@ -98,7 +99,7 @@ class UnreachableFootTarget(ExoCtrlError, ValueError):
         self.point = point
         self.reach = reach
         self.time = time
-        distance = (point[0] ** 2 + point[1] ** 2) ** 0.5
+        distance = math.hypot(point[0], point[1])  # no overflow for a point 1e200 m away
         at = f" at t = {time:.4g} s" if time is not None else ""
         super().__init__(
             f"{what} (x = {point[0]:.4g} m, z = {point[1]:.4g} m){at} is "

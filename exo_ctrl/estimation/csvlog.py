@@ -68,7 +68,15 @@ def read_csv_log(
     p = Path(path)
     if not p.is_file():
         raise InvalidLog(src, "file not found")
-    with p.open(newline="", encoding="utf-8") as handle:
+    try:
+        return _read_rows(src, p)
+    except UnicodeDecodeError:
+        raise InvalidLog(src, "not UTF-8 text: a CSV log is text") from None
+
+
+def _read_rows(src: str, p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """:func:`read_csv_log`'s reading and checks (a UTF-8 file, a byte-order mark allowed)."""
+    with p.open(newline="", encoding="utf-8-sig") as handle:
         reader = csv.reader(handle)
         header = next(reader, None)
         if header is None:

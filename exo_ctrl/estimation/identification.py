@@ -170,16 +170,24 @@ def calibration_samples(
     h = float(np.median(np.diff(t)))
     smooth_hz = min(DIFFERENTIATION_CUTOFF_HZ, 0.4 / h)
     if cutoff >= smooth_hz:
-        raise InvalidParameter(
-            "cutoff", cutoff_hz, f"< {smooth_hz:g} Hz (the differentiation's low-pass)"
+        sampled = (
+            f"; the log is sampled every {h:.4g} s" if smooth_hz < DIFFERENTIATION_CUTOFF_HZ else ""
         )
-    grid = t[0] + h * np.arange(math.floor((t[-1] - t[0]) / h + 1e-9) + 1)
-    if grid.size < 4 * _edge(cutoff, h):
+        raise InvalidParameter(
+            "cutoff", cutoff_hz, f"< {smooth_hz:g} Hz (the differentiation's low-pass{sampled})"
+        )
+    lasts = t[-1] - t[0]
+    # 4 cut-off periods, compared in seconds first: a step or cut-off so small
+    # that the count of samples overflows is refused here
+    if lasts < 4.0 / cutoff or lasts / h < 4 * _edge(cutoff, h):
+        need = 4.0 / cutoff if lasts < 4.0 / cutoff else 4 * _edge(cutoff, h) * h
+        least = f"{need:.4g} s" if math.isfinite(need) else "four periods"
         raise InvalidLog(
             source,
-            f"it lasts {t[-1] - t[0]:.4g} s; identification needs at least "
-            f"{4 * _edge(cutoff, h) * h:.4g} s at a {cutoff:g} Hz cut-off",
+            f"it lasts {lasts:.4g} s; identification needs at least {least} "
+            f"at a {cutoff:g} Hz cut-off",
         )
+    grid = t[0] + h * np.arange(math.floor(lasts / h + 1e-9) + 1)
     q = np.asarray(q, dtype=float)
     tau = np.asarray(tau, dtype=float)
     qg = np.column_stack([np.interp(grid, t, q[:, j]) for j in range(4)])

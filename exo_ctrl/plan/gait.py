@@ -75,6 +75,10 @@ MIN_KNEE_FLEXION_RAD = 0.1
 #: The shortest gait period the planner takes [s].
 MIN_PERIOD_S = 0.1
 
+#: The smallest shape coefficient k_v the planner takes (at 1e-3 the default
+#: gait's swing foot would run 26 m behind the hip: refused by reach).
+MIN_SHAPE_COEFF = 1e-3
+
 
 @dataclass(frozen=True)
 class GaitParams:
@@ -117,6 +121,17 @@ class GaitParams:
             ("period", "s"),
         ):
             object.__setattr__(self, name, v.positive(name, getattr(self, name), unit))
+        for name in ("step_length", "lift_height", "hip_height"):
+            if getattr(self, name) > 10.0:  # a sanity bound, as BodyParams' link lengths
+                raise InvalidParameter(name, getattr(self, name), "in (0, 10] m")
+        if self.shape_coeff < MIN_SHAPE_COEFF:
+            raise InvalidParameter(
+                "shape_coeff",
+                self.shape_coeff,
+                f">= {MIN_SHAPE_COEFF:g}",
+                "below it the swing foot's path runs metres behind the hip, "
+                "and tends to NaN as k_v goes to 0",
+            )
         if self.period < MIN_PERIOD_S:
             raise InvalidParameter(
                 "period",
@@ -367,7 +382,8 @@ class GaitPlan:
             time=float(t[i]),
             what=f"{side} foot path point",
             cause=f"set by step_length = {p.step_length:g} m, hip_height = {p.hip_height:g} m, "
-            f"lift_height = {p.lift_height:g} m, pelvis_excursion = {p.pelvis_excursion:g} m",
+            f"lift_height = {p.lift_height:g} m, pelvis_excursion = {p.pelvis_excursion:g} m, "
+            f"shape_coeff = {p.shape_coeff:g}",
         )
 
 

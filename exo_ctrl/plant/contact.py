@@ -130,7 +130,7 @@ class ContactParams:
             ("friction_coeff", mu),
         ):
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "enabled", bool(self.enabled))
+        object.__setattr__(self, "enabled", v.flag("contact enabled", self.enabled))
         if not isinstance(self.patient_feet, (bool, np.bool_)):
             raise InvalidParameter("patient_feet", self.patient_feet, "True or False")
         if self.patient_feet and not self.enabled:

@@ -64,7 +64,7 @@ class EndStopParams:
         c = v.non_negative("end_stop_damping", self.damping_Nm_s_per_rad, "N·m·s/rad")
         object.__setattr__(self, "stiffness_Nm_per_rad", k)
         object.__setattr__(self, "damping_Nm_s_per_rad", c)
-        object.__setattr__(self, "enabled", bool(self.enabled))
+        object.__setattr__(self, "enabled", v.flag("end stops enabled", self.enabled))
 
 
 #: The stops' fields of the plant's record: the limits ``stop_lower`` and

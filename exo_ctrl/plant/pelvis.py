@@ -131,7 +131,7 @@ class PelvisParams:
             "stop_damping_N_s_per_m",
             v.non_negative("pelvis stop damping", self.stop_damping_N_s_per_m, "N·s/m"),
         )
-        object.__setattr__(self, "supported", bool(self.supported))
+        object.__setattr__(self, "supported", v.flag("pelvis supported", self.supported))
 
     @property
     def body_mass(self) -> float:

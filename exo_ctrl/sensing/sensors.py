@@ -128,18 +128,19 @@ class SensorParams:
                 "encoder_resolution", self.encoder_resolution_rad, "in [0, 0.1] rad"
             )
         v.non_negative("encoder_noise_std", self.encoder_noise_std_rad, "rad")
-        if self.velocity not in VELOCITY_SOURCES:
+        if isinstance(self.velocity, np.ndarray) or self.velocity not in VELOCITY_SOURCES:
             raise InvalidParameter("velocity", self.velocity, "'encoder' or 'true'")
         v.positive("velocity_filter", self.velocity_filter_hz, "Hz")
         v.non_negative("torque_noise_std", self.torque_noise_std_Nm, "N·m")
         v.non_negative("torque_resolution", self.torque_resolution_Nm, "N·m")
         raw = self.torque_bias_Nm
-        for b in raw if isinstance(raw, (tuple, list, np.ndarray)) else (raw,):
+        many = isinstance(raw, (tuple, list)) or (isinstance(raw, np.ndarray) and raw.ndim > 0)
+        for b in raw if many else (raw.item() if isinstance(raw, np.ndarray) else raw,):
             if isinstance(b, (str, bytes, bool, np.bool_)):
                 v.finite("torque_bias", b, "N·m")  # refuses text and truth values
         try:
             bias = np.broadcast_to(np.asarray(self.torque_bias_Nm, dtype=float), (4,))
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float
             raise InvalidParameter(
                 "torque_bias", self.torque_bias_Nm, "a finite number or 4 of them [N·m]"
             ) from None

@@ -126,8 +126,7 @@ class Belief:
                 "truth, nominal or a URDF path",
                 "for an identified patient give the file exo-ctrl identify --out wrote",
             )
-        if self.patient_sex not in SEXES:
-            raise InvalidParameter("patient_sex", self.patient_sex, f"one of {', '.join(SEXES)}")
+        v.one_of("patient_sex", self.patient_sex, SEXES)
         if self.patient_height_m is not None:
             v.positive("patient_height", self.patient_height_m, "m")
         if self.patient_mass_kg is not None:

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+import os
+import types
+import typing
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
 from .. import _validate as v
@@ -249,12 +252,15 @@ class SimConfig:
     patient_active: ActiveParams = field(default_factory=ActiveParams)
 
     def __post_init__(self) -> None:
-        if self.exercise not in EXERCISES:
-            raise InvalidParameter("exercise", self.exercise, f"one of {', '.join(EXERCISES)}")
-        if self.controller not in CONTROLLERS:
-            raise InvalidParameter(
-                "controller", self.controller, f"one of {', '.join(CONTROLLERS)}"
-            )
+        _check_parts(self)
+        for name in ("exo", "patient"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, (str, os.PathLike)):
+                raise InvalidParameter(name, value, "a URDF path or None")
+        for name in ("safety", "safety_use_estimate"):
+            object.__setattr__(self, name, v.flag(name, getattr(self, name)))
+        v.one_of("exercise", self.exercise, EXERCISES)
+        v.one_of("controller", self.controller, CONTROLLERS)
         duration = v.positive("duration", self.duration_s, "s")
         rate = v.positive("control_rate", self.control_rate_hz, "Hz")
         if not 10.0 <= rate <= 100_000.0:
@@ -272,19 +278,14 @@ class SimConfig:
                 raise InvalidParameter(name, value, "an integer >= 1")
             if most is not None and value > most:
                 raise InvalidParameter(name, value, f"an integer in [1, {most}]")
-        if self.patient_torque not in PATIENT_KINDS:
-            raise InvalidParameter(
-                "patient_torque", self.patient_torque, f"one of {', '.join(PATIENT_KINDS)}"
-            )
+        v.one_of("patient_torque", self.patient_torque, PATIENT_KINDS)
         checks.check_mode(self)
         if self.stop_reaction is not None:
             check_stop_reaction(self.stop_reaction)
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
-        if self.estimator not in ESTIMATORS:
-            raise InvalidParameter("estimator", self.estimator, f"one of {', '.join(ESTIMATORS)}")
+        v.one_of("estimator", self.estimator, ESTIMATORS)
         v.positive("qp_estimate_bandwidth", self.qp_estimate_bandwidth_per_s, "1/s")
-        if self.cuff_fit not in CUFF_FITS:
-            raise InvalidParameter("cuff_fit", self.cuff_fit, f"one of {', '.join(CUFF_FITS)}")
+        v.one_of("cuff_fit", self.cuff_fit, CUFF_FITS)
         Ramp(0.0, self.ramp_out_s, self.duration_s)  # refuses a bad or too long ramp-out
         if self.ramp_in_s is not None:
             checks.check_ramp_in(self)
@@ -454,3 +455,27 @@ class SimConfig:
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (JSON-able), for summaries and recordings."""
         return asdict(self)
+
+
+def _check_parts(config: SimConfig) -> None:
+    """Refuse a part of the run that is not of its declared parameter class.
+
+    (A float given as ``gait`` would otherwise fail later with an AttributeError.)
+    """
+    hints = typing.get_type_hints(SimConfig)
+    for f in fields(SimConfig):
+        if f.name == "speed_profile":  # also its text: checked by check_sync
+            continue
+        hint = hints[f.name]
+        union = typing.get_origin(hint) in (typing.Union, types.UnionType)
+        if typing.get_origin(hint) is not None and not union:  # a container: checked by its own
+            continue
+        members = typing.get_args(hint) if union else (hint,)
+        allowed = tuple(t for t in members if is_dataclass(t))
+        if not allowed:
+            continue
+        value = getattr(config, f.name)
+        optional = type(None) in members
+        if not (isinstance(value, allowed) or (optional and value is None)):
+            names = " or ".join(t.__name__ for t in allowed) + (" or None" if optional else "")
+            raise InvalidParameter(f.name, value, f"a {names}")

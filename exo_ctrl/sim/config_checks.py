@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from .. import _validate as v
 from ..control.modes import MODES
 from ..exceptions import InvalidParameter
@@ -44,8 +46,7 @@ PLAN_ROW_BYTES = 8 + PLAN_BYTES_PER_SAMPLE + 2 * 4 * 8
 
 def check_mode(config: Any) -> None:
     """Refuse an unknown mode, and a mode or an active patient where they do not apply."""
-    if config.mode not in MODES:
-        raise InvalidParameter("mode", config.mode, f"one of {', '.join(MODES)}")
+    v.one_of("mode", config.mode, MODES)
     if config.patient_torque == "active" and config.exercise != "gait":
         raise InvalidParameter(
             "patient_torque", "active", "none or spastic", "the active patient walks a gait"
@@ -190,7 +191,7 @@ def check_sync(config: Any) -> None:
             raise InvalidParameter(
                 "speed_profile", profile.text(), "unset without the belt (contact on)"
             )
-    if config.sync not in (None, True, False):
+    if config.sync is not None and not isinstance(config.sync, (bool, np.bool_)):
         raise InvalidParameter("sync", config.sync, "True, False or None")
     if not config.synced:
         return

@@ -132,8 +132,7 @@ class Fault:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if self.kind not in INJECTABLE:
-            raise InvalidParameter("fault kind", self.kind, f"one of {', '.join(INJECTABLE)}")
+        v.one_of("fault kind", self.kind, INJECTABLE)
         object.__setattr__(self, "at_s", v.non_negative("fault at_s", self.at_s, "s"))
         names = CUFF_NAMES if self.kind == "cuff_slip" else JOINT_NAMES
         if self.kind in ("control_overrun", "belt_stop"):

@@ -38,6 +38,7 @@ from ..plan.gait import MIN_PERIOD_S
 from ..sim import CONTROLLERS, SimConfig
 
 __all__ = [
+    "MAX_RUNS",
     "PARAMETERS",
     "ParamInfo",
     "check_controller",
@@ -52,6 +53,10 @@ __all__ = [
     "unit_suffix",
     "value_in",
 ]
+
+#: The most runs a sweep makes (a range's N, random samples, the grid's size):
+#: 100,000 runs of a second each keep two cores busy for 14 hours.
+MAX_RUNS = 100_000
 
 
 @dataclass(frozen=True)
@@ -297,4 +302,6 @@ def parse_param(text: str) -> tuple[str, tuple[float | str, ...]]:
         raise InvalidParameter(name, rhs, syntax) from None
     if n < 2 or not lo < hi:
         raise InvalidParameter(name, rhs, syntax)
+    if n > MAX_RUNS:
+        raise InvalidParameter(name, rhs, f"at most {MAX_RUNS:,} values (N)")
     return name, unique([round_12(x) for x in np.linspace(lo, hi, n)])

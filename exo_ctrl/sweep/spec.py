@@ -33,6 +33,7 @@ from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..sim import SimConfig
 from .parameters import (
+    MAX_RUNS,
     PARAMETERS,
     check_controller,
     check_value,
@@ -144,6 +145,17 @@ class SweepSpec:
             isinstance(self.samples, bool) or not isinstance(self.samples, int) or self.samples < 1
         ):
             raise InvalidParameter("samples", self.samples, "an integer >= 1")
+        if self.samples is not None and self.samples > MAX_RUNS:
+            raise InvalidParameter("samples", self.samples, f"at most {MAX_RUNS:,}")
+        if self.samples is None:
+            grid = math.prod(len(vals) for _, vals in self.params)
+            if grid > MAX_RUNS:
+                raise InvalidParameter(
+                    "sweep parameters",
+                    " × ".join(f"{len(vals)} {name}" for name, vals in self.params),
+                    f"a grid of at most {MAX_RUNS:,} runs",
+                    f"this one has {grid:,}; --samples N draws N points instead",
+                )
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise InvalidParameter("seed", self.seed, "an integer >= 0")
         if self.duration_s is not None and self.cycles is not None:

@@ -71,7 +71,7 @@ def _refused(capsys: pytest.CaptureFixture, argv: list[str]) -> str:
             ["simulate", "--step-length", "2"],
             "left foot path point (x = 1.088 m, z = -0.8923 m) at t = 0.249 s is 1.407 m from "
             "the hip; the leg reaches from 0 m to 1.039 m (set by step_length = 2 m, hip_height "
-            "= 0.9 m, lift_height = 0.1 m, pelvis_excursion = 0 m)",
+            "= 0.9 m, lift_height = 0.1 m, pelvis_excursion = 0 m, shape_coeff = 0.5)",
         ),
     ],
     ids=[
@@ -224,3 +224,93 @@ def test_a_session_that_is_not_a_file_says_what_it_is(
     assert err == (
         f"exo-ctrl simulate: error: session must be an existing JSON file; got {path!r} ({why})\n"
     )
+
+
+def _log(path: Path, t: np.ndarray) -> Path:
+    """A CSV log of still joints at times ``t``."""
+    header = "t,left_hip_q,left_knee_q,right_hip_q,right_knee_q,"
+    header += "left_hip_tau,left_knee_tau,right_hip_tau,right_knee_tau"
+    rows = [",".join(repr(float(x)) for x in (tk, 0.1, 0.2, 0.1, 0.2, 5, 3, 5, 3)) for tk in t]
+    path.write_text("\n".join([header, *rows]) + "\n")
+    return path
+
+
+def test_identify_refuses_a_cutoff_or_a_step_whose_sample_count_overflows(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    log = _log(tmp_path / "ok.csv", np.arange(500) * 1e-3)
+    out = str(tmp_path / "p.urdf")
+    err = _refused(capsys, ["identify", str(log), "--out", out, "--cutoff", "1e-308"])
+    assert err == (
+        f"exo-ctrl identify: error: invalid log {log}: it lasts 0.499 s; identification needs "
+        "at least four periods at a 1e-308 Hz cut-off\n"
+    )
+    tiny = _log(tmp_path / "tiny.csv", np.arange(500) * 5e-324)  # denormal steps
+    err = _refused(capsys, ["identify", str(tiny), "--out", out])
+    assert err.startswith(f"exo-ctrl identify: error: invalid log {tiny}: it lasts ")
+    assert err.endswith("identification needs at least 2 s at a 2 Hz cut-off\n")
+
+
+def test_a_csv_log_must_be_utf8_and_may_start_with_a_byte_order_mark(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    log = _log(tmp_path / "ok.csv", np.arange(200) * 1e-3)
+    latin = tmp_path / "latin1.csv"
+    latin.write_bytes(log.read_bytes() + "café\n".encode("latin-1"))
+    err = _refused(capsys, ["estimate", str(latin)])
+    assert (
+        err == f"exo-ctrl estimate: error: invalid log {latin}: not UTF-8 text: a CSV log is text\n"
+    )
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + log.read_bytes())
+    assert cli.main(["estimate", str(bom)]) == 0
+    with_bom = capsys.readouterr().out
+    assert cli.main(["estimate", str(log)]) == 0
+    assert with_bom.replace(str(bom), str(log)) == capsys.readouterr().out  # the same figures
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (
+            ["--param", "step_length=0.3:0.4:99999999999999999999999"],
+            "step_length must be at most 100,000 values (N); got '0.3:0.4:99999999999999999999999'",
+        ),
+        (
+            ["--param", "step_length=0.3,0.4", "--samples", "99999999999999999999"],
+            "samples must be at most 100,000; got 99999999999999999999",
+        ),
+        (
+            ["--param", "step_length=0.3:0.4:1000", "--param", "period=1:2:1000"],
+            "sweep parameters must be a grid of at most 100,000 runs; got '1000 step_length × "
+            "1000 period' (this one has 1,000,000; --samples N draws N points instead)",
+        ),
+    ],
+    ids=["range", "samples", "grid"],
+)
+def test_a_sweep_of_more_runs_than_the_cap_is_refused_at_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], expected: str
+) -> None:
+    out = tmp_path / "s.parquet"
+    err = _refused(capsys, ["sweep", *args, "--out", str(out), "--duration", "0.3"])
+    assert err == f"exo-ctrl sweep: error: {expected}\n"
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (
+            ["--shape-coeff", "1e-20"],
+            "shape_coeff must be >= 0.001; got 1e-20 (below it the swing foot's path runs metres "
+            "behind the hip, and tends to NaN as k_v goes to 0)",
+        ),
+        (["--step-length", "1e308"], "step_length must be in (0, 10] m; got 1e+308"),
+    ],
+    ids=["shape-coeff", "step-length"],
+)
+def test_gait_numbers_that_made_nan_or_overflow_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture, args: list[str], expected: str
+) -> None:
+    err = _refused(capsys, ["gait", *args, "--csv", str(tmp_path / "g.csv")])
+    assert err == f"exo-ctrl gait: error: {expected}\n"

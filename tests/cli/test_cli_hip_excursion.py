@@ -63,7 +63,8 @@ def test_the_feet_relative_to_the_belt_are_the_fixed_hip_feet(tmp_path: Path) ->
             "pelvis_excursion must be at most 0.0774 m for this gait and a 0.52 m + 0.52 m leg; "
             "got 0.1 (left foot path point (x = -2.776e-17 m, z = -1.05 m) at t = 0.6 s is "
             "1.05 m from the hip; the leg reaches from 0 m to 1.039 m (set by step_length = "
-            "0.35 m, hip_height = 1 m, lift_height = 0.1 m, pelvis_excursion = 0.1 m))",
+            "0.35 m, hip_height = 1 m, lift_height = 0.1 m, pelvis_excursion = 0.1 m, "
+            "shape_coeff = 0.5))",
         ),
     ],
     ids=["nan", "negative", "above-the-lift", "beyond-reach"],

@@ -313,7 +313,7 @@ def test_an_excursion_the_leg_cannot_reach_names_the_largest_it_can(exo) -> None
         f"0.52 m + 0.52 m leg; got 0.1 (left foot path point (x = -2.776e-17 m, z = -1.05 m) "
         f"at t = 0.6 s is 1.05 m from the hip; the leg reaches from 0 m to {r_max:.4g} m "
         f"(set by step_length = 0.35 m, hip_height = {H_S:g} m, lift_height = 0.1 m, "
-        "pelvis_excursion = 0.1 m))"
+        "pelvis_excursion = 0.1 m, shape_coeff = 0.5))"
     )
     GaitPlan(dataclasses.replace(params, pelvis_excursion=e_max - 1e-6)).check_reach(l1, l2)
     # a path out of reach with the hip fixed is the path's fault: the old error

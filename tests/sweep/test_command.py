@@ -50,7 +50,8 @@ def test_cli_exit_codes(tmp_path, monkeypatch, capsys):
 UNREACHABLE = (
     "UnreachableFootTarget: left foot path point (x = 0.6514 m, z = -0.894 m) at t = 0.2555 s "
     "is 1.106 m from the hip; the leg reaches from 0 m to 1.039 m (set by step_length = 1.2 m, "
-    "hip_height = 0.9 m, lift_height = 0.1 m, pelvis_excursion = 0 m) [step_length=1.2 m]"
+    "hip_height = 0.9 m, lift_height = 0.1 m, pelvis_excursion = 0 m, shape_coeff = 0.5) "
+    "[step_length=1.2 m]"
 )
 
 
