@@ -161,6 +161,14 @@ def flag(name: str, value: object) -> bool:
     return bool(value)
 
 
+def within(name: str, value: float, lo: float, hi: float, unit: str = "", why: str = "") -> float:
+    """Return ``value`` if it is finite and in [lo, hi] (a sanity range, ``why`` said)."""
+    x = finite(name, value, unit)
+    if not lo <= x <= hi:
+        raise InvalidParameter(name, value, f"in [{lo:g}, {hi:g}]{_u(unit)}", why)
+    return x
+
+
 def positive(name: str, value: float, unit: str = "") -> float:
     """Return ``value`` if it is finite and > 0."""
     x = finite(name, value, unit)

@@ -147,6 +147,10 @@ class MotorParams:
             if unit is None:
                 continue
             value = positive(f.name, getattr(self, f.name), unit)
+            if not 1e-9 <= value <= 1e9:  # any drive's constants, in SI units
+                raise InvalidParameter(
+                    f.name, value, f"in [1e-09, 1e+09] {unit}", "a sanity range for any drive"
+                )
             object.__setattr__(self, f.name, value)
         if self.gear_efficiency > 1.0:
             raise InvalidParameter("gear_efficiency", self.gear_efficiency, "in (0, 1]")

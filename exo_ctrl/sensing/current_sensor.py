@@ -53,6 +53,9 @@ class CurrentSensorParams:
     def __post_init__(self) -> None:
         v.non_negative("current sensor noise_std", self.noise_std_A, "A")
         v.non_negative("current sensor resolution", self.resolution_A, "A")
+        sane = "a sanity range: beyond it the monitors' arithmetic overflows"
+        v.within("current sensor noise_std", self.noise_std_A, 0.0, 1e3, "A", sane)
+        v.within("current sensor resolution", self.resolution_A, 0.0, 1e3, "A", sane)
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
             raise InvalidParameter("current sensor seed", self.seed, "an integer >= 0")
         if self.seed < 0:

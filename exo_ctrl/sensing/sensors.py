@@ -86,6 +86,11 @@ NOISE_BLOCK = 1000
 VELOCITY_SOURCES = ("encoder", "true")
 
 
+#: Why the sensors' numbers have upper and lower bounds: squared, inverted or
+#: counted in ticks, the values beyond them overflow.
+_SANE = "a sanity range: beyond it the models' arithmetic overflows"
+
+
 @dataclass(frozen=True)
 class SensorParams:
     """Encoder and torque-sensor parameters, the same for the four joints.
@@ -128,11 +133,15 @@ class SensorParams:
                 "encoder_resolution", self.encoder_resolution_rad, "in [0, 0.1] rad"
             )
         v.non_negative("encoder_noise_std", self.encoder_noise_std_rad, "rad")
+        v.within("encoder_noise_std", self.encoder_noise_std_rad, 0.0, 1.0, "rad", _SANE)
         if isinstance(self.velocity, np.ndarray) or self.velocity not in VELOCITY_SOURCES:
             raise InvalidParameter("velocity", self.velocity, "'encoder' or 'true'")
         v.positive("velocity_filter", self.velocity_filter_hz, "Hz")
+        v.within("velocity_filter", self.velocity_filter_hz, 0.01, 1e6, "Hz", _SANE)
         v.non_negative("torque_noise_std", self.torque_noise_std_Nm, "N·m")
+        v.within("torque_noise_std", self.torque_noise_std_Nm, 0.0, 1e4, "N·m", _SANE)
         v.non_negative("torque_resolution", self.torque_resolution_Nm, "N·m")
+        v.within("torque_resolution", self.torque_resolution_Nm, 0.0, 1e4, "N·m", _SANE)
         raw = self.torque_bias_Nm
         many = isinstance(raw, (tuple, list)) or (isinstance(raw, np.ndarray) and raw.ndim > 0)
         for b in raw if many else (raw.item() if isinstance(raw, np.ndarray) else raw,):
@@ -149,6 +158,7 @@ class SensorParams:
         object.__setattr__(self, "torque_bias_Nm", tuple(float(b) for b in bias))
         if self.sample_rate_hz is not None:
             v.positive("sample_rate", self.sample_rate_hz, "Hz")
+            v.within("sample_rate", self.sample_rate_hz, 0.01, 1e6, "Hz", _SANE)
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
             raise InvalidParameter("seed", self.seed, "an integer >= 0")
         if self.seed < 0:

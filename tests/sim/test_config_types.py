@@ -14,8 +14,9 @@ import pytest
 from exo_ctrl import SimConfig
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.plant import ContactParams, PelvisParams
+from exo_ctrl.plant.drive import MotorParams
 from exo_ctrl.plant.end_stops import EndStopParams
-from exo_ctrl.sensing import SensorParams
+from exo_ctrl.sensing import CurrentSensorParams, SensorParams
 from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sim.faults import Fault
 
@@ -86,3 +87,49 @@ def test_numpy_bools_and_arrays_of_the_right_kind_still_pass() -> None:
     assert SimConfig(sync=np.bool_(False)).sync is not None
     assert SensorParams(torque_bias_Nm=np.array(0.5)).torque_bias_Nm == (0.5,) * 4
     assert SensorParams(torque_bias_Nm=np.full(4, 0.25)).torque_bias_Nm == (0.25,) * 4
+
+
+SANE = "(a sanity range: beyond it the models' arithmetic overflows)"
+
+
+@pytest.mark.parametrize(
+    ("make", "expected"),
+    [
+        (
+            lambda: SensorParams(sample_rate_hz=1e-308),
+            f"sample_rate must be in [0.01, 1e+06] Hz; got 1e-308 {SANE}",
+        ),
+        (
+            lambda: SensorParams(velocity_filter_hz=1e-308),
+            f"velocity_filter must be in [0.01, 1e+06] Hz; got 1e-308 {SANE}",
+        ),
+        (
+            lambda: SensorParams(encoder_noise_std_rad=1e308),
+            f"encoder_noise_std must be in [0, 1] rad; got 1e+308 {SANE}",
+        ),
+        (
+            lambda: SensorParams(torque_noise_std_Nm=1e308),
+            f"torque_noise_std must be in [0, 10000] N·m; got 1e+308 {SANE}",
+        ),
+        (
+            lambda: CurrentSensorParams(noise_std_A=1e308),
+            "current sensor noise_std must be in [0, 1000] A; got 1e+308 (a sanity range: "
+            "beyond it the monitors' arithmetic overflows)",
+        ),
+        (
+            lambda: MotorParams(inductance_H=1e308),
+            "inductance_H must be in [1e-09, 1e+09] H; got 1e+308 (a sanity range for any drive)",
+        ),
+        (
+            lambda: MotorParams(resistance_ohm=1e-308),
+            "resistance_ohm must be in [1e-09, 1e+09] Ω; got 1e-308 (a sanity range for any drive)",
+        ),
+    ],
+    ids=["sample-rate", "velocity-filter", "encoder-noise", "torque-noise", "current", "L", "R"],
+)
+def test_sensor_and_drive_numbers_that_overflowed_in_a_run_are_refused(make, expected) -> None:
+    # before: OverflowError or ZeroDivisionError in simulate(), or a diverged run
+    # whose summary held NaN energies
+    with pytest.raises(InvalidParameter) as info:
+        make()
+    assert str(info.value) == expected
