@@ -103,9 +103,9 @@ def test_no_tick_passes_after_the_estop_time_or_once_stopped() -> None:
 )
 def test_wrong_lengths_are_a_status_and_write_nothing(change) -> None:
     state = monitor_record(LIMITS, math.inf)
-    before = state.copy()
+    before = state.tobytes()  # the raw bytes: a copy() leaves an aligned record's padding out
     assert call(state, **change) == Status.WRONG_LENGTH
-    assert state.tobytes() == before.tobytes()
+    assert state.tobytes() == before
 
 
 def test_channels_name_and_measure_each_violation() -> None:
