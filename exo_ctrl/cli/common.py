@@ -169,7 +169,7 @@ def check_outputs(
 
 def _same_file_key(path: str | os.PathLike[str]) -> str:
     """A key equal for two paths naming one file (links and ``..`` resolved)."""
-    return os.path.realpath(os.path.abspath(path))
+    return os.path.realpath(path)
 
 
 def write_json(path: str | os.PathLike[str], data: dict[str, Any]) -> None:
