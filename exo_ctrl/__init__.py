@@ -9,6 +9,7 @@ that package imports rerun (about 0.3 s here), which a run without a
 recording (a library run, a sweep's worker) never needs.
 """
 
+from ._version import __version__
 from .exceptions import (
     ExoCtrlError,
     InvalidLog,
@@ -41,8 +42,6 @@ from .plan.kinematics import (
     plan_joints,
 )
 from .sim import SimConfig, SimResult, simulate
-
-__version__ = "0.1.0"
 
 __all__ = [
     "CUFF_NAMES",
