@@ -36,10 +36,11 @@ RANKS = {
     "control": 6,
     "safety": 7,
     "sim": 8,
-    "record": 9,
-    "sweep": 10,
-    "cli": 11,
-    "__main__": 12,
+    "scenario": 9,
+    "record": 10,
+    "sweep": 11,
+    "cli": 12,
+    "__main__": 13,
 }
 
 

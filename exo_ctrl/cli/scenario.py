@@ -54,9 +54,8 @@ def run(args: argparse.Namespace) -> int:
         from ..record import read_recording
 
         back = read_recording(args.recording)
-        version = back.meta.get("version", "unknown") if hasattr(back, "meta") else "unknown"
         header = (
-            f"exo_ctrl scenario of the recording {args.recording} (exo_ctrl {version}).\n"
+            f"exo_ctrl scenario of the recording {args.recording}.\n"
             "exo-ctrl simulate THIS_FILE.toml runs it again (same seeds, same summary)."
         )
         text = Scenario(back.config).to_toml(comments=True, header=header)

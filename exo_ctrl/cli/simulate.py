@@ -26,7 +26,7 @@ from ..plant import consistency_warning
 from ..record import RerunRecorder
 from ..record.sizing_plot import PLOTS_HINT, OperatingPoints, write_torque_speed_plot
 from ..record.viewer import find_viewer
-from ..scenario import DEFAULT_PRESET, PRESETS, Scenario
+from ..scenario import DEFAULT_PRESET, PRESETS, RecordingParams, Scenario
 from ..scenario.load import scenario_document, scenario_from_document
 from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
 from ..sim.config import MAX_DURATION_S
@@ -93,7 +93,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--preset",
         default=None,
         metavar="NAME",
-        help="a shipped scenario instead of a file: " + ", ".join(PRESETS),
+        help="a shipped scenario instead of a file: " + ", ".join(PRESETS) + " (default: none; "
+        f"with no file either, {DEFAULT_PRESET})",
     )
     p.add_argument(
         "--set",
@@ -101,7 +102,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=[],
         metavar="SECTION.KEY=VALUE",
         help="override one key of the scenario, e.g. --set gait.period=1.1 "
-        "--set contact.enabled=false (repeatable; 'default' restores a key's default)",
+        "--set contact.enabled=false (repeatable; 'default' restores a key's default) "
+        "(default: none)",
     )
     p.add_argument(
         "--controller",
@@ -117,22 +119,29 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="N",
         help="gait cycles at full speed after the ramp-in [cycles]; 0.5 = one step "
-        "(default: the scenario's duration)",
+        "(default: none, the scenario's run.duration_s: 2 cycles after the ramp-in in most "
+        "presets)",
     )
     span.add_argument(
         "--duration",
         type=float,
         default=None,
         metavar="SEC",
-        help="simulated time, ramps included [s] (default: the scenario's, "
-        f"{SimConfig().duration_s:g} s in the presets)",
+        help="simulated time, ramps included [s] (default: the scenario's run.duration_s, "
+        f"{SimConfig().duration_s:g} s in most presets)",
     )
     outputs = p.add_argument_group("outputs (default: the scenario's [recording] section)")
     outputs.add_argument(
-        "--out", default=None, metavar="PATH.rrd", help="the rerun recording (default exo_run.rrd)"
+        "--out",
+        default=None,
+        metavar="PATH.rrd",
+        help=f"the rerun recording (default: recording.out, {RecordingParams().out})",
     )
     outputs.add_argument(
-        "--summary", default=None, metavar="PATH.json", help="also write the summary as JSON"
+        "--summary",
+        default=None,
+        metavar="PATH.json",
+        help="also write the summary as JSON (default: recording.summary, none)",
     )
     outputs.add_argument("--no-record", action="store_true", help="write no recording")
     outputs.add_argument(
@@ -140,14 +149,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="HZ",
-        help="rate of the recording's 3-D scene [Hz] (default 50; the plots keep every tick)",
+        help="rate of the recording's 3-D scene [Hz]; the plots keep every tick (default: "
+        f"recording.scene_rate_hz, {RecordingParams().scene_rate_hz:g})",
     )
     outputs.add_argument(
         "--plots",
         default=None,
         metavar="DIR",
         help="write the drives' torque-speed operating points against their limits as "
-        "DIR/torque_speed.png (an existing directory; needs matplotlib)",
+        "DIR/torque_speed.png (an existing directory; needs matplotlib) (default: none)",
     )
     outputs.add_argument(
         "--spawn", action="store_true", help="also stream to a rerun viewer while it runs"
@@ -155,6 +165,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_run_options(p)
     for action in p._actions:  # argparse keeps its actions there; no public accessor
         if action.dest not in SHOWN:
+            action.hidden_help = action.help  # what docs/cli.md lists
             action.help = argparse.SUPPRESS
             _FLAG_DEFAULTS[action.dest] = action.default
             _FLAG_OPTIONS[action.dest] = action.option_strings[0]

@@ -27,7 +27,8 @@ LENGTH_TOLERANCE_M = 0.02
 
 #: How to make a fitted device (shown in the warnings).
 FIT_HINT = (
-    "a device fitted to the patient: exo-ctrl urdf --kind exo --height M --mass KG --out exo.urdf"
+    "'exo-ctrl urdf --kind patient --height M --mass KG --out P.urdf' prints the link lengths "
+    "of a fitted exoskeleton"
 )
 
 
@@ -68,7 +69,7 @@ def fit_warnings(exo: BodyModel, patient: BodyModel) -> list[str]:
                     f"the exoskeleton's {side} {segment} is {a:.3f} m and the patient's "
                     f"{b:.3f} m ({1e3 * abs(a - b):.0f} mm apart, over the "
                     f"{1e3 * LENGTH_TOLERANCE_M:.0f} mm of a fitted device): the cuffs strain "
-                    f"over the gait; for {FIT_HINT}"
+                    f"over the gait; {FIT_HINT}"
                 )
             cuff = exo_cuffs[f"{side}_{segment}"]
             if cuff > b + 1e-9:

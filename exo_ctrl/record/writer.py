@@ -74,9 +74,12 @@ import numpy as np
 import rerun as rr
 
 from .._io import is_special, output_problem
+from .._version import __version__
 from ..exceptions import InvalidParameter, OutputError, RecordingError
 from ..model import BodyModel, load_body, load_patient
+from ..scenario.load import RecordingParams
 from ..sim import SimResult
+from ..sim.scenario_file import scenario_toml
 from .blueprint import make_blueprint
 from .columns import EntityBatch, SignalColumns, log_styles
 from .format import (
@@ -104,7 +107,7 @@ __all__ = [
 ]
 
 #: Default rate of the 3-D scene [Hz]: a display rate, far below the control rate.
-DEFAULT_SCENE_RATE_HZ = 50.0
+DEFAULT_SCENE_RATE_HZ = RecordingParams().scene_rate_hz
 #: Longest wait for rerun to encode what was sent [s] (a 2000-tick chunk takes
 #: milliseconds); past it rerun raises, which becomes a RecordingError.
 FLUSH_TIMEOUT_S = 10.0
@@ -449,6 +452,8 @@ class RerunRecorder:
             "format": RECORDING_FORMAT,
             "version": FORMAT_VERSION,
             "config": config.to_dict(),
+            "package_version": __version__,
+            "scenario": scenario_toml(config, comments=False),
             "dt": config.dt,
             "n_ticks_planned": config.n_ticks,
             "belt_speed_mps": result.belt_speed_mps,
@@ -466,6 +471,9 @@ class RerunRecorder:
         rec.log("raw/meta", text, static=True, strict=True)
         markdown = rr.TextDocument(params_markdown(result, meta), media_type=rr.MediaType.MARKDOWN)
         rec.log("params", markdown, static=True, strict=True)
+        scenario = f"# exo_ctrl {__version__}: exo-ctrl simulate THIS.toml runs it again\n"
+        scenario += meta["scenario"]
+        rec.log("scenario", rr.TextDocument(scenario, media_type=rr.MediaType.TEXT), static=True)
         log_styles(rec, self._columns.layout.series)
         self._patient_feet = config.contact.patient_feet
         ground = "ground_force" not in self._columns.left_out

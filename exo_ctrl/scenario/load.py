@@ -15,7 +15,6 @@ from typing import Any
 
 from .. import _validate as v
 from ..exceptions import ExoCtrlError, InvalidScenario
-from ..record import DEFAULT_SCENE_RATE_HZ
 from ..sim import SimConfig
 from ..sim.plain import from_plain
 from ..sim.scenario_file import (
@@ -54,14 +53,15 @@ class RecordingParams:
         enabled: write a rerun recording.
         out: the recording's path (.rrd), relative to the current directory.
         scene_rate_hz: rate of the recording's 3-D scene [Hz]; the time series
-            keep every tick.
+            keep every tick (the recorder's default,
+            :data:`exo_ctrl.record.DEFAULT_SCENE_RATE_HZ`, is this one).
         summary: also write the summary to this JSON file ("" for none).
 
     """
 
     enabled: bool = True
     out: str = "exo_run.rrd"
-    scene_rate_hz: float = DEFAULT_SCENE_RATE_HZ
+    scene_rate_hz: float = 50.0
     summary: str = ""
 
     def __post_init__(self) -> None:

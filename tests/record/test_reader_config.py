@@ -41,12 +41,12 @@ from exo_ctrl.plant.patient import SpasticParams
 from exo_ctrl.plant.patient_active import ActiveParams
 from exo_ctrl.record import RerunRecorder, estimate_file, read_recording
 from exo_ctrl.record.reader import _config_from_dict
-from exo_ctrl.sim.plain import from_plain
 from exo_ctrl.safety import SafetyLimits
 from exo_ctrl.sensing import BeltEncoderParams, CurrentSensorParams, FootLoadParams, SensorParams
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sim.faults import Fault
+from exo_ctrl.sim.plain import from_plain
 from exo_ctrl.sim.session import Segment, SessionParams
 
 #: Every nested parameter set away from its default; the pelvis supported
