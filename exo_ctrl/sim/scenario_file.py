@@ -48,6 +48,7 @@ __all__ = [
     "field_docs",
     "located_error",
     "parse_scenario",
+    "plain_text",
     "scenario_toml",
 ]
 
@@ -196,14 +197,14 @@ def _key_line(name: str, value: Any) -> str:
 _ROLE = re.compile(r":\w+:`~?([^`]+)`")
 
 
-def _plain_text(text: str) -> str:
+def plain_text(text: str) -> str:
     """A docstring's text without its markup (``:mod:`a.b``` → ``a.b``, double backquotes)."""
     return _ROLE.sub(r"\1", text).replace("``", "")
 
 
 def _comment(text: str, prefix: str = "# ") -> list[str]:
     """``text`` (markup removed) as wrapped comment lines."""
-    text = _plain_text(text)
+    text = plain_text(text)
     return textwrap.wrap(text, 96, initial_indent=prefix, subsequent_indent=prefix) or []
 
 
