@@ -28,6 +28,7 @@ RANKS = {
     "_io": 0,
     "_progress": 0,
     "_lifetime": 0,
+    "_version": 0,
     "model": 1,
     "plan": 2,
     "plant": 3,

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 
+from .app import DESCRIPTION, build_parser
+
 __all__ = ["options_markdown"]
 
 
@@ -33,8 +35,6 @@ def _rows(parser: argparse.ArgumentParser, hidden: bool) -> list[str]:
 
 def options_markdown() -> str:
     """The command-line reference page (Markdown)."""
-    from .app import DESCRIPTION, build_parser
-
     parser = build_parser()
     (sub,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     lines = [

@@ -12,6 +12,7 @@ import argparse
 
 from .._io import atomic_write
 from ..exceptions import InvalidParameter
+from ..record import read_recording
 from ..scenario import PRESETS, Scenario, preset_description, scenario_template
 from .common import check_outputs
 
@@ -28,14 +29,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     which = p.add_mutually_exclusive_group(required=True)
     which.add_argument("--list", action="store_true", help="list the presets, one line each")
-    which.add_argument("--preset", metavar="NAME", help="the preset: " + ", ".join(PRESETS))
+    which.add_argument(
+        "--preset",
+        metavar="NAME",
+        help="the preset: " + ", ".join(PRESETS) + " (default: none)",
+    )
     which.add_argument(
         "--from",
         dest="recording",
         metavar="RUN.rrd",
-        help="the scenario a recording was made with (its summary is reproduced)",
+        help="the scenario a recording was made with (its summary is reproduced) (default: none)",
     )
-    p.add_argument("--out", metavar="FILE.toml", help="the scenario file to write")
+    p.add_argument("--out", metavar="FILE.toml", help="the scenario file to write (default: none)")
     p.set_defaults(func=run)
 
 
@@ -51,8 +56,6 @@ def run(args: argparse.Namespace) -> int:
     reads = {"the recording": args.recording} if args.recording else None
     check_outputs(args, reads=reads, out="--out")
     if args.recording is not None:
-        from ..record import read_recording
-
         back = read_recording(args.recording)
         header = (
             f"exo_ctrl scenario of the recording {args.recording}.\n"

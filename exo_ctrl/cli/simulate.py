@@ -30,10 +30,8 @@ from ..scenario import DEFAULT_PRESET, PRESETS, RecordingParams, Scenario
 from ..scenario.load import scenario_document, scenario_from_document
 from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
 from ..sim.config import MAX_DURATION_S
-from ..sim.scenario_file import (
-    apply_setting,
-    document_from_config,
-)
+from ..sim.scenario_file import document_from_config
+from ..sim.scenario_read import apply_setting
 from .common import check_outputs, format_summary, write_json
 from .simulate_options import add_run_options, flags_config
 
@@ -201,9 +199,8 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 @functools.cache
 def _default_flags_config() -> SimConfig:
     """The SimConfig of the long options' defaults (no option given)."""
-    from .app import build_parser
-
-    return flags_config(_with_defaults(build_parser().parse_args(["simulate"])))
+    common = {"duration": None, "cycles": None, "controller": None}
+    return flags_config(argparse.Namespace(**_FLAG_DEFAULTS, **common))
 
 
 def _leaves(data: Any, prefix: tuple[str, ...] = ()) -> dict[tuple[str, ...], Any]:

@@ -79,7 +79,6 @@ from ..exceptions import InvalidParameter, OutputError, RecordingError
 from ..model import BodyModel, load_body, load_patient
 from ..scenario.load import RecordingParams
 from ..sim import SimResult
-from ..sim.scenario_file import scenario_toml
 from .blueprint import make_blueprint
 from .columns import EntityBatch, SignalColumns, log_styles
 from .format import (
@@ -453,7 +452,6 @@ class RerunRecorder:
             "version": FORMAT_VERSION,
             "config": config.to_dict(),
             "package_version": __version__,
-            "scenario": scenario_toml(config, comments=False),
             "dt": config.dt,
             "n_ticks_planned": config.n_ticks,
             "belt_speed_mps": result.belt_speed_mps,
@@ -471,9 +469,6 @@ class RerunRecorder:
         rec.log("raw/meta", text, static=True, strict=True)
         markdown = rr.TextDocument(params_markdown(result, meta), media_type=rr.MediaType.MARKDOWN)
         rec.log("params", markdown, static=True, strict=True)
-        scenario = f"# exo_ctrl {__version__}: exo-ctrl simulate THIS.toml runs it again\n"
-        scenario += meta["scenario"]
-        rec.log("scenario", rr.TextDocument(scenario, media_type=rr.MediaType.TEXT), static=True)
         log_styles(rec, self._columns.layout.series)
         self._patient_feet = config.contact.patient_feet
         ground = "ground_force" not in self._columns.left_out

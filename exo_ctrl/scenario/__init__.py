@@ -6,8 +6,15 @@ A scenario's sections mirror :class:`~exo_ctrl.sim.SimConfig`'s parts
 writes a complete, commented file to edit; ``exo-ctrl simulate FILE`` runs it.
 """
 
-from .load import DEFAULT_PRESET, RecordingParams, Scenario, load_scenario, scenario_template
-from .presets import PRESETS, preset, preset_description, preset_text
+from .load import (
+    DEFAULT_PRESET,
+    RecordingParams,
+    Scenario,
+    load_scenario,
+    preset,
+    scenario_template,
+)
+from .presets import PRESETS, preset_description, preset_text
 
 __all__ = [
     "DEFAULT_PRESET",

@@ -17,14 +17,12 @@ from .. import _validate as v
 from ..exceptions import ExoCtrlError, InvalidScenario
 from ..sim import SimConfig
 from ..sim.plain import from_plain
-from ..sim.scenario_file import (
-    AUTO,
-    DEVICE_GAIT_KEYS,
+from ..sim.scenario_file import AUTO, DEVICE_GAIT_KEYS, scenario_toml
+from ..sim.scenario_read import (
     apply_setting,
     config_from_document,
     located_error,
     parse_scenario,
-    scenario_toml,
 )
 from .presets import preset_description, preset_text
 
@@ -33,6 +31,7 @@ __all__ = [
     "RecordingParams",
     "Scenario",
     "load_scenario",
+    "preset",
     "scenario_document",
     "scenario_from_document",
     "scenario_template",
@@ -184,6 +183,11 @@ def _read(source: str) -> str:
         ) from None
     except OSError as exc:
         raise InvalidScenario(source, "", exc.strerror or str(exc)) from None
+
+
+def preset(name: str) -> Scenario:
+    """The scenario of preset ``name`` (:data:`~exo_ctrl.scenario.PRESETS`)."""
+    return load_scenario(preset=name)
 
 
 def scenario_template(name: str) -> str:

@@ -11,7 +11,7 @@ from importlib import resources
 
 from ..exceptions import InvalidParameter
 
-__all__ = ["PRESETS", "preset", "preset_description", "preset_text"]
+__all__ = ["PRESETS", "preset_description", "preset_text"]
 
 #: The presets' names, in the order ``exo-ctrl scenario --list`` shows them.
 PRESETS: tuple[str, ...] = (
@@ -40,10 +40,3 @@ def preset_description(name: str) -> str:
     """The one-line description of preset ``name`` (its first comment line)."""
     first = preset_text(name).splitlines()[0]
     return first.removeprefix("#").strip()
-
-
-def preset(name: str):  # -> Scenario (imported late: load imports this module)
-    """The scenario of preset ``name`` (:func:`~exo_ctrl.scenario.load_scenario`)."""
-    from .load import load_scenario
-
-    return load_scenario(preset=name)

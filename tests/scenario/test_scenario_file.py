@@ -26,13 +26,8 @@ from exo_ctrl.scenario import (
 )
 from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sim.faults import Fault
-from exo_ctrl.sim.scenario_file import (
-    GROUPS,
-    ORDER,
-    config_from_document,
-    parse_scenario,
-    scenario_toml,
-)
+from exo_ctrl.sim.scenario_file import GROUPS, ORDER, scenario_toml
+from exo_ctrl.sim.scenario_read import config_from_document, parse_scenario
 from exo_ctrl.sim.session import Segment, SessionParams
 
 
