@@ -34,7 +34,8 @@ def test_a_preset_written_and_run_equals_the_preset_run(tmp_path: Path, capsys, 
     code, out, _ = _run(capsys, "scenario", "--preset", name, "--out", str(toml))
     assert code == 0 and f"scenario: {toml}" in out
     a, b = tmp_path / "a.json", tmp_path / "b.json"
-    short = ["--duration", "0.25", "--no-record"]
+    # the calibration's swing takes at least 3 s (exo_ctrl/plan/exercise.py)
+    short = ["--duration", "3" if name == "calibration" else "0.25", "--no-record"]
     assert _run(capsys, "simulate", str(toml), *short, "--summary", str(a))[0] == 0
     assert _run(capsys, "simulate", "--preset", name, *short, "--summary", str(b))[0] == 0
     assert _figures(a) == _figures(b)
