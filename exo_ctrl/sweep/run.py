@@ -35,7 +35,7 @@ from ..sim import SimConfig, simulate
 from ..sim.belief import PAPER_PATIENT
 from .journal import FINISHED_STATUSES, Journal, read_previous
 from .outputs import SweepPaths, empty_outputs, flatten
-from .parameters import PARAMETERS, default_patient
+from .parameters import PARAMETERS, default_exo, default_patient
 from .report import (
     PLOTS_HINT,
     build_table,
@@ -77,33 +77,41 @@ class SweepInterrupted(KeyboardInterrupt):
         self.remaining = remaining
 
 
-def _patient_urdf(body: dict[str, float], cache_dir: str) -> str | None:
-    """The patient URDF of ``body`` in the cache (None: the default patient)."""
-    default = default_patient()
+def _body_urdf(kind: str, body: dict[str, float], cache_dir: str) -> str | None:
+    """The URDF of a generated ``kind`` (patient or exo) with ``body``'s values (None: default).
+
+    A link whose length changes keeps its cuff at its fraction of the link
+    while the cuff is at its default position.  Written once into ``cache_dir``, named by
+    its content's hash.
+    """
+    default = default_patient() if kind == "patient" else default_exo()
     if all(getattr(default, k) == v for k, v in body.items()):
         return None
     changes = dict(body)
-    for seg in ("thigh", "shank"):  # a cuff keeps its fraction of its link
-        length = changes[f"{seg}_length"]
-        ref = getattr(default, f"{seg}_length")
-        changes[f"{seg}_cuff"] = getattr(default, f"{seg}_cuff") / ref * length
-    params = BodyParams.patient_default(**changes)
+    for seg in ("thigh", "shank"):  # a cuff left at its default keeps its fraction of its link
+        length = changes.get(f"{seg}_length")
+        cuff = changes.get(f"{seg}_cuff", getattr(default, f"{seg}_cuff"))
+        if length is not None and cuff == getattr(default, f"{seg}_cuff"):
+            ref = getattr(default, f"{seg}_length")
+            changes[f"{seg}_cuff"] = getattr(default, f"{seg}_cuff") / ref * length
+    make = BodyParams.patient_default if kind == "patient" else BodyParams.exo_default
+    params = make(**changes)
     digest = hashlib.sha256(urdf_xml(params).encode("utf-8")).hexdigest()[:16]
     for folder in (Path(cache_dir), Path(tempfile.gettempdir()) / "exo_ctrl_sweep"):
-        path = folder / f"patient-{digest}.urdf"
+        path = folder / f"{kind}-{digest}.urdf"
         if path.is_file():
             return str(path)
         with contextlib.suppress(OSError):  # e.g. a remote worker without the folder
             folder.mkdir(parents=True, exist_ok=True)
             return str(write_urdf(params, path))
-    raise SweepError(f"cannot write the patient URDF into {cache_dir}")
+    raise SweepError(f"cannot write the {kind} URDF into {cache_dir}")
 
 
 def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimConfig:
     """The :class:`SimConfig` of a run: ``base`` with ``values`` (:meth:`SweepSpec.resolve`).
 
-    Generates the patient URDF into ``cache_dir`` when patient values differ
-    from the default patient.
+    Generates the patient's (the exoskeleton's) URDF into ``cache_dir`` when
+    patient (exo) values differ from the default's.
 
     Raises:
         ExoCtrlError: a value or combination the library rejects.
@@ -112,6 +120,7 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
     groups: dict[str, dict[str, Any]] = {
         "gait": {},
         "patient": {},
+        "exo": {},
         "motor": {},
         "cuffs": {},
         "gains": {},
@@ -122,7 +131,7 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
             groups[info.target][info.attribute] = value
     patient, belief = base.patient, base.belief
     if base.patient is None and groups["patient"]:
-        patient = _patient_urdf(groups["patient"], cache_dir)
+        patient = _body_urdf("patient", groups["patient"], cache_dir)
         if patient is not None and belief.patient == "nominal":
             # The swept patients vary the paper's patient's segments: the
             # clinic's stature and body mass stay the paper's unless given.
@@ -131,8 +140,12 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
                 patient_height_m=belief.patient_height_m or PAPER_PATIENT["height_m"],
                 patient_mass_kg=belief.patient_mass_kg or PAPER_PATIENT["mass_kg"],
             )
+    exo = base.exo
+    if base.exo is None and groups["exo"]:
+        exo = _body_urdf("exo", groups["exo"], cache_dir)
     return dataclasses.replace(
         base,
+        exo=exo,
         belief=belief,
         gait=dataclasses.replace(base.gait, **groups["gait"]),
         patient=patient,
