@@ -28,7 +28,7 @@ from ..record.sizing_plot import PLOTS_HINT, OperatingPoints, write_torque_speed
 from ..record.viewer import find_viewer
 from ..scenario import DEFAULT_PRESET, PRESETS, RecordingParams, Scenario
 from ..scenario.load import scenario_document, scenario_from_document
-from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
+from ..sim import CONTROLLERS, SimConfig, SimResult, drive_for, simulate
 from ..sim.config import MAX_DURATION_S
 from ..sim.scenario_file import document_from_config
 from ..sim.scenario_read import apply_setting
@@ -349,7 +349,7 @@ def run(args: argparse.Namespace) -> int:
     warning = consistency_warning(config.motor)
     if warning:
         print(f"exo-ctrl simulate: warning: the drive: {warning}", file=sys.stderr)
-    observers: list = []
+    observers: list = [_WarnAtStart()]
     if not args.no_record:
         observers.append(RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=scene_rate))
     points = OperatingPoints()
@@ -357,8 +357,6 @@ def run(args: argparse.Namespace) -> int:
         observers.append(points)
     result = simulate(config, observers=observers, progress=True, keep_history=False, warmup=True)
     summary = result.summary()
-    for text in summary.get("warnings", []):
-        print(f"exo-ctrl simulate: warning: {text}", file=sys.stderr)
     if args.summary:
         write_json(args.summary, summary)
     print(format_summary(summary))
@@ -377,6 +375,20 @@ def run(args: argparse.Namespace) -> int:
         print(f"exo-ctrl simulate: error: {result.error}", file=sys.stderr)
         return 1
     return 0
+
+
+class _WarnAtStart:
+    """Prints the run's warnings (a device that does not fit its patient) before its first tick."""
+
+    def start(self, result: SimResult) -> None:
+        for text in result.warnings:
+            print(f"exo-ctrl simulate: warning: {text}", file=sys.stderr)
+
+    def chunk(self, result: SimResult, start: int, rows: dict[str, Any]) -> None:
+        """Nothing: the warnings are said at the start."""
+
+    def finish(self, result: SimResult) -> None:
+        """Nothing: the summary lists the warnings again."""
 
 
 def _require_matplotlib() -> None:
