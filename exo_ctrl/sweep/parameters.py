@@ -126,7 +126,7 @@ def _p(
 #: and the other limits are checked per run, and a run that violates them is
 #: recorded as ``failed``); patient bounds are the paper's Table I ranges;
 #: device bounds span plausible hardware (paper: 8 N/mm = 8000 N/m cuffs);
-#: gain bounds span 0-10x the defaults (100 V/rad, 2 V·s/rad).
+#: gain bounds span about 0-4x the defaults (PDGains(): 300 V/rad, 5 V·s/rad).
 PARAMETERS: dict[str, ParamInfo] = {
     p.name: p
     for p in (
