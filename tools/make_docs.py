@@ -6,8 +6,8 @@ docs/scenarios.md is every scenario section and key with its default and
 meaning (exo_ctrl/scenario/reference.py); docs/options.md every option of
 every subcommand, the long options ``simulate --help`` hides included
 (exo_ctrl/cli/reference.py).  Both come from the code; ``--check`` exits 1
-when a committed page differs from what the code gives
-(tests/test_docs_generated.py runs it).
+when a committed page differs from what the code gives; the test
+test_docs_generated runs it.
 """
 
 from __future__ import annotations

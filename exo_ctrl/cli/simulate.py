@@ -222,8 +222,8 @@ def flag_settings(args: argparse.Namespace) -> list[tuple[tuple[str, ...], Any]]
     either is given.
     """
     given = flags_config(_with_defaults(args))
-    doc_given = document_from_config(given)
-    doc_base = document_from_config(_default_flags_config())
+    doc_given = _as_read(document_from_config(given))
+    doc_base = _as_read(document_from_config(_default_flags_config()))
     new, old = _leaves(doc_given), _leaves(doc_base)
     settings = []
     for path, value in new.items():
@@ -239,6 +239,15 @@ def flag_settings(args: argparse.Namespace) -> list[tuple[tuple[str, ...], Any]]
     if args.duration is not None or args.cycles is not None:
         settings = [(p, val) for p, val in settings if p != ("run", "duration_s")]
     return list(dict(settings).items())
+
+
+def _as_read(data: Any) -> Any:
+    """A plain document as a TOML file reads back: its tuples lists."""
+    if isinstance(data, dict):
+        return {key: _as_read(value) for key, value in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [_as_read(value) for value in data]
+    return data
 
 
 def _prefixes(path: tuple[str, ...]) -> list[tuple[str, ...]]:

@@ -155,7 +155,9 @@ def _device_gait(doc: dict[str, Any], source: str) -> dict[str, Any]:
     exo = urdf.get("exo") if isinstance(urdf, dict) else None
     try:
         scale = device_leg_scale(exo)
-    except (ExoCtrlError, TypeError, ValueError, OSError) as exc:
+    except ExoCtrlError:
+        raise  # the model's own message names its URDF
+    except (TypeError, ValueError, OSError) as exc:
         raise InvalidScenario(source, "urdf.exo", str(exc)) from None
     defaults = GaitParams()
     gait = {**gait, **{k: getattr(defaults, k) * scale for k in missing}}
