@@ -203,7 +203,10 @@ class RerunRecorder:
         sinks: list = [stream]
         if self.spawn and self._spawn_viewer(rec):
             sinks.append(rr.GrpcSink())
-        rec.set_sinks(*sinks, default_blueprint=make_blueprint(self._columns.layout))
+        rec.set_sinks(*sinks)
+        # Active: the recording reaches a viewer first, and a mere default did not replace
+        # the layout it made for it by then (rerun 0.41: ticks, panels named by entity paths).
+        rec.send_blueprint(make_blueprint(self._columns.layout), make_active=True)
         self._rec, self._stream, self._file = rec, stream, file
         chunk = min(config.chunk_ticks, max(config.n_ticks, 1))  # a chunk's bytes, ahead
         file.reserve(chunk * bytes_per_tick(len(self._columns.layout.series), self._stride))
