@@ -40,6 +40,7 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from .._io import atomic_write
+from ..estimation import EstimateSeries
 from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from ..sim import SimResult, schema
@@ -48,6 +49,7 @@ from .reader import read_recording
 __all__ = [
     "TABLE_SUFFIXES",
     "column_names",
+    "estimate_table",
     "export_recording",
     "parse_signals",
     "signal_table",
@@ -149,6 +151,21 @@ def signal_table(
         for k, column in enumerate(column_names(sig)):
             columns[column] = np.ascontiguousarray(flat[:, k])
     return pa.table(columns)
+
+
+def estimate_table(series: EstimateSeries) -> pa.Table:
+    """An offline estimate's per-sample values as a table, named as the log's estimate signals.
+
+    ``t`` [s], then ``{joint}_tau_ext_est_Nm``, ``{cuff}_cuff_normal_est_N``
+    and ``{cuff}_cuff_force_est_{x,z}_N`` (log order): the columns an export
+    of a recording gives its live estimate.
+    """
+    values = {
+        "tau_ext_est": series.tau_ext,
+        "cuff_normal_est": series.normal,
+        "cuff_force_est": series.force,
+    }
+    return signal_table(series.t, values)
 
 
 def table_suffix(
