@@ -73,6 +73,16 @@ __all__ = [
 
 #: What the text table shows for a figure that is not given (None in JSON).
 NOT_GIVEN = "\u2014"
+#: Why a CSV log gets no error figures.
+NO_TRUTH_CSV = (
+    "a CSV log holds the sensor readings only, not the true cuff forces to compare the "
+    "estimate with (a simulated run's recording holds them)"
+)
+#: Why a recording without the simulated cuff forces gets no error figures.
+NO_TRUTH_RRD = (
+    "the recording holds no simulated cuff forces to compare the estimate with "
+    "(cuff_force or q missing or not finite)"
+)
 
 
 @dataclass
@@ -95,6 +105,8 @@ class OfflineEstimate:
         warnings: one-line warnings: an incomplete recording, a run too
             short for error figures, another model than the recorded one, an
             estimate the model cannot explain (:mod:`.estimate_checks`).
+        no_accuracy: why there are no error figures ("" when there are):
+            the log holds no true cuff forces, or is too short.
 
     """
 
@@ -103,6 +115,7 @@ class OfflineEstimate:
     errors: dict[str, dict[str, float | None]] = field(default_factory=dict)
     integrity: RecordingIntegrity | None = None
     warnings: list[str] = field(default_factory=list)
+    no_accuracy: str = ""
 
     def summary(self) -> dict[str, Any]:
         """JSON-able figures: the source, estimator and gain, peaks, errors and warnings.
@@ -141,6 +154,8 @@ class OfflineEstimate:
             f"{'cuff':<13}{'peak normal est [N]':>20}"
             + (f"{'rms err [N]':>13}{'rel':>9}{'normal/peak':>13}" if errors else "")
         ]
+        if not errors and self.no_accuracy:
+            lines.insert(0, f"no accuracy figures: {self.no_accuracy}")
         for cuff, peak in summary["peak_cuff_normal_est_N"].items():
             line = f"{cuff:<13}{peak:>20.1f}"
             if errors:
@@ -331,7 +346,7 @@ def estimate_file(
         raise InvalidLog(str(p), exc.reason) from None
     stiffness = CuffParams().stiffness_N_per_m
     notes = beyond_cuff_stretch(p, _peaks(series), stiffness, log.exo)
-    return _warn(OfflineEstimate(str(p), series, warnings=notes))
+    return _warn(OfflineEstimate(str(p), series, warnings=notes, no_accuracy=NO_TRUTH_CSV))
 
 
 def _warn(estimate: OfflineEstimate) -> OfflineEstimate:
@@ -363,6 +378,7 @@ def _from_recording(
             stiffness_ratio=config.cuff_stiffness_ratio,
         )
     errors: dict[str, dict[str, float | None]] = {}
+    why = NO_TRUTH_RRD
     if estimator == "kalman":  # the live run's error figures leave out its first STARTUP_S
         skip = round(STARTUP_S / config.dt)
         startup = f"the start-up the live figures leave out, {skip} ticks ({STARTUP_S:g} s)"
@@ -376,6 +392,7 @@ def _from_recording(
     if truth is not None and np.all(np.isfinite(truth)) and np.all(np.isfinite(s["q"])):
         if n <= max(skip, 1):
             notes.append(f"{path}: {n} ticks, not more than {startup}: no error figures")
+            why = f"{n} ticks, not more than {startup}"
         else:
             found = normal_component_errors(
                 s["q"],
@@ -391,7 +408,7 @@ def _from_recording(
                 errors["cuff_force_estimate_unobservable"] = list(MODEL_DRIVEN)
             notes += worse_than_none(path, found)
     notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)
-    return OfflineEstimate(str(path), series, errors, log.integrity, notes)
+    return OfflineEstimate(str(path), series, errors, log.integrity, notes, "" if errors else why)
 
 
 def _true_exo(result: Any, device_exo: BodyModel) -> BodyModel:

@@ -205,7 +205,8 @@ class RerunRecorder:
         sinks: list = [stream]
         if self.spawn and self._spawn_viewer(rec):
             sinks.append(rr.GrpcSink())
-        rec.set_sinks(*sinks, default_blueprint=make_blueprint(self._columns.layout))
+        rec.set_sinks(*sinks)  # the blueprint active: a viewer's own layout replaced (0.41)
+        rec.send_blueprint(make_blueprint(self._columns.layout), make_active=True)
         self._rec, self._stream, self._file = rec, stream, file
         chunk = min(config.chunk_ticks, max(config.n_ticks, 1))  # a chunk's bytes, ahead
         file.reserve(chunk * bytes_per_tick(len(self._columns.layout.series), self._stride))
