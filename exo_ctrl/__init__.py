@@ -6,9 +6,13 @@ watching.  Units are SI throughout; see the README for frames and signs.
 
 :func:`read_recording` is the recorder package's, imported on its first use:
 that package imports rerun (about 0.3 s here), which a run without a
-recording (a library run, a sweep's worker) never needs.
+recording (a library run, a sweep's worker) never needs; so is
+:func:`compare_recordings` (:mod:`exo_ctrl.comparison.recordings`).
+:func:`compare` runs a scenario once per controller and returns the table
+of their figures (:mod:`exo_ctrl.comparison`).
 """
 
+from .comparison import CompareTable, compare
 from .exceptions import (
     ExoCtrlError,
     InvalidLog,
@@ -48,6 +52,7 @@ __all__ = [
     "CUFF_NAMES",
     "JOINT_NAMES",
     "BodyModel",
+    "CompareTable",
     "ExoCtrlError",
     "FootTrajectory",
     "GaitParams",
@@ -65,6 +70,8 @@ __all__ = [
     "SweepError",
     "UnreachableFootTarget",
     "__version__",
+    "compare",
+    "compare_recordings",
     "default_urdf_path",
     "forward_kinematics",
     "inverse_kinematics",
@@ -81,9 +88,13 @@ __all__ = [
 
 
 def __getattr__(name: str) -> object:
-    """``read_recording``, from :mod:`exo_ctrl.record` on first use (module docstring)."""
+    """``read_recording`` and ``compare_recordings``, imported on first use (module docstring)."""
     if name == "read_recording":
         from .record import read_recording
 
         return read_recording
+    if name == "compare_recordings":
+        from .comparison.recordings import compare_recordings
+
+        return compare_recordings
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,7 +21,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, TextIO
 
 from ..exceptions import ExoCtrlError, OutputError, Terminated
-from . import estimate, gait, identify, simulate, sweep, urdf
+from . import compare, estimate, gait, identify, simulate, sweep, urdf
 from .common import Parser
 
 __all__ = ["DESCRIPTION", "build_parser", "main"]
@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``exo-ctrl``: one subcommand per module of this package."""
     parser = Parser(prog="exo-ctrl", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for command in (gait, urdf, simulate, estimate, identify, sweep):
+    for command in (gait, urdf, simulate, compare, estimate, identify, sweep):
         command.register(sub)
     return parser
 

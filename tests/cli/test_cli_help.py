@@ -52,13 +52,23 @@ def problems(parser: argparse.ArgumentParser) -> list[str]:
     return found
 
 
-@pytest.mark.parametrize("command", ["gait", "urdf", "simulate", "estimate", "identify", "sweep"])
+@pytest.mark.parametrize(
+    "command", ["gait", "urdf", "simulate", "compare", "estimate", "identify", "sweep"]
+)
 def test_every_option_has_its_unit_and_default(command: str) -> None:
     assert problems(subparsers()[command]) == []
 
 
 def test_the_subcommands_are_the_documented_ones() -> None:
-    assert list(subparsers()) == ["gait", "urdf", "simulate", "estimate", "identify", "sweep"]
+    assert list(subparsers()) == [
+        "gait",
+        "urdf",
+        "simulate",
+        "compare",
+        "estimate",
+        "identify",
+        "sweep",
+    ]
 
 
 def test_the_checker_catches_what_it_should() -> None:
