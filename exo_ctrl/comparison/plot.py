@@ -69,7 +69,9 @@ def cycle_figure(table: CompareTable) -> Any:
 
     """
     figure_class = require_matplotlib()
-    fig = figure_class(figsize=(16, 10), layout="constrained")
+    fig = figure_class(figsize=(16, 10))
+    # A fixed layout: matplotlib's constrained layout drew the figure twice (half the time).
+    fig.subplots_adjust(left=0.05, right=0.99, bottom=0.1, top=0.93, wspace=0.28, hspace=0.3)
     axes = fig.subplots(len(_ROWS), 4, sharex=True, squeeze=False)
     drawn = [row for row in table if row.cycle is not None]
     colors = [f"C{i % 10}" for i in range(len(table))]
@@ -80,14 +82,16 @@ def cycle_figure(table: CompareTable) -> Any:
             ax = axes[r, j]
             if r == 0 and drawn and one_plan:
                 trace = drawn[0].cycle
-                ax.plot(trace.t, trace.q_des[:, j], "k--", lw=1.2, label="plan", gid="plan")
+                ax.plot(
+                    trace.t, trace.q_des[:, j], "k--", lw=1.0, label="plan", gid="plan", zorder=3
+                )  # over the runs, which follow it closely
             for row in drawn:
                 trace = row.cycle
                 c = color[row.label]
                 if r == 0 and not one_plan:
                     ax.plot(
                         trace.t, trace.q_des[:, j], "--", color=c, lw=1.0,
-                        label=f"plan ({row.label})", gid=f"plan:{row.label}",
+                        label=f"plan ({row.label})", gid=f"plan:{row.label}", zorder=3,
                     )  # fmt: skip
                 y = getattr(trace, attribute)[:, j]
                 ax.plot(trace.t, y, "-", color=c, lw=1.3, label=row.label, gid=f"run:{row.label}")
@@ -107,7 +111,7 @@ def cycle_figure(table: CompareTable) -> Any:
     labels += [lab for lab in extra if lab.endswith(" estimate")]
     if handles:
         ncol = min(len(handles), 8)
-        fig.legend(handles, labels, loc="outside lower center", ncol=ncol, frameon=False)
+        fig.legend(handles, labels, loc="lower center", ncol=ncol, frameon=False)
     fig.suptitle(_title(table))
     return fig
 
