@@ -21,7 +21,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, TextIO
 
 from ..exceptions import ExoCtrlError, OutputError, Terminated
-from . import estimate, export, gait, identify, scenario, simulate, sweep, urdf
+from . import compare, estimate, export, gait, identify, scenario, simulate, sweep, urdf
 from .common import Parser
 
 __all__ = ["DESCRIPTION", "build_parser", "main"]
@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``exo-ctrl``: one subcommand per module of this package."""
     parser = Parser(prog="exo-ctrl", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for command in (simulate, scenario, gait, urdf, estimate, export, identify, sweep):
+    for command in (simulate, compare, scenario, gait, urdf, estimate, export, identify, sweep):
         command.register(sub)
     return parser
 

@@ -20,7 +20,17 @@ import pytest
 from exo_ctrl import cli
 
 #: The subcommands, in the order ``exo-ctrl --help`` lists them.
-COMMANDS = ["simulate", "scenario", "gait", "urdf", "estimate", "export", "identify", "sweep"]
+COMMANDS = [
+    "simulate",
+    "compare",
+    "scenario",
+    "gait",
+    "urdf",
+    "estimate",
+    "export",
+    "identify",
+    "sweep",
+]
 
 UNIT = re.compile(r"\[[^\]]+\]|\bno unit\b")
 NUMERIC_DEFAULT = re.compile(r"\(default:?\s[^)]*(\d|\bnone\b)")
