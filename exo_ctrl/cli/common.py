@@ -8,12 +8,13 @@ import os
 from dataclasses import asdict
 from typing import Any
 
-from .._io import atomic_write, check_output
+from .._io import atomic_write, check_output, same_file_key
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..plan import GaitParams
 
 __all__ = [
+    "INPUT_OPTIONS",
     "SUPPORTED_GAIT",
     "Parser",
     "add_gait_options",
@@ -132,14 +133,32 @@ def gait_params_from(args: argparse.Namespace) -> GaitParams:
     )
 
 
+#: The options of the subcommands that name input files, attribute → name: every
+#: output is checked against those given (a value that is not an existing file,
+#: such as ``--patient human``, is no file to protect).
+INPUT_OPTIONS = {
+    "file": "the input file",
+    "scenario": "the scenario file",
+    "exo": "--exo",
+    "patient": "--patient",
+    "session": "--session",
+    "controller_patient": "--controller-patient",
+    "controller_exo": "--controller-exo",
+}
+
+
 def check_outputs(
     args: argparse.Namespace, reads: dict[str, str] | None = None, **options: str
 ) -> None:
     """Check the output paths given in ``args`` before any work starts.
 
+    Two paths are one file when they have the same device and inode
+    (:func:`exo_ctrl._io.same_file_key`: hard and symbolic links count).
+
     Args:
-        args: the parsed options.
-        reads: the command's input files, a description → path
+        args: the parsed options; the input files among them
+            (:data:`INPUT_OPTIONS`) are protected without being listed.
+        reads: further input files, a description → path
             (``{"the input file": args.file}``): an output may not replace one.
         options: attribute of ``args`` → the option's name (``summary="--summary"``);
             an attribute that is None (not given) is skipped.
@@ -149,7 +168,17 @@ def check_outputs(
             two options name one file, or an output names an input.
 
     """
-    taken = {_same_file_key(path): name for name, path in (reads or {}).items()}
+    inputs = {
+        name: getattr(args, attribute)
+        for attribute, name in INPUT_OPTIONS.items()
+        if isinstance(getattr(args, attribute, None), (str, os.PathLike))
+    }
+    inputs.update(reads or {})
+    taken = {
+        same_file_key(path): name
+        for name, path in inputs.items()
+        if isinstance(path, (str, os.PathLike)) and os.path.isfile(path)
+    }
     for attribute, option in options.items():
         path = getattr(args, attribute)
         if path is None:
@@ -157,19 +186,14 @@ def check_outputs(
         check_output(path, option)
         if os.path.exists(path) and not os.path.isfile(path):  # a device: /dev/null twice
             continue
-        key = _same_file_key(path)
+        key = same_file_key(path)
         other = taken.get(key)
         if other is not None:
-            what = other if other in (reads or {}) else f"{other}'s"
+            what = other if other in inputs else f"{other}'s"
             raise InvalidParameter(
                 option, str(path), f"a file other than {what}", "one would replace the other"
             )
         taken[key] = option
-
-
-def _same_file_key(path: str | os.PathLike[str]) -> str:
-    """A key equal for two paths naming one file (links and ``..`` resolved)."""
-    return os.path.realpath(path)
 
 
 def write_json(path: str | os.PathLike[str], data: dict[str, Any]) -> None:

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from .. import _validate as v
+from .._io import DefaultOutput
 from ..control import PDGains
 from ..estimation import ESTIMATORS
 from ..exceptions import InvalidParameter
@@ -272,7 +273,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--out",
-        default="exo_run.rrd",
+        default=DefaultOutput("exo_run.rrd"),  # never followed through a link
         metavar="PATH.rrd",
         help="rerun recording file (default exo_run.rrd)",
     )
