@@ -21,6 +21,7 @@ __all__ = [
     "check_outputs",
     "format_summary",
     "gait_params_from",
+    "recording_line",
     "write_json",
 ]
 
@@ -194,6 +195,21 @@ def check_outputs(
                 option, str(path), f"a file other than {what}", "one would replace the other"
             )
         taken[key] = option
+
+
+def recording_line(written: str | os.PathLike[str], out: str, viewer: str) -> str:
+    """The line naming a run's recording: ``out``, or its partial file if the run was cut.
+
+    Args:
+        written: where the recording is (:attr:`exo_ctrl.record.RerunRecorder.written`).
+        out: the path asked for.
+        viewer: the viewer's command.
+
+    """
+    if os.fspath(written) == os.fspath(out):
+        return f"recording: {out} (view offline: {viewer} {out})"
+    kept = f"{out} kept as it was" if os.path.lexists(out) else f"{out} not written"
+    return f"recording: {written} (the run was cut short: {kept}; view offline: {viewer} {written})"
 
 
 def write_json(path: str | os.PathLike[str], data: dict[str, Any]) -> None:

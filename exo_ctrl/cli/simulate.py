@@ -35,6 +35,7 @@ from .common import (
     check_outputs,
     format_summary,
     gait_params_from,
+    recording_line,
     write_json,
 )
 from .modes_options import add_mode_options, mode_config_from
@@ -426,8 +427,7 @@ def run(args: argparse.Namespace) -> int:
         write_torque_speed_plot(points, motor, exo.effort_limit, args.plot_file, title)
         print(f"torque-speed plot: {args.plot_file}")
     if not args.no_record:
-        viewer = find_viewer() or "rerun"
-        print(f"recording: {args.out} (view offline: {viewer} {args.out})")
+        print(recording_line(recorder.written, args.out, find_viewer() or "rerun"))
     if result.status == "interrupted":
         return 143 if result.error.startswith("terminated by SIGTERM") else 130
     if result.status != "completed":

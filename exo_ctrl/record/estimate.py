@@ -38,6 +38,7 @@ import numpy as np
 import rerun as rr
 
 from .. import _validate as v
+from .._io import atomic_write
 from ..estimation import (
     DEFAULT_GAIN_PER_S,
     ESTIMATORS,
@@ -411,15 +412,20 @@ def _true_exo(result: Any, device_exo: BodyModel) -> BodyModel:
 def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[str]) -> Path:
     """Write an estimate as a rerun recording (entities in the module docstring).
 
+    Rerun encodes it in memory (a few MB per minute of 1 kHz data); the
+    bytes are written whole through a temporary file renamed over ``path``
+    (:func:`exo_ctrl._io.atomic_write`): a failure leaves the previous file.
+
     Raises:
-        RecordingError: the file could not be written.
+        RecordingError: rerun could not encode the recording.
+        OutputError: the file could not be written (disk full).
 
     """
     out = Path(path)
     s = estimate.series
     rec = rr.RecordingStream("exo_ctrl_estimate")
+    stream = rr.binary_stream(recording=rec)
     try:
-        rec.save(str(out))
         times = rr.TimeColumn(TIME, duration=s.t)
         for i, cuff in enumerate(CUFF_NAMES):
             rec.send_columns(
@@ -442,9 +448,11 @@ def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[
         rec.log(
             "estimate/source", rr.TextDocument(f"estimated from {estimate.source}"), static=True
         )
+        data = stream.read(flush=True)
     except Exception as exc:
         raise RecordingError(f"{out}: could not write the estimate ({exc})") from exc
     finally:
-        rec.flush()
         rec.disconnect()
+    with atomic_write(out, "wb") as handle:
+        handle.write(data or b"")
     return out
