@@ -30,6 +30,7 @@ from .body_params import BodyParams
 from .checks import check_inertias, check_urdf_xml
 from .geometry import LegGeometry, leg_geometry
 from .names import CUFF_NAMES, DEFAULT_URDF_NAMES, JOINT_NAMES, SIDES
+from .prescan import prescan_urdf
 from .urdfgen import write_urdf
 
 __all__ = [
@@ -231,6 +232,7 @@ def load_body(
     src = str(path)
     if not path.is_file():
         raise InvalidModel(src, "", "file not found")
+    prescan_urdf(src, path)  # before any parser: Pinocchio's can crash the process
     xml = path.read_text(encoding="utf-8", errors="replace")
     check_urdf_xml(src, xml)
     try:

@@ -119,3 +119,25 @@ def csv_log(
             lines[row + 1] = ",".join(fields)
         path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def meta_rrd(directory: Path, meta_text: str, name: str = "meta.rrd") -> Path:
+    """A recording holding only ``raw/meta`` with the given text (rerun's own file sink)."""
+    import rerun as rr
+
+    path = directory / name
+    rec = rr.RecordingStream("exo_ctrl_hostile")
+    rec.save(str(path))
+    rec.log("raw/meta", rr.TextDocument(meta_text), static=True)
+    rec.disconnect()
+    return path
+
+
+def valid_meta(**changes: object) -> dict:
+    """A recording's metadata as the recorder writes it for SimConfig(), with ``changes``."""
+    from exo_ctrl.record.format import RECORDING_FORMAT
+    from exo_ctrl.sim import SimConfig
+
+    meta = {"format": RECORDING_FORMAT, "config": SimConfig().to_dict(), "signals": {"q": [4]}}
+    meta.update(changes)
+    return meta
