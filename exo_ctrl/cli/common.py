@@ -17,6 +17,7 @@ __all__ = [
     "INPUT_OPTIONS",
     "SUPPORTED_GAIT",
     "Parser",
+    "add_accept_implausible",
     "add_gait_options",
     "check_outputs",
     "format_summary",
@@ -110,6 +111,17 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="URDF",
         help="exoskeleton URDF file (default: urdf/exoskeleton.urdf)",
+    )
+
+
+def add_accept_implausible(parser: argparse.ArgumentParser) -> None:
+    """``--accept-implausible``: read a CSV log that looks wrong for the device, with a warning."""
+    parser.add_argument(
+        "--accept-implausible",
+        action="store_true",
+        help="read a CSV log whose angles, speeds or time steps are far outside the "
+        "exoskeleton's URDF limits (angles in degrees? times in hours?) with a warning "
+        "(default: refused, naming the first such sample)",
     )
 
 

@@ -6,7 +6,7 @@ import argparse
 
 from ..estimation import ESTIMATORS
 from ..record import estimate_file, write_estimate_recording
-from .common import check_outputs, write_json
+from .common import add_accept_implausible, check_outputs, write_json
 
 __all__ = ["register", "run"]
 
@@ -48,6 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="estimate a recording with an --exo other than the one it was recorded with "
         "(default: refused)",
     )
+    add_accept_implausible(p)
     p.add_argument(
         "--out",
         default=None,
@@ -75,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
         gain_per_s=args.gain,
         allow_other_exo=args.allow_other_exo,
         estimator=args.estimator,
+        accept_implausible=args.accept_implausible,
     )
     summary = estimate.summary()
     if args.out:

@@ -12,14 +12,26 @@ links and joints, each far above any leg model's (the default exoskeleton:
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import sys
+import tempfile
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
 from pathlib import Path
 
 from .._validate import format_bytes
 from ..exceptions import InvalidModel
 
-__all__ = ["MAX_URDF_BYTES", "MAX_URDF_DEPTH", "MAX_URDF_PARTS", "prescan_urdf"]
+__all__ = [
+    "MAX_URDF_BYTES",
+    "MAX_URDF_DEPTH",
+    "MAX_URDF_PARTS",
+    "c_stderr",
+    "parser_reason",
+    "prescan_urdf",
+]
 
 #: The largest URDF file read [bytes]: 8 MiB.
 MAX_URDF_BYTES = 8 << 20
@@ -80,3 +92,38 @@ def prescan_urdf(src: str, path: str | os.PathLike[str]) -> None:
                     )
     except ET.ParseError:
         return
+
+
+@contextlib.contextmanager
+def c_stderr() -> Iterator[list[str]]:
+    """Capture what C and C++ code writes to file descriptor 2 while the block runs.
+
+    urdfdom (inside Pinocchio's parser) prints its reasons there over several
+    lines ("Error: ... at line 274 in /project/urdfdom/..."), before Python
+    sees an exception.  The lines are in the yielded list once the block has
+    ended; nothing of them reaches the terminal.
+    """
+    lines: list[str] = []
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # no descriptor 2 to redirect: let it be
+        yield lines
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read(1 << 16).decode("utf-8", "replace").splitlines())
+
+
+def parser_reason(lines: list[str]) -> str:
+    """Urdfdom's first error as one line ("" if none), its source location dropped."""
+    text = " ".join(line.strip() for line in lines if line.strip())
+    found = re.search(r"Error:\s*(.*?)(?:\s+at line \d+ in \S+|$)", text)
+    return found.group(1).strip() if found else ""

@@ -50,6 +50,7 @@ from ..estimation import (
     read_csv_log,
 )
 from ..estimation.errors import STARTUP_S
+from ..estimation.plausible import implausibility
 from ..exceptions import ExoCtrlError, InvalidLog, InvalidParameter, RecordingError
 from ..model import CUFF_NAMES, JOINT_NAMES, BodyModel, load_exo
 from ..plant import CuffParams
@@ -211,6 +212,7 @@ def read_sensor_log(
     path: str | os.PathLike[str],
     exo: str | os.PathLike[str] | None = None,
     allow_other_exo: bool = False,
+    accept: bool = False,
 ) -> SensorLog:
     """Read the sensor readings of a recording (``.rrd``) or a CSV log, checked.
 
@@ -219,12 +221,14 @@ def read_sensor_log(
     its exoskeleton is the recorded one unless ``exo`` names another
     (refused unless ``allow_other_exo``, :func:`~.estimate_checks.recorded_exo`).
     A CSV log is read by :func:`~exo_ctrl.estimation.read_csv_log` with
-    ``exo`` (default: the committed exoskeleton).
+    ``exo`` (default: the committed exoskeleton) and refused if implausible
+    for it (:func:`~exo_ctrl.estimation.plausible.implausibility`), or, with
+    ``accept``, read with a note saying why it looks wrong.
 
     Raises:
         RecordingError: an unreadable recording, one without sensor readings
             or of fewer than 2 ticks.
-        InvalidLog: a bad CSV log.
+        InvalidLog: a bad CSV log, or an implausible one without ``accept``.
         InvalidParameter: an unknown file type, or an ``exo`` other than the
             recorded one.
 
@@ -233,7 +237,8 @@ def read_sensor_log(
     suffix = p.suffix.lower()
     if suffix == ".csv":
         t, q, dq, tau = read_csv_log(p)
-        return SensorLog(t, q, dq, tau, load_exo(exo))
+        body = load_exo(exo)
+        return SensorLog(t, q, dq, tau, body, notes=plausible(p, t, q, dq, body, accept))
     if suffix != ".rrd":
         raise InvalidParameter("file", str(p), "a .rrd recording or a .csv log")
     result, integrity = read_recording_integrity(p)
@@ -268,6 +273,7 @@ def estimate_file(
     gain_per_s: float | None = None,
     allow_other_exo: bool = False,
     estimator: str | None = None,
+    accept_implausible: bool = False,
 ) -> OfflineEstimate:
     """Estimate the cuff forces along a recording (``.rrd``) or a CSV log.
 
@@ -303,6 +309,8 @@ def estimate_file(
             one it was recorded with.
         estimator: ``"momentum"`` or ``"kalman"`` (None: the recording's;
             momentum for a CSV log).
+        accept_implausible: read a CSV log implausible for the exoskeleton
+            with a warning instead of refusing it (:func:`read_sensor_log`).
 
     Raises:
         RecordingError: an unreadable recording, one without sensor readings
@@ -321,7 +329,7 @@ def estimate_file(
         raise InvalidParameter("estimator", estimator, f"one of {', '.join(ESTIMATORS)}")
     if p.suffix.lower() == ".csv":
         chosen_estimator(estimator, None, gain_per_s)  # refuses kalman before reading
-    log = read_sensor_log(p, exo, allow_other_exo)
+    log = read_sensor_log(p, exo, allow_other_exo, accept_implausible)
     if log.result is not None:
         chosen = chosen_estimator(estimator, log.result.config, gain_per_s)
         return _warn(_from_recording(p, log, gain_per_s, chosen))
@@ -331,7 +339,7 @@ def estimate_file(
     except InvalidLog as exc:  # the file, not "arrays"
         raise InvalidLog(str(p), exc.reason) from None
     stiffness = CuffParams().stiffness_N_per_m
-    notes = beyond_cuff_stretch(p, _peaks(series), stiffness, log.exo)
+    notes = log.notes + beyond_cuff_stretch(p, _peaks(series), stiffness, log.exo)
     return _warn(OfflineEstimate(str(p), series, warnings=notes))
 
 
@@ -407,6 +415,27 @@ def _true_exo(result: Any, device_exo: BodyModel) -> BodyModel:
         return load_exo(result.exo_source or result.config.exo or None)
     except ExoCtrlError:
         return device_exo
+
+
+def plausible(
+    p: Path, t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, exo: BodyModel, accept: bool
+) -> list[str]:
+    """Refuse a CSV log implausible for ``exo`` (or, with ``accept``, a note saying why).
+
+    Raises:
+        InvalidLog: naming the first implausible sample's line and column,
+            its value and the limit, unless ``accept``.
+
+    """
+    found = implausibility(t, q, dq, exo)
+    if found is None:
+        return []
+    row, column, reason = found
+    if not accept:
+        line = None if row is None else row + 2  # the header is line 1
+        raise InvalidLog(str(p), f"{reason}; --accept-implausible reads it anyway", line, column)
+    at = "" if row is None else f", line {row + 2}"
+    return [f"{p}{at}, column {column!r}: {reason}; read as it is (--accept-implausible)"]
 
 
 def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[str]) -> Path:

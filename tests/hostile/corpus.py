@@ -89,6 +89,7 @@ def csv_log(
     dt: float = 0.001,
     scale_q: float = 1.0,
     edit: dict[tuple[int, str], float] | None = None,
+    gap: tuple[int, float] | None = None,
 ) -> Path:
     """A plausible walking log (hip ±0.3 rad, knee 0.1-1.1 rad at 1 Hz), edited where asked.
 
@@ -98,11 +99,15 @@ def csv_log(
         n: rows.
         dt: time step [s].
         scale_q: factor on the angles and speeds (180/π: degrees).
-        edit: (row, column) → value, e.g. ``{(10, "t"): 1e6}``.
+        edit: (row, column) → value, e.g. ``{(10, "right_hip_dq"): 40.0}``.
+        gap: (row, seconds): every time from that row on shifted by the gap.
 
     """
     t = np.arange(n) * dt
     w = 2 * math.pi
+    if gap is not None:
+        t = t.copy()
+        t[gap[0] :] += gap[1]
     hip = 0.3 * np.sin(w * t)
     knee = 0.6 - 0.5 * np.cos(w * t)
     q = np.stack([hip, knee, -hip, knee[::-1]], axis=1) * scale_q
