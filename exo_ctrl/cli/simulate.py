@@ -412,8 +412,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_record:
         recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=args.scene_rate)
         observers.append(recorder)
-    points = OperatingPoints()
     if args.plots is not None:
+        points = OperatingPoints()  # refused before the run without matplotlib
         observers.append(points)
     result = simulate(config, observers=observers, progress=True, keep_history=False, warmup=True)
     summary = result.summary()
