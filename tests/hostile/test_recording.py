@@ -98,7 +98,7 @@ def test_a_killed_run_keeps_the_previous_recording_and_a_readable_partial(
     argv = [str(EXO_CTRL), "simulate", "--duration", "600", "--out", str(out)]
     argv += ["--summary", str(tmp_path / "s.json")]
     # Output to files, not pipes left unread: SIGTERM while the progress bar's write to a
-    # full stderr pipe blocks left a corrupt footer in 3 of 6 runs (reported, not fixed here).
+    # full stderr pipe blocks left a corrupt footer in 3 of 6 runs (cause not found; reported).
     log_out, log_err = (tmp_path / "out.txt").open("w+b"), (tmp_path / "err.txt").open("w+b")
     proc = subprocess.Popen(argv, cwd=tmp_path, stdout=log_out, stderr=log_err)
     try:
