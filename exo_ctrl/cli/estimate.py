@@ -7,7 +7,7 @@ import argparse
 from ..estimation import ESTIMATORS
 from ..record import estimate_file, write_estimate_recording
 from ..record.export import estimate_table, table_suffix, write_table
-from .common import check_outputs, write_json
+from .common import add_accept_implausible, check_outputs, write_json
 
 #: The files ``--out`` writes, by suffix: a rerun recording or a table.
 OUT_SUFFIXES = (".rrd", ".csv", ".parquet")
@@ -52,6 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="estimate a recording with an --exo other than the one it was recorded with "
         "(default: refused)",
     )
+    add_accept_implausible(p)
     p.add_argument(
         "--out",
         default=None,
@@ -83,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
         gain_per_s=args.gain,
         allow_other_exo=args.allow_other_exo,
         estimator=args.estimator,
+        accept_implausible=args.accept_implausible,
     )
     summary = estimate.summary()
     if args.out and args.out.lower().endswith(".rrd"):

@@ -13,18 +13,18 @@ from __future__ import annotations
 
 import argparse
 import functools
-import importlib.util
 import sys
 from pathlib import Path
 from typing import Any
 
 from .. import _validate as v
-from ..exceptions import InvalidParameter, MissingDependency
+from .._io import DefaultOutput
+from ..exceptions import InvalidParameter
 from ..model import load_exo
 from ..plan import GaitParams
 from ..plant import consistency_warning
 from ..record import RerunRecorder
-from ..record.sizing_plot import PLOTS_HINT, OperatingPoints, write_torque_speed_plot
+from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
 from ..record.viewer import find_viewer
 from ..scenario import DEFAULT_PRESET, PRESETS, RecordingParams, Scenario
 from ..scenario.load import scenario_document, scenario_from_document
@@ -32,7 +32,7 @@ from ..sim import CONTROLLERS, SimConfig, SimResult, drive_for, simulate
 from ..sim.config import MAX_DURATION_S
 from ..sim.scenario_file import document_from_config
 from ..sim.scenario_read import apply_setting
-from .common import check_outputs, format_summary, write_json
+from .common import check_outputs, format_summary, recording_line, write_json
 from .simulate_options import add_run_options, flags_config
 
 __all__ = ["flag_settings", "register", "run", "scenario_of", "sim_config"]
@@ -338,7 +338,8 @@ def run(args: argparse.Namespace) -> int:
     """
     scenario = scenario_of(args)
     config, recording = scenario.config, scenario.recording
-    args.out = args.out if args.out is not None else recording.out
+    # the scenario's output: a path the user did not name on the command line
+    args.out = args.out if args.out is not None else DefaultOutput(recording.out)
     args.no_record = args.no_record or not recording.enabled
     args.summary = args.summary if args.summary is not None else (recording.summary or None)
     scene_rate = args.scene_rate if args.scene_rate is not None else recording.scene_rate_hz
@@ -353,31 +354,29 @@ def run(args: argparse.Namespace) -> int:
         plot_file="--plots",
         **({} if args.no_record else {"out": "--out"}),
     )
-    if args.plots is not None:
-        _require_matplotlib()
+    points = OperatingPoints() if args.plots is not None else None  # needs matplotlib
     warning = consistency_warning(config.motor)
     if warning:
         print(f"exo-ctrl simulate: warning: the drive: {warning}", file=sys.stderr)
     observers: list = [_WarnAtStart()]
     if not args.no_record:
-        observers.append(RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=scene_rate))
-    points = OperatingPoints()
-    if args.plots is not None:
+        recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=scene_rate)
+        observers.append(recorder)
+    if points is not None:
         observers.append(points)
     result = simulate(config, observers=observers, progress=True, keep_history=False, warmup=True)
     summary = result.summary()
     if args.summary:
         write_json(args.summary, summary)
     print(format_summary(summary))
-    if args.plots is not None:
+    if points is not None:
         exo = load_exo(config.exo)
         title = f"{config.controller} controller, {config.duration_s:g} s of the gait"
         motor = drive_for(config.motor, exo)
         write_torque_speed_plot(points, motor, exo.effort_limit, args.plot_file, title)
         print(f"torque-speed plot: {args.plot_file}")
     if not args.no_record:
-        viewer = find_viewer() or "rerun"
-        print(f"recording: {args.out} (view offline: {viewer} {args.out})")
+        print(recording_line(recorder.written, args.out, find_viewer() or "rerun"))
     if result.status == "interrupted":
         return 143 if result.error.startswith("terminated by SIGTERM") else 130
     if result.status != "completed":
@@ -398,9 +397,3 @@ class _WarnAtStart:
 
     def finish(self, result: SimResult) -> None:
         """Nothing: the summary lists the warnings again."""
-
-
-def _require_matplotlib() -> None:
-    """Refuse ``--plots`` before the run when matplotlib is missing (an install hint)."""
-    if importlib.util.find_spec("matplotlib") is None:
-        raise MissingDependency(f"--plots needs matplotlib: {PLOTS_HINT}")

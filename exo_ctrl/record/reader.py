@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import struct
 import tempfile
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 from rerun.chunk import RrdReader
 
+from .. import _validate as v
 from ..estimation import EstimateErrorStats
 from ..exceptions import ExoCtrlError, RecordingError
 from ..model import load_body
@@ -155,27 +157,18 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
 
     if "raw/meta" not in texts:
         raise RecordingError(f"cannot read recording {p}: not written by exo_ctrl (no raw/meta)")
-    try:
-        meta = json.loads(texts["raw/meta"])
-    except json.JSONDecodeError as exc:
-        raise RecordingError(f"cannot read recording {p}: raw/meta is not JSON ({exc})") from None
+    meta = _loads(p, "raw/meta", texts["raw/meta"])
     if not isinstance(meta, dict) or meta.get("format") != RECORDING_FORMAT:
         raise RecordingError(f"cannot read recording {p}: not an {RECORDING_FORMAT} file")
     config = _config_from_dict(p, meta.get("config", {}))
     shapes = schema_shapes()
-    stored = meta.get("signals") or shapes
-    stored = {k: tuple(int(x) for x in v) for k, v in stored.items()}
+    stored = _declared_shapes(p, meta.get("signals") or shapes, raw)
     signals = assemble(p, stored, *where_stored(p, meta, stored), raw)
     n = next(iter(signals.values())).shape[0] if signals else 0
 
     outcome: dict[str, Any]
     if "raw/outcome" in texts:
-        try:
-            outcome = json.loads(texts["raw/outcome"])
-        except json.JSONDecodeError as exc:
-            raise RecordingError(
-                f"cannot read recording {p}: raw/outcome is not JSON ({exc})"
-            ) from None
+        outcome = _loads(p, "raw/outcome", texts["raw/outcome"])
     else:
         message = (
             f"the recording ends at t = {n * config.dt:.4f} s without an end record "
@@ -214,6 +207,47 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
         ticks_planned=int(meta.get("n_ticks_planned", config.n_ticks)),
     )
     return result, integrity
+
+
+def _loads(p: Path, entity: str, text: str) -> Any:
+    """A metadata document's JSON, its nesting checked before Python's parser recurses."""
+    deep = v.json_depth_problem(text)
+    if deep:
+        raise RecordingError(f"cannot read recording {p}: {entity} is {deep}")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise RecordingError(f"cannot read recording {p}: {entity} is not JSON ({exc})") from None
+
+
+def _declared_shapes(p: Path, declared: Any, raw: dict[str, list]) -> dict[str, tuple[int, ...]]:
+    """The signals' shapes raw/meta declares, checked before any array is allocated.
+
+    Each is a list of at most 4 integers ≥ 0; every signal at its shape for
+    as many ticks as the file holds rows must fit the 1 GiB memory cap
+    (:func:`exo_ctrl._validate.allocation`).
+    """
+    bad = f"cannot read recording {p}: raw/meta declares"
+    if not isinstance(declared, dict):
+        raise RecordingError(f"{bad} its signals as {type(declared).__name__}, not a mapping")
+    shapes: dict[str, tuple[int, ...]] = {}
+    for name, shape in declared.items():
+        ok = isinstance(shape, (list, tuple)) and len(shape) <= 4
+        if not (ok and all(type(x) is int and x >= 0 for x in shape)):
+            raise RecordingError(
+                f"{bad} signal {name!r} of shape {str(shape)[:80]}: at most 4 integers >= 0"
+            )
+        shapes[str(name)] = tuple(shape)
+    rows = max((sum(len(t) for t, _ in parts) for parts in raw.values()), default=0)
+    per_tick = sum(math.prod(shape) for shape in shapes.values())
+    need = max(rows, 1) * 8 * per_tick
+    if need > v.MAX_ALLOCATION_BYTES:
+        raise RecordingError(
+            f"{bad} signals of {per_tick:,} values a tick: {max(rows, 1):,} ticks would need "
+            f"{v.format_bytes(need)}, beyond the {v.format_bytes(v.MAX_ALLOCATION_BYTES)} "
+            "memory cap"
+        )
+    return shapes
 
 
 def _run_stats(config: SimConfig, exo_source: str) -> RunStats:

@@ -67,14 +67,17 @@ class SweepInterrupted(KeyboardInterrupt):
         table: the table of the finished runs (pyarrow.Table).
         done: runs finished in this call.
         remaining: runs of the sweep still to do (a rerun resumes them).
+        signal_name: ``"SIGTERM"`` when a signal ended it (:class:`Terminated`),
+            "" for Ctrl-C.
 
     """
 
-    def __init__(self, table: Any, done: int, remaining: int) -> None:
+    def __init__(self, table: Any, done: int, remaining: int, signal_name: str = "") -> None:
         super().__init__(f"sweep interrupted: {done} runs finished, {remaining} to do")
         self.table = table
         self.done = done
         self.remaining = remaining
+        self.signal_name = signal_name
 
 
 def _body_urdf(kind: str, body: dict[str, float], cache_dir: str) -> str | None:
@@ -326,7 +329,8 @@ def run_sweep(
             file=sys.stderr,
         )
     state = _State(spec, tasks, paths, results, len(todo), progress)
-    interrupted = clean = False
+    interrupted: KeyboardInterrupt | None = None
+    clean = False
     try:
         if executor is not None:
             if owned is not None and not isinstance(owned, InlineExecutor):
@@ -339,16 +343,17 @@ def run_sweep(
                 todo = todo[1:]
             state.drive(executor, todo, window)
         clean = True
-    except KeyboardInterrupt:
-        interrupted = True
+    except KeyboardInterrupt as exc:
+        interrupted = exc
     finally:
         state.journal.close()
         if owned is not None:
             stop_pool(owned, now=not clean)
         state.bar.close(state.done, state.note())
         table = state.save_table()
-    if interrupted:
-        raise SweepInterrupted(table, state.done, len(todo) - state.done)
+    if interrupted is not None:  # state.total: every run to do, the in-process first one too
+        name = getattr(interrupted, "signal_name", "")
+        raise SweepInterrupted(table, state.done, state.total - state.done, name)
     if report:
         write_report(table, spec, paths.report)
     if plots:
