@@ -199,6 +199,11 @@ def test_finite_readings_too_large_for_the_model_are_refused_not_nan(
     log.write_text("\n".join([header, *rows]) + "\n")
     summary = tmp_path / "s.json"
     err = _refused(capsys, ["estimate", str(log), "--summary", str(summary)])
+    assert err.startswith(f"exo-ctrl estimate: error: invalid log {log}, line 2, column ")
+    assert err.endswith("--accept-implausible reads it anyway\n")
+    # read anyway: the estimate itself is refused, not written as NaN
+    accept = ["estimate", str(log), "--accept-implausible", "--summary", str(summary)]
+    err = _refused(capsys, accept)
     assert err.startswith(
         f"exo-ctrl estimate: error: invalid log {log}: the estimate is not finite from sample "
     )
