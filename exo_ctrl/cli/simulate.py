@@ -133,7 +133,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=MOTOR_PRESETS,
         default="default",
         help="the drives: default (an energy-consistent brushless motor with the paper's "
-        "winding, a 120:1 harmonic drive of 85 %% efficiency, 24 V, 30 A) or paper-printed "
+        "winding, a 120:1 harmonic drive of 85 %% efficiency, 24 V, 32 A) or paper-printed "
         "(Table I as printed, k_m = 0.35 N·m/A with k_E = 25.9 rad/(V·s), ratio 50, 10 A: "
         "not energy-consistent, warns; its own default gains kp 100, kd 2) (default default)",
     )
