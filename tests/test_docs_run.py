@@ -6,8 +6,8 @@ The rule (docs/index.md, "How these pages are tested"):
   ``urdf``; its ``bash`` blocks run line by line and its ``python`` blocks as scripts, in page
   order, so a command can use what an earlier one wrote.
 - ``exo-ctrl simulate``, ``sweep`` and ``compare`` are cut short to ``--duration 0.5`` (in place
-  of their ``--duration``/``--cycles``), except the calibration exercise and the blocks whose
-  output the text quotes, which run as written.
+  of their ``--duration``/``--cycles``), except the runs of :data:`FULL_RUNS` and the blocks
+  whose output the text quotes, which run as written.
 - An ``output`` block right after a command block quotes what that block prints: every quoted
   line must match a printed line, in order, with the text between the numbers equal, and each
   number must be within the tolerance the text between the two blocks states ("within 1 %")
@@ -38,6 +38,9 @@ FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
 SHELL_BLOCKS = frozenset({"bash", "sh", "shell", "console"})
 SHORT = ("--duration", "0.5")
 SHORTENED = frozenset({"simulate", "sweep", "compare"})
+#: Runs that need whole cycles, run as written: the calibration exercise (identify fits all
+#: of it), assist-as-needed and path control (they need a gait period after the ramp-in).
+FULL_RUNS = frozenset({"calibration", "aan", "path"})
 TOLERANCE = re.compile(r"within (\d+(?:\.\d+)?) ?%")
 NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?![\w.])")
 #: Options of the scenario files (built beside this test): refused as unrecognised until they exist.
@@ -112,7 +115,7 @@ def short_form(words: list[str]) -> list[str]:
     """An ``exo-ctrl simulate|sweep|compare`` command cut to a short run (module docstring)."""
     if len(words) < 2 or not words[0].endswith("exo-ctrl") or words[1] not in SHORTENED:
         return words
-    if "calibration" in words:
+    if FULL_RUNS & set(words):
         return words
     out, skip = [], False
     for word in words:
@@ -240,7 +243,7 @@ def test_the_page_runs_as_written(page, tmp_path):
                 f"{where}: {p}"
                 for p in compare_quoted(block.quoted, "".join(printed), block.tolerance)
             ]
-    assert problems == []
+    assert not problems, "\n".join(problems)
     if pending:
         pytest.skip("; ".join(pending))
 
@@ -270,6 +273,7 @@ X = ".venv/bin/exo-ctrl"
         (f"{X} simulate --cycles 3 --no-record", f"{X} simulate --no-record --duration 0.5"),
         (f"{X} sweep --duration 6 --out s.parquet", f"{X} sweep --out s.parquet --duration 0.5"),
         (f"{X} simulate --exercise calibration", f"{X} simulate --exercise calibration"),
+        (f"{X} simulate --mode aan --duration 6", f"{X} simulate --mode aan --duration 6"),
         (f"{X} urdf --kind exo --out e.urdf", f"{X} urdf --kind exo --out e.urdf"),
     ],
 )
