@@ -6,14 +6,20 @@ watching.  Units are SI throughout; see the README for frames and signs.
 
 :func:`read_recording` is the recorder package's, imported on its first use:
 that package imports rerun (about 0.3 s here), which a run without a
-recording (a library run, a sweep's worker) never needs.
+recording (a library run, a sweep's worker) never needs; so is
+:func:`compare_recordings` (:mod:`exo_ctrl.comparison.recordings`).
+:func:`compare` runs a scenario once per controller and returns the table
+of their figures (:mod:`exo_ctrl.comparison`).
 """
 
+from ._version import __version__
+from .comparison import CompareTable, compare
 from .exceptions import (
     ExoCtrlError,
     InvalidLog,
     InvalidModel,
     InvalidParameter,
+    InvalidScenario,
     MissingDependency,
     RecordingError,
     SimulationDiverged,
@@ -40,14 +46,14 @@ from .plan.kinematics import (
     joint_rates,
     plan_joints,
 )
+from .scenario import Scenario, load_scenario
 from .sim import SimConfig, SimResult, simulate
-
-__version__ = "0.1.0"
 
 __all__ = [
     "CUFF_NAMES",
     "JOINT_NAMES",
     "BodyModel",
+    "CompareTable",
     "ExoCtrlError",
     "FootTrajectory",
     "GaitParams",
@@ -55,16 +61,20 @@ __all__ = [
     "InvalidLog",
     "InvalidModel",
     "InvalidParameter",
+    "InvalidScenario",
     "JointTrajectory",
     "LegGeometry",
     "MissingDependency",
     "RecordingError",
+    "Scenario",
     "SimConfig",
     "SimResult",
     "SimulationDiverged",
     "SweepError",
     "UnreachableFootTarget",
     "__version__",
+    "compare",
+    "compare_recordings",
     "default_urdf_path",
     "forward_kinematics",
     "inverse_kinematics",
@@ -74,6 +84,7 @@ __all__ = [
     "load_exo",
     "load_human_patient",
     "load_patient",
+    "load_scenario",
     "plan_joints",
     "read_recording",
     "simulate",
@@ -81,9 +92,13 @@ __all__ = [
 
 
 def __getattr__(name: str) -> object:
-    """``read_recording``, from :mod:`exo_ctrl.record` on first use (module docstring)."""
+    """``read_recording`` and ``compare_recordings``, imported on first use (module docstring)."""
     if name == "read_recording":
         from .record import read_recording
 
         return read_recording
+    if name == "compare_recordings":
+        from .comparison.recordings import compare_recordings
+
+        return compare_recordings
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

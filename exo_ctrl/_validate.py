@@ -14,6 +14,7 @@ bad number is refused with the size it would need instead of ending in a
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -231,3 +232,31 @@ def per_item(
     return tuple(
         check(f"{name}[{label}]", item, unit) for label, item in zip(labels, items, strict=True)
     )
+
+
+#: The deepest nesting of JSON arrays and objects read from a user's file
+#: (a session, a recording's metadata need 4; Python's parser recurses per level).
+MAX_JSON_DEPTH = 64
+
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_JSON_BRACKET = re.compile(r"[\[\]{}]")
+
+
+def json_depth(text: str) -> int:
+    """The deepest nesting of ``[`` and ``{`` in a JSON text (strings skipped; linear time)."""
+    depth = deepest = 0
+    for match in _JSON_BRACKET.finditer(_JSON_STRING.sub("", text)):
+        if match.group() in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        else:
+            depth -= 1
+    return deepest
+
+
+def json_depth_problem(text: str) -> str:
+    """Why a JSON text is too deeply nested to parse ("" if it is not)."""
+    depth = json_depth(text)
+    if depth <= MAX_JSON_DEPTH:
+        return ""
+    return f"nested {depth} levels deep; at most {MAX_JSON_DEPTH} are read"

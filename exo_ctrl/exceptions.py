@@ -16,6 +16,7 @@ __all__ = [
     "InvalidLog",
     "InvalidModel",
     "InvalidParameter",
+    "InvalidScenario",
     "KernelStatusError",
     "MissingDependency",
     "OutputError",
@@ -56,6 +57,24 @@ class InvalidParameter(ExoCtrlError, ValueError):
         if detail:
             message += f" ({detail})"
         super().__init__(message)
+
+
+class InvalidScenario(ExoCtrlError, ValueError):
+    """A scenario file (or a ``--set`` override) cannot be used.
+
+    Attributes:
+        source: the file's path (or ``--set``).
+        key: the key path at fault (``gait.step_length``; "" for the whole file).
+        reason: what is wrong and what is allowed.
+
+    """
+
+    def __init__(self, source: str, key: str, reason: str) -> None:
+        self.source = source
+        self.key = key
+        self.reason = reason
+        where = f"{source}: {key}" if key else source
+        super().__init__(f"scenario {where}: {reason}")
 
 
 class InvalidModel(ExoCtrlError, ValueError):

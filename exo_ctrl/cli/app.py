@@ -13,6 +13,9 @@ each, ``exo-ctrl CMD: warning: ...``.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
+import os
 import signal
 import sys
 import threading
@@ -21,7 +24,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, TextIO
 
 from ..exceptions import ExoCtrlError, OutputError, Terminated
-from . import estimate, gait, identify, simulate, sweep, urdf
+from . import compare, estimate, export, gait, identify, scenario, simulate, sweep, urdf
 from .common import Parser
 
 __all__ = ["DESCRIPTION", "build_parser", "main"]
@@ -37,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``exo-ctrl``: one subcommand per module of this package."""
     parser = Parser(prog="exo-ctrl", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for command in (gait, urdf, simulate, estimate, identify, sweep):
+    for command in (simulate, compare, scenario, gait, urdf, estimate, export, identify, sweep):
         command.register(sub)
     return parser
 
@@ -65,14 +68,48 @@ def main(argv: Sequence[str] | None = None) -> int:
     0 success, 1 the work failed or its output could not be written, 2 bad
     input, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
     """
+    _tolerant_streams()
     parser = build_parser()
     args = parser.parse_args(argv)
     previous = _on_sigterm()
     try:
-        return _run(args)
+        code = _run(args)
+        try:
+            sys.stdout.flush()  # a full device or a closed pipe shows here, not at exit
+        except OSError as exc:
+            code = _stdout_failed(args.command, exc)
+        return code
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+#: Errors of a write that are the output's fault, not the input's: exit 1.
+_WRITE_ERRNOS = {errno.EPIPE, errno.ENOSPC, errno.EFBIG, errno.EIO, errno.EDQUOT}
+
+
+def _tolerant_streams() -> None:
+    """Print what the terminal's encoding cannot show (τ in ASCII) as escapes, not a crash."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(AttributeError, ValueError, OSError):
+            if (stream.encoding or "").lower().replace("-", "") != "utf8":
+                stream.reconfigure(errors="backslashreplace")
+
+
+def _stdout_failed(command: str, exc: OSError) -> int:
+    """One line for standard output that cannot be written (closed pipe, full device); 1.
+
+    Standard output is pointed at /dev/null afterwards, so the interpreter's
+    own flush at exit does not fail again.
+    """
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    reason = exc.strerror or str(exc)
+    with contextlib.suppress(OSError):
+        print(f"exo-ctrl {command}: error: cannot write standard output: {reason}", file=sys.stderr)
+    return 1
 
 
 def _on_sigterm() -> Any:
@@ -102,6 +139,8 @@ def _run(args: argparse.Namespace) -> int:
             print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
             return 2
         except OSError as exc:
+            if exc.errno in _WRITE_ERRNOS and exc.filename is None:  # printing failed
+                return _stdout_failed(args.command, exc)
             print(f"exo-ctrl {args.command}: error: {exc}", file=sys.stderr)
             return 2
         except Terminated as exc:

@@ -8,18 +8,21 @@ import os
 from dataclasses import asdict
 from typing import Any
 
-from .._io import atomic_write, check_output
+from .._io import atomic_write, check_output, same_file_key
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..plan import GaitParams
 
 __all__ = [
+    "INPUT_OPTIONS",
     "SUPPORTED_GAIT",
     "Parser",
+    "add_accept_implausible",
     "add_gait_options",
     "check_outputs",
     "format_summary",
     "gait_params_from",
+    "recording_line",
     "write_json",
 ]
 
@@ -111,6 +114,17 @@ def add_gait_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_accept_implausible(parser: argparse.ArgumentParser) -> None:
+    """``--accept-implausible``: read a CSV log that looks wrong for the device, with a warning."""
+    parser.add_argument(
+        "--accept-implausible",
+        action="store_true",
+        help="read a CSV log whose angles, speeds or time steps are far outside the "
+        "exoskeleton's URDF limits (angles in degrees? times in hours?) with a warning "
+        "(default: refused, naming the first such sample)",
+    )
+
+
 def gait_params_from(args: argparse.Namespace) -> GaitParams:
     """GaitParams from the parsed gait options.
 
@@ -132,14 +146,32 @@ def gait_params_from(args: argparse.Namespace) -> GaitParams:
     )
 
 
+#: The options of the subcommands that name input files, attribute → name: every
+#: output is checked against those given (a value that is not an existing file,
+#: such as ``--patient human``, is no file to protect).
+INPUT_OPTIONS = {
+    "file": "the input file",
+    "scenario": "the scenario file",
+    "exo": "--exo",
+    "patient": "--patient",
+    "session": "--session",
+    "controller_patient": "--controller-patient",
+    "controller_exo": "--controller-exo",
+}
+
+
 def check_outputs(
     args: argparse.Namespace, reads: dict[str, str] | None = None, **options: str
 ) -> None:
     """Check the output paths given in ``args`` before any work starts.
 
+    Two paths are one file when they have the same device and inode
+    (:func:`exo_ctrl._io.same_file_key`: hard and symbolic links count).
+
     Args:
-        args: the parsed options.
-        reads: the command's input files, a description → path
+        args: the parsed options; the input files among them
+            (:data:`INPUT_OPTIONS`) are protected without being listed.
+        reads: further input files, a description → path
             (``{"the input file": args.file}``): an output may not replace one.
         options: attribute of ``args`` → the option's name (``summary="--summary"``);
             an attribute that is None (not given) is skipped.
@@ -149,7 +181,17 @@ def check_outputs(
             two options name one file, or an output names an input.
 
     """
-    taken = {_same_file_key(path): name for name, path in (reads or {}).items()}
+    inputs = {
+        name: getattr(args, attribute)
+        for attribute, name in INPUT_OPTIONS.items()
+        if isinstance(getattr(args, attribute, None), (str, os.PathLike))
+    }
+    inputs.update(reads or {})
+    taken = {
+        same_file_key(path): name
+        for name, path in inputs.items()
+        if isinstance(path, (str, os.PathLike)) and os.path.isfile(path)
+    }
     for attribute, option in options.items():
         path = getattr(args, attribute)
         if path is None:
@@ -157,19 +199,29 @@ def check_outputs(
         check_output(path, option)
         if os.path.exists(path) and not os.path.isfile(path):  # a device: /dev/null twice
             continue
-        key = _same_file_key(path)
+        key = same_file_key(path)
         other = taken.get(key)
         if other is not None:
-            what = other if other in (reads or {}) else f"{other}'s"
+            what = other if other in inputs else f"{other}'s"
             raise InvalidParameter(
                 option, str(path), f"a file other than {what}", "one would replace the other"
             )
         taken[key] = option
 
 
-def _same_file_key(path: str | os.PathLike[str]) -> str:
-    """A key equal for two paths naming one file (links and ``..`` resolved)."""
-    return os.path.realpath(path)
+def recording_line(written: str | os.PathLike[str], out: str, viewer: str) -> str:
+    """The line naming a run's recording: ``out``, or its partial file if the run was cut.
+
+    Args:
+        written: where the recording is (:attr:`exo_ctrl.record.RerunRecorder.written`).
+        out: the path asked for.
+        viewer: the viewer's command.
+
+    """
+    if os.fspath(written) == os.fspath(out):
+        return f"recording: {out} (view offline: {viewer} {out})"
+    kept = f"{out} kept as it was" if os.path.lexists(out) else f"{out} not written"
+    return f"recording: {written} (the run was cut short: {kept}; view offline: {viewer} {written})"
 
 
 def write_json(path: str | os.PathLike[str], data: dict[str, Any]) -> None:

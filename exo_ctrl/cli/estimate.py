@@ -6,7 +6,11 @@ import argparse
 
 from ..estimation import ESTIMATORS
 from ..record import estimate_file, write_estimate_recording
-from .common import check_outputs, write_json
+from ..record.export import estimate_table, table_suffix, write_table
+from .common import add_accept_implausible, check_outputs, write_json
+
+#: The files ``--out`` writes, by suffix: a rerun recording or a table.
+OUT_SUFFIXES = (".rrd", ".csv", ".parquet")
 
 __all__ = ["register", "run"]
 
@@ -48,11 +52,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="estimate a recording with an --exo other than the one it was recorded with "
         "(default: refused)",
     )
+    add_accept_implausible(p)
     p.add_argument(
         "--out",
         default=None,
-        metavar="EST.rrd",
-        help="write the estimate to this rerun recording file (default: none)",
+        metavar="EST.rrd|EST.csv|EST.parquet",
+        help="write the per-sample estimate to this file, by its suffix: a rerun recording, "
+        "or a table with t [s] and one column per cuff, joint and axis, named as exo-ctrl "
+        "export names them (left_thigh_cuff_normal_est_N) (default: none)",
     )
     p.add_argument(
         "--summary",
@@ -66,8 +73,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Estimate, write what was asked for, print peaks (and errors where the truth is known).
 
-    The output paths are checked before the input is read.
+    The output paths (and ``--out``'s suffix) are checked before the input is read.
     """
+    if args.out:
+        table_suffix(args.out, "--out", OUT_SUFFIXES)
     check_outputs(args, {"the input file": args.file}, out="--out", summary="--summary")
     estimate = estimate_file(
         args.file,
@@ -75,10 +84,13 @@ def run(args: argparse.Namespace) -> int:
         gain_per_s=args.gain,
         allow_other_exo=args.allow_other_exo,
         estimator=args.estimator,
+        accept_implausible=args.accept_implausible,
     )
     summary = estimate.summary()
-    if args.out:
+    if args.out and args.out.lower().endswith(".rrd"):
         write_estimate_recording(estimate, args.out)
+    elif args.out:
+        write_table(estimate_table(estimate.series), args.out)
     if args.summary:
         write_json(args.summary, summary)
     gain = summary["observer_gain_per_s"]
@@ -90,5 +102,5 @@ def run(args: argparse.Namespace) -> int:
     print(f"estimated {summary['samples']} samples of {args.file} ({how})")
     print(estimate.table())
     if args.out:
-        print(f"estimate recording: {args.out}")
+        print(f"estimate written: {args.out}")
     return 0

@@ -23,7 +23,7 @@ from ..estimation.identification import (
 from ..model import SEXES, nominal_patient, write_urdf
 from ..record.estimate import read_sensor_log
 from ..sim.belief import PAPER_PATIENT
-from .common import check_outputs, write_json
+from .common import add_accept_implausible, check_outputs, write_json
 
 __all__ = ["register", "run"]
 
@@ -73,6 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="HZ",
         help=f"low-pass cut-off of the fit [Hz] (default {DEFAULT_CUTOFF_HZ:g})",
     )
+    add_accept_implausible(p)
     p.add_argument(
         "--summary",
         default=None,
@@ -93,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(args, {"the input file": args.file}, out="--out", summary="--summary")
     path = Path(args.file)
     height, mass, sex = args.height, args.mass, args.sex
-    log = read_sensor_log(path, args.exo)
+    log = read_sensor_log(path, args.exo, accept=args.accept_implausible)
     for note in log.notes:
         warnings.warn(note, RuntimeWarning, stacklevel=2)
     exo, t, q, tau = log.exo, log.t, log.q, log.tau

@@ -1,71 +1,114 @@
-"""``exo-ctrl simulate``: run the closed loop and write a rerun recording."""
+"""``exo-ctrl simulate [SCENARIO.toml]``: run the closed loop and write a rerun recording.
+
+The run is a scenario (:mod:`exo_ctrl.scenario`): a TOML file, a preset, or
+the default preset (the paper's device and gait on the belt).  A few common
+options override it (``--controller``, ``--cycles``/``--duration``,
+``--out``, ``--summary``, ``--no-record``) and ``--set section.key=value``
+reaches any setting.  The older long options (``--contact on``,
+``--patient-torque spastic``, ...; :mod:`.simulate_options`) are still
+accepted, hidden from ``--help``: each one given becomes a setting.
+"""
 
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from pathlib import Path
+from typing import Any
 
 from .. import _validate as v
-from ..control import PDGains
-from ..estimation import ESTIMATORS
+from .._io import DefaultOutput
 from ..exceptions import InvalidParameter
-from ..model import SEXES, load_exo
-from ..plan import EXERCISES, GaitParams
-from ..plan.exercise import CALIBRATION_DURATION_S
-from ..plant import (
-    MAX_MISALIGNMENT_M,
-    MOTOR_PRESETS,
-    CompliantJoint,
-    CuffParams,
-    Misalignment,
-    consistency_warning,
-    motor_preset,
-)
-from ..plant.patient_active import PATIENT_KINDS
-from ..record import DEFAULT_SCENE_RATE_HZ, RerunRecorder
+from ..model import load_exo
+from ..plan import GaitParams
+from ..plant import consistency_warning
+from ..record import RerunRecorder
 from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
 from ..record.viewer import find_viewer
-from ..sim import CONTROLLERS, SimConfig, drive_for, simulate
-from ..sim.belief import Belief
-from ..sim.config import CUFF_FITS, MAX_DURATION_S
-from .common import (
-    add_gait_options,
-    check_outputs,
-    format_summary,
-    gait_params_from,
-    write_json,
-)
-from .modes_options import add_mode_options, mode_config_from
-from .treadmill_options import add_treadmill_options, treadmill_config_from
+from ..scenario import DEFAULT_PRESET, PRESETS, RecordingParams, Scenario
+from ..scenario.load import scenario_document, scenario_from_document
+from ..sim import CONTROLLERS, SimConfig, SimResult, drive_for, simulate
+from ..sim.config import MAX_DURATION_S
+from ..sim.scenario_file import document_from_config
+from ..sim.scenario_read import apply_setting
+from .common import check_outputs, format_summary, recording_line, write_json
+from .simulate_options import add_run_options, flags_config
 
-__all__ = ["register", "run", "sim_config"]
+__all__ = ["flag_settings", "register", "run", "scenario_of", "sim_config"]
+
+#: The options ``simulate --help`` shows; the long tail is hidden (docs/cli.md).
+SHOWN = frozenset(
+    {
+        "help",
+        "scenario",
+        "preset",
+        "set",
+        "controller",
+        "cycles",
+        "duration",
+        "out",
+        "summary",
+        "no_record",
+        "scene_rate",
+        "plots",
+        "spawn",
+    }
+)
+
+USAGE = (
+    "exo-ctrl simulate [SCENARIO.toml | --preset NAME] [--controller pd|ct|qp] "
+    "[--cycles N | --duration SEC] [--set SECTION.KEY=VALUE ...] [--out PATH.rrd] "
+    "[--summary PATH.json] [--no-record] [--plots DIR] [--spawn]"
+)
+
+EPILOG = (
+    "Every setting of a run is a key of the scenario file: 'exo-ctrl scenario --preset "
+    f"{DEFAULT_PRESET} --out my.toml' writes them all with their units, defaults and "
+    "meaning (docs/scenarios.md). The older long options (--contact on, --patient-torque "
+    "spastic, ...) are still accepted: docs/cli.md lists them."
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``simulate`` subcommand."""
-    p = sub.add_parser("simulate", help="run the closed loop and write a rerun recording")
-    add_gait_options(p)
+    p = sub.add_parser(
+        "simulate",
+        help="run a scenario: the closed loop, a summary and a rerun recording",
+        usage=USAGE,
+        description="Run the closed loop of a scenario, print a summary and write a rerun "
+        "recording.",
+        epilog=EPILOG,
+    )
     p.add_argument(
-        "--patient",
+        "scenario",
+        nargs="?",
         default=None,
-        metavar="URDF|human",
-        help="patient URDF file, or 'human' for example-robot-data's model "
-        "(default: urdf/patient.urdf)",
+        metavar="SCENARIO.toml",
+        help=f"the scenario file (default: the preset {DEFAULT_PRESET!r})",
+    )
+    p.add_argument(
+        "--preset",
+        default=None,
+        metavar="NAME",
+        help="a shipped scenario instead of a file: " + ", ".join(PRESETS) + " (default: none; "
+        f"with no file either, {DEFAULT_PRESET})",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override one key of the scenario, e.g. --set gait.period=1.1 "
+        "--set contact.enabled=false (repeatable; 'default' restores a key's default) "
+        "(default: none)",
     )
     p.add_argument(
         "--controller",
         choices=CONTROLLERS,
-        default="pd",
-        help="pd (paper), ct (computed torque + PD) or qp (CT + PD through a QP under drive "
-        "limits and cuff-force bounds) (default pd)",
-    )
-    p.add_argument(
-        "--exercise",
-        choices=EXERCISES,
-        default="gait",
-        help="gait, or calibration: the legs swing in the air from rest to rest for "
-        f"identification (exo-ctrl identify; default {CALIBRATION_DURATION_S:g} s) (default gait)",
+        default=None,
+        help="pd (the paper's PD voltage law), ct (computed torque + PD) or qp (CT + PD "
+        "through a QP under drive limits and cuff-force bounds) (default: the scenario's)",
     )
     span = p.add_mutually_exclusive_group()
     span.add_argument(
@@ -73,363 +116,284 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="N",
-        help="gait cycles to run at full speed after the ramp-in (and before any ramp-out) "
-        "[cycles]; 0.5 = one step (default 2)",
+        help="gait cycles at full speed after the ramp-in [cycles]; 0.5 = one step "
+        "(default: none, the scenario's run.duration_s: 2 cycles after the ramp-in in most "
+        "presets)",
     )
     span.add_argument(
         "--duration",
         type=float,
         default=None,
         metavar="SEC",
-        help="simulated time [s], ramps included (default: the ramp-in, 2 gait cycles and the "
-        f"ramp-out, {3 * GaitParams().period:g} s at the default period)",
+        help="simulated time, ramps included [s] (default: the scenario's run.duration_s, "
+        f"{SimConfig().duration_s:g} s in most presets)",
     )
-    p.add_argument(
-        "--ramp-in",
-        type=float,
+    outputs = p.add_argument_group("outputs (default: the scenario's [recording] section)")
+    outputs.add_argument(
+        "--out",
         default=None,
-        metavar="SEC",
-        help="the start: standing at rest, then step length and belt speed rising smoothly "
-        "(C2) into the gait over this time [s]; 0 starts on the gait at full speed "
-        f"(default: one gait period, {GaitParams().period:g} s at the default period)",
+        metavar="PATH.rrd",
+        help=f"the rerun recording (default: recording.out, {RecordingParams().out})",
     )
-    p.add_argument(
-        "--ramp-out",
-        type=float,
-        default=0.0,
-        metavar="SEC",
-        help="the end: from the gait back to standing over the run's last SEC seconds [s] "
-        "(default 0: none)",
-    )
-    p.add_argument(
-        "--cuff-fit",
-        choices=CUFF_FITS,
-        default="equilibrium",
-        help="the cuffs at the start: equilibrium (the patient settled into them at rest) or "
-        "slack (fitted in the exoskeleton's posture: the patient drops into them) "
-        "(default equilibrium)",
-    )
-    for joint in ("hip", "knee"):
-        p.add_argument(
-            f"--misalignment-{joint}",
-            default="0,0",
-            metavar="DX,DZ",
-            help=f"the true patient's {joint} axis offset from the exoskeleton's, forward and up "
-            f"with the legs straight [m], each within ±{MAX_MISALIGNMENT_M:g} (truth only: the "
-            "device's models stay aligned; default 0,0)",
-        )
-    p.add_argument(
-        "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
-    )
-    p.add_argument(
-        "--substeps",
-        type=int,
-        default=1,
-        metavar="N",
-        help="plant steps per control tick, no unit (default 1)",
-    )
-    p.add_argument(
-        "--motor",
-        choices=MOTOR_PRESETS,
-        default="default",
-        help="the drives: default (an energy-consistent brushless motor with the paper's "
-        "winding, a 120:1 harmonic drive of 85 %% efficiency, 24 V, 32 A) or paper-printed "
-        "(Table I as printed, k_m = 0.35 N·m/A with k_E = 25.9 rad/(V·s), ratio 50, 10 A: "
-        "not energy-consistent, warns; its own default gains kp 100, kd 2) (default default)",
-    )
-    p.add_argument(
-        "--joint-stiffness",
-        type=float,
-        default=0.0,
-        metavar="NM_PER_RAD",
-        help="joint compliance: a torsional spring between each drive's rotor and its link "
-        f"[N·m/rad], e.g. {CompliantJoint().stiffness_Nm_per_rad:g} for a size-20-25 harmonic "
-        "drive; the encoders then measure the link and the torque sensors the spring "
-        "(default 0: a rigid drive)",
-    )
-    p.add_argument(
-        "--joint-damping",
-        type=float,
-        default=CompliantJoint().damping_Nm_s_per_rad,
-        metavar="NM_S_PER_RAD",
-        help="the joint spring's damping [N·m·s/rad], with --joint-stiffness "
-        f"(default {CompliantJoint().damping_Nm_s_per_rad:g})",
-    )
-    add_treadmill_options(p)
-    p.add_argument(
-        "--kp",
-        type=float,
-        default=None,
-        metavar="V/RAD",
-        help=f"PD proportional gain [V/rad], all joints (default {PDGains().kp[0]:g})",
-    )
-    p.add_argument(
-        "--kd",
-        type=float,
-        default=None,
-        metavar="V.S/RAD",
-        help=f"PD derivative gain [V·s/rad], all joints (default {PDGains().kd[0]:g})",
-    )
-    p.add_argument(
-        "--cuff-force-limit",
-        type=float,
-        default=SimConfig().cuff_force_limit_N,
-        metavar="N",
-        help="the qp controller's bound on each cuff's predicted force [N] (default "
-        f"{SimConfig().cuff_force_limit_N:g}: ISO/TS 15066 lower leg 130 N with a margin)",
-    )
-    device = p.add_argument_group(
-        "what the device believes (the controller's, estimator's and supervisor's models; "
-        "the plant simulates --exo and --patient)"
-    )
-    device.add_argument(
-        "--controller-patient",
-        default="nominal",
-        metavar="nominal|truth|URDF",
-        help="the patient model the device holds: nominal (the measured leg lengths with de "
-        "Leva's segment tables for the patient's stature and mass), truth (the --patient URDF "
-        "itself: the ideal comparison) or a URDF file, e.g. the identified patient that "
-        "exo-ctrl identify --out wrote (default nominal)",
-    )
-    device.add_argument(
-        "--controller-exo",
-        default=None,
-        metavar="URDF",
-        help="the exoskeleton model the device holds (default: the --exo URDF)",
-    )
-    device.add_argument(
-        "--controller-cuffs",
-        choices=("isotropic", "split"),
-        default="isotropic",
-        help="the cuff model the QP and the kalman estimator hold: isotropic (the cuffs' "
-        "nominal 8 N/mm and 100 N·s/m in every direction) or split (the published normal and "
-        "shear stiffness of the cuff-tissue interface, the truth's default, "
-        "exo_ctrl/plant/cuffs.py) (default isotropic)",
-    )
-    device.add_argument(
-        "--patient-height",
-        type=float,
-        default=None,
-        metavar="M",
-        help="the patient's stature for the nominal model [m] (default: the paper's 1.75 m, "
-        "for the default patient only)",
-    )
-    device.add_argument(
-        "--patient-mass",
-        type=float,
-        default=None,
-        metavar="KG",
-        help="the patient's body mass for the nominal model [kg] (default: the paper's 80 kg, "
-        "for the default patient only)",
-    )
-    device.add_argument(
-        "--patient-sex",
-        choices=SEXES,
-        default="male",
-        help="which of de Leva's tables the nominal model takes (default male)",
-    )
-    device.add_argument(
-        "--estimator",
-        choices=ESTIMATORS,
-        default="kalman",
-        help="the live cuff-force estimator: kalman (a Kalman filter on the coupled "
-        "exoskeleton-cuff-patient model with the device's patient and cuff models) or "
-        "momentum (the momentum observer on the exoskeleton's model) (default kalman)",
-    )
-    p.add_argument(
-        "--patient-torque",
-        choices=PATIENT_KINDS,
-        default="none",
-        help="patient joint torques: none (paper §VI), spastic, or active (their own gait "
-        "with a delay and a strength: the active patient options) (default none)",
-    )
-    add_mode_options(p)
-    p.add_argument(
-        "--no-safety",
-        action="store_true",
-        help="run without the safety supervisor (an --estop-at still acts)",
-    )
-    p.add_argument(
-        "--safety-force",
-        choices=("estimate", "truth"),
-        default="estimate",
-        help="the cuff forces the supervisor watches: estimate (from the joint torque sensors, "
-        "as on the device) or truth (the simulated forces: the ideal comparison, a force "
-        "sensor in every cuff) (default estimate)",
-    )
-    p.add_argument(
-        "--estop-at",
-        type=float,
-        default=None,
-        metavar="SEC",
-        help="emergency stop at this time [s] (default: none)",
-    )
-    p.add_argument(
+    outputs.add_argument(
         "--summary",
         default=None,
         metavar="PATH.json",
-        help="write the summary to this JSON file (default: none)",
+        help="also write the summary as JSON (default: recording.summary, none)",
     )
-    p.add_argument(
-        "--out",
-        default="exo_run.rrd",
-        metavar="PATH.rrd",
-        help="rerun recording file (default exo_run.rrd)",
-    )
-    p.add_argument(
+    outputs.add_argument("--no-record", action="store_true", help="write no recording")
+    outputs.add_argument(
         "--scene-rate",
         type=float,
-        default=DEFAULT_SCENE_RATE_HZ,
+        default=None,
         metavar="HZ",
-        help="rate of the recording's 3-D scene [Hz]; the time series keep every tick "
-        f"(default {DEFAULT_SCENE_RATE_HZ:g})",
+        help="rate of the recording's 3-D scene [Hz]; the plots keep every tick (default: "
+        f"recording.scene_rate_hz, {RecordingParams().scene_rate_hz:g})",
     )
-    p.add_argument("--no-record", action="store_true", help="do not write a recording")
-    p.add_argument(
+    outputs.add_argument(
         "--plots",
         default=None,
         metavar="DIR",
         help="write the drives' torque-speed operating points against their limits as "
-        "DIR/torque_speed.png (an existing directory; needs matplotlib; default: none)",
+        "DIR/torque_speed.png (an existing directory; needs matplotlib) (default: none)",
     )
-    p.add_argument(
-        "--spawn",
-        action="store_true",
-        help="also stream to a rerun viewer (the rerun executable of this Python environment)",
+    outputs.add_argument(
+        "--spawn", action="store_true", help="also stream to a rerun viewer while it runs"
     )
+    add_run_options(p)
+    for action in p._actions:  # argparse keeps its actions there; no public accessor
+        if action.dest not in SHOWN:
+            action.hidden_help = action.help  # what docs/cli.md lists
+            action.help = argparse.SUPPRESS
+            _FLAG_DEFAULTS[action.dest] = action.default
+            _FLAG_OPTIONS[action.dest] = action.option_strings[0]
+            action.default = _UNSET  # tells a flag given from one left out
     p.set_defaults(func=run)
 
 
-def sim_config(args: argparse.Namespace) -> SimConfig:
-    """The run's SimConfig from the parsed options.
+#: A hidden option's default while parsing: whether it was given is ``value is not _UNSET``.
+_UNSET = object()
 
-    The duration: ``--duration``, else the ``--session``'s, else the ramp-in,
-    ``--cycles`` (default 2) gait cycles at full speed and the ramp-out.
+#: The hidden options' own defaults, and their option strings, by destination.
+_FLAG_DEFAULTS: dict[str, Any] = {}
+_FLAG_OPTIONS: dict[str, str] = {}
+
+#: The base of a run given by long options alone: SimConfig()'s defaults, as they always were.
+FLAGS_PRESET = "paper-free-air"
+
+
+def given_flags(args: argparse.Namespace) -> list[str]:
+    """The long (hidden) options given in ``args``, by destination."""
+    return [dest for dest in _FLAG_DEFAULTS if getattr(args, dest, _UNSET) is not _UNSET]
+
+
+def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
+    """``args`` with every long option not given at its own default."""
+    filled = argparse.Namespace(**vars(args))
+    for dest, default in _FLAG_DEFAULTS.items():
+        if getattr(filled, dest, _UNSET) is _UNSET:
+            setattr(filled, dest, default)
+    return filled
+
+
+@functools.cache
+def _default_flags_config() -> SimConfig:
+    """The SimConfig of the long options' defaults (no option given)."""
+    common = {"duration": None, "cycles": None, "controller": None}
+    return flags_config(argparse.Namespace(**_FLAG_DEFAULTS, **common))
+
+
+def _leaves(data: Any, prefix: tuple[str, ...] = ()) -> dict[tuple[str, ...], Any]:
+    """A plain document's values by key path (dicts recursed; anything else a leaf)."""
+    if not isinstance(data, dict):
+        return {prefix: data}
+    out: dict[tuple[str, ...], Any] = {}
+    for key, value in data.items():
+        out.update(_leaves(value, (*prefix, key)))
+    return out
+
+
+def flag_settings(args: argparse.Namespace) -> list[tuple[tuple[str, ...], Any]]:
+    """The settings (scenario key path, value) the long options given in ``args`` make.
+
+    The SimConfig the options build and the one their defaults build, as
+    scenario documents, compared key by key; a sub-table unset on one side
+    is one value.  The duration is left to ``--duration``/``--cycles`` when
+    either is given.
     """
-    gait = gait_params_from(args)
-    ramp_in = args.ramp_in
-    if ramp_in is not None:
-        ramp_in = v.non_negative("ramp_in", ramp_in, "s")
-    ramp_out = v.non_negative("ramp_out", args.ramp_out, "s")
-    modes = mode_config_from(args)
-    if args.duration is not None:
-        duration = args.duration
-    elif modes["session"] is not None:  # the segments' durations
-        duration = modes["session"].total_s
-    elif args.exercise == "calibration":
-        duration = CALIBRATION_DURATION_S
+    given = flags_config(_with_defaults(args))
+    doc_given = _as_read(document_from_config(given))
+    doc_base = _as_read(document_from_config(_default_flags_config()))
+    new, old = _leaves(doc_given), _leaves(doc_base)
+    settings = []
+    for path, value in new.items():
+        if path in old and old[path] == value:
+            continue
+        if path not in old:  # a table that was unset: set it whole
+            path = next(p for p in _prefixes(path) if p in old)
+            value = _get(doc_given, path)
+        settings.append((path, value))
+    for path in old:
+        if path not in new and not any(p[: len(path)] == path for p in new):
+            settings.append((path, None))  # unset where the default is set
+    if args.duration is not None or args.cycles is not None:
+        settings = [(p, val) for p, val in settings if p != ("run", "duration_s")]
+    return list(dict(settings).items())
+
+
+def _as_read(data: Any) -> Any:
+    """A plain document as a TOML file reads back: its tuples lists."""
+    if isinstance(data, dict):
+        return {key: _as_read(value) for key, value in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [_as_read(value) for value in data]
+    return data
+
+
+def _prefixes(path: tuple[str, ...]) -> list[tuple[str, ...]]:
+    return [path[:i] for i in range(1, len(path))]
+
+
+def _get(doc: dict[str, Any], path: tuple[str, ...]) -> Any:
+    for key in path:
+        doc = doc.get(key) if isinstance(doc, dict) else None
+    return doc
+
+
+def _set(doc: dict[str, Any], path: tuple[str, ...], value: Any) -> None:
+    for key in path[:-1]:
+        doc = doc.setdefault(key, {})
+    if value is None:
+        doc.pop(path[-1], None)
     else:
-        cycles = 2.0 if args.cycles is None else v.positive("cycles", args.cycles)
-        lead = gait.period if ramp_in is None else ramp_in
-        duration = lead + cycles * gait.period + ramp_out
-        if duration > MAX_DURATION_S:
-            most = (MAX_DURATION_S - lead - ramp_out) / gait.period
-            raise InvalidParameter(
-                "cycles",
-                args.cycles,
-                f"at most {most:.6g} at the {gait.period:g} s period",
-                f"the run would last {duration:.4g} s, beyond {MAX_DURATION_S:g} s",
-            )
-    motor = motor_preset(args.motor)
-    stiffness = v.non_negative("joint_stiffness", args.joint_stiffness, "N·m/rad")
-    rigid = CompliantJoint(damping_Nm_s_per_rad=args.joint_damping)  # checks the damping
-    compliance = CompliantJoint(stiffness, args.joint_damping, True) if stiffness > 0 else rigid
-    base = PDGains.paper_printed() if args.motor == "paper-printed" else PDGains()
-    gains = PDGains(
-        kp=args.kp if args.kp is not None else base.kp,
-        kd=args.kd if args.kd is not None else base.kd,
-    )
-    return SimConfig(
-        gait=gait,
-        exo=args.exo,
-        patient=args.patient,
-        controller=args.controller,
-        gains=gains,
-        motor=motor,
-        duration_s=duration,
-        ramp_in_s=ramp_in,
-        ramp_out_s=ramp_out,
-        cuff_fit=args.cuff_fit,
-        misalignment=Misalignment(
-            _pair("misalignment_hip", args.misalignment_hip),
-            _pair("misalignment_knee", args.misalignment_knee),
-        ),
-        control_rate_hz=args.rate,
-        plant_substeps=args.substeps,
-        patient_torque=args.patient_torque,
-        safety=not args.no_safety,
-        safety_use_estimate=args.safety_force == "estimate",
-        estop_at_s=args.estop_at,
-        cuff_force_limit_N=args.cuff_force_limit,
-        estimator=args.estimator,
-        joint_compliance=compliance,
-        **treadmill_config_from(args),
-        exercise=args.exercise,
-        **modes,
-        belief=Belief(
-            patient=args.controller_patient,
-            exo=args.controller_exo,
-            patient_height_m=args.patient_height,
-            patient_mass_kg=args.patient_mass,
-            patient_sex=args.patient_sex,
-            cuffs=CuffParams() if args.controller_cuffs == "split" else None,
-        ),
-    )
+        doc[path[-1]] = value
 
 
-def _pair(name: str, text: str) -> tuple[float, float]:
-    """``"DX,DZ"`` as two floats [m] (range checked by :class:`~exo_ctrl.plant.Misalignment`)."""
-    allowed = f"two numbers DX,DZ in [-{MAX_MISALIGNMENT_M:g}, {MAX_MISALIGNMENT_M:g}] m"
-    parts = text.split(",")
-    try:
-        if len(parts) != 2:
-            raise ValueError(text)
-        return float(parts[0]), float(parts[1])
-    except ValueError:
-        raise InvalidParameter(name, text, allowed) from None
+def scenario_of(args: argparse.Namespace) -> Scenario:
+    """The run ``args`` describe: the scenario, the long options given, ``--set``, the rest.
+
+    Precedence, lowest first: the scenario file, the preset, or the long
+    options (``--contact on``, ...; they describe the run on
+    :data:`FLAGS_PRESET`, ``SimConfig()``'s defaults, and are refused beside
+    a file or a preset), then ``--set`` in order, then ``--controller`` and
+    ``--duration``/``--cycles``.  With none of them the run is
+    :data:`~exo_ctrl.scenario.DEFAULT_PRESET`.
+    """
+    flags = given_flags(args)
+    chosen = args.scenario is not None or args.preset is not None
+    preset = args.preset if chosen or not flags else FLAGS_PRESET
+    doc, source = scenario_document(args.scenario, preset)
+    if chosen and flags:
+        raise InvalidParameter(
+            _FLAG_OPTIONS[flags[0]],
+            getattr(args, flags[0]),
+            "left out with a scenario file or preset",
+            "the long options describe a run on their own; with a scenario, set its keys "
+            "with --set SECTION.KEY=VALUE (exo-ctrl scenario --preset paper --out s.toml "
+            "lists them)",
+        )
+    for path, value in flag_settings(args):
+        _set(doc, path, value)
+    for setting in args.set:
+        apply_setting(doc, setting)
+    run = doc.setdefault("run", {})
+    if args.controller is not None:
+        run["controller"] = args.controller
+    if args.duration is not None:
+        run["duration_s"] = args.duration
+    elif args.cycles is not None:
+        run["duration_s"] = _cycles_duration(doc, args.cycles)
+    return scenario_from_document(doc, source)
+
+
+def _cycles_duration(doc: dict[str, Any], cycles: float) -> float:
+    """The duration [s] of ``cycles`` gait cycles after the ramp-in, the ramps included."""
+    cycles = v.positive("cycles", cycles)
+    period = doc.get("gait", {}).get("period", GaitParams().period)
+    ramp_in = doc["run"].get("ramp_in_s")
+    ramp_out = doc["run"].get("ramp_out_s", 0.0)
+    lead = period if ramp_in is None else ramp_in
+    duration = lead + cycles * period + ramp_out
+    if duration > MAX_DURATION_S:
+        most = (MAX_DURATION_S - lead - ramp_out) / period
+        raise InvalidParameter(
+            "cycles",
+            cycles,
+            f"at most {most:.6g} at the {period:g} s period",
+            f"the run would last {duration:.4g} s, beyond {MAX_DURATION_S:g} s",
+        )
+    return duration
+
+
+def sim_config(args: argparse.Namespace) -> SimConfig:
+    """The run's SimConfig from the parsed options (:func:`scenario_of`)."""
+    return scenario_of(args).config
 
 
 def run(args: argparse.Namespace) -> int:
     """Run, record, print the summary; 0 completed, 1 diverged or failed, 130 interrupted.
 
-    The output paths are checked before anything else; the summary is written
-    after the run.
+    The scenario is read and the output paths checked before anything else;
+    the summary is written after the run.
     """
+    scenario = scenario_of(args)
+    config, recording = scenario.config, scenario.recording
+    # the scenario's output: a path the user did not name on the command line
+    args.out = args.out if args.out is not None else DefaultOutput(recording.out)
+    args.no_record = args.no_record or not recording.enabled
+    args.summary = args.summary if args.summary is not None else (recording.summary or None)
+    scene_rate = args.scene_rate if args.scene_rate is not None else recording.scene_rate_hz
     args.plot_file = None if args.plots is None else str(Path(args.plots) / "torque_speed.png")
+    inputs = {"the exoskeleton URDF": config.exo, "the patient URDF": config.patient}
+    if args.scenario is not None:
+        inputs["the scenario file"] = args.scenario
     check_outputs(
         args,
+        reads={k: str(p) for k, p in inputs.items() if p is not None and Path(p).is_file()},
         summary="--summary",
         plot_file="--plots",
         **({} if args.no_record else {"out": "--out"}),
     )
-    config = sim_config(args)
+    points = OperatingPoints() if args.plots is not None else None  # needs matplotlib
     warning = consistency_warning(config.motor)
     if warning:
-        print(f"exo-ctrl simulate: warning: --motor {args.motor}: {warning}", file=sys.stderr)
-    observers: list = []
+        print(f"exo-ctrl simulate: warning: the drive: {warning}", file=sys.stderr)
+    observers: list = [_WarnAtStart()]
     if not args.no_record:
-        recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=args.scene_rate)
+        recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=scene_rate)
         observers.append(recorder)
-    points = OperatingPoints()
-    if args.plots is not None:
+    if points is not None:
         observers.append(points)
     result = simulate(config, observers=observers, progress=True, keep_history=False, warmup=True)
     summary = result.summary()
     if args.summary:
         write_json(args.summary, summary)
     print(format_summary(summary))
-    if args.plots is not None:
+    if points is not None:
         exo = load_exo(config.exo)
         title = f"{config.controller} controller, {config.duration_s:g} s of the gait"
         motor = drive_for(config.motor, exo)
         write_torque_speed_plot(points, motor, exo.effort_limit, args.plot_file, title)
         print(f"torque-speed plot: {args.plot_file}")
     if not args.no_record:
-        viewer = find_viewer() or "rerun"
-        print(f"recording: {args.out} (view offline: {viewer} {args.out})")
+        print(recording_line(recorder.written, args.out, find_viewer() or "rerun"))
     if result.status == "interrupted":
         return 143 if result.error.startswith("terminated by SIGTERM") else 130
     if result.status != "completed":
         print(f"exo-ctrl simulate: error: {result.error}", file=sys.stderr)
         return 1
     return 0
+
+
+class _WarnAtStart:
+    """Prints the run's warnings (a device that does not fit its patient) before its first tick."""
+
+    def start(self, result: SimResult) -> None:
+        for text in result.warnings:
+            print(f"exo-ctrl simulate: warning: {text}", file=sys.stderr)
+
+    def chunk(self, result: SimResult, start: int, rows: dict[str, Any]) -> None:
+        """Nothing: the warnings are said at the start."""
+
+    def finish(self, result: SimResult) -> None:
+        """Nothing: the summary lists the warnings again."""

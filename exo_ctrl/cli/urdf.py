@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import re
+import string
 from pathlib import Path
 
 from .. import _validate as v
@@ -156,6 +158,32 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The widest field a cohort pattern may format (``{i:032d}``) [characters].
+MAX_PATTERN_WIDTH = 32
+
+
+def _pattern_problem(out: str) -> str:
+    """Why a cohort pattern's fields cannot be formatted cheaply ("" if they can).
+
+    Each field's format spec is read before any formatting: a width or
+    precision over :data:`MAX_PATTERN_WIDTH` (``{i:999999999}`` asked for
+    gigabytes) or a nested field is refused.
+    """
+    try:
+        fields = list(string.Formatter().parse(out))
+    except ValueError as exc:
+        return f"the pattern fails: {exc}"
+    for _, name, spec, _ in fields:
+        if name is None or not spec:
+            continue
+        if "{" in spec:
+            return f"a nested field in {{{name}:{spec}}}"
+        widths = [int(d) for d in re.findall(r"\d+", spec)]
+        if widths and max(widths) > MAX_PATTERN_WIDTH:
+            return f"the field {{{name}:{spec}}} is wider than {MAX_PATTERN_WIDTH} characters"
+    return ""
+
+
 def _cohort_paths(out: str, n: int, seed: int) -> list[Path]:
     """The cohort's output files: in a directory, or from a pattern with ``{i}``."""
     if out and Path(out).is_dir():
@@ -164,6 +192,9 @@ def _cohort_paths(out: str, n: int, seed: int) -> list[Path]:
     allowed = "an existing directory or a file pattern with {i} (e.g. cohort/p{i:02d}.urdf)"
     if "{i" not in out:
         raise InvalidParameter("--out", out, allowed, "--cohort writes one file per patient")
+    spec_problem = _pattern_problem(out)
+    if spec_problem:
+        raise InvalidParameter("--out", out, allowed, spec_problem)
     try:
         paths = [Path(out.format(i=i)) for i in range(n)]
     except (IndexError, KeyError, ValueError) as exc:

@@ -44,7 +44,14 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter
 from .body_params import BodyParams
 
-__all__ = ["SEXES", "Segment", "nominal_patient", "patient_from_anthropometry"]
+__all__ = [
+    "SEXES",
+    "Segment",
+    "body_mass_from_legs",
+    "nominal_patient",
+    "patient_from_anthropometry",
+    "stature_from_legs",
+]
 
 #: The sexes of de Leva's tables.
 SEXES = ("female", "male")
@@ -210,3 +217,25 @@ def nominal_patient(
         thigh_radius=table.thigh_radius * k_t,
         shank_radius=table.shank_radius * k_s,
     )
+
+
+def stature_from_legs(thigh_length_m: float, shank_length_m: float, sex: str = "male") -> float:
+    """The stature [m] whose de Leva thigh and shank (leg + ankle height) sum to a measured leg.
+
+    Inverts :func:`patient_from_anthropometry`'s lengths: thigh + shank =
+    H (l_thigh + l_leg) / H_ref + a H, with a = :data:`ANKLE_HEIGHT_RATIO`.
+    """
+    table = TABLES[sex]
+    per_height = (table["thigh"].length + table["leg"].length) / table["stature"]
+    return (thigh_length_m + shank_length_m) / (per_height + ANKLE_HEIGHT_RATIO)
+
+
+def body_mass_from_legs(legs_mass_kg: float, sex: str = "male") -> float:
+    """The body mass [kg] whose de Leva thighs, legs and feet weigh ``legs_mass_kg`` (both legs).
+
+    Inverts :func:`patient_from_anthropometry`'s masses:
+    m_legs = 2 (μ_thigh + μ_leg + μ_foot) M.
+    """
+    table = TABLES[sex]
+    share = table["thigh"].mass + table["leg"].mass + table["foot"].mass
+    return legs_mass_kg / (2.0 * share)

@@ -45,14 +45,23 @@ def check_urdf_xml(src: str, xml: str) -> None:
         raise InvalidModel(src, "", f"malformed XML at line {line}, column {col}") from None
     if root.tag != "robot":
         raise InvalidModel(src, "", f"the root element is <{root.tag}>, expected <robot>")
-    links = {link.get("name") for link in root.findall("link")}
+    links: set[str | None] = set()
+    for link in root.findall("link"):
+        if link.get("name") in links:
+            raise InvalidModel(src, link.get("name", "?"), "link defined twice")
+        links.add(link.get("name"))
     children: dict[str, str] = {}
+    reach: dict[str, float] = {}  # link → farthest child joint from its origin [m]
     for joint in root.findall("joint"):
         jname = joint.get("name", "?")
         parent = joint.find("parent")
         child = joint.find("child")
         if parent is None or child is None:
             raise InvalidModel(src, jname, "joint without <parent> or <child>")
+        _check_joint(src, joint)
+        offset = _xyz(src, jname, joint.find("origin"), "origin")
+        pname = parent.get("link", "")
+        reach[pname] = max(reach.get(pname, 0.0), float(np.linalg.norm(offset)))
         for end in (parent.get("link"), child.get("link")):
             if end not in links:
                 raise InvalidModel(src, jname, f"refers to link {end!r}, which is not defined")
@@ -62,8 +71,95 @@ def check_urdf_xml(src: str, xml: str) -> None:
                 src, cname, f"is the child of two joints ({children[cname]!r} and {jname!r})"
             )
         children[cname] = jname
+    roots = [name for name in links if name not in children]
+    if len(links) > 1 and not roots:
+        raise InvalidModel(src, "", "no root link: the joints form a loop")
     for link in root.findall("link"):
         _check_link_inertial(src, link)
+        _check_com(src, link, reach.get(link.get("name", ""), 0.0))
+
+
+#: How far a link's centre of mass may lie from its joint: this many times the
+#: link's length (its farthest child joint) plus :data:`COM_SLACK_M`.
+COM_LENGTHS = 10.0
+#: The fixed part of the bound on a centre of mass's distance from its joint [m].
+COM_SLACK_M = 1.0
+
+
+def _xyz(src: str, element: str, origin: ET.Element | None, what: str) -> np.ndarray:
+    """An ``<origin>``'s xyz [m] (zero when absent), finite or refused by name."""
+    if origin is None:
+        return np.zeros(3)
+    text = origin.get("xyz", "0 0 0")
+    try:
+        xyz = np.array([float(x) for x in text.split()])
+    except ValueError:
+        raise InvalidModel(src, element, f"{what} xyz={text!r} is not three numbers") from None
+    if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
+        raise InvalidModel(src, element, f"{what} xyz={text!r} must be three finite numbers [m]")
+    return xyz
+
+
+def _number(src: str, element: str, node: ET.Element, key: str) -> float | None:
+    """Attribute ``key`` of ``node`` as a finite float (None when absent)."""
+    text = node.get(key)
+    if text is None:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise InvalidModel(src, element, f"{key}={text!r} must be a finite number")
+    return value
+
+
+def _check_joint(src: str, joint: ET.Element) -> None:
+    """A joint's ``<limit>`` and ``<dynamics>``: what the drive and the safety limits need.
+
+    A revolute or prismatic joint needs a ``<limit>`` with effort > 0 N·m and
+    velocity > 0 rad/s and lower ≤ upper [rad]; damping [N·m·s/rad] and
+    friction [N·m] are ≥ 0.
+    """
+    jname = joint.get("name", "?")
+    kind = joint.get("type", "")
+    limit = joint.find("limit")
+    if kind in ("revolute", "prismatic") and limit is None:
+        raise InvalidModel(src, jname, f"a {kind} joint needs a <limit> (effort, velocity, range)")
+    if limit is not None:
+        for key, unit in (("effort", "N·m"), ("velocity", "rad/s")):
+            value = _number(src, jname, limit, key)
+            if value is not None and value <= 0.0:
+                raise InvalidModel(src, jname, f"{key} limit must be > 0 {unit}; got {value:g}")
+        lower, upper = _number(src, jname, limit, "lower"), _number(src, jname, limit, "upper")
+        if lower is not None and upper is not None and lower > upper:
+            raise InvalidModel(
+                src, jname, f"lower limit {lower:g} rad is above the upper limit {upper:g} rad"
+            )
+    dynamics = joint.find("dynamics")
+    if dynamics is not None:
+        for key, unit in (("damping", "N·m·s/rad"), ("friction", "N·m")):
+            value = _number(src, jname, dynamics, key)
+            if value is not None and value < 0.0:
+                raise InvalidModel(src, jname, f"{key} must be >= 0 {unit}; got {value:g}")
+
+
+def _check_com(src: str, link: ET.Element, length: float) -> None:
+    """A link's centre of mass within :data:`COM_LENGTHS` link lengths + :data:`COM_SLACK_M`."""
+    inertial = link.find("inertial")
+    if inertial is None:
+        return
+    lname = link.get("name", "?")
+    com = _xyz(src, lname, inertial.find("origin"), "centre of mass")
+    bound = COM_LENGTHS * length + COM_SLACK_M
+    distance = float(np.linalg.norm(com))
+    if distance > bound:
+        raise InvalidModel(
+            src,
+            lname,
+            f"centre of mass {distance:.4g} m from its joint; at most {COM_LENGTHS:g} times the "
+            f"link's length ({length:.4g} m) + {COM_SLACK_M:g} m = {bound:.4g} m",
+        )
 
 
 def _check_link_inertial(src: str, link: ET.Element) -> None:

@@ -30,6 +30,7 @@ from .body_params import BodyParams
 from .checks import check_inertias, check_urdf_xml
 from .geometry import LegGeometry, leg_geometry
 from .names import CUFF_NAMES, DEFAULT_URDF_NAMES, JOINT_NAMES, SIDES
+from .prescan import c_stderr, parser_reason, prescan_urdf
 from .urdfgen import write_urdf
 
 __all__ = [
@@ -231,12 +232,19 @@ def load_body(
     src = str(path)
     if not path.is_file():
         raise InvalidModel(src, "", "file not found")
+    prescan_urdf(src, path)  # before any parser: Pinocchio's can crash the process
     xml = path.read_text(encoding="utf-8", errors="replace")
     check_urdf_xml(src, xml)
-    try:
-        full = pin.buildModelFromXML(xml)
-    except (ValueError, RuntimeError) as exc:
-        raise InvalidModel(src, "", f"Pinocchio could not build a model from it ({exc})") from None
+    error: Exception | None = None
+    with c_stderr() as noise:  # urdfdom prints its reasons there, over several lines
+        try:
+            full = pin.buildModelFromXML(xml)
+        except (ValueError, RuntimeError) as exc:
+            error = exc
+    if error is not None:
+        said = parser_reason(noise)
+        why = f"{error}; the parser said: {said}" if said else str(error)
+        raise InvalidModel(src, "", f"Pinocchio could not build a model from it ({why})")
     joint_map = {j: j for j in JOINT_NAMES} if joint_map is None else dict(joint_map)
     missing_keys = [j for j in JOINT_NAMES if j not in joint_map]
     if missing_keys:
@@ -255,6 +263,9 @@ def load_body(
     for ours, jid in zip(JOINT_NAMES, joint_ids, strict=True):
         if model.joints[jid].nq != 1 or model.joints[jid].nv != 1:
             raise InvalidModel(src, joint_map[ours], "must be a 1-DoF revolute joint")
+        kind = model.joints[jid].shortname()  # JointModelRY, JointModelPY, ...Unaligned
+        if kind.startswith(("JointModelP", "JointModelPrismatic")):
+            raise InvalidModel(src, joint_map[ours], f"must be a revolute joint; got {kind}")
     check_inertias(src, model, joint_ids)
     if extra_frames:
         _add_anatomical_frames(model, joint_ids)

@@ -74,6 +74,10 @@ MIN_KNEE_FLEXION_RAD = 0.1
 
 #: The shortest gait period the planner takes [s].
 MIN_PERIOD_S = 0.1
+#: The longest gait period the planner takes [s]: a cycle's sizes grow with it
+#: (the cuff-load monitor's window of one period at the control rate: 29.8 GiB
+#: at 1e7 s; the plan's cubic pieces overflow near 1e200 s).
+MAX_PERIOD_S = 100.0
 
 #: The smallest shape coefficient k_v the planner takes (at 1e-3 the default
 #: gait's swing foot would run 26 m behind the hip: refused by reach).
@@ -139,6 +143,14 @@ class GaitParams:
                 f">= {MIN_PERIOD_S:g} s",
                 "ten gait cycles a second is no gait, and the plan's cubic pieces need "
                 "durations whose squares do not underflow",
+            )
+        if self.period > MAX_PERIOD_S:
+            raise InvalidParameter(
+                "period",
+                self.period,
+                f"<= {MAX_PERIOD_S:g} s",
+                "one gait cycle sizes the plan and the monitors' windows: a longer one "
+                "would not fit in memory, or overflow",
             )
         d = v.finite("duty_factor", self.duty_factor)
         if not 0.5 <= d < 1.0:

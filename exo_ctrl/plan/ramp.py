@@ -61,7 +61,7 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter, UnreachableFootTarget
 from .gait import MIN_KNEE_FLEXION_RAD, FootTrajectory, GaitParams, GaitPlan
 
-__all__ = ["Ramp", "RampedGait", "smoothstep"]
+__all__ = ["MIN_RAMP_S", "Ramp", "RampedGait", "ramp_time", "smoothstep"]
 
 
 def smoothstep(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -73,6 +73,26 @@ def smoothstep(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         30.0 * (u * w) ** 2,
         60.0 * u * w * (1.0 - 2.0 * u),
     )
+
+
+#: The shortest ramp other than none [s]: the ramp's shape goes as 1/T_r and
+#: (t/T_r)^n, which overflow for T_r near 1e-300 s (NaN commands).
+MIN_RAMP_S = 1e-6
+
+
+def ramp_time(name: str, value: float) -> float:
+    """A ramp time [s]: 0 (no ramp) or a finite time >= :data:`MIN_RAMP_S`.
+
+    Raises:
+        InvalidParameter: naming ``name``.
+
+    """
+    t = v.non_negative(name, value, "s")
+    if 0.0 < t < MIN_RAMP_S:
+        raise InvalidParameter(
+            name, value, f"0 (no ramp) or at least {MIN_RAMP_S:g} s", "a shorter ramp overflows"
+        )
+    return t
 
 
 @dataclass(frozen=True)
@@ -98,8 +118,8 @@ class Ramp:
     end_s: float = float("inf")
 
     def __post_init__(self) -> None:
-        t_in = v.non_negative("ramp_in", self.ramp_in_s, "s")
-        t_out = v.non_negative("ramp_out", self.ramp_out_s, "s")
+        t_in = ramp_time("ramp_in", self.ramp_in_s)
+        t_out = ramp_time("ramp_out", self.ramp_out_s)
         end = float(self.end_s)
         if not end > 0.0:
             raise InvalidParameter("end", self.end_s, "> 0 s")

@@ -19,6 +19,9 @@
   against their limits (a PNG).
 - :mod:`.estimate`: cuff-force estimation along a recording
   or a CSV log (``exo-ctrl estimate``).
+- :mod:`.export`: a recording's time series (or an estimate's) as a CSV
+  or Parquet table, columns named from the log schema with their units
+  (``exo-ctrl export``).
 
 Nothing in the library below imports this package; the public face
 (:mod:`exo_ctrl`), the command line and the tools do.

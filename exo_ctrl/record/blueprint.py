@@ -7,7 +7,10 @@ second store of kind "blueprint", which :func:`blueprint_views` reads back.
 
 from __future__ import annotations
 
+import math
 import os
+import re
+import uuid
 import warnings
 from pathlib import Path
 
@@ -22,6 +25,7 @@ from .format import TIME, Layout, Series, layout
 __all__ = [
     "BIOFEEDBACK_PANELS",
     "MAX_LINES_PER_PANEL",
+    "SCENE_COLUMN_SHARES",
     "biofeedback_tab",
     "blueprint_views",
     "make_blueprint",
@@ -36,6 +40,18 @@ MAX_LINES_PER_PANEL = 4
 #: which colour is which line instead.
 _NO_LEGEND = rrb.PlotLegend(visible=False)
 _LEGS = ("left", "right")
+#: Column shares of the default layout: the 3-D scene (with the events and
+#: parameters below it), then the tabs of time series.
+SCENE_COLUMN_SHARES = (3.0, 2.0)
+#: A panel's quantity, singular, by the tab's series (the tab's title is plural).
+_QUANTITY = {
+    "joint_angle": "Joint angle",
+    "joint_speed": "Joint speed",
+    "voltage": "Drive voltage",
+    "drive_torque": "Drive torque",
+    "current": "Drive current",
+    "patient_torque": "Patient torque",
+}
 
 
 def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
@@ -51,8 +67,12 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
     (:func:`biofeedback_tab`: per-cycle figures), and every other signal of
     the log schema (a panel each).  No panel holds more than
     :data:`MAX_LINES_PER_PANEL` lines; legends are hidden and each panel's
-    name says what it shows, its unit and which colour is which line.  The
-    time panel shows ``sim_time``.
+    name says what it shows in full (the quantity and the joint, leg or
+    cuff: "Joint angle, left hip"), its unit and which colour is which line.
+    The 3-D column takes :data:`SCENE_COLUMN_SHARES` of the width (3/5), the
+    viewer's blueprint and selection side panels start collapsed so that the
+    layout has the window's width, and the time panel (and so every plot's
+    time axis) shows ``sim_time``, the time in seconds.
 
     Args:
         lay: the series to lay out (default: those of the log schema now).
@@ -77,7 +97,7 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
         biofeedback_tab(),
     ]
     rest = take([e for e in series if e not in shown])
-    if rest:  # one panel per signal, named by its log-schema name (and meaning, if unitless)
+    if rest:  # one panel per signal, named by what it is and its log-schema name
         others = (_panel(s.entity, [s], _signal_name(s)) for s in rest)
         tabs.append(rrb.Grid(*others, grid_columns=2, name="Other signals"))
     left = rrb.Vertical(
@@ -90,9 +110,10 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
     )
     right = rrb.Tabs(*(tab for tab in tabs if tab is not None))
     return rrb.Blueprint(
-        rrb.Horizontal(left, right, column_shares=[1, 1]),
-        rrb.TimePanel(timeline=TIME),
-        collapse_panels=False,
+        rrb.Horizontal(left, right, column_shares=list(SCENE_COLUMN_SHARES)),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="expanded", timeline=TIME),
     )
 
 
@@ -129,10 +150,13 @@ def biofeedback_tab() -> rrb.Vertical:
     return rrb.Vertical(*panels, name="Biofeedback (per gait cycle)")
 
 
-def _panel(origin: str, shown: list[Series], what: str) -> rrb.TimeSeriesView:
-    """A time-series panel of ``shown``, named with its unit and its colour key."""
+def _panel(origin: str, shown: list[Series], what: str, item: str = "") -> rrb.TimeSeriesView:
+    """A time-series panel of ``shown``, named ``what``, its unit and its colour key.
+
+    ``item``: the joint, leg or cuff the panel is of (its key leaves that out).
+    """
     unit = shown[0].unit
-    key = ", ".join(f"{color} {_short(part, what)}" for s in shown for color, part in s.key)
+    key = ", ".join(f"{color} {_short(part, item)}" for s in shown for color, part in s.key)
     name = what + (f" [{unit}]" if unit else "") + (f": {key}" if key else "")
     contents = [f"/{s.entity}" for s in shown]
     return rrb.TimeSeriesView(origin=origin, contents=contents, name=name, plot_legend=_NO_LEGEND)
@@ -144,7 +168,8 @@ def _per_joint(take, quantity: str, title: str) -> rrb.Vertical | None:
     for joint in JOINT_NAMES:
         found = take([f"signals/{quantity}/{joint}"])
         if found:
-            panels.append(_panel(found[0].entity, found, joint.replace("_", " ")))
+            what = f"{_QUANTITY[quantity]}, {joint.replace('_', ' ')}"
+            panels.append(_panel(found[0].entity, found, what, joint.replace("_", " ")))
             units.add(found[0].unit)
     return rrb.Vertical(*panels, name=_titled(title, units)) if panels else None
 
@@ -155,7 +180,8 @@ def _per_leg(take, quantity: str, title: str) -> rrb.Vertical | None:
     for leg in _LEGS:
         found = take([f"signals/{quantity}/{j}" for j in JOINT_NAMES if j.startswith(leg)])
         if found:
-            panels.append(_panel(f"signals/{quantity}", found, f"{leg} leg"))
+            what = f"{_QUANTITY[quantity]}, {leg} leg"
+            panels.append(_panel(f"signals/{quantity}", found, what, f"{leg} leg"))
             units.update(s.unit for s in found)
     return rrb.Vertical(*panels, name=_titled(title, units)) if panels else None
 
@@ -165,10 +191,13 @@ def _cuffs(take) -> rrb.Grid | None:
     panels, units = [], set()
     for cuff in CUFF_NAMES:
         name = cuff.replace("_", " ")
-        for entity, what in (("cuff_force", name), ("cuff_force_est", f"{name}, estimated")):
+        for entity, what in (
+            ("cuff_force", f"Cuff force on the exo, {name} cuff"),
+            ("cuff_force_est", f"Estimated cuff force on the exo, {name} cuff"),
+        ):
             found = take([f"signals/{entity}/{cuff}"])
             if found:
-                panels.append(_panel(found[0].entity, found, what))
+                panels.append(_panel(found[0].entity, found, what, name))
                 units.add(found[0].unit)
     if not panels:
         return None
@@ -176,19 +205,31 @@ def _cuffs(take) -> rrb.Grid | None:
 
 
 def _signal_name(series: Series) -> str:
-    """A signal's log-schema name, with its description when it has no unit to say it."""
+    """What a signal is, from its log-schema description, and its log-schema name.
+
+    A signal with a unit: the description's first clause (up to its first
+    comma or parenthesis); a count or a code: the whole description (it
+    says what the values mean).
+    """
     name = series.entity.split("/", 1)[1]
-    return name if series.unit or not series.title else f"{name} ({series.title})"
+    if not series.title:
+        return name
+    title = series.title
+    if series.unit:
+        title = re.split(r",\s|\s\(", title, maxsplit=1)[0]
+    name, _, side = name.partition("/")  # a per-foot series: signals/{name}/{side}
+    at = f": {side} foot" if side else ""
+    return f"{title[0].upper()}{title[1:]}{at} ({name})"
 
 
-def _short(part: str, what: str) -> str:
-    """A component's name in a panel's key: without the leg the panel names, L/R otherwise."""
+def _short(part: str, item: str) -> str:
+    """A component's name in a panel's key: without the leg the panel is of, L/R otherwise."""
     if part == "magnitude":
         return "|F|"
     for leg in _LEGS:
         if part.startswith(f"{leg} "):
             rest = part[len(leg) + 1 :]
-            return rest if what.startswith(leg) else f"{leg[0].upper()} {rest}"
+            return rest if item.startswith(leg) else f"{leg[0].upper()} {rest}"
     return part
 
 
@@ -209,8 +250,13 @@ def blueprint_views(path: str | os.PathLike[str]) -> list[dict]:
     ``/view/<uuid>/PlotLegend``).  This returns one dict per view with the
     keys ``class`` (``"3D"``, ``"TimeSeries"``, ``"TextLog"``,
     ``"TextDocument"``), ``name``, ``origin``, ``contents`` (the view's
-    entity query, one rule per item, ``$origin`` as written) and
-    ``legend_visible`` (None when the view does not set it).
+    entity query, one rule per item, ``$origin`` as written),
+    ``legend_visible`` (None when the view does not set it) and
+    ``width_share``: the fraction of the layout's width the view takes
+    (from ``/viewport``'s root container down: a horizontal container gives
+    each child its column share over their sum, equal shares if none are
+    set, a grid 1 / its columns (⌈√n⌉ of n items if not set), tabs and vertical containers the whole
+    width; None for a view the root does not reach).
 
     Raises:
         RecordingError: the file is unreadable or holds no blueprint.
@@ -237,18 +283,30 @@ def blueprint_views(path: str | os.PathLike[str]) -> list[dict]:
         "legend_visible": "PlotLegend:visible",
     }
     found: dict[str, dict] = {}
+    containers: dict[str, dict] = {}
+    root = ""
     for chunk in chunks:
         entity = chunk.entity_path.lstrip("/")
+        batch = chunk.to_record_batch()
+        if entity == "viewport" and "ViewportBlueprint:root_container" in batch.schema.names:
+            value = batch.column("ViewportBlueprint:root_container").to_pylist()[-1]
+            root = f"container/{uuid.UUID(bytes=bytes(value[-1]))}" if value else ""
+        elif entity.startswith("container/"):
+            part = containers.setdefault(entity, {})
+            for key, column in _CONTAINER_COLUMNS.items():
+                if column in batch.schema.names:
+                    value = batch.column(column).to_pylist()[-1]
+                    part[key] = value if key in ("contents", "col_shares") else value[-1]
         if not entity.startswith("view/"):
             continue
         view = found.setdefault(entity.split("/")[1], {})
-        batch = chunk.to_record_batch()
         for key, column in columns.items():
             if column in batch.schema.names:
                 values = batch.column(column).to_pylist()[-1]
                 view[key] = values if key == "contents" else (values[-1] if values else None)
+    shares = _width_shares(root, containers)
     views = []
-    for view in found.values():
+    for view_id, view in found.items():
         if "class" not in view:
             continue
         views.append(
@@ -258,6 +316,45 @@ def blueprint_views(path: str | os.PathLike[str]) -> list[dict]:
                 "origin": str(view.get("origin") or ""),
                 "contents": [str(rule) for rule in view.get("contents") or []],
                 "legend_visible": view.get("legend_visible"),
+                "width_share": shares.get(f"view/{view_id}"),
             }
         )
     return views
+
+
+#: The container components :func:`blueprint_views` reads, and rerun's container kinds.
+_CONTAINER_COLUMNS = {
+    "kind": "ContainerBlueprint:container_kind",
+    "contents": "ContainerBlueprint:contents",
+    "col_shares": "ContainerBlueprint:col_shares",
+    "grid_columns": "ContainerBlueprint:grid_columns",
+}
+_HORIZONTAL, _GRID = 2, 4
+
+
+def _width_shares(root: str, containers: dict[str, dict]) -> dict[str, float]:
+    """Each item (``view/<id>``, ``container/<id>``) below ``root`` → its share of the width."""
+    shares: dict[str, float] = {}
+    todo = [(root, 1.0)] if root in containers else []
+    while todo:
+        entity, share = todo.pop()
+        shares[entity] = share
+        part = containers.get(entity)
+        if part is None:  # a view
+            continue
+        items = list(part.get("contents") or [])
+        if not items:
+            continue
+        kind = part.get("kind")
+        if kind == _HORIZONTAL:
+            given = list(part.get("col_shares") or [])
+            weights = given if len(given) == len(items) else [1.0] * len(items)
+            parts = [share * w / sum(weights) for w in weights]
+        elif kind == _GRID:
+            auto = math.ceil(math.sqrt(len(items)))  # rerun's own choice when none is set
+            columns = max(1, min(int(part.get("grid_columns") or auto), len(items)))
+            parts = [share / columns] * len(items)
+        else:
+            parts = [share] * len(items)
+        todo += [(item, p) for item, p in zip(items, parts, strict=True) if item not in shares]
+    return shares

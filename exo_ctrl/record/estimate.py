@@ -1,11 +1,10 @@
 """Cuff-force estimation after the fact, from a recording or a user's CSV log.
 
-This module reads and writes files; the estimation itself is
-:func:`exo_ctrl.estimation.estimate_series` (the momentum observer,
-:class:`exo_ctrl.estimation.CuffForceEstimator`) or
-:func:`exo_ctrl.estimation.kalman_series` (the Kalman filter on the coupled
-model, :class:`exo_ctrl.estimation.CuffForceKalman`).  :func:`estimate_file`
-runs the same estimator as the live loop along logged sensor readings:
+This module reads and writes files; the estimation is
+:func:`exo_ctrl.estimation.estimate_series` (momentum observer) or
+:func:`exo_ctrl.estimation.kalman_series` (Kalman filter on the coupled
+model).  :func:`estimate_file` runs the live loop's estimator along logged
+sensor readings:
 
 - an ``.rrd`` written by exo_ctrl: the encoder angles ``q_meas``, speeds
   ``dq_meas`` and torque-sensor readings ``tau_sensor`` of every tick, with
@@ -38,6 +37,7 @@ import numpy as np
 import rerun as rr
 
 from .. import _validate as v
+from .._io import atomic_write
 from ..estimation import (
     DEFAULT_GAIN_PER_S,
     ESTIMATORS,
@@ -49,6 +49,7 @@ from ..estimation import (
     read_csv_log,
 )
 from ..estimation.errors import STARTUP_S
+from ..estimation.plausible import implausibility
 from ..exceptions import ExoCtrlError, InvalidLog, InvalidParameter, RecordingError
 from ..model import CUFF_NAMES, JOINT_NAMES, BodyModel, load_exo
 from ..plant import CuffParams
@@ -73,6 +74,16 @@ __all__ = [
 
 #: What the text table shows for a figure that is not given (None in JSON).
 NOT_GIVEN = "\u2014"
+#: Why a CSV log gets no error figures.
+NO_TRUTH_CSV = (
+    "a CSV log holds the sensor readings only, not the true cuff forces to compare the "
+    "estimate with (a simulated run's recording holds them)"
+)
+#: Why a recording without the simulated cuff forces gets no error figures.
+NO_TRUTH_RRD = (
+    "the recording holds no simulated cuff forces to compare the estimate with "
+    "(cuff_force or q missing or not finite)"
+)
 
 
 @dataclass
@@ -95,6 +106,8 @@ class OfflineEstimate:
         warnings: one-line warnings: an incomplete recording, a run too
             short for error figures, another model than the recorded one, an
             estimate the model cannot explain (:mod:`.estimate_checks`).
+        no_accuracy: why there are no error figures ("" when there are):
+            the log holds no true cuff forces, or is too short.
 
     """
 
@@ -103,6 +116,7 @@ class OfflineEstimate:
     errors: dict[str, dict[str, float | None]] = field(default_factory=dict)
     integrity: RecordingIntegrity | None = None
     warnings: list[str] = field(default_factory=list)
+    no_accuracy: str = ""
 
     def summary(self) -> dict[str, Any]:
         """JSON-able figures: the source, estimator and gain, peaks, errors and warnings.
@@ -141,6 +155,8 @@ class OfflineEstimate:
             f"{'cuff':<13}{'peak normal est [N]':>20}"
             + (f"{'rms err [N]':>13}{'rel':>9}{'normal/peak':>13}" if errors else "")
         ]
+        if not errors and self.no_accuracy:
+            lines.insert(0, f"no accuracy figures: {self.no_accuracy}")
         for cuff, peak in summary["peak_cuff_normal_est_N"].items():
             line = f"{cuff:<13}{peak:>20.1f}"
             if errors:
@@ -210,6 +226,7 @@ def read_sensor_log(
     path: str | os.PathLike[str],
     exo: str | os.PathLike[str] | None = None,
     allow_other_exo: bool = False,
+    accept: bool = False,
 ) -> SensorLog:
     """Read the sensor readings of a recording (``.rrd``) or a CSV log, checked.
 
@@ -218,12 +235,14 @@ def read_sensor_log(
     its exoskeleton is the recorded one unless ``exo`` names another
     (refused unless ``allow_other_exo``, :func:`~.estimate_checks.recorded_exo`).
     A CSV log is read by :func:`~exo_ctrl.estimation.read_csv_log` with
-    ``exo`` (default: the committed exoskeleton).
+    ``exo`` (default: the committed exoskeleton) and refused if implausible
+    for it (:func:`~exo_ctrl.estimation.plausible.implausibility`), or, with
+    ``accept``, read with a note saying why it looks wrong.
 
     Raises:
         RecordingError: an unreadable recording, one without sensor readings
             or of fewer than 2 ticks.
-        InvalidLog: a bad CSV log.
+        InvalidLog: a bad CSV log, or an implausible one without ``accept``.
         InvalidParameter: an unknown file type, or an ``exo`` other than the
             recorded one.
 
@@ -232,7 +251,8 @@ def read_sensor_log(
     suffix = p.suffix.lower()
     if suffix == ".csv":
         t, q, dq, tau = read_csv_log(p)
-        return SensorLog(t, q, dq, tau, load_exo(exo))
+        body = load_exo(exo)
+        return SensorLog(t, q, dq, tau, body, notes=plausible(p, t, q, dq, body, accept))
     if suffix != ".rrd":
         raise InvalidParameter("file", str(p), "a .rrd recording or a .csv log")
     result, integrity = read_recording_integrity(p)
@@ -267,6 +287,7 @@ def estimate_file(
     gain_per_s: float | None = None,
     allow_other_exo: bool = False,
     estimator: str | None = None,
+    accept_implausible: bool = False,
 ) -> OfflineEstimate:
     """Estimate the cuff forces along a recording (``.rrd``) or a CSV log.
 
@@ -302,6 +323,8 @@ def estimate_file(
             one it was recorded with.
         estimator: ``"momentum"`` or ``"kalman"`` (None: the recording's;
             momentum for a CSV log).
+        accept_implausible: read a CSV log implausible for the exoskeleton
+            with a warning instead of refusing it (:func:`read_sensor_log`).
 
     Raises:
         RecordingError: an unreadable recording, one without sensor readings
@@ -320,7 +343,7 @@ def estimate_file(
         raise InvalidParameter("estimator", estimator, f"one of {', '.join(ESTIMATORS)}")
     if p.suffix.lower() == ".csv":
         chosen_estimator(estimator, None, gain_per_s)  # refuses kalman before reading
-    log = read_sensor_log(p, exo, allow_other_exo)
+    log = read_sensor_log(p, exo, allow_other_exo, accept_implausible)
     if log.result is not None:
         chosen = chosen_estimator(estimator, log.result.config, gain_per_s)
         return _warn(_from_recording(p, log, gain_per_s, chosen))
@@ -330,8 +353,8 @@ def estimate_file(
     except InvalidLog as exc:  # the file, not "arrays"
         raise InvalidLog(str(p), exc.reason) from None
     stiffness = CuffParams().stiffness_N_per_m
-    notes = beyond_cuff_stretch(p, _peaks(series), stiffness, log.exo)
-    return _warn(OfflineEstimate(str(p), series, warnings=notes))
+    notes = log.notes + beyond_cuff_stretch(p, _peaks(series), stiffness, log.exo)
+    return _warn(OfflineEstimate(str(p), series, warnings=notes, no_accuracy=NO_TRUTH_CSV))
 
 
 def _warn(estimate: OfflineEstimate) -> OfflineEstimate:
@@ -363,6 +386,7 @@ def _from_recording(
             stiffness_ratio=config.cuff_stiffness_ratio,
         )
     errors: dict[str, dict[str, float | None]] = {}
+    why = NO_TRUTH_RRD
     if estimator == "kalman":  # the live run's error figures leave out its first STARTUP_S
         skip = round(STARTUP_S / config.dt)
         startup = f"the start-up the live figures leave out, {skip} ticks ({STARTUP_S:g} s)"
@@ -376,6 +400,7 @@ def _from_recording(
     if truth is not None and np.all(np.isfinite(truth)) and np.all(np.isfinite(s["q"])):
         if n <= max(skip, 1):
             notes.append(f"{path}: {n} ticks, not more than {startup}: no error figures")
+            why = f"{n} ticks, not more than {startup}"
         else:
             found = normal_component_errors(
                 s["q"],
@@ -391,7 +416,7 @@ def _from_recording(
                 errors["cuff_force_estimate_unobservable"] = list(MODEL_DRIVEN)
             notes += worse_than_none(path, found)
     notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)
-    return OfflineEstimate(str(path), series, errors, log.integrity, notes)
+    return OfflineEstimate(str(path), series, errors, log.integrity, notes, "" if errors else why)
 
 
 def _true_exo(result: Any, device_exo: BodyModel) -> BodyModel:
@@ -408,43 +433,61 @@ def _true_exo(result: Any, device_exo: BodyModel) -> BodyModel:
         return device_exo
 
 
+def plausible(
+    p: Path, t: np.ndarray, q: np.ndarray, dq: np.ndarray | None, exo: BodyModel, accept: bool
+) -> list[str]:
+    """Refuse a CSV log implausible for ``exo`` (or, with ``accept``, a note saying why).
+
+    Raises:
+        InvalidLog: naming the first implausible sample's line and column,
+            its value and the limit, unless ``accept``.
+
+    """
+    found = implausibility(t, q, dq, exo)
+    if found is None:
+        return []
+    row, column, reason = found
+    if not accept:
+        line = None if row is None else row + 2  # the header is line 1
+        raise InvalidLog(str(p), f"{reason}; --accept-implausible reads it anyway", line, column)
+    at = "" if row is None else f", line {row + 2}"
+    return [f"{p}{at}, column {column!r}: {reason}; read as it is (--accept-implausible)"]
+
+
 def write_estimate_recording(estimate: OfflineEstimate, path: str | os.PathLike[str]) -> Path:
     """Write an estimate as a rerun recording (entities in the module docstring).
 
+    Rerun encodes it in memory (a few MB per minute of 1 kHz data); the
+    bytes are written whole through a temporary file renamed over ``path``
+    (:func:`exo_ctrl._io.atomic_write`): a failure leaves the previous file.
+
     Raises:
-        RecordingError: the file could not be written.
+        RecordingError: rerun could not encode the recording.
+        OutputError: the file could not be written (disk full).
 
     """
     out = Path(path)
     s = estimate.series
     rec = rr.RecordingStream("exo_ctrl_estimate")
+    stream = rr.binary_stream(recording=rec)
     try:
-        rec.save(str(out))
         times = rr.TimeColumn(TIME, duration=s.t)
+        entities = [(f"cuff_normal/{c}", s.normal[:, i]) for i, c in enumerate(CUFF_NAMES)]
         for i, cuff in enumerate(CUFF_NAMES):
+            entities += [(f"cuff_force/{cuff}/{x}", s.force[:, i, k]) for k, x in enumerate("xz")]
+        entities += [(f"tau_ext/{j}", s.tau_ext[:, i]) for i, j in enumerate(JOINT_NAMES)]
+        for entity, values in entities:
             rec.send_columns(
-                f"estimate/cuff_normal/{cuff}",
-                indexes=[times],
-                columns=rr.Scalars.columns(scalars=s.normal[:, i]),
-            )
-            for k, axis in enumerate("xz"):
-                rec.send_columns(
-                    f"estimate/cuff_force/{cuff}/{axis}",
-                    indexes=[times],
-                    columns=rr.Scalars.columns(scalars=s.force[:, i, k]),
-                )
-        for j, joint in enumerate(JOINT_NAMES):
-            rec.send_columns(
-                f"estimate/tau_ext/{joint}",
-                indexes=[times],
-                columns=rr.Scalars.columns(scalars=s.tau_ext[:, j]),
+                f"estimate/{entity}", indexes=[times], columns=rr.Scalars.columns(scalars=values)
             )
         rec.log(
             "estimate/source", rr.TextDocument(f"estimated from {estimate.source}"), static=True
         )
+        data = stream.read(flush=True)
     except Exception as exc:
         raise RecordingError(f"{out}: could not write the estimate ({exc})") from exc
     finally:
-        rec.flush()
         rec.disconnect()
+    with atomic_write(out, "wb") as handle:
+        handle.write(data or b"")
     return out

@@ -31,7 +31,7 @@ import numpy as np
 from ..estimation import EstimateErrors
 from ..estimation.errors import REL_FLOOR_N
 from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
-from ..model import CUFF_NAMES, JOINT_NAMES, BodyModel, load_exo
+from ..model import CUFF_NAMES, JOINT_NAMES, BodyModel, default_urdf_path, load_exo
 
 __all__ = [
     "STARTUP_TIME_CONSTANTS",
@@ -125,6 +125,9 @@ def recorded_exo(
         )
         return load_exo(exo), [warning]
     if exo is None:
+        default = os.path.realpath(default_urdf_path("exo"))
+        if recorded_source and os.path.realpath(recorded_source) != default:
+            return recorded, [f"{path}: estimated with the exoskeleton it names, {recorded_source}"]
         return recorded, []
     used = load_exo(exo)
     difference = model_difference(used, recorded)

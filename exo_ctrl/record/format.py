@@ -78,6 +78,7 @@ import numpy as np
 
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from ..sim import SimResult, schema
+from ..sim.scenario_file import scenario_toml
 
 __all__ = [
     "FORCE_ARROW_M_PER_N",
@@ -387,6 +388,15 @@ def params_markdown(result: SimResult, meta: dict[str, Any]) -> str:
         "`exo_ctrl.read_recording(path)` rebuilds the run (every signal from the series "
         "that show it, float64, exact; those of the features off in the run, constant, "
         "from `raw/meta`).",
+        "",
+        f"## Scenario (exo_ctrl {meta['package_version']})",
+        "",
+        "`exo-ctrl scenario --from THIS.rrd --out run.toml` writes it; "
+        "`exo-ctrl simulate run.toml` runs it again.",
+        "",
+        "```toml",
+        scenario_toml(config, comments=False).rstrip(),
+        "```",
         "",
     ]
     return "\n".join(lines)

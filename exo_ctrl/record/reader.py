@@ -15,11 +15,10 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import struct
 import tempfile
-import types
-import typing
 import warnings
 from pathlib import Path
 from typing import Any
@@ -27,12 +26,14 @@ from typing import Any
 import numpy as np
 from rerun.chunk import RrdReader
 
+from .. import _validate as v
 from ..estimation import EstimateErrorStats
 from ..exceptions import ExoCtrlError, RecordingError
 from ..model import load_body
 from ..sim import RunStats, SimConfig, SimResult
 from ..sim.gait_score import gait_score_stats
 from ..sim.load_stats import load_stats
+from ..sim.plain import from_plain
 from ..sim.summary import contact_stats, drive_limits
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
 from .stored import assemble, scalar_rows, where_stored
@@ -156,27 +157,18 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
 
     if "raw/meta" not in texts:
         raise RecordingError(f"cannot read recording {p}: not written by exo_ctrl (no raw/meta)")
-    try:
-        meta = json.loads(texts["raw/meta"])
-    except json.JSONDecodeError as exc:
-        raise RecordingError(f"cannot read recording {p}: raw/meta is not JSON ({exc})") from None
+    meta = _loads(p, "raw/meta", texts["raw/meta"])
     if not isinstance(meta, dict) or meta.get("format") != RECORDING_FORMAT:
         raise RecordingError(f"cannot read recording {p}: not an {RECORDING_FORMAT} file")
     config = _config_from_dict(p, meta.get("config", {}))
     shapes = schema_shapes()
-    stored = meta.get("signals") or shapes
-    stored = {k: tuple(int(x) for x in v) for k, v in stored.items()}
+    stored = _declared_shapes(p, meta.get("signals") or shapes, raw)
     signals = assemble(p, stored, *where_stored(p, meta, stored), raw)
     n = next(iter(signals.values())).shape[0] if signals else 0
 
     outcome: dict[str, Any]
     if "raw/outcome" in texts:
-        try:
-            outcome = json.loads(texts["raw/outcome"])
-        except json.JSONDecodeError as exc:
-            raise RecordingError(
-                f"cannot read recording {p}: raw/outcome is not JSON ({exc})"
-            ) from None
+        outcome = _loads(p, "raw/outcome", texts["raw/outcome"])
     else:
         message = (
             f"the recording ends at t = {n * config.dt:.4f} s without an end record "
@@ -215,6 +207,47 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
         ticks_planned=int(meta.get("n_ticks_planned", config.n_ticks)),
     )
     return result, integrity
+
+
+def _loads(p: Path, entity: str, text: str) -> Any:
+    """A metadata document's JSON, its nesting checked before Python's parser recurses."""
+    deep = v.json_depth_problem(text)
+    if deep:
+        raise RecordingError(f"cannot read recording {p}: {entity} is {deep}")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise RecordingError(f"cannot read recording {p}: {entity} is not JSON ({exc})") from None
+
+
+def _declared_shapes(p: Path, declared: Any, raw: dict[str, list]) -> dict[str, tuple[int, ...]]:
+    """The signals' shapes raw/meta declares, checked before any array is allocated.
+
+    Each is a list of at most 4 integers ≥ 0; every signal at its shape for
+    as many ticks as the file holds rows must fit the 1 GiB memory cap
+    (:func:`exo_ctrl._validate.allocation`).
+    """
+    bad = f"cannot read recording {p}: raw/meta declares"
+    if not isinstance(declared, dict):
+        raise RecordingError(f"{bad} its signals as {type(declared).__name__}, not a mapping")
+    shapes: dict[str, tuple[int, ...]] = {}
+    for name, shape in declared.items():
+        ok = isinstance(shape, (list, tuple)) and len(shape) <= 4
+        if not (ok and all(type(x) is int and x >= 0 for x in shape)):
+            raise RecordingError(
+                f"{bad} signal {name!r} of shape {str(shape)[:80]}: at most 4 integers >= 0"
+            )
+        shapes[str(name)] = tuple(shape)
+    rows = max((sum(len(t) for t, _ in parts) for parts in raw.values()), default=0)
+    per_tick = sum(math.prod(shape) for shape in shapes.values())
+    need = max(rows, 1) * 8 * per_tick
+    if need > v.MAX_ALLOCATION_BYTES:
+        raise RecordingError(
+            f"{bad} signals of {per_tick:,} values a tick: {max(rows, 1):,} ticks would need "
+            f"{v.format_bytes(need)}, beyond the {v.format_bytes(v.MAX_ALLOCATION_BYTES)} "
+            "memory cap"
+        )
+    return shapes
 
 
 def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
@@ -305,78 +338,6 @@ def _copy_bytes(src: Any, dst: Any, n: int, block: int = 1 << 20) -> None:
         n -= len(data)
 
 
-def _field_types(cls: type) -> dict[str, Any]:
-    """The resolved annotations of a dataclass's fields (``{}`` if they cannot be resolved)."""
-    try:
-        return typing.get_type_hints(cls)
-    except (NameError, TypeError):  # an annotation naming what the module cannot see
-        return {}
-
-
-def _default_type(f: dataclasses.Field) -> type | None:
-    """The dataclass a field holds, judged from its default (factory or value)."""
-    factory = f.default_factory
-    if isinstance(factory, type) and dataclasses.is_dataclass(factory):
-        return factory
-    if dataclasses.is_dataclass(f.default) and not isinstance(f.default, type):
-        return type(f.default)
-    return None
-
-
-def _is_dataclass_type(hint: Any) -> bool:
-    return isinstance(hint, type) and dataclasses.is_dataclass(hint)
-
-
-def _coerce(hint: Any, value: Any) -> Any:
-    """``value`` from its ``asdict``/JSON form back to the type the annotation ``hint`` names.
-
-    A dict for a dataclass (also one of ``X | None`` or ``X | Y``) becomes
-    that dataclass, recursively; a list for a tuple becomes a tuple, its items
-    converted by the tuple's item types (``tuple[X, ...]``, ``tuple[X, Y]``).
-    Anything else is returned as it is: the dataclass's own checks judge it.
-    """
-    if _is_dataclass_type(hint):
-        return _from_dict(hint, value) if isinstance(value, dict) else value
-    origin = typing.get_origin(hint)
-    args = typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType):
-        if value is None:
-            return None
-        if isinstance(value, dict):
-            classes = [a for a in args if _is_dataclass_type(a)]
-            return _from_dict(classes[0], value) if len(classes) == 1 else value
-        if isinstance(value, list):
-            tuples = [a for a in args if a is tuple or typing.get_origin(a) is tuple]
-            return _coerce(tuples[0], value) if len(tuples) == 1 else tuple(value)
-        return value
-    if isinstance(value, list):
-        if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_coerce(args[0], item) for item in value)
-        if origin is tuple and args and len(args) == len(value):
-            return tuple(_coerce(a, item) for a, item in zip(args, value, strict=True))
-        return tuple(value)
-    return value
-
-
-def _from_dict(cls: type, data: dict[str, Any]) -> Any:
-    """Build a (nested) dataclass from its ``asdict`` form; unknown keys are ignored.
-
-    Each field is converted by its annotation (:func:`_coerce`), so nested
-    dataclasses, ``X | None`` ones and tuples of them come back as they were
-    written; a field whose annotation cannot be resolved falls back to the
-    dataclass of its default.
-    """
-    hints = _field_types(cls)
-    kwargs = {}
-    for f in dataclasses.fields(cls):
-        if f.name not in data or not f.init:
-            continue
-        value = data[f.name]
-        hint = hints.get(f.name, _default_type(f))
-        kwargs[f.name] = _coerce(hint, value)
-    return cls(**kwargs)
-
-
 def _session_sets_belt_speeds(data: dict[str, Any]) -> bool:
     """The recorded session (``asdict`` form) has a segment with a belt speed."""
     session = data.get("session")
@@ -392,7 +353,7 @@ def _config_from_dict(path: Path, data: dict[str, Any]) -> SimConfig:
         # and refuses one given beside them: the session rebuilds it.
         data = {key: value for key, value in data.items() if key != "speed_profile"}
     try:
-        return _from_dict(SimConfig, data)
+        return from_plain(SimConfig, data)
     except (ExoCtrlError, TypeError, ValueError) as exc:
         raise RecordingError(
             f"cannot read recording {path}: its config is invalid ({exc})"

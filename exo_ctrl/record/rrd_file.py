@@ -27,7 +27,16 @@ writer process itself, or the machine losing power, both of which leave
 the file readable up to its last complete append.  A special file
 (``/dev/null``, a FIFO) cannot be rewritten in place: it is written
 directly, the messages as they come and the footer once, at
-:meth:`RrdFile.close`.
+:meth:`RrdFile.close` (opened without blocking forever:
+:func:`exo_ctrl._io.open_special`).
+
+Nothing lost.  A regular file is written as ``NAME.partial.rrd`` beside
+``NAME.rrd`` (:func:`exo_ctrl._io.partial_path`), locked while it is written
+(:func:`exo_ctrl._io.claim_partial`: a second process writing the same path
+fails at its start), and renamed over ``NAME.rrd`` by :meth:`RrdFile.close`
+when the run is to be published: a previous recording at ``NAME.rrd`` stays
+whole until then, and a killed run leaves it as it was beside a readable
+``NAME.partial.rrd``.
 """
 
 from __future__ import annotations
@@ -44,7 +53,7 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-from .._io import is_special
+from .._io import claim_partial, is_special, open_special, partial_path
 from ..exceptions import RecordingError
 from .rrd_footer import HEADER_SIZE, Manifests, end_of_stream, split_stream
 from .write_process import ANSWER, REQUEST
@@ -59,18 +68,27 @@ class RrdFile:
     """An ``.rrd`` file the recorder writes: whole messages, a footer after every append.
 
     Args:
-        path: the file (created or truncated; a special file is opened as it is).
+        path: the file; a regular file is written as its partial file
+            (:attr:`partial`, created or emptied, locked) and renamed over
+            ``path`` by :meth:`close`; a special file is opened as it is.
+
+    Attributes:
+        partial: the file being written (None for a special file).
+        written: where the recording is: :attr:`partial` until it is
+            renamed over ``path``, then ``path``.
 
     Raises:
-        OSError: the file cannot be opened.
+        OSError: the file cannot be opened; ``EBUSY`` when another process
+            is writing the same path.
 
     """
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         self.special = is_special(self.path)
-        flags = os.O_WRONLY | (0 if self.special else os.O_CREAT | os.O_TRUNC)
-        self._fd: int | None = os.open(self.path, flags | os.O_CLOEXEC, 0o666)
+        self.partial: Path | None = None if self.special else partial_path(self.path)
+        self._fd: int | None = open_special(self.path) if self.special else claim_partial(path)
+        self.written: Path = self.partial or self.path
         self._writer: subprocess.Popen | None = None
         self._shared: _Shared | None = None
         if not self.special:
@@ -170,11 +188,16 @@ class RrdFile:
             self._header = self._header or header
             self._end, self._tail = end, tail
 
-    def close(self) -> None:
+    def close(self, publish: bool = True) -> None:
         """Finish the file (a special file gets its footer now) and close it; idempotent.
 
+        Args:
+            publish: rename the partial file over the path (else it stays,
+                whole, as :attr:`partial`: an interrupted run).  The rename
+                comes before the lock is released.
+
         Raises:
-            OSError: writing the footer failed.
+            OSError: writing the footer or renaming failed.
 
         """
         if self._fd is None:
@@ -183,11 +206,17 @@ class RrdFile:
             self.wait()
             if self.special and self._header is not None:
                 self._write([end_of_stream(self._manifests.encode(), self._end)], self._end)
+            elif publish and self.partial is not None:
+                os.replace(self.partial, self.path)
+                self.written = self.path
         finally:
             self.abandon()
 
     def abandon(self) -> None:
-        """Close the file without writing anything more (after a failed write)."""
+        """Close the file without writing anything more (after a failed write).
+
+        A partial file left empty (nothing was written) is removed.
+        """
         fd, self._fd = self._fd, None
         writer, self._writer = self._writer, None
         if writer is not None:
@@ -195,6 +224,11 @@ class RrdFile:
         shared, self._shared = self._shared, None
         if shared is not None:
             shared.close()
+        if fd is not None and self.partial is not None and self.written == self.partial:
+            with contextlib.suppress(OSError):
+                st = os.fstat(fd)
+                if st.st_size == 0 and os.path.samestat(st, os.lstat(self.partial)):
+                    os.unlink(self.partial)
         if fd is not None:
             with contextlib.suppress(OSError):
                 os.close(fd)

@@ -46,9 +46,19 @@ class OperatingPoints:
         speed: joint speeds [rad/s], (N, 4).
         torque: drive torques at the joint [N·m], (N, 4).
 
+    Raises:
+        MissingDependency: matplotlib, which draws them, is not installed:
+            said before the run, not after it.
+
     """
 
     def __init__(self) -> None:
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise MissingDependency(
+                f"the torque-speed plot needs matplotlib: {PLOTS_HINT}"
+            ) from None
         self._speed: list[np.ndarray] = []
         self._torque: list[np.ndarray] = []
         self._stride = 1

@@ -22,10 +22,11 @@ series ``signals/`` and its 3-D scene, by the
 time the next chunk is handed over, :meth:`~RerunRecorder.sync` or
 :meth:`~RerunRecorder.finish` returns, so a hard kill loses at most the
 chunk being written; with ``write_behind=False`` it is on disk when
-:meth:`~RerunRecorder.chunk` returns.  The file is written in place at its
-final path, not to a temporary file renamed at the end, so that what a
-crash leaves is where the user looks; a previous recording at the same path
-is replaced as soon as the run starts.  A write error (disk full) is an
+:meth:`~RerunRecorder.chunk` returns.  The file is ``NAME.partial.rrd``
+while the run goes, renamed over ``NAME.rrd`` once the run has ended,
+unless it was interrupted (Ctrl-C, SIGTERM): a previous recording is never
+cut, and a killed run leaves the partial file (:attr:`~RerunRecorder.written`
+names it; :mod:`.rrd_file`).  A write error (disk full) is an
 ``OSError`` of the recorder's, raised as an
 :class:`~exo_ctrl.exceptions.OutputError` naming the path and the ticks the
 file keeps (the failed write is undone: the file is whole up to them);
@@ -34,28 +35,19 @@ exits cleanly.  Every way a run ends (normal end, divergence, Ctrl-C,
 SIGTERM, an error in the loop or in an observer) reaches
 :meth:`~RerunRecorder.finish`, which logs the events and the outcome.
 
-Speed.  Measured here (rerun 0.41, 2 cores shared with other work, CT,
-default run), a 2000-tick chunk costs the loop's thread 5 ms of CPU (8-10
-ms of wall time on a loaded machine): about 55-90 µs per ``send_columns``
-call (35 series, 15 scene entities), the copy into the series' vector
-(1 ms), the scene's forward kinematics; then the helper thread 12-18 ms
-(rerun's encoding 9-11 ms, the footer 3-6 ms) and the writer process 2 ms.
-Rerun's cost is per entity and row (each row of an entity carries a row id
-and both timelines, 36 B, against 8 B per value), so the entity count is
-what a recording costs: format version 1 (every signal twice, under
-``raw/`` too, and the 31 entities of the features off in the run) cost the
-loop's thread 15-20 ms and the helper 30-37 ms per chunk.  While the helper
-runs, the loop runs at about half speed on a loaded machine (the other core
-busy, and each time the helper takes the interpreter lock back from the
-loop, 1-3 ms): 20 ms of the loop's time per chunk, 40 with version 1.
+Speed.  Measured here (rerun 0.41, 2 shared cores, CT, default run), a
+2000-tick chunk costs the loop's thread 5 ms of CPU (8-10 ms wall, loaded):
+55-90 µs per ``send_columns`` call (35 series, 15 scene entities), the copy
+(1 ms), the scene's kinematics; the helper thread 12-18 ms (encoding 9-11
+ms, footer 3-6 ms), the writer process 2 ms.
+Rerun's cost is per entity and row (36 B of row id and timelines against 8
+B a value).  While the helper runs, the loop runs at about half speed on a
+loaded machine (the helper takes the interpreter lock back, 1-3 ms each
+time): 20 ms of the loop's time per chunk.
 
-Memory.  The recorder keeps no rows between chunks: it copies the chunk it
-is given into arrays of pyarrow's memory pool, sends them, and rerun frees
-them once encoded; the encoded bytes are written and dropped at each chunk.
-What grows is the footer's index, one row per entity and chunk (about 50
-rows per chunk, a few hundred bytes each before compression), held as an
-Arrow table and rewritten compressed after every chunk; larger
-``chunk_ticks`` shrink it.
+Memory.  No rows are kept between chunks (copied to pyarrow, sent, freed
+once encoded and written); what grows is the footer's index, about 50 rows
+of a few hundred bytes per chunk (larger ``chunk_ticks`` shrink it).
 """
 
 from __future__ import annotations
@@ -74,8 +66,10 @@ import numpy as np
 import rerun as rr
 
 from .._io import is_special, output_problem
+from .._version import __version__
 from ..exceptions import InvalidParameter, OutputError, RecordingError
 from ..model import BodyModel, load_body, load_patient
+from ..scenario.load import RecordingParams
 from ..sim import SimResult
 from .blueprint import make_blueprint
 from .columns import EntityBatch, SignalColumns, log_styles
@@ -104,7 +98,7 @@ __all__ = [
 ]
 
 #: Default rate of the 3-D scene [Hz]: a display rate, far below the control rate.
-DEFAULT_SCENE_RATE_HZ = 50.0
+DEFAULT_SCENE_RATE_HZ = RecordingParams().scene_rate_hz
 #: Longest wait for rerun to encode what was sent [s] (a 2000-tick chunk takes
 #: milliseconds); past it rerun raises, which becomes a RecordingError.
 FLUSH_TIMEOUT_S = 10.0
@@ -114,7 +108,7 @@ class RerunRecorder:
     """Writes a run to a rerun ``.rrd`` file as it goes (a SimObserver).
 
     Args:
-        path: the ``.rrd`` file to write (replaced if it exists).
+        path: the ``.rrd`` file to write (replaced, once the run ends, if it exists).
         spawn: also stream to a rerun viewer started for the purpose.
         app_id: rerun application id.
         scene_rate_hz: rate of the 3-D scene [Hz] (the ticks k with k mod
@@ -153,6 +147,9 @@ class RerunRecorder:
         self._stream: rr.BinaryStream | None = None
         self._file: RrdFile | None = None
         self._failed = False
+        self._publish = True  # rename the partial file over the path at close()
+        #: Where the last run's recording is (the partial file until it is renamed).
+        self.written = self.path
         # The helper thread that writes chunks behind the loop, its queue of
         # jobs (the ticks on disk once done; None: stop), and "no job pending".
         self._worker: threading.Thread | None = None
@@ -196,6 +193,7 @@ class RerunRecorder:
         )
         try:
             file = RrdFile(self.path)
+            self.written, self._publish = file.written, True
         except OSError as exc:
             raise RecordingError(f"cannot write recording {self.path}: {exc.strerror}") from None
         rec = rr.RecordingStream(self.app_id)
@@ -203,7 +201,8 @@ class RerunRecorder:
         sinks: list = [stream]
         if self.spawn and self._spawn_viewer(rec):
             sinks.append(rr.GrpcSink())
-        rec.set_sinks(*sinks, default_blueprint=make_blueprint(self._columns.layout))
+        rec.set_sinks(*sinks)  # the blueprint active: a viewer's own layout replaced (0.41)
+        rec.send_blueprint(make_blueprint(self._columns.layout), make_active=True)
         self._rec, self._stream, self._file = rec, stream, file
         chunk = min(config.chunk_ticks, max(config.n_ticks, 1))  # a chunk's bytes, ahead
         file.reserve(chunk * bytes_per_tick(len(self._columns.layout.series), self._stride))
@@ -276,6 +275,7 @@ class RerunRecorder:
         error: BaseException | None = None
         try:
             error = self._join()
+            self._publish = result.status != "interrupted"  # else the previous file stays
             if error is None and not self._failed:
                 log_outcome(rec, result, self._next_tick, self._dt)
                 self._write()
@@ -322,9 +322,11 @@ class RerunRecorder:
             file.abandon()
             return
         try:
-            file.close()
+            file.close(self._publish)
         except OSError as exc:
             self._fail(exc)
+        finally:
+            self.written = file.written
 
     def _write(self, wait: bool = True) -> None:
         """Write what rerun encoded since the last write (whole messages and a footer).
@@ -410,7 +412,8 @@ class RerunRecorder:
         """
         self._failed = True
         kept = self._on_disk
-        held = f"the file holds ticks 0-{kept - 1}, readable" if kept else "no tick was recorded"
+        file = self.written if self.written != self.path else "the file"
+        held = f"{file} holds ticks 0-{kept - 1}, readable" if kept else "no tick was recorded"
         if isinstance(exc, OSError) and not isinstance(exc, OutputError):
             reason = exc.strerror or str(exc)
             if not is_special(self.path):
@@ -449,6 +452,7 @@ class RerunRecorder:
             "format": RECORDING_FORMAT,
             "version": FORMAT_VERSION,
             "config": config.to_dict(),
+            "package_version": __version__,
             "dt": config.dt,
             "n_ticks_planned": config.n_ticks,
             "belt_speed_mps": result.belt_speed_mps,

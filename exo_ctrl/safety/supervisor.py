@@ -115,8 +115,8 @@ class SafetySupervisor:
         use_estimate: the cuff forces given to :meth:`step` are estimates (event wording).
         ramp_s: duration of the ramp [s] (0: switch at once; to a yield at most its ramp_s).
         hold_tolerance_rad: largest posture error during the hold [rad].
-        hold_kp: hold PD proportional gain [V/rad] (default: the PD gain, 100).
-        hold_kd: hold PD derivative gain [V·s/rad] (default: the PD gain, 2).
+        hold_kp: hold PD proportional gain [V/rad] (default 100; tracking PD: 300).
+        hold_kd: hold PD derivative gain [V·s/rad] (default 2; tracking PD: 5).
         event_interval_s: after the stop, a violation of the same channel is
             logged at most once per this interval [s].
         sensors: the sensors' parameters, for the plausibility monitors'

@@ -49,13 +49,23 @@ Either way the device's models are objects of their own, never the plant's.
 
 from __future__ import annotations
 
+import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from .. import _validate as v
 from ..exceptions import InvalidParameter
-from ..model import SEXES, BodyModel, load_exo, load_patient, nominal_patient, write_urdf
+from ..model import (
+    SEXES,
+    BodyModel,
+    default_urdf_path,
+    load_exo,
+    load_patient,
+    nominal_patient,
+    write_urdf,
+)
+from ..model.anthropometry import body_mass_from_legs, stature_from_legs
 from ..plant import BeltParams, ContactParams, CuffParams, MotorParams
 
 __all__ = [
@@ -196,6 +206,67 @@ def device_exo(belief: Belief, exo_path: str | None) -> BodyModel:
     return load_exo(belief.exo if belief.exo is not None else exo_path)
 
 
+def is_default_patient(patient_path: str | os.PathLike[str] | None) -> bool:
+    """Whether ``patient_path`` names the committed default patient (None, or its file)."""
+    if patient_path is None:
+        return True
+    default = default_urdf_path("patient")
+    try:
+        return os.path.samefile(patient_path, default)
+    except (OSError, TypeError, ValueError):
+        return False
+
+
+def nominal_stature(
+    belief: Belief, patient_path: str | None, true_patient: BodyModel
+) -> tuple[float, float, list[str]]:
+    """The stature [m] and body mass [kg] the nominal patient is built for, and notes on them.
+
+    Given values are taken; for the default patient (also named by its
+    file) the paper's 1.75 m and 80 kg; for a patient URDF, what is not given
+    is read from it, and a note says so: the stature whose de Leva thigh and
+    shank make the URDF's leg length, the body mass whose de Leva leg share
+    is the URDF's mass (a clinic weighs the patient and measures the legs).
+
+    Raises:
+        InvalidParameter: example-robot-data's human (a whole body) without
+            the stature and mass.
+
+    """
+    height, mass = belief.patient_height_m, belief.patient_mass_kg
+    if is_default_patient(patient_path):
+        height = height if height is not None else PAPER_PATIENT["height_m"]
+        mass = mass if mass is not None else PAPER_PATIENT["mass_kg"]
+        return height, mass, []
+    if patient_path == "human" and (height is None or mass is None):
+        missing = "patient_height" if height is None else "patient_mass"
+        raise InvalidParameter(
+            missing,
+            None,
+            "given for a nominal model of example-robot-data's human (a whole body)",
+            "the device's nominal patient is built from the stature and body mass "
+            "(--set belief.patient_height_m=M --set belief.patient_mass_kg=KG); "
+            'belief.patient = "truth" gives the device the true patient (the ideal comparison)',
+        )
+    notes = []
+    leg = true_patient.legs["left"]
+    if height is None:
+        height = stature_from_legs(leg.thigh_length, leg.shank_length, belief.patient_sex)
+        notes.append(
+            f"the nominal patient's stature, {height:.3f} m, is the one whose de Leva thigh and "
+            f"shank make the patient URDF's {leg.thigh_length + leg.shank_length:.3f} m leg "
+            "(belief.patient_height_m sets it)"
+        )
+    if mass is None:
+        mass = body_mass_from_legs(true_patient.mass, belief.patient_sex)
+        notes.append(
+            f"the nominal patient's body mass, {mass:.1f} kg, is the patient URDF's "
+            f"{true_patient.mass:.2f} kg of legs over de Leva's leg share "
+            "(belief.patient_mass_kg sets it)"
+        )
+    return height, mass, notes
+
+
 def device_patient(belief: Belief, patient_path: str | None, true_patient: BodyModel) -> BodyModel:
     """The patient model the device holds, loaded anew (the truth's file, a URDF, or nominal).
 
@@ -205,8 +276,8 @@ def device_patient(belief: Belief, patient_path: str | None, true_patient: BodyM
         true_patient: the true patient's model, for its measured leg lengths only.
 
     Raises:
-        InvalidParameter: a nominal model of a patient other than the
-            default without its height and mass.
+        InvalidParameter: a nominal model of example-robot-data's human
+            without its height and mass (:func:`nominal_stature`).
         ExoCtrlError: a URDF that cannot be loaded.
 
     """
@@ -214,19 +285,7 @@ def device_patient(belief: Belief, patient_path: str | None, true_patient: BodyM
         return load_patient(patient_path)
     if belief.patient != "nominal":
         return load_patient(belief.patient)
-    height, mass = belief.patient_height_m, belief.patient_mass_kg
-    if patient_path is not None and (height is None or mass is None):
-        missing = "patient_height" if height is None else "patient_mass"
-        raise InvalidParameter(
-            missing,
-            None,
-            "given for a nominal model of a patient other than the paper's",
-            "the device's nominal patient is built from the stature and body mass "
-            "(--patient-height M --patient-mass KG); --controller-patient truth gives the "
-            "device the true patient instead (the ideal comparison)",
-        )
-    height = height if height is not None else PAPER_PATIENT["height_m"]
-    mass = mass if mass is not None else PAPER_PATIENT["mass_kg"]
+    height, mass, _ = nominal_stature(belief, patient_path, true_patient)
     leg = true_patient.legs["left"]
     params = nominal_patient(leg.thigh_length, leg.shank_length, height, mass, belief.patient_sex)
     with tempfile.TemporaryDirectory(prefix="exo_ctrl_nominal_") as folder:

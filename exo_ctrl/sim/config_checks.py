@@ -16,6 +16,7 @@ from .. import _validate as v
 from ..control.modes import MODES
 from ..exceptions import InvalidParameter
 from ..plan import PLAN_BYTES_PER_SAMPLE, SpeedProfile
+from ..plan.ramp import ramp_time
 from ..plant import PelvisParams
 
 __all__ = [
@@ -91,7 +92,7 @@ def check_estop(config: Any) -> None:
 
 def check_ramp_in(config: Any) -> None:
     """Refuse a ramp-in time that is not a number >= 0 or does not fit in the run."""
-    t_in = v.non_negative("ramp_in", config.ramp_in_s, "s")
+    t_in = ramp_time("ramp_in", config.ramp_in_s)
     room = config.duration_s - config.ramp_out_s
     if t_in > room:
         out = config.ramp_out_s

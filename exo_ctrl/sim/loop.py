@@ -99,6 +99,7 @@ def _run(
         belt_speed_mps=config.gait.belt_speed,
         exo_source=setup.exo.source,
         patient_source=setup.patient.source,
+        warnings=list(setup.warnings),
         stats=RunStats(
             EstimateErrorStats(setup.exo, config.dt),
             contact_stats(config),

@@ -7,7 +7,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .._version import __version__
 from .config import SimConfig
+from .scenario_file import scenario_toml
 from .summary import RunStats
 
 __all__ = ["SimObserver", "SimResult"]
@@ -48,6 +50,8 @@ class SimResult:
         qp_failures: the QP's fallbacks.
         energy: the drives' energy books (:func:`exo_ctrl.plant.energy.energy_report`):
             ``energy_J`` per joint and ``energy_balance_residual_rel``.
+        warnings: what to know before trusting the figures, one sentence each
+            (a device that does not fit its patient; :attr:`~exo_ctrl.sim.Setup.warnings`).
 
     """
 
@@ -65,6 +69,7 @@ class SimResult:
     safety_state: str = "normal"
     qp_failures: int = 0
     energy: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
     stats: RunStats = field(default_factory=RunStats, repr=False)
 
     def __getattr__(self, name: str) -> np.ndarray:
@@ -84,5 +89,15 @@ class SimResult:
         return self.stats.ticks * self.config.dt
 
     def summary(self) -> dict[str, Any]:
-        """The run's figures (JSON-able); keys in :meth:`RunStats.summary`."""
-        return self.stats.summary(self)
+        """The run's figures (JSON-able); keys in :meth:`RunStats.summary`.
+
+        Also ``warnings`` (:attr:`warnings`), ``version`` (exo_ctrl's) and
+        ``scenario``: the complete scenario file of the run, values only
+        (:func:`~exo_ctrl.sim.scenario_file.scenario_toml`), which
+        ``exo-ctrl simulate`` runs again to the same figures.
+        """
+        out = self.stats.summary(self)
+        out["warnings"] = list(self.warnings)
+        out["version"] = __version__
+        out["scenario"] = scenario_toml(self.config, comments=False)
+        return out

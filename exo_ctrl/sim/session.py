@@ -269,6 +269,10 @@ def _number(name: str, value: object) -> float:
     return v.finite(name, value)
 
 
+#: The longest session file read [characters] (a segment takes about 60).
+MAX_SESSION_BYTES = 1 << 20
+
+
 def load_session(path: str, blend_s: float = 0.1) -> SessionParams:
     """Read a session file (module docstring).
 
@@ -287,7 +291,15 @@ def load_session(path: str, blend_s: float = 0.1) -> SessionParams:
         raise InvalidParameter("session", path, "an existing JSON file", why)
     try:
         with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
+            text = fh.read(MAX_SESSION_BYTES + 1)
+        if len(text) > MAX_SESSION_BYTES:
+            raise InvalidParameter(
+                "session", path, "a JSON list of segments", f"over {MAX_SESSION_BYTES:,} characters"
+            )
+        deep = v.json_depth_problem(text)
+        if deep:
+            raise InvalidParameter("session", path, "a JSON list of segments", deep)
+        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InvalidParameter(
             "session", path, "a JSON list of segments", f"line {exc.lineno}: {exc.msg}"

@@ -24,6 +24,7 @@ from ..control.modes import InteractionController, PathController
 from ..control.stance_load import StanceLoad
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
+from ..model.fit import fit_warnings
 from ..plan import (
     NO_TAIL,
     GaitPlan,
@@ -44,7 +45,7 @@ from ..plant import (
 from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
 from ..plant.pelvis import moving_mass_kg
-from .belief import device_exo, device_patient
+from .belief import device_exo, device_patient, nominal_stature
 from .config import SimConfig
 from .session import session_controller
 from .sync import online_gait, set_speeds
@@ -89,6 +90,10 @@ class Setup:
     #: The online gait generator whose one-row plan is ``plan`` (``config.synced``;
     #: :mod:`exo_ctrl.sim.sync`), stepped by the tick with the belt encoder's reading.
     online: OnlineGait | None = None
+    #: What the user should know before trusting the run's figures, one sentence
+    #: each: a device that does not fit its patient (:func:`~exo_ctrl.model.fit.fit_warnings`),
+    #: what the nominal patient was read from (:func:`~.belief.nominal_stature`).
+    warnings: tuple[str, ...] = ()
 
 
 def build(config: SimConfig) -> Setup:
@@ -189,7 +194,16 @@ def build(config: SimConfig) -> Setup:
         model_motor,
         belt_speed,
         online,
+        tuple(run_warnings(config, exo, fitted)),
     )
+
+
+def run_warnings(config: SimConfig, exo: BodyModel, fitted: BodyModel) -> list[str]:
+    """The run's warnings (:attr:`Setup.warnings`): the fit, then the nominal patient's notes."""
+    out = fit_warnings(exo, fitted)
+    if config.belief.patient == "nominal":
+        out += nominal_stature(config.belief, config.patient, fitted)[2]
+    return out
 
 
 def _tracking(

@@ -23,6 +23,7 @@ __all__ = [
     "RunStats",
     "contact_stats",
     "drive_limits",
+    "peak_force_magnitudes",
 ]
 
 #: The event kinds a summary lists as ``safety_events``: the supervisor's
@@ -85,6 +86,8 @@ class RunStats:
         #: The drives' limits (:func:`drive_limits`; none: infinite) and the ticks at each.
         self._limits = np.full((3, 4), np.inf) if limits is None else np.asarray(limits, float)
         self._at_limit = np.zeros((3, 4))
+        #: Peak magnitude of each cuff's estimated force [N] (:func:`peak_force_magnitudes`).
+        self._peak_est = np.zeros(4)
 
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
@@ -102,6 +105,9 @@ class RunStats:
             self.gait.update(rows, self.ticks)
         self.ticks += rows["q"].shape[0]
         _accumulate(*self._accumulate_args(rows))
+        np.maximum(
+            self._peak_est, peak_force_magnitudes(rows["cuff_force_est"]), out=self._peak_est
+        )
 
     def preload(self, rows: dict[str, np.ndarray]) -> None:
         """Load the compiled kernels for rows of these arrays' types (before a timed run)."""
@@ -129,6 +135,8 @@ class RunStats:
         joint: the shares of the ticks the drive was clipped at the rated
         effort or the driver's current limit, as in ``drive_sizing``),
         ``peak_cuff_force_N`` (magnitude of the sagittal force, keyed by cuff),
+        ``peak_cuff_force_est_N`` (the same of the live estimate, every tick,
+        :func:`peak_force_magnitudes`),
         ``rms_motor_current_A`` (what heats a motor) and
         ``peak_joint_speed_rad_s`` (keyed by joint), ``drive_sizing`` (per
         joint, the figures that size a drive: peak and RMS joint torque,
@@ -181,6 +189,7 @@ class RunStats:
             "share_at_torque_limit": _keyed(self._at_limit[0] / n, JOINT_NAMES),
             "share_at_current_limit": _keyed(self._at_limit[1] / n, JOINT_NAMES),
             "peak_cuff_force_N": _keyed(cuff, CUFF_NAMES),
+            "peak_cuff_force_est_N": _keyed(self._peak_est, CUFF_NAMES),
             "qp_failures": result.qp_failures,
             "safety_state": result.safety_state,
             "safety_events": [e for e in result.events if e.get("kind") in SAFETY_EVENT_KINDS],
@@ -400,6 +409,19 @@ def _accumulate(q, q_des, tau, current, voltage, dq, cuff_force, sums, peaks, li
             fx, fz = cuff_force[r, j, 0], cuff_force[r, j, 1]
             peaks[5, j] = max(peaks[5, j], math.sqrt(fx * fx + fz * fz))
             peaks[6, j] = max(peaks[6, j], abs(dq[r, j]))
+
+
+def peak_force_magnitudes(force: np.ndarray) -> np.ndarray:
+    """Peak magnitude of each force over rows: max over n of √(f_x² + f_z²) [N], (k,).
+
+    Args:
+        force: sagittal forces (x, z) [N], (n, k, 2); no rows gives zeros.
+
+    """
+    f = np.asarray(force, dtype=float)
+    if f.shape[0] == 0:
+        return np.zeros(f.shape[1])
+    return np.hypot(f[..., 0], f[..., 1]).max(axis=0)
 
 
 def drive_limits(config: SimConfig, effort: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ import argparse
 import concurrent.futures as cf
 import os
 import sys
+from collections.abc import Sequence
 from typing import Any
 
 from .._io import OUTPUT_ALLOWED, output_problem
@@ -125,8 +126,11 @@ def _dask_executor(address: str) -> tuple[cf.Executor, int, Any]:
     return client.get_executor(pure=False), workers, client
 
 
-def check_sweep_outputs(out: str) -> SweepPaths:
+def check_sweep_outputs(out: str, names: Sequence[str] = ()) -> SweepPaths:
     """The files of a sweep to ``out``, each checked as an output.
+
+    ``names``: the swept parameters whose load diagrams will be written
+    (``DIR/NAME.load_PARAM.png``), checked too.
 
     Raises:
         InvalidParameter: ``out`` does not end in .parquet, or one of the
@@ -137,7 +141,8 @@ def check_sweep_outputs(out: str) -> SweepPaths:
         paths = SweepPaths.for_output(out)
     except InvalidParameter as exc:
         raise InvalidParameter("--out", out, exc.allowed) from None
-    for path in (paths.table, paths.csv, paths.journal, paths.report):
+    plots = [paths.plot(name) for name in names if name != "controller"]
+    for path in (paths.table, paths.csv, paths.journal, paths.report, *plots):
         problem = output_problem(path)
         if problem is not None:
             raise InvalidParameter("--out", out, OUTPUT_ALLOWED, problem)
@@ -172,7 +177,8 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         cycles=args.cycles,
         base=base,
     )
-    paths = check_sweep_outputs(args.out)  # before any run: never after a long sweep
+    names = () if args.no_plots else spec.names  # their load diagrams' files too
+    paths = check_sweep_outputs(args.out, names)  # before any run: never after a long sweep
     executor, workers, client = None, args.workers, None
     if args.scheduler is not None:
         executor, workers, client = _dask_executor(args.scheduler)
@@ -181,12 +187,13 @@ def run_sweep_command(args: argparse.Namespace) -> int:
             spec, args.out, executor=executor, workers=workers, plots=not args.no_plots
         )
     except SweepInterrupted as exc:
+        how = f"terminated by {exc.signal_name}" if exc.signal_name else "interrupted"
         print(
-            f"exo-ctrl sweep: interrupted: {exc.done} runs finished, {exc.remaining} to do; "
+            f"exo-ctrl sweep: {how}: {exc.done} runs finished, {exc.remaining} to do; "
             f"{len(exc.table)} rows written to {args.out} (run the same command to resume)",
             file=sys.stderr,
         )
-        return 130
+        return 143 if exc.signal_name == "SIGTERM" else 130
     finally:
         if client is not None:
             client.close()

@@ -5,7 +5,7 @@
 ``NAME.journal.jsonl`` (one JSON line per finished run, flushed and synced
 as it arrives), ``NAME.report.txt`` (worst cases, per-joint maxima,
 failures), ``NAME.load_<param>.png`` (peak torque and power against each
-swept numeric parameter) and ``NAME.urdf_cache/`` (generated patient URDFs,
+swept numeric parameter) and ``NAME.urdf_cache/`` (generated patient and exoskeleton URDFs,
 named by the SHA-256 of their text so that every worker shares them).
 """
 

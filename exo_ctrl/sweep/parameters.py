@@ -12,6 +12,12 @@ shank).  The ranges accepted are the paper's Table I ranges as read in the
 design notes: link lengths 0.39-0.65 m, thigh mass 7-14 kg, shank and foot
 mass 3-6 kg.
 
+**Exoskeleton.**  The ``exo_*`` parameters change
+:meth:`~exo_ctrl.model.BodyParams.exo_default` (link lengths, link masses,
+cuff positions); a generated URDF per run is kept in the sweep's folder
+(``NAME.urdf_cache/``, beside the table).  A changed link length keeps a cuff at its
+default position at the cuff's fraction of the link.
+
 **Units.**  Every value is in SI units, as everywhere in the package: the
 cuff stiffness in N/m (the paper's 8 N/mm is 8000 N/m), the PD gains in
 V/rad and V·s/rad.  :func:`parameter_listing` gives each name with its
@@ -43,6 +49,7 @@ __all__ = [
     "ParamInfo",
     "check_controller",
     "check_value",
+    "default_exo",
     "default_patient",
     "parameter_listing",
     "parameter_names",
@@ -65,7 +72,8 @@ class ParamInfo:
 
     Attributes:
         name: name as given to ``--param``.
-        group: ``"gait"``, ``"patient"``, ``"device"`` or ``"control"``.
+        group: ``"gait"``, ``"patient"``, ``"device"`` (exoskeleton, drive,
+            cuffs) or ``"control"``.
         attribute: the field it sets (of GaitParams, BodyParams, CuffParams,
             MotorParams or PDGains).
         unit: SI unit ("" for none).
@@ -75,7 +83,7 @@ class ParamInfo:
         hi_open: hi itself is excluded.
         target: what the field belongs to: the :class:`~exo_ctrl.sim.SimConfig`
             field (``"gait"``, ``"motor"``, ``"cuffs"``, ``"gains"``) or
-            ``"patient"`` (the generated patient's BodyParams).
+            ``"patient"`` or ``"exo"`` (the generated body's BodyParams).
         text: what it is, in words, for :func:`parameter_listing`.
 
     """
@@ -108,7 +116,9 @@ class ParamInfo:
 def _p(
     name: str, target: str, fld: str, unit: str, lo: float, hi: float, text: str, **kw: bool
 ) -> ParamInfo:
-    group = {"motor": "device", "cuffs": "device", "gains": "control"}.get(target, target)
+    group = {"motor": "device", "cuffs": "device", "exo": "device", "gains": "control"}.get(
+        target, target
+    )
     return ParamInfo(name, group, fld, unit, lo, hi, target=target, text=text, **kw)
 
 
@@ -116,7 +126,7 @@ def _p(
 #: and the other limits are checked per run, and a run that violates them is
 #: recorded as ``failed``); patient bounds are the paper's Table I ranges;
 #: device bounds span plausible hardware (paper: 8 N/mm = 8000 N/m cuffs);
-#: gain bounds span 0-10x the defaults (100 V/rad, 2 V·s/rad).
+#: gain bounds span about 0-4x the defaults (PDGains(): 300 V/rad, 5 V·s/rad).
 PARAMETERS: dict[str, ParamInfo] = {
     p.name: p
     for p in (
@@ -131,6 +141,12 @@ PARAMETERS: dict[str, ParamInfo] = {
         _p("patient_shank_mass", "patient", "shank_mass", "kg", 3.0, 6.0, "with the foot"),
         _p("patient_thigh_length", "patient", "thigh_length", "m", 0.39, 0.65, "hip to knee"),
         _p("patient_shank_length", "patient", "shank_length", "m", 0.39, 0.65, "knee to foot"),
+        _p("exo_thigh_length", "exo", "thigh_length", "m", 0.3, 0.7, "device hip to knee"),
+        _p("exo_shank_length", "exo", "shank_length", "m", 0.3, 0.7, "device knee to foot"),
+        _p("exo_thigh_mass", "exo", "thigh_mass", "kg", 0.5, 15.0, "device thigh link"),
+        _p("exo_shank_mass", "exo", "shank_mass", "kg", 0.5, 15.0, "device shank link"),
+        _p("exo_thigh_cuff", "exo", "thigh_cuff", "m", 0.05, 0.7, "hip to thigh cuff"),
+        _p("exo_shank_cuff", "exo", "shank_cuff", "m", 0.05, 0.7, "knee to shank cuff"),
         _p(
             "cuff_stiffness",
             "cuffs",
@@ -191,6 +207,8 @@ def value_in(info: ParamInfo, base: SimConfig) -> Any:
     """
     if info.target == "patient":
         return getattr(default_patient(), info.attribute) if base.patient is None else None
+    if info.target == "exo":
+        return getattr(default_exo(), info.attribute) if base.exo is None else None
     return getattr(getattr(base, info.target), info.attribute)
 
 
@@ -198,6 +216,12 @@ def value_in(info: ParamInfo, base: SimConfig) -> Any:
 def default_patient() -> BodyParams:
     """The patient the patient parameters change: :meth:`BodyParams.patient_default`."""
     return BodyParams.patient_default()
+
+
+@functools.cache
+def default_exo() -> BodyParams:
+    """The exoskeleton the exo parameters change: :meth:`BodyParams.exo_default`."""
+    return BodyParams.exo_default()
 
 
 def unit_suffix(unit: str) -> str:

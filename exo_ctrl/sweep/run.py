@@ -35,7 +35,7 @@ from ..sim import SimConfig, simulate
 from ..sim.belief import PAPER_PATIENT
 from .journal import FINISHED_STATUSES, Journal, read_previous
 from .outputs import SweepPaths, empty_outputs, flatten
-from .parameters import PARAMETERS, default_patient
+from .parameters import PARAMETERS, default_exo, default_patient
 from .report import (
     PLOTS_HINT,
     build_table,
@@ -67,43 +67,54 @@ class SweepInterrupted(KeyboardInterrupt):
         table: the table of the finished runs (pyarrow.Table).
         done: runs finished in this call.
         remaining: runs of the sweep still to do (a rerun resumes them).
+        signal_name: ``"SIGTERM"`` when a signal ended it (:class:`Terminated`),
+            "" for Ctrl-C.
 
     """
 
-    def __init__(self, table: Any, done: int, remaining: int) -> None:
+    def __init__(self, table: Any, done: int, remaining: int, signal_name: str = "") -> None:
         super().__init__(f"sweep interrupted: {done} runs finished, {remaining} to do")
         self.table = table
         self.done = done
         self.remaining = remaining
+        self.signal_name = signal_name
 
 
-def _patient_urdf(body: dict[str, float], cache_dir: str) -> str | None:
-    """The patient URDF of ``body`` in the cache (None: the default patient)."""
-    default = default_patient()
+def _body_urdf(kind: str, body: dict[str, float], cache_dir: str) -> str | None:
+    """The URDF of a generated ``kind`` (patient or exo) with ``body``'s values (None: default).
+
+    A link whose length changes keeps its cuff at its fraction of the link
+    while the cuff is at its default position.  Written once into ``cache_dir``, named by
+    its content's hash.
+    """
+    default = default_patient() if kind == "patient" else default_exo()
     if all(getattr(default, k) == v for k, v in body.items()):
         return None
     changes = dict(body)
-    for seg in ("thigh", "shank"):  # a cuff keeps its fraction of its link
-        length = changes[f"{seg}_length"]
-        ref = getattr(default, f"{seg}_length")
-        changes[f"{seg}_cuff"] = getattr(default, f"{seg}_cuff") / ref * length
-    params = BodyParams.patient_default(**changes)
+    for seg in ("thigh", "shank"):  # a cuff left at its default keeps its fraction of its link
+        length = changes.get(f"{seg}_length")
+        cuff = changes.get(f"{seg}_cuff", getattr(default, f"{seg}_cuff"))
+        if length is not None and cuff == getattr(default, f"{seg}_cuff"):
+            ref = getattr(default, f"{seg}_length")
+            changes[f"{seg}_cuff"] = getattr(default, f"{seg}_cuff") / ref * length
+    make = BodyParams.patient_default if kind == "patient" else BodyParams.exo_default
+    params = make(**changes)
     digest = hashlib.sha256(urdf_xml(params).encode("utf-8")).hexdigest()[:16]
     for folder in (Path(cache_dir), Path(tempfile.gettempdir()) / "exo_ctrl_sweep"):
-        path = folder / f"patient-{digest}.urdf"
+        path = folder / f"{kind}-{digest}.urdf"
         if path.is_file():
             return str(path)
         with contextlib.suppress(OSError):  # e.g. a remote worker without the folder
             folder.mkdir(parents=True, exist_ok=True)
             return str(write_urdf(params, path))
-    raise SweepError(f"cannot write the patient URDF into {cache_dir}")
+    raise SweepError(f"cannot write the {kind} URDF into {cache_dir}")
 
 
 def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimConfig:
     """The :class:`SimConfig` of a run: ``base`` with ``values`` (:meth:`SweepSpec.resolve`).
 
-    Generates the patient URDF into ``cache_dir`` when patient values differ
-    from the default patient.
+    Generates the patient's (the exoskeleton's) URDF into ``cache_dir`` when
+    patient (exo) values differ from the default's.
 
     Raises:
         ExoCtrlError: a value or combination the library rejects.
@@ -112,6 +123,7 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
     groups: dict[str, dict[str, Any]] = {
         "gait": {},
         "patient": {},
+        "exo": {},
         "motor": {},
         "cuffs": {},
         "gains": {},
@@ -122,7 +134,7 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
             groups[info.target][info.attribute] = value
     patient, belief = base.patient, base.belief
     if base.patient is None and groups["patient"]:
-        patient = _patient_urdf(groups["patient"], cache_dir)
+        patient = _body_urdf("patient", groups["patient"], cache_dir)
         if patient is not None and belief.patient == "nominal":
             # The swept patients vary the paper's patient's segments: the
             # clinic's stature and body mass stay the paper's unless given.
@@ -131,8 +143,12 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
                 patient_height_m=belief.patient_height_m or PAPER_PATIENT["height_m"],
                 patient_mass_kg=belief.patient_mass_kg or PAPER_PATIENT["mass_kg"],
             )
+    exo = base.exo
+    if base.exo is None and groups["exo"]:
+        exo = _body_urdf("exo", groups["exo"], cache_dir)
     return dataclasses.replace(
         base,
+        exo=exo,
         belief=belief,
         gait=dataclasses.replace(base.gait, **groups["gait"]),
         patient=patient,
@@ -313,7 +329,8 @@ def run_sweep(
             file=sys.stderr,
         )
     state = _State(spec, tasks, paths, results, len(todo), progress)
-    interrupted = clean = False
+    interrupted: KeyboardInterrupt | None = None
+    clean = False
     try:
         if executor is not None:
             if owned is not None and not isinstance(owned, InlineExecutor):
@@ -326,16 +343,17 @@ def run_sweep(
                 todo = todo[1:]
             state.drive(executor, todo, window)
         clean = True
-    except KeyboardInterrupt:
-        interrupted = True
+    except KeyboardInterrupt as exc:
+        interrupted = exc
     finally:
         state.journal.close()
         if owned is not None:
             stop_pool(owned, now=not clean)
         state.bar.close(state.done, state.note())
         table = state.save_table()
-    if interrupted:
-        raise SweepInterrupted(table, state.done, len(todo) - state.done)
+    if interrupted is not None:  # state.total: every run to do, the in-process first one too
+        name = getattr(interrupted, "signal_name", "")
+        raise SweepInterrupted(table, state.done, state.total - state.done, name)
     if report:
         write_report(table, spec, paths.report)
     if plots:

@@ -165,13 +165,14 @@ class SweepSpec:
                 isinstance(value, (int, float)) and math.isfinite(value) and value > 0
             ):
                 raise InvalidParameter(name, value, f"a finite number > 0{unit_suffix(unit)}")
-        patient = sorted(n for n in names if n in PARAMETERS and PARAMETERS[n].target == "patient")
-        if patient and self.base.patient is not None:
-            raise InvalidParameter(
-                patient[0],
-                self.base.patient,
-                "swept only with the generated patient (no patient URDF given)",
-            )
+        for body in ("patient", "exo"):
+            swept = sorted(n for n in names if n in PARAMETERS and PARAMETERS[n].target == body)
+            if swept and getattr(self.base, body) is not None:
+                raise InvalidParameter(
+                    swept[0],
+                    getattr(self.base, body),
+                    f"swept only with the generated {body} (no {body} URDF given)",
+                )
 
     @classmethod
     def parse(
@@ -281,7 +282,8 @@ class SweepSpec:
 def base_values(base: SimConfig) -> dict[str, Any]:
     """The value of every sweepable parameter in ``base`` (patient: the generated default).
 
-    Left out: the patient parameters when ``base`` names a patient URDF, and
+    Left out: the patient (exoskeleton) parameters when ``base`` names a
+    patient (exoskeleton) URDF, and
     the PD gains (the base's gains, per joint, are in the run as they are;
     a swept gain comes with the point).
     """
@@ -297,21 +299,24 @@ def base_values(base: SimConfig) -> dict[str, Any]:
 def resolved_run(base: SimConfig, values: dict[str, Any]) -> dict[str, Any]:
     """The run as plain data: ``base.to_dict()`` with ``values`` applied.
 
-    The patient parameters, when swept, appear as ``patient_body`` (the
-    generated URDF's path depends on where the sweep writes; its content
-    does not).  A swept PD gain is stored per joint, as
+    The patient and exoskeleton parameters, when swept, appear as
+    ``patient_body`` and ``exo_body`` (the generated URDF's path depends on
+    where the sweep writes; its content does not).  A swept PD gain is stored per joint, as
     :class:`~exo_ctrl.control.PDGains` holds it, so sweeping the base's
     value is the same run as not sweeping it.
     """
     run = base.to_dict()
     run["patient_body"] = None
+    if any(PARAMETERS[n].target == "exo" for n in values if n in PARAMETERS):
+        run["exo_body"] = None  # only then: the ids of sweeps without it stay as they were
     for name, value in values.items():
         info = PARAMETERS.get(name)
         if info is None:  # controller, duration_s
             run[name] = value
-        elif info.target == "patient":
-            run["patient_body"] = run["patient_body"] or {}
-            run["patient_body"][info.attribute] = value
+        elif info.target in ("patient", "exo"):
+            key = f"{info.target}_body"
+            run[key] = run[key] or {}
+            run[key][info.attribute] = value
         elif info.target == "gains":
             per_joint = value if isinstance(value, tuple) else (float(value),) * len(JOINT_NAMES)
             run["gains"][info.attribute] = per_joint

@@ -80,8 +80,8 @@ def _command_line(process: psutil.Process) -> str:
 def test_sigkill_leaves_a_recording_of_every_written_chunk(
     tmp_path: Path, chunks: int, wait_s: float
 ) -> None:
-    rrd = tmp_path / "run.rrd"
-    argv = [str(EXO_CTRL), "simulate", "--duration", "600", "--out", str(rrd)]
+    argv = [str(EXO_CTRL), "simulate", "--duration", "600", "--out", str(tmp_path / "run.rrd")]
+    rrd = tmp_path / "run.partial.rrd"  # written beside run.rrd, renamed only when whole
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=tmp_path)
     deadline = time.monotonic() + 90.0
     try:
@@ -122,7 +122,7 @@ def _one_line_error(proc: subprocess.CompletedProcess) -> str:
     assert "Traceback" not in text
     notices = {f"simulate: {notice}" for notice in STARTING.values()}
     lines = [ln.rsplit("\r", 1)[-1] for ln in text.splitlines() if ln not in notices]
-    lines = [ln for ln in lines if not ln.startswith("simulate [")]  # the bar, ended
+    lines = [ln for ln in lines if ln and not ln.startswith("simulate [")]  # the bar, ended
     assert len(lines) == 1, lines
     return lines[0]
 
@@ -158,8 +158,10 @@ def test_a_disk_full_in_the_run_is_exit_1_and_keeps_a_whole_file(tmp_path: Path)
     assert proc.returncode == 1
     assert _one_line_error(proc) == (
         f"exo-ctrl simulate: error: cannot write {rrd}: File too large; "
-        f"the file holds ticks 0-{CHUNK - 1}, readable"
+        f"{tmp_path / 'run.partial.rrd'} holds ticks 0-{CHUNK - 1}, readable"
     )
+    assert not rrd.exists()
+    rrd = tmp_path / "run.partial.rrd"
     verify = _verify(rrd)
     assert verify.returncode == 0, verify.stderr.decode()
     back, integrity = read_recording_integrity(rrd)

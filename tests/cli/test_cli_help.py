@@ -19,6 +19,19 @@ import pytest
 
 from exo_ctrl import cli
 
+#: The subcommands, in the order ``exo-ctrl --help`` lists them.
+COMMANDS = [
+    "simulate",
+    "compare",
+    "scenario",
+    "gait",
+    "urdf",
+    "estimate",
+    "export",
+    "identify",
+    "sweep",
+]
+
 UNIT = re.compile(r"\[[^\]]+\]|\bno unit\b")
 NUMERIC_DEFAULT = re.compile(r"\(default:?\s[^)]*(\d|\bnone\b)")
 
@@ -36,7 +49,7 @@ def problems(parser: argparse.ArgumentParser) -> list[str]:
         if isinstance(action, argparse._HelpAction):
             continue
         name = "/".join(action.option_strings) or action.dest
-        text = " ".join((action.help or "").split())
+        text = " ".join((getattr(action, "hidden_help", action.help) or "").split())
         if not text or text == argparse.SUPPRESS:
             found.append(f"{name}: no help")
             continue
@@ -52,13 +65,13 @@ def problems(parser: argparse.ArgumentParser) -> list[str]:
     return found
 
 
-@pytest.mark.parametrize("command", ["gait", "urdf", "simulate", "estimate", "identify", "sweep"])
+@pytest.mark.parametrize("command", COMMANDS)
 def test_every_option_has_its_unit_and_default(command: str) -> None:
     assert problems(subparsers()[command]) == []
 
 
 def test_the_subcommands_are_the_documented_ones() -> None:
-    assert list(subparsers()) == ["gait", "urdf", "simulate", "estimate", "identify", "sweep"]
+    assert list(subparsers()) == COMMANDS
 
 
 def test_the_checker_catches_what_it_should() -> None:
@@ -82,11 +95,18 @@ def test_simulate_help_shows_the_numbers(capsys) -> None:
     assert info.value.code == 0
     text = " ".join(capsys.readouterr().out.split())
     assert (
-        "--duration SEC simulated time [s], ramps included (default: the ramp-in, 2 gait cycles "
-        "and the ramp-out, 3.6 s at the default period)" in text.replace("- ", "-")
+        "--duration SEC simulated time, ramps included [s] (default: the scenario's "
+        "run.duration_s, 3.6 s in most presets)" in text.replace("- ", "-")
     )
-    assert "--kd V.S/RAD PD derivative gain [V·s/rad], all joints (default 5)" in text
-    assert "--step-length S step length s [m] (default 0.35)" in text
+    assert "--out PATH.rrd the rerun recording (default: recording.out, exo_run.rrd)" in text
+    # the long options, hidden from --help, keep their help for docs/cli.md
+    hidden = {
+        a.dest: " ".join(a.hidden_help.split())
+        for a in subparsers()["simulate"]._actions
+        if hasattr(a, "hidden_help")
+    }
+    assert hidden["kd"] == "PD derivative gain [V·s/rad], all joints (default 5)"
+    assert hidden["step_length"] == "step length s [m] (default 0.35)"
 
 
 def test_top_level_help_says_what_the_command_does(capsys) -> None:

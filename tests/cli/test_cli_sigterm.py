@@ -1,4 +1,8 @@
-"""SIGTERM ends a run as Ctrl-C does: exit 143, every tick so far kept, the recording whole."""
+"""SIGTERM ends a run as Ctrl-C does: exit 143, every tick so far kept, the recording whole.
+
+The recording of a run cut short stays as ``NAME.partial.rrd`` (named in the
+output); ``NAME.rrd`` is not replaced.
+"""
 
 from __future__ import annotations
 
@@ -17,12 +21,16 @@ def test_sigterm_keeps_a_whole_recording_up_to_the_signal(tmp_path: Path) -> Non
     argv = [str(exe), "simulate", "--duration", "600", "--out", str(rrd), "--summary", str(summary)]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
     deadline = time.monotonic() + 60.0
-    while not (rrd.is_file() and rrd.stat().st_size > 1_000_000):  # the loop is recording
+    partial = tmp_path / "run.partial.rrd"
+    while not (partial.is_file() and partial.stat().st_size > 1_000_000):  # recording
         assert proc.poll() is None and time.monotonic() < deadline
         time.sleep(0.1)
     proc.send_signal(signal.SIGTERM)  # well before the 600 s run ends (≈ 8 s of wall time)
-    _, err = proc.communicate(timeout=60)
+    out, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err.decode()
+    assert not rrd.exists()
+    assert f"recording: {partial} (the run was cut short: {rrd} not written" in out.decode()
+    rrd = partial
     back = read_recording(rrd)
     assert back.status == "interrupted" and back.error.startswith("terminated by SIGTERM")
     assert 0 < back.n_ticks < 600_000

@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
+import numpy as np
+import pytest
 from rerun.chunk import RrdReader
 
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
@@ -103,3 +108,70 @@ def test_params_document_holds_the_config(short_run, short_config, entity_column
     assert "# exo_ctrl run" in text and "step_length" in text and "stiffness_N_per_m" in text
     _, meta = entity_columns(path, "raw/meta", "TextDocument:text")
     assert json.loads(meta[-1][0])["config"] == json.loads(json.dumps(short_config.to_dict()))
+
+
+def test_every_series_chunk_carries_the_seconds_timeline(short_run):
+    """Every chunk under signals/ is on sim_time, t_k = k Δt in whole ns, beside the tick."""
+    _, path = short_run
+    seen = set()
+    for chunk in RrdReader(path).stream().to_chunks():
+        if not chunk.entity_path.startswith("/signals/"):
+            continue
+        batch = chunk.to_record_batch()
+        if "Scalars:scalars" not in batch.schema.names:
+            continue
+        assert "sim_time" in chunk.timeline_names, chunk.entity_path
+        ticks = batch.column("tick").to_numpy()
+        ns = batch.column("sim_time").cast("int64").to_numpy()
+        assert np.array_equal(ns, np.round(ticks * 1e-3 * 1e9).astype(np.int64))
+        seen.update(ticks.tolist())
+    assert seen == set(range(300))
+
+
+def test_the_time_panel_shows_seconds_and_the_blueprint_is_active(short_run):
+    _, path = short_run
+    reader = RrdReader(path)
+    (store,) = reader.blueprints()
+    timelines = [
+        c.to_record_batch().column("TimePanelBlueprint:timeline").to_pylist()[-1]
+        for c in reader.stream(store=store).to_chunks()
+        if c.entity_path == "/time_panel"
+        and "TimePanelBlueprint:timeline" in c.to_record_batch().schema.names
+    ]
+    assert timelines == [["sim_time"]]
+    # Sent active, not only as a default (the viewer kept its own layout over a default).
+    printed = subprocess.run(
+        [str(Path(sys.executable).with_name("rerun")), "rrd", "print", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    ).stdout
+    (command,) = [line for line in printed.splitlines() if "BlueprintActivationCommand" in line]
+    assert "make_active: true" in command and "make_default: true" in command
+
+
+def test_panel_names_say_the_quantity_and_the_joint_or_cuff_in_full(short_run):
+    _, path = short_run
+    names = {v["name"].partition(" [")[0] for v in blueprint_views(path)}
+    for joint in JOINT_NAMES:
+        words = joint.replace("_", " ")
+        for what in ("Joint angle", "Joint speed", "Drive voltage"):
+            assert f"{what}, {words}" in names
+    for leg in ("left", "right"):  # (no patient torque: left out of a passive run)
+        for what in ("Drive torque", "Drive current"):
+            assert f"{what}, {leg} leg" in names
+    for cuff in CUFF_NAMES:
+        words = cuff.replace("_", " ")
+        assert f"Cuff force on the exo, {words} cuff" in names
+        assert f"Estimated cuff force on the exo, {words} cuff" in names
+    assert "Joint torque sensor reading (tau_sensor)" in names
+    assert not any("/" in name for name in names)  # no entity path
+
+
+def test_the_3d_view_takes_at_least_half_the_width(short_run):
+    _, path = short_run
+    views = blueprint_views(path)
+    (scene,) = [v for v in views if v["class"] == "3D"]
+    assert scene["width_share"] == pytest.approx(0.6) and scene["width_share"] >= 0.5
+    plots = [v["width_share"] for v in views if v["class"] == "TimeSeries"]
+    assert max(plots) == pytest.approx(0.4)

@@ -40,12 +40,13 @@ from exo_ctrl.plant.belt import BeltParams
 from exo_ctrl.plant.patient import SpasticParams
 from exo_ctrl.plant.patient_active import ActiveParams
 from exo_ctrl.record import RerunRecorder, estimate_file, read_recording
-from exo_ctrl.record.reader import _config_from_dict, _from_dict
+from exo_ctrl.record.reader import _config_from_dict
 from exo_ctrl.safety import SafetyLimits
 from exo_ctrl.sensing import BeltEncoderParams, CurrentSensorParams, FootLoadParams, SensorParams
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sim.faults import Fault
+from exo_ctrl.sim.plain import from_plain
 from exo_ctrl.sim.session import Segment, SessionParams
 
 #: Every nested parameter set away from its default; the pelvis supported
@@ -168,7 +169,7 @@ class _Outer:
 )
 def test_annotations_drive_the_conversion(value: _Outer) -> None:
     """Each annotation form comes back from JSON as the value it was, types included."""
-    back = _from_dict(_Outer, json.loads(json.dumps(dataclasses.asdict(value))))
+    back = from_plain(_Outer, json.loads(json.dumps(dataclasses.asdict(value))))
     assert back == value
     assert all(isinstance(x, _Inner) for x in (back.inner, back.pair[0], *back.items))
     assert back.maybe is None or isinstance(back.maybe, _Inner)

@@ -107,9 +107,11 @@ def _two_writes(tmp_path: Path) -> tuple[Path, Path, list[int]]:
     for part in range(4):
         _log_part(rec, part)
         file.append(stream.read(flush=True))
-        sizes.append(ours.stat().st_size)
-        assert _verify(ours) == 0, f"not a whole file after part {part}"
+        assert file.written == tmp_path / "ours.partial.rrd"  # renamed over ours at close
+        sizes.append(file.written.stat().st_size)
+        assert _verify(file.written) == 0, f"not a whole file after part {part}"
     file.close()
+    assert file.written == ours and not (tmp_path / "ours.partial.rrd").exists()
     rec.disconnect()
     return own, ours, sizes
 
@@ -272,4 +274,6 @@ def test_bytes_go_through_the_pipe_when_the_shared_buffer_cannot_grow(tmp_path):
     assert proc.returncode == 0, proc.stderr
     n = int(proc.stdout)
     data = bytes(range(256)) * (size // 256)
-    assert path.read_bytes() == data + data[:4096] and n == len(data)
+    assert not path.exists()  # abandoned: the partial file stays, never renamed
+    assert (tmp_path / "limited.partial.bin").read_bytes() == data + data[:4096]
+    assert n == len(data)

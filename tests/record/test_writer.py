@@ -66,6 +66,8 @@ def test_keyboard_interrupt_from_an_observer(
     assert result.status == "interrupted" and stop.raised == 1
     assert result.t.shape[0] == 210
     n = 210 if recorder_first else 140
+    assert recorder.written == tmp_path / "interrupted.partial.rrd" and not path.exists()
+    path = recorder.written  # an interrupted run is kept beside the path, not renamed over it
     back = read_recording(path)
     assert back.n_ticks == n
     ticks, _ = entity_columns(path, "signals/joint_angle/left_hip", "Scalars:scalars")
@@ -143,7 +145,7 @@ def test_each_chunk_is_a_whole_file_on_disk(tmp_path, write_behind):
     """
     path = tmp_path / "flushed.rrd"
     recorder = RerunRecorder(path, write_behind=write_behind)
-    probe = OnDisk(path, recorder, sync=write_behind)
+    probe = OnDisk(path.with_name("flushed.partial.rrd"), recorder, sync=write_behind)
     simulate(SHORT, observers=[recorder, probe])
     assert probe.seen == [(n, False, None) for n in (70, 140, 210, 280, 300)]
     back, integrity = read_recording_integrity(path)
@@ -179,6 +181,8 @@ def test_hard_crash_keeps_every_written_chunk(
     )
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=120)
     assert proc.returncode == 3, proc.stderr.decode()
+    assert not path.exists()
+    path = tmp_path / "crash.partial.rrd"  # a killed run's file, never renamed
     assert verify(path).returncode == 0  # the footer written with the third chunk
     back = read_recording(path)
     assert back.n_ticks == 210
@@ -284,8 +288,10 @@ def test_write_failure_mid_run_raises_output_error(
     )
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=120)
     assert proc.returncode == 0, proc.stderr.decode()
-    expected = f"OutputError: cannot write {path}: File too large; the file holds ticks 0-139, "
+    partial = path.with_name(path.stem + ".partial.rrd")
+    expected = f"OutputError: cannot write {path}: File too large; {partial} holds ticks 0-139, "
     assert proc.stdout.decode() == expected + "readable\n"
+    path = partial
     assert verify(path).returncode == 0
     back, integrity = read_recording_integrity(path)
     assert back.n_ticks == 140 and integrity.cut_at_byte is None

@@ -149,16 +149,23 @@ def test_a_patient_model_file_is_what_the_device_holds(tmp_path: Path) -> None:
     assert _thigh_mass(setup.patient) == pytest.approx(11.3, rel=1e-12)
 
 
-def test_a_nominal_model_of_another_patient_needs_its_height_and_mass(tmp_path: Path) -> None:
+def test_a_nominal_model_of_another_patient_reads_what_is_not_given(tmp_path: Path) -> None:
     other = write_urdf(BodyParams.patient_default(thigh_mass=9.0), tmp_path / "other.urdf")
-    with pytest.raises(InvalidParameter) as info:
-        build(SimConfig(patient=str(other), belief=Belief(patient="nominal")))
-    assert str(info.value) == (
-        "patient_height must be given for a nominal model of a patient other than the paper's; "
-        "got None (the device's nominal patient is built from the stature and body mass "
-        "(--patient-height M --patient-mass KG); --controller-patient truth gives the device "
-        "the true patient instead (the ideal comparison))"
+    setup = build(SimConfig(patient=str(other), belief=Belief(patient="nominal")))
+    # de Leva's male leg share (thigh 14.16 %, leg 4.33 %, foot 1.37 % of the body, per leg)
+    mass = setup.patient.mass / (2 * (0.1416 + 0.0433 + 0.0137))
+    assert setup.patient.mass == pytest.approx(2 * (9.0 + 4.65), rel=1e-9)
+    assert _thigh_mass(setup.device_patient) == pytest.approx(0.1416 * mass, rel=1e-9)
+    leg = setup.patient.legs["left"]
+    height = (leg.thigh_length + leg.shank_length) / ((0.4222 + 0.4340) / 1.741 + 0.039)
+    assert setup.warnings == (
+        f"the nominal patient's stature, {height:.3f} m, is the one whose de Leva thigh and "
+        "shank make the patient URDF's 1.040 m leg (belief.patient_height_m sets it)",
+        f"the nominal patient's body mass, {mass:.1f} kg, is the patient URDF's 27.30 kg of "
+        "legs over de Leva's leg share (belief.patient_mass_kg sets it)",
     )
+    with pytest.raises(InvalidParameter, match="patient_height must be given for a nominal"):
+        build(SimConfig(patient="human", belief=Belief(patient="nominal")))
     setup = build(
         SimConfig(
             patient=str(other),

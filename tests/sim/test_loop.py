@@ -109,9 +109,13 @@ def test_chunking_changes_nothing(ct_run) -> None:
 
 def test_summary_without_history_equals_the_full_run(ct_run) -> None:
     streamed = simulate(SimConfig(controller="ct", chunk_ticks=500), keep_history=False)
-    timing = {"wall_time_s", "real_time_factor"}
+    timing = {"wall_time_s", "real_time_factor", "scenario"}
     full = {k: v for k, v in ct_run.summary().items() if k not in timing}
     part = {k: v for k, v in streamed.summary().items() if k not in timing}
+    chunk = f"chunk_ticks = {ct_run.config.chunk_ticks}"  # the one setting that differs
+    assert streamed.summary()["scenario"] == ct_run.summary()["scenario"].replace(
+        chunk, "chunk_ticks = 500"
+    )
     assert part.keys() == full.keys()
     for key, value in full.items():
         if isinstance(value, dict):

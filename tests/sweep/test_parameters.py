@@ -31,7 +31,9 @@ def test_parse_lists_and_ranges():
             "sweep parameter must be one of step_length, lift_height, hip_height, "
             "pelvis_excursion, shape_coeff, period, duty_factor, patient_thigh_mass, "
             "patient_shank_mass, patient_thigh_length, "
-            "patient_shank_length, cuff_stiffness, cuff_damping, gear_ratio, kp, kd, controller; "
+            "patient_shank_length, exo_thigh_length, exo_shank_length, exo_thigh_mass, "
+            "exo_shank_mass, exo_thigh_cuff, exo_shank_cuff, cuff_stiffness, cuff_damping, "
+            "gear_ratio, kp, kd, controller; "
             "got 'stride'",
         ),
         ("step_length", "--param must be NAME=V1,V2,... or NAME=LO:HI:N; got 'step_length'"),

@@ -257,3 +257,24 @@ def test_a_local_pool_makes_its_first_run_here_and_the_rest_in_its_workers(
     assert [c.gait.step_length for c in count_runs] == [0.3]  # only the first, here
     assert_tables_equal(pool, serial(spec, tmp_path / "serial.parquet"))
     assert len(count_runs) == 4  # and the serial sweep's three
+
+
+def test_an_exoskeleton_sweep_generates_its_urdf_per_run(tmp_path, make_spec, serial):
+    spec = make_spec("exo_thigh_length=0.50,0.54", "exo_shank_mass=4.0", "controller=ct")
+    rows = serial(spec, tmp_path / "e.parquet").to_pylist()
+    assert [r["status"] for r in rows] == ["completed", "completed"]
+    cached = sorted((tmp_path / "e.urdf_cache").glob("exo-*.urdf"))
+    assert len(cached) == 2
+    # Independently: the device with its thigh cuff at the same fraction of the link.
+    expected = {
+        urdf_xml(BodyParams.exo_default(thigh_length=t, thigh_cuff=0.39 / 0.52 * t, shank_mass=4.0))
+        for t in (0.50, 0.54)
+    }
+    assert {p.read_text() for p in cached} == expected
+    # the ids of the runs differ by the exoskeleton alone
+    assert rows[0]["run_id"] != rows[1]["run_id"]
+
+
+def test_exoskeleton_parameters_need_the_generated_exoskeleton(make_spec):
+    with pytest.raises(Exception, match="exo_thigh_length must be swept only with the generated"):
+        make_spec("exo_thigh_length=0.5", base=SimConfig(exo="urdf/exoskeleton.urdf"))

@@ -1,0 +1,169 @@
+"""Compare controllers on one scenario: one run each, a table of their summaries' figures.
+
+:func:`compare` runs the scenario once per controller, each run keeping no
+history (``keep_history`` off) but the one gait cycle the figure draws
+(:class:`~.cycle.CycleKeeper`), and returns a
+:class:`~.table.CompareTable` whose figures are the runs' own summaries'.
+Recordings are compared by :func:`exo_ctrl.comparison.recordings.compare_recordings`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from .. import _validate as v
+from ..exceptions import InvalidParameter, Terminated
+from ..scenario import Scenario, load_scenario
+from ..sim import CONTROLLERS, SimConfig, simulate
+from ..sim.config import MAX_DURATION_S
+from .cycle import CycleKeeper
+from .differences import check_same, config_differences
+from .table import CompareRow, CompareTable, row_from
+
+__all__ = ["compare", "controller_list", "run_config"]
+
+#: Called after each run: (run number from 1, number of runs, its row).
+RunNotice = Callable[[int, int, CompareRow], None]
+
+
+def _base_config(scenario: Any) -> SimConfig:
+    """The scenario's configuration: the one place a scenario is turned into a SimConfig.
+
+    A :class:`~exo_ctrl.sim.SimConfig`, a :class:`~exo_ctrl.scenario.Scenario`
+    or a scenario file's path (read by :func:`~exo_ctrl.scenario.load_scenario`).
+
+    Raises:
+        InvalidParameter: ``scenario`` is none of these.
+        InvalidScenario: the file cannot be read or is not a valid scenario.
+
+    """
+    if isinstance(scenario, SimConfig):
+        return scenario
+    if isinstance(scenario, Scenario):
+        return scenario.config
+    if isinstance(scenario, (str, os.PathLike)):
+        return load_scenario(scenario).config
+    raise InvalidParameter(
+        "scenario", scenario, "a SimConfig, a Scenario or a scenario file's path"
+    )
+
+
+def controller_list(controllers: str | Sequence[str]) -> tuple[str, ...]:
+    """The controllers to compare: a sequence or ``"pd,ct,qp"``, each once, at least one.
+
+    Raises:
+        InvalidParameter: ``controllers`` empty, naming an unknown controller or one twice.
+
+    """
+    allowed = f"one or more of {', '.join(CONTROLLERS)}, each once"
+    if isinstance(controllers, str):
+        names = tuple(c.strip() for c in controllers.split(","))
+    else:
+        try:
+            names = tuple(controllers)
+        except TypeError:
+            raise InvalidParameter("controllers", controllers, allowed) from None
+    if not names or len(set(names)) != len(names):
+        raise InvalidParameter("controllers", controllers, allowed)
+    for name in names:
+        if not isinstance(name, str) or name not in CONTROLLERS:
+            raise InvalidParameter("controllers", controllers, allowed, f"{name!r} is not one")
+    return names
+
+
+def run_config(
+    scenario: Any, cycles: float | None = None, duration_s: float | None = None
+) -> SimConfig:
+    """The scenario's configuration with the run's length set.
+
+    Args:
+        scenario: the scenario (:func:`_base_config`).
+        cycles: gait cycles at full speed after the ramp-in and before the
+            ramp-out (the duration is ramp-in + cycles T_s + ramp-out, as
+            ``exo-ctrl simulate --cycles``); None: the scenario's duration.
+        duration_s: the whole run [s], ramps included; None: the scenario's.
+
+    Raises:
+        InvalidParameter: both given, or either out of range.
+
+    """
+    base = _base_config(scenario)
+    if cycles is not None and duration_s is not None:
+        raise InvalidParameter("cycles", cycles, "not given with duration", "give one of the two")
+    if duration_s is not None:
+        return dataclasses.replace(base, duration_s=duration_s)
+    if cycles is None:
+        return base
+    cycles = v.positive("cycles", cycles)
+    lead = base.gait.period if base.ramp_in_s is None else base.ramp_in_s
+    duration = lead + cycles * base.gait.period + base.ramp_out_s
+    if duration > MAX_DURATION_S:
+        most = (MAX_DURATION_S - lead - base.ramp_out_s) / base.gait.period
+        raise InvalidParameter("cycles", cycles, f"at most {most:.6g}")
+    return dataclasses.replace(base, duration_s=duration)
+
+
+def compare(
+    scenario: Any,
+    controllers: str | Sequence[str] = CONTROLLERS,
+    *,
+    cycles: float | None = None,
+    duration_s: float | None = None,
+    allow_different: bool = False,
+    on_run: RunNotice | None = None,
+    progress: bool = False,
+    warmup: bool = False,
+) -> CompareTable:
+    """Run the scenario once per controller and tabulate the runs' summaries.
+
+    Args:
+        scenario: the scenario, a :class:`~exo_ctrl.sim.SimConfig`, a
+            :class:`~exo_ctrl.scenario.Scenario` or a scenario file's path
+            (its controller is replaced by each of ``controllers``).
+        controllers: the controllers, in the table's order (``("pd", "ct")``
+            or ``"pd,ct"``); each row is labelled by its controller.
+        cycles: gait cycles at full speed (:func:`run_config`); None: the scenario's duration.
+        duration_s: the whole run [s]; None: the scenario's.
+        allow_different: compare runs whose configurations differ beyond
+            the controller (they cannot here; the check is the one
+            recordings pass, :func:`~.differences.check_same`).
+        on_run: called after each run with (its number from 1, the number
+            of runs, its row): the command line's progress line.
+        progress: draw each run's progress bar on stderr.
+        warmup: compile the kernels in two processes on a first run
+            (:func:`exo_ctrl.sim.simulate`'s; the command line's choice).
+
+    Returns:
+        The table, one row per controller (figures: :data:`~.table.FIGURES`,
+        each equal to the run's :meth:`~exo_ctrl.sim.SimResult.summary`).
+        A run that diverges keeps its row (status ``"diverged"``).
+
+    Raises:
+        InvalidParameter: a bad scenario, controller list or run length.
+        KeyboardInterrupt: a run was interrupted (Ctrl-C; :class:`Terminated`
+            for SIGTERM); the runs after it are not started.
+
+    """
+    names = controller_list(controllers)
+    base = run_config(scenario, cycles, duration_s)
+    configs = [dataclasses.replace(base, controller=name) for name in names]
+    differences = config_differences([c.to_dict() for c in configs])
+    check_same(differences, names, v.flag("allow_different", allow_different))
+    rows: list[CompareRow] = []
+    for i, (name, config) in enumerate(zip(names, configs, strict=True)):
+        keeper = CycleKeeper()
+        result = simulate(
+            config, observers=[keeper], progress=progress, keep_history=False, warmup=warmup
+        )
+        row = row_from(name, result.summary(), config.to_dict(), "simulated", keeper.trace())
+        rows.append(row)
+        if on_run is not None:
+            on_run(i + 1, len(names), row)
+        if result.status == "interrupted":
+            if result.error.startswith("terminated by SIGTERM"):
+                raise Terminated("SIGTERM")
+            raise KeyboardInterrupt(result.error)
+    return CompareTable(rows, differences)

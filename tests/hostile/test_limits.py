@@ -1,0 +1,214 @@
+"""Parsing limits before parsers: sizes and depths refused by name before anything allocates.
+
+Pinocchio's URDF parser crashes the process on about 6000 chained joints,
+Python's JSON parser recurses per nesting level, numpy allocates what a
+file declares: each case is refused with one line and exit 2 first.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from hostile_corpus import (
+    SHORT_RUN,
+    chained_urdf,
+    csv_log,
+    exo_ctrl,
+    exo_urdf_text,
+    meta_rrd,
+    nested_json,
+    nested_xml_urdf,
+    valid_meta,
+)
+
+from exo_ctrl.cli.app import main
+from exo_ctrl.model import default_urdf_path
+
+
+def run(argv: list[str], capsys) -> tuple[int, str]:
+    code = main(argv)
+    return code, capsys.readouterr().err
+
+
+def test_a_urdf_of_6000_chained_joints_is_refused_not_a_segfault(tmp_path: Path) -> None:
+    urdf = chained_urdf(tmp_path, 6000)
+    assert urdf.stat().st_size > 1_000_000
+    proc = exo_ctrl(["simulate", "--exo", str(urdf), *SHORT_RUN], tmp_path)
+    assert (proc.returncode, proc.stderr) == (
+        2,
+        f"exo-ctrl simulate: error: invalid model: {urdf}: more than 1000 links; a URDF may "
+        "have at most 1000 (Pinocchio's parser crashes on about 6000 chained joints)\n",
+    )
+
+
+@pytest.mark.parametrize(
+    ("make", "option", "reason"),
+    [
+        (
+            lambda d: nested_xml_urdf(d, 40),
+            "--patient",
+            "elements nested more than 32 deep (at <a>); a URDF nests about 5",
+        ),
+        (
+            lambda d: _padded_urdf(d, 9 << 20),
+            "--exo",
+            "the file is 9.005 MiB; a URDF is read up to 8 MiB (a leg model is a few kB)",
+        ),
+        (
+            lambda d: _joints_only(d, 1001),
+            "--controller-exo",
+            "more than 1000 joints; a URDF may have at most 1000 (Pinocchio's parser crashes "
+            "on about 6000 chained joints)",
+        ),
+    ],
+)
+def test_urdf_depth_size_and_parts_siblings(
+    tmp_path: Path, capsys, make, option: str, reason: str
+) -> None:
+    urdf = make(tmp_path)
+    code, err = run(["simulate", option, str(urdf), *SHORT_RUN], capsys)
+    assert (code, err) == (2, f"exo-ctrl simulate: error: invalid model: {urdf}: {reason}\n")
+
+
+def _padded_urdf(directory: Path, size: int) -> Path:
+    text = exo_urdf_text().replace("</robot>", "<!--" + "x" * size + "--></robot>")
+    path = directory / "padded.urdf"
+    path.write_text(text)
+    return path
+
+
+def _joints_only(directory: Path, n: int) -> Path:
+    joints = "".join(f'<joint name="j{i}" type="fixed"/>' for i in range(n))
+    path = directory / "joints.urdf"
+    path.write_text(exo_urdf_text().replace("</robot>", joints + "</robot>"))
+    return path
+
+
+@pytest.mark.parametrize("depth", [5000, 65])
+def test_a_deeply_nested_session_is_refused_by_name(tmp_path: Path, capsys, depth: int) -> None:
+    session = nested_json(tmp_path, depth)
+    code, err = run(["simulate", "--session", str(session), *SHORT_RUN], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl simulate: error: session must be a JSON list of segments; got '{session}' "
+        f"(nested {depth} levels deep; at most 64 are read)\n",
+    )
+
+
+@pytest.mark.parametrize(
+    ("meta", "reason"),
+    [
+        ("[" * 5000 + "]" * 5000, "raw/meta is nested 5000 levels deep; at most 64 are read"),
+        (
+            json.dumps(valid_meta(signals={"q": [4], "huge": [1_000_000, 3_000_000]})),
+            "raw/meta declares signals of 3,000,000,000,004 values a tick: 1 ticks would need "
+            "21.83 TiB, beyond the 1 GiB memory cap",
+        ),
+        (
+            json.dumps(valid_meta(signals={"q": [[4]]})),
+            "raw/meta declares signal 'q' of shape [[4]]: at most 4 integers >= 0",
+        ),
+        (
+            json.dumps(valid_meta(signals={"q": [-4]})),
+            "raw/meta declares signal 'q' of shape [-4]: at most 4 integers >= 0",
+        ),
+    ],
+)
+def test_recording_metadata_is_checked_before_allocation(
+    tmp_path: Path, capsys, meta: str, reason: str
+) -> None:
+    rrd = meta_rrd(tmp_path, meta)
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert (code, err) == (2, f"exo-ctrl estimate: error: cannot read recording {rrd}: {reason}\n")
+
+
+def test_a_recording_naming_a_hostile_urdf_is_refused_and_a_named_one_announced(
+    tmp_path: Path, capsys
+) -> None:
+    exo = tmp_path / "my_exo.urdf"
+    shutil.copy(default_urdf_path("exo"), exo)
+    rrd = tmp_path / "run.rrd"
+    assert main(["simulate", "--exo", str(exo), "--duration", "0.1", "--out", str(rrd)]) == 0
+    capsys.readouterr()
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert code == 0
+    assert err == (
+        f"exo-ctrl estimate: warning: {rrd}: estimated with the exoskeleton it names, {exo}\n"
+    )
+    chained_urdf(tmp_path, 6000, name="my_exo.urdf")  # the file the recording names, replaced
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl estimate: error: cannot estimate from {rrd}: its exoskeleton {exo} cannot be "
+        f"loaded (invalid model: {exo}: more than 1000 links; a URDF may have at most 1000 "
+        "(Pinocchio's parser crashes on about 6000 chained joints)); give the model with --exo\n",
+    )
+
+
+def test_csv_logs_beyond_the_memory_cap_are_refused_before_reading(tmp_path: Path, capsys) -> None:
+    rows = tmp_path / "rows.csv"  # 1.8 million lines: about 1 GiB to read, 1.8 MB on disk
+    rows.write_bytes(b"\n" * 1_800_000)
+    code, err = run(["estimate", str(rows)], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl estimate: error: invalid log {rows}: 1,800,000 rows would need about "
+        "1.006 GiB to read (600 B a row), beyond the 1 GiB memory cap: at most 1,789,569 rows\n",
+    )
+    big = tmp_path / "big.csv"  # sibling: over the cap by its size alone (a sparse file)
+    with big.open("wb") as handle:
+        handle.truncate((1 << 30) + 1)
+    code, err = run(["identify", str(big), "--out", str(tmp_path / "p.urdf")], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl identify: error: invalid log {big}: the file is 1 GiB; a CSV log is read "
+        "up to 1 GiB\n",
+    )
+    ok = csv_log(tmp_path, n=100)  # a plausible log below the cap still reads
+    assert run(["estimate", str(ok)], capsys)[0] == 0
+
+
+@pytest.mark.parametrize(
+    ("pattern", "reason"),
+    [
+        ("p_{i:99999999999}.urdf", "the field {i:99999999999} is wider than 32 characters"),
+        ("p_{i:999999999}.urdf", "the field {i:999999999} is wider than 32 characters"),
+        ("p_{i:{i}}.urdf", "a nested field in {i:{i}}"),
+        ("p_{i:.40}.urdf", "the field {i:.40} is wider than 32 characters"),
+    ],
+)
+def test_cohort_patterns_are_checked_before_formatting(
+    tmp_path: Path, capsys, pattern: str, reason: str
+) -> None:
+    argv = ["urdf", "--kind", "patient", "--cohort", "2", "--height", "1.75", "--mass", "80"]
+    code, err = run([*argv, "--out", str(tmp_path / pattern)], capsys)
+    allowed = "an existing directory or a file pattern with {i} (e.g. cohort/p{i:02d}.urdf)"
+    assert (code, err) == (
+        2,
+        f"exo-ctrl urdf: error: --out must be {allowed}; got '{tmp_path / pattern}' ({reason})\n",
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("argv", "value"),
+    [
+        (["simulate", "--period", "1e7", *SHORT_RUN], "10000000.0"),
+        (["simulate", "--period", "1e200", *SHORT_RUN], "1e+200"),
+        (["gait", "--period", "1e12", "--csv", "g.csv"], "1000000000000.0"),
+    ],
+)
+def test_an_absurd_gait_period_is_refused_by_name(
+    tmp_path: Path, capsys, monkeypatch, argv: list[str], value: str
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, err = run(argv, capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl {argv[0]}: error: period must be <= 100 s; got {value} (one gait cycle sizes "
+        "the plan and the monitors' windows: a longer one would not fit in memory, or "
+        "overflow)\n",
+    )
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,177 @@
+"""Outputs never replace inputs, never follow a link the user did not name, never hang.
+
+Each case runs ``exo-ctrl`` in this process (:func:`exo_ctrl.cli.app.main`,
+the checks come before any work) and asserts the exact line on stderr, the
+exit code and that the file it would have replaced is unchanged.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+from hostile_corpus import csv_log, exo_urdf_text
+
+from exo_ctrl import _io
+from exo_ctrl.cli.app import main
+
+OUT_ALLOWED = "a writable file in an existing directory"
+
+
+def run(argv: list[str], capsys) -> tuple[int, str]:
+    """``exo-ctrl ARGV`` in this process: (exit code, stderr)."""
+    code = main(argv)
+    return code, capsys.readouterr().err
+
+
+@pytest.fixture
+def inputs(tmp_path: Path, monkeypatch) -> Path:
+    """A directory, the working one, holding an exoskeleton URDF, a session and a CSV log."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "e.urdf").write_text(exo_urdf_text())
+    (tmp_path / "s.json").write_text('[{"duration": 0.05, "mode": "tracking"}]')
+    csv_log(tmp_path, "log.csv", n=50)
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    ("argv", "victim", "message"),
+    [
+        # listed in issue 32: the URDF replaced by the summary through a hard link
+        (
+            ["simulate", "--exo", "e.urdf", "--summary", "hard.urdf", "--no-record"],
+            "e.urdf",
+            "--summary must be a file other than --exo; got 'hard.urdf' "
+            "(one would replace the other)",
+        ),
+        # listed: the session replaced by the recording
+        (
+            ["simulate", "--session", "s.json", "--out", "s.json"],
+            "s.json",
+            "--out must be a file other than --session; got 's.json' (one would replace the other)",
+        ),
+        # siblings: the device's URDF given to the controller, through a symbolic link
+        (
+            ["simulate", "--controller-exo", "e.urdf", "--out", "soft.urdf"],
+            "e.urdf",
+            "--out must be a file other than --controller-exo; got 'soft.urdf' "
+            "(one would replace the other)",
+        ),
+        (
+            ["estimate", "log.csv", "--summary", "hardlog.csv"],
+            "log.csv",
+            "--summary must be a file other than the input file; got 'hardlog.csv' "
+            "(one would replace the other)",
+        ),
+        (
+            ["identify", "log.csv", "--exo", "e.urdf", "--out", "hard.urdf"],
+            "e.urdf",
+            "--out must be a file other than --exo; got 'hard.urdf' (one would replace the other)",
+        ),
+    ],
+)
+def test_an_output_naming_an_input_by_any_name_is_refused(
+    inputs: Path, capsys, argv: list[str], victim: str, message: str
+) -> None:
+    os.link(inputs / "e.urdf", inputs / "hard.urdf")
+    os.link(inputs / "log.csv", inputs / "hardlog.csv")
+    os.symlink("e.urdf", inputs / "soft.urdf")
+    before = (inputs / victim).read_bytes()
+    code, err = run(argv, capsys)
+    assert (code, err) == (2, f"exo-ctrl {argv[0]}: error: {message}\n")
+    assert (inputs / victim).read_bytes() == before
+    assert sorted(p.name for p in inputs.iterdir()) == sorted(
+        ["e.urdf", "s.json", "log.csv", "hard.urdf", "hardlog.csv", "soft.urdf"]
+    )
+
+
+def test_the_default_recording_path_is_not_followed_through_a_link(inputs: Path, capsys) -> None:
+    victim = inputs / "someone_elses.rrd"
+    victim.write_bytes(b"precious")
+    os.symlink(victim, inputs / "exo_run.rrd")
+    code, err = run(["simulate", "--duration", "0.05"], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl simulate: error: --out must be {OUT_ALLOWED}; got 'exo_run.rrd' "
+        f"(exo_run.rrd, the default, is a symbolic link to {victim}; a link is followed "
+        "only when named)\n",
+    )
+    assert victim.read_bytes() == b"precious"
+
+
+def test_a_planted_partial_file_link_is_refused(inputs: Path, capsys) -> None:
+    """Sibling: the partial file a recording is written to is a name the user did not give."""
+    victim = inputs / "victim.rrd"
+    victim.write_bytes(b"precious")
+    os.symlink(victim, inputs / "run.partial.rrd")
+    code, err = run(["simulate", "--duration", "0.05", "--out", "run.rrd"], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl simulate: error: --out must be {OUT_ALLOWED}; got 'run.rrd' "
+        "(run.partial.rrd is a symbolic link; the recording is written there first)\n",
+    )
+    assert victim.read_bytes() == b"precious"
+
+
+def _mkfifo(path: Path) -> Path:
+    os.mkfifo(path)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("argv", "option"),
+    [
+        (["gait", "--csv", "fifo"], "fifo"),  # a FIFO as the gait's table
+        (["simulate", *["--duration", "0.05", "--no-record"], "--summary", "fifo"], "fifo"),
+    ],
+)
+def test_a_fifo_without_reader_fails_after_the_timeout_not_never(
+    inputs: Path, capsys, monkeypatch, argv: list[str], option: str
+) -> None:
+    monkeypatch.setattr(_io, "FIFO_OPEN_TIMEOUT_S", 0.3)
+    _mkfifo(inputs / "fifo")
+    start = time.monotonic()
+    code, err = run(argv, capsys)
+    waited = time.monotonic() - start
+    assert err.splitlines()[-1] == (
+        f"exo-ctrl {argv[0]}: error: cannot write {option}: "
+        "no process opened the FIFO for reading within 0.3 s"
+    )
+    assert code == 1
+    assert waited < 120.0  # a run and 0.3 s, not forever
+    assert (inputs / "fifo").exists() and not (inputs / "fifo").is_file()
+
+
+def test_open_special_waits_for_a_late_reader(tmp_path: Path) -> None:
+    """Sibling: a reader that comes within the timeout gets everything (nothing refused early)."""
+    import threading
+
+    fifo = _mkfifo(tmp_path / "late")
+    got: list[bytes] = []
+
+    def reader() -> None:
+        time.sleep(0.2)
+        with open(fifo, "rb") as handle:
+            got.append(handle.read())
+
+    thread = threading.Thread(target=reader)
+    thread.start()
+    with _io.atomic_write(fifo, "wb") as handle:
+        handle.write(b"x" * 100_000)
+    thread.join(10)
+    assert got == [b"x" * 100_000]
+
+
+def test_same_file_key_counts_hard_and_symbolic_links(tmp_path: Path) -> None:
+    a = tmp_path / "a"
+    a.write_text("a")
+    os.link(a, tmp_path / "b")
+    os.symlink(a, tmp_path / "c")
+    shutil.copy(a, tmp_path / "d")
+    key = _io.same_file_key(a)
+    assert _io.same_file_key(tmp_path / "b") == key == _io.same_file_key(tmp_path / "c")
+    assert _io.same_file_key(tmp_path / "d") != key
+    assert _io.same_file_key(tmp_path / "new") == ("path", str(tmp_path / "new"))
