@@ -12,15 +12,11 @@ The rule (docs/index.md, "How these pages are tested"):
   line must match a printed line, in order, with the text between the numbers equal, and each
   number must be within the tolerance the text between the two blocks states ("within 1 %")
   or within half a unit of its last digit.
-- :data:`NOT_RUN` lists what cannot run here, with the reason.  A subcommand the installed
-  ``exo-ctrl`` does not know (``exo-ctrl SUB --help`` fails), or an option of
-  :data:`PENDING_OPTIONS` it refuses as unrecognised, skips the rest of its block with that
-  reason: those come with the scenario files and run once they exist.
+- :data:`NOT_RUN` lists what cannot run here, with the reason; everything else must exit 0.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 import re
@@ -43,8 +39,6 @@ SHORTENED = frozenset({"simulate", "sweep", "compare"})
 FULL_RUNS = frozenset({"calibration", "aan", "path"})
 TOLERANCE = re.compile(r"within (\d+(?:\.\d+)?) ?%")
 NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?![\w.])")
-#: Options of the scenario files (built beside this test): refused as unrecognised until they exist.
-PENDING_OPTIONS = frozenset({"--preset", "--set"})
 #: What is not run, and why: (pattern on a command, reason).
 NOT_RUN = (
     (r"^python3 -m venv \.venv$", "creates the environment the test runs in"),
@@ -104,13 +98,6 @@ def not_run(command: str) -> str | None:
     return None
 
 
-@functools.cache
-def help_text(program: str, sub: str) -> str | None:
-    """``program sub --help``'s output, or None when it fails."""
-    done = subprocess.run([program, sub, "--help"], capture_output=True, text=True, timeout=120)
-    return done.stdout if done.returncode == 0 else None
-
-
 def short_form(words: list[str]) -> list[str]:
     """An ``exo-ctrl simulate|sweep|compare`` command cut to a short run (module docstring)."""
     if len(words) < 2 or not words[0].endswith("exo-ctrl") or words[1] not in SHORTENED:
@@ -167,10 +154,6 @@ def workdir(tmp: Path) -> Path:
     return tmp
 
 
-class Pending(Exception):
-    """A command of an interface not in this tree yet."""
-
-
 def run_command(command: str, cwd: Path, env: dict[str, str], shorten: bool) -> tuple[str, list]:
     """Run one line (an ``&&`` chain part by part); its output and the parts not run."""
     output, skipped = [], []
@@ -180,15 +163,8 @@ def run_command(command: str, cwd: Path, env: dict[str, str], shorten: bool) -> 
             skipped.append((part, reason))
             continue
         words = shlex.split(part)
-        program = str(cwd / words[0]) if words[0].startswith(".venv/") else words[0]
-        sub = words[1] if words[0].endswith("exo-ctrl") and len(words) > 1 else "-"
-        if not sub.startswith("-") and help_text(program, sub) is None:
-            raise Pending(f"exo-ctrl {sub} is not in this tree (exo-ctrl {sub} --help fails)")
         if shorten:
             words = short_form(words)
-            # compare takes the short duration only if it has the option
-            if sub == "compare" and "--duration" not in (help_text(program, sub) or ""):
-                words = words[:-2]
         done = subprocess.run(
             shlex.join(words),
             shell=True,
@@ -198,11 +174,6 @@ def run_command(command: str, cwd: Path, env: dict[str, str], shorten: bool) -> 
             text=True,
             timeout=900,
         )
-        unknown = re.search(r"unrecognized arguments: (\S+)", done.stderr)
-        if done.returncode == 2 and unknown:
-            first = unknown.group(1)
-            if first in PENDING_OPTIONS or first.endswith(".toml"):
-                raise Pending(f"{words[1]} does not take {first} in this tree yet")
         assert done.returncode == 0, (
             f"{shlex.join(words)} exited {done.returncode}:\n{done.stdout[-2000:]}"
             f"\n{done.stderr[-2000:]}"
@@ -216,7 +187,7 @@ def run_command(command: str, cwd: Path, env: dict[str, str], shorten: bool) -> 
 def test_the_page_runs_as_written(page, tmp_path):
     cwd = workdir(tmp_path)
     env = {**os.environ, "EXO_CTRL_WARMUP": "0", "MPLBACKEND": "Agg"}
-    problems, pending, not_run_here = [], [], []
+    problems, not_run_here = [], []
     for block in page_blocks(page.read_text(encoding="utf-8")):
         where = f"{page.name}:{block.line}"
         if block.quoted is not None and block.tolerance is None:
@@ -232,9 +203,6 @@ def test_the_page_runs_as_written(page, tmp_path):
                 out, skipped = run_command(command, cwd, env, block.quoted is None)
                 printed.append(out)
                 not_run_here += skipped
-        except Pending as exc:
-            pending.append(f"{where}: {exc}")
-            continue
         except AssertionError as exc:
             problems.append(f"{where}: {exc}")
             continue
@@ -244,8 +212,6 @@ def test_the_page_runs_as_written(page, tmp_path):
                 for p in compare_quoted(block.quoted, "".join(printed), block.tolerance)
             ]
     assert not problems, "\n".join(problems)
-    if pending:
-        pytest.skip("; ".join(pending))
 
 
 def test_what_is_not_run_is_shown_and_listed():
