@@ -1,4 +1,4 @@
-"""Every command the README and the tools' docstrings show runs as written.
+"""Every command README.md, the docs/ pages and the tools' docstrings show names its program.
 
 A command written ``python tools/reproduce_paper.py`` works only with the
 virtual environment active (otherwise: ``ModuleNotFoundError``), so every
@@ -9,7 +9,10 @@ the one exception is ``python3 -m venv .venv``, which creates it.
 What counts as a command: every line of a ``bash``/``sh``/``console`` code
 block, and every other code span or code-block line whose first word is a
 program (:data:`PROGRAMS`, a ``.venv/`` path, or a ``.py`` file followed by
-arguments).  ``a && b`` and ``a; b`` are checked part by part.
+arguments).  ``a && b`` and ``a; b`` are checked part by part.  An ``output`` block
+quotes what a command prints and holds no command.  tests/test_docs_run.py runs the
+commands; this module also checks the README's size, the pages' links and that mkdocs.yml
+lists every page.
 """
 
 from __future__ import annotations
@@ -27,6 +30,12 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Bare program names a reader could type, which must be written as venv paths.
 PROGRAMS = frozenset({"python", "python3", "pip", "pip3", "exo-ctrl", "rerun", "pytest", "ruff"})
 SHELL_BLOCKS = frozenset({"bash", "sh", "shell", "console"})
+#: Blocks that quote output, not commands.
+OUTPUT_BLOCKS = frozenset({"output"})
+#: README.md, then the docs/ pages.
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+README_MAX_LINES = 300
+README_MAX_LINE_CHARS = 200
 BOOTSTRAP = "python3 -m venv .venv"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
 SPAN = re.compile(r"`([^`\n]+)`")
@@ -57,6 +66,8 @@ def commands_in_markdown(text: str) -> list[str]:
     for lang, body in FENCE.findall(text):
         for line in body.splitlines():
             line = line.strip()
+            if lang in OUTPUT_BLOCKS:
+                continue
             if lang in SHELL_BLOCKS:
                 shown = bool(line) and not line.startswith("#")
             else:
@@ -111,6 +122,15 @@ def readme_commands() -> list[str]:
     return commands_in_markdown((ROOT / "README.md").read_text(encoding="utf-8"))
 
 
+def page_commands() -> list[tuple[str, str]]:
+    """(page, command) for every command of README.md and the docs/ pages."""
+    return [
+        (page.relative_to(ROOT).as_posix(), command)
+        for page in PAGES
+        for command in commands_in_markdown(page.read_text(encoding="utf-8"))
+    ]
+
+
 def tool_commands() -> list[tuple[str, str]]:
     found = []
     for path in sorted((ROOT / "tools").glob("*.py")):
@@ -130,9 +150,64 @@ def test_the_readme_shows_the_commands_it_promises():
         assert any(c.startswith(f".venv/bin/exo-ctrl {sub} ") for c in commands), sub
 
 
-@pytest.mark.parametrize("command", readme_commands())
-def test_every_readme_command_names_an_existing_program(command):
-    assert problems(command) == []
+@pytest.mark.parametrize(("page", "command"), page_commands())
+def test_every_page_command_names_an_existing_program(page, command):
+    assert problems(command) == [], page
+
+
+def test_the_readme_is_a_short_guide():
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= README_MAX_LINES
+    assert [i + 1 for i, line in enumerate(lines) if len(line) > README_MAX_LINE_CHARS] == []
+
+
+def test_mkdocs_lists_every_page():
+    config = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    listed = re.findall(r":\s*(\S+\.md)\s*$", config, re.M)
+    assert sorted(listed) == sorted(p.name for p in (ROOT / "docs").glob("*.md"))
+
+
+def heading_anchors(text: str) -> set[str]:
+    """GitHub's anchors of a Markdown text's headings."""
+    anchors = set()
+    for title in re.findall(r"^#+ (.+)$", FENCE.sub("", text), re.M):
+        slug = re.sub(r"[^\w\- ]", "", title.strip().lower()).replace(" ", "-")
+        anchors.add(slug)
+    return anchors
+
+
+def page_links() -> list[tuple[str, str]]:
+    """(page, target) of every relative Markdown link or image of the pages."""
+    found = []
+    for page in PAGES:
+        text = FENCE.sub("", page.read_text(encoding="utf-8"))
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if not re.match(r"[a-z]+:", target):
+                found.append((page.relative_to(ROOT).as_posix(), target))
+    return found
+
+
+@pytest.mark.parametrize(("page", "target"), page_links())
+def test_every_link_points_at_a_file_and_heading(page, target):
+    path, _, anchor = target.partition("#")
+    file = (ROOT / page).parent / path if path else ROOT / page
+    if not file.exists() and file.parent == ROOT / "docs" / "img":
+        pytest.skip(f"{target}: the pictures come from another branch (issue 30, item 6)")
+    assert file.is_file(), target
+    if anchor:
+        assert anchor in heading_anchors(file.read_text(encoding="utf-8")), target
+
+
+def test_the_pages_are_current_not_a_history():
+    history = re.compile(
+        r"this stage|previous session|last sessions?|than before|stopped importing"
+    )
+    hits = [
+        (page.name, m.group(0))
+        for page in PAGES
+        for m in history.finditer(page.read_text(encoding="utf-8"))
+    ]
+    assert hits == []
 
 
 @pytest.mark.parametrize(("tool", "command"), tool_commands())
