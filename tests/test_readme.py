@@ -191,8 +191,6 @@ def page_links() -> list[tuple[str, str]]:
 def test_every_link_points_at_a_file_and_heading(page, target):
     path, _, anchor = target.partition("#")
     file = (ROOT / page).parent / path if path else ROOT / page
-    if not file.exists() and file.parent == ROOT / "docs" / "img":
-        pytest.skip(f"{target}: the pictures come from another branch (issue 30, item 6)")
     assert file.is_file(), target
     if anchor:
         assert anchor in heading_anchors(file.read_text(encoding="utf-8")), target

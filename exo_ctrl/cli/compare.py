@@ -19,6 +19,7 @@ configurations differ beyond the controller, without ``--allow-different``);
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from collections.abc import Callable
@@ -88,7 +89,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--out",
         required=True,
         metavar="DIR",
-        help="an existing directory for compare.csv, compare.json and compare.png",
+        help="the directory for compare.csv, compare.json and compare.png (made if new, "
+        "in an existing directory) (default: none, required)",
     )
     length = p.add_mutually_exclusive_group()
     length.add_argument(
@@ -116,8 +118,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _check_args(args: argparse.Namespace) -> None:
+def _check_args(args: argparse.Namespace, check_files: bool = True) -> None:
     """The form's options and the output directory, before any work.
+
+    ``check_files`` False: not the files in ``--out`` (a directory not made yet).
 
     Raises:
         InvalidParameter: a form mixed up, or ``--out`` not an existing directory.
@@ -141,8 +145,13 @@ def _check_args(args: argparse.Namespace) -> None:
         raise InvalidParameter(
             "SCENARIO", args.inputs, "at most one scenario with --controllers (no recordings)"
         )
-    if not os.path.isdir(args.out):
-        raise InvalidParameter("--out", args.out, "an existing directory")
+    parent = os.path.dirname(os.path.abspath(args.out))
+    if not os.path.isdir(args.out) and (os.path.lexists(args.out) or not os.path.isdir(parent)):
+        raise InvalidParameter(
+            "--out", args.out, "a directory, existing or new in an existing directory"
+        )
+    if not check_files:
+        return
     for attribute, name in OUTPUT_FILES.items():
         setattr(args, attribute, str(Path(args.out) / name))
     reads = {} if args.controllers is not None else {f"input {p}": p for p in args.inputs}
@@ -166,7 +175,27 @@ def _notice(verb: str) -> Callable[[int, int, CompareRow], None]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Compare, print the table, write the files; 0, or 1 when a compared run did not complete."""
+    """Compare, print the table, write the files; 0, or 1 when a compared run did not complete.
+
+    A new ``--out`` directory is made after the other checks, and removed
+    again (if still empty) when the command fails.
+    """
+    created = not os.path.isdir(args.out)
+    if created:
+        require_matplotlib()  # before anything is made
+        _check_args(args, check_files=False)
+        os.mkdir(args.out)
+    try:
+        return _run(args)
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                os.rmdir(args.out)  # only if nothing was written
+        raise
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command once ``--out`` is a directory."""
     _check_args(args)
     require_matplotlib()
     table: CompareTable

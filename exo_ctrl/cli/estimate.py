@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from .._io import is_special
 from ..estimation import ESTIMATORS
 from ..record import estimate_file, write_estimate_recording
 from ..record.export import estimate_table, table_suffix, write_table
@@ -57,7 +58,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--out",
         default=None,
         metavar="EST.rrd|EST.csv|EST.parquet",
-        help="write the per-sample estimate to this file, by its suffix: a rerun recording, "
+        help="write the per-sample estimate to this file, by its suffix: a rerun recording "
+        "(also a device or a FIFO), "
         "or a table with t [s] and one column per cuff, joint and axis, named as exo-ctrl "
         "export names them (left_thigh_cuff_normal_est_N) (default: none)",
     )
@@ -75,7 +77,9 @@ def run(args: argparse.Namespace) -> int:
 
     The output paths (and ``--out``'s suffix) are checked before the input is read.
     """
-    if args.out:
+    # a special file (a device, a FIFO) has no suffix to go by: it takes the recording
+    to_recording = bool(args.out) and (is_special(args.out) or args.out.lower().endswith(".rrd"))
+    if args.out and not to_recording:
         table_suffix(args.out, "--out", OUT_SUFFIXES)
     check_outputs(args, {"the input file": args.file}, out="--out", summary="--summary")
     estimate = estimate_file(
@@ -87,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
         accept_implausible=args.accept_implausible,
     )
     summary = estimate.summary()
-    if args.out and args.out.lower().endswith(".rrd"):
+    if to_recording:
         write_estimate_recording(estimate, args.out)
     elif args.out:
         write_table(estimate_table(estimate.series), args.out)

@@ -38,7 +38,7 @@ complete, commented one from a preset and edit it:
 
 - A key left out takes its default; `# key =   (unset)` lines are optional
   keys whose default is "not set".
-- `exo-ctrl simulate FILE.toml --set section.key=value` overrides one key
+- `.venv/bin/exo-ctrl simulate FILE.toml --set section.key=value` overrides one key
   (repeatable, a TOML value or a bare string; `default` restores the
   default); `--controller`, `--duration`/`--cycles`, `--out`, `--summary`
   and `--no-record` override the file too.
@@ -49,7 +49,7 @@ complete, commented one from a preset and edit it:
 - Unknown sections or keys, values of the wrong type and values out of range
   are refused with the file, the key path and what is allowed (exit 2).
 - Every recording and summary carries its complete scenario:
-  `exo-ctrl scenario --from RUN.rrd --out again.toml` writes it back, and
+  `.venv/bin/exo-ctrl scenario --from RUN.rrd --out again.toml` writes it back, and
   running that file reproduces the run's summary.
 
 This page is generated from the code (`.venv/bin/python tools/make_docs.py`);

@@ -252,6 +252,12 @@ def test_identify_refuses_a_cutoff_or_a_step_whose_sample_count_overflows(
     )
     tiny = _log(tmp_path / "tiny.csv", np.arange(500) * 5e-324)  # denormal steps
     err = _refused(capsys, ["identify", str(tiny), "--out", out])
+    assert err.startswith(f"exo-ctrl identify: error: invalid log {tiny}, column 't': ")
+    assert "median time step is 4.941e-324 s, outside [1e-05, 1] s" in err
+    accept = ["identify", str(tiny), "--out", out, "--accept-implausible"]
+    assert cli.main(accept) == 2
+    warning, err = capsys.readouterr().err.splitlines(keepends=True)  # read with a warning
+    assert warning.startswith(f"exo-ctrl identify: warning: {tiny}, column 't': ")
     assert err.startswith(f"exo-ctrl identify: error: invalid log {tiny}: it lasts ")
     assert err.endswith("identification needs at least 2 s at a 2 Hz cut-off\n")
 

@@ -79,7 +79,8 @@ def test_compare_without_matplotlib_stops_before_any_run(tmp_path: Path) -> None
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--controllers", "pd"], "--out must be an existing directory; got '{missing}'"),
+        (["--controllers", "pd"], "--out must be a directory, existing or new in an existing "
+         "directory; got '{missing}'"),
         ([], "--controllers must be given (pd,ct,qp), or recordings RUN.rrd as arguments; "
          "got None"),
         (["a.rrd", "--cycles", "1"], "--cycles must be given only with --controllers; got 1.0"),
@@ -100,7 +101,7 @@ def test_compare_without_matplotlib_stops_before_any_run(tmp_path: Path) -> None
 def test_compare_refuses_bad_input_in_one_line(
     tmp_path: Path, capsys, args: list[str], message: str
 ) -> None:
-    missing = tmp_path / "missing"
+    missing = tmp_path / "missing" / "new"
     out = missing if args == ["--controllers", "pd"] else tmp_path
     assert cli.main(["compare", *args, "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -133,3 +134,15 @@ def test_compare_recordings_refuses_differing_runs_unless_allowed(tmp_path: Path
     data = json.loads((out / "compare.json").read_text())
     assert [r["label"] for r in data["runs"]] == ["a", "b"]
     assert [r["source"] for r in data["runs"]] == [str(a), str(b)]
+
+
+def test_a_new_out_directory_is_made_and_removed_again_on_failure(tmp_path: Path, capsys) -> None:
+    new = tmp_path / "new"
+    assert cli.main(["compare", "--controllers", "pd,lqr", "--out", str(new)]) == 2
+    assert capsys.readouterr().err.startswith("exo-ctrl compare: error: controllers must be ")
+    assert not new.exists()
+    runs = [str(tmp_path / "a.rrd"), str(tmp_path / "b.rrd")]
+    for run in runs:
+        assert cli.main(["simulate", "--duration", "0.1", "--out", run]) == 0
+    assert cli.main(["compare", *runs, "--out", str(new)]) == 0
+    assert sorted(p.name for p in new.iterdir()) == ["compare.csv", "compare.json", "compare.png"]

@@ -258,7 +258,7 @@ def test_non_physical_urdf_is_bad_input_for_every_command(
     argv = {
         "gait": ["gait", "--exo", str(urdf), "--csv", str(out)],
         "simulate": ["simulate", "--exo", str(urdf), "--duration", "0.05", "--out", str(out)],
-        "estimate": ["estimate", str(log), "--exo", str(urdf), "--out", str(out)],
+        "estimate": ["estimate", str(log), "--exo", str(urdf), "--out", str(tmp_path / "est.rrd")],
     }[command]
     code = cli.main(argv)
     err = capsys.readouterr().err

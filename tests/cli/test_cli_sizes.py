@@ -75,10 +75,9 @@ def test_sizes_are_written_in_binary_units(size: float, text: str) -> None:
 
 # --------------------------------------------------------------------------- exo-ctrl gait
 
-GAIT_PERIOD = (
-    "exo-ctrl gait: error: period must be at most 1.974e+04 s at 100 Hz so that the samples "
-    "fit in the 1 GiB memory cap (at most 1,973,790 of 544 B each); got 1000000.0 "
-    "(100,000,001 samples would need 50.66 GiB; the duration defaults to one period)\n"
+GAIT_PERIOD = (  # the gait period's own bound comes first (GaitParams, MAX_PERIOD_S)
+    "exo-ctrl gait: error: period must be <= 100 s; got 1000000.0 (one gait cycle sizes "
+    "the plan and the monitors' windows: a longer one would not fit in memory, or overflow)\n"
 )
 GAIT_RATE = (
     "exo-ctrl gait: error: rate must be at most 1.645e+06 Hz over 1.2 s so that the samples "
@@ -159,16 +158,13 @@ SIM_PLAN = (
     "(100,000,001 plan rows would need 43.96 GiB; the plan holds every tick, as the period "
     "1.2003 s is not a whole number of 1 ms ticks)\n"
 )
-SIM_PERIOD = (  # the default ramp-in of one period holds as many rows as the period
-    "exo-ctrl simulate: error: period must be at most 1137 s at 1000 Hz so that the plan "
-    "rows fit in the 1 GiB memory cap (at most 2,274,876 of 472 B each); got 1000000.0 "
-    "(2,000,000,000 plan rows would need 879.2 GiB; the plan holds one period and the default "
-    "ramp-in of one period (1,000,000,000 ticks))\n"
+SIM_PERIOD = (  # the gait period's own bound comes first (GaitParams, MAX_PERIOD_S)
+    "exo-ctrl simulate: error: period must be <= 100 s; got 1000000.0 (one gait cycle sizes "
+    "the plan and the monitors' windows: a longer one would not fit in memory, or overflow)\n"
 )
-SIM_PERIOD_AT_SPEED = (
-    "exo-ctrl simulate: error: period must be at most 2275 s at 1000 Hz so that the plan "
-    "rows fit in the 1 GiB memory cap (at most 2,274,876 of 472 B each); got 1000000.0 "
-    "(1,000,000,000 plan rows would need 439.6 GiB; the plan holds one period)\n"
+SIM_PERIOD_AT_SPEED = (  # the gait period's own bound comes first (GaitParams, MAX_PERIOD_S)
+    "exo-ctrl simulate: error: period must be <= 100 s; got 1000000.0 (one gait cycle sizes "
+    "the plan and the monitors' windows: a longer one would not fit in memory, or overflow)\n"
 )
 SIM_ESTOP = (  # the default run: the ramp-in and two cycles, 3.6 s
     "exo-ctrl simulate: error: estop_at must be in [0, 3.599] s, within the run; got 4.0 "

@@ -44,7 +44,7 @@ def inputs(tmp_path: Path, monkeypatch) -> Path:
         (
             ["simulate", "--exo", "e.urdf", "--summary", "hard.urdf", "--no-record"],
             "e.urdf",
-            "--summary must be a file other than --exo; got 'hard.urdf' "
+            "--summary must be a file other than the exoskeleton URDF; got 'hard.urdf' "
             "(one would replace the other)",
         ),
         # listed: the session replaced by the recording
