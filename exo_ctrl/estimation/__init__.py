@@ -25,7 +25,12 @@ from .cuff_geometry import (
     cuff_forces_from_torque,
     cuff_normal_components,
 )
-from .errors import EstimateErrors, EstimateErrorStats, normal_component_errors
+from .errors import (
+    EstimateErrors,
+    EstimateErrorStats,
+    estimate_components,
+    normal_component_errors,
+)
 from .identification import (
     CalibrationSamples,
     Identification,
@@ -62,6 +67,7 @@ __all__ = [
     "cuff_forces_from_torque",
     "cuff_normal_components",
     "estimate_bias",
+    "estimate_components",
     "estimate_series",
     "first_order_filter",
     "identify_patient",

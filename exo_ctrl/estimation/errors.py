@@ -23,6 +23,18 @@ cuff whose RMS true force (whole figure) or peak true normal force (normal
 figure) is below :data:`REL_FLOOR_N` (1 N, below the torque sensors' noise
 seen through the lever arms) gets NaN, written as ``null`` in JSON summaries.
 
+**Per component, over its RMS** (``cuff_force_estimate_normal_rms_error_over_rms``,
+``cuff_force_estimate_along_rms_error_N`` and
+``cuff_force_estimate_along_rms_error_over_rms``): the normal component's
+RMS error over the RMS of the true normal component, and the along-link
+component's, f̂∥ = u(q) · f̂ against u(q) · f (u of
+:mod:`~exo_ctrl.estimation.cuff_geometry`), over the RMS true along
+component.  These say which half of a force an estimate gets right: the
+joint torques observe some components, models supply the others
+(``cuff_force_estimate_components``: :data:`OBSERVER_COMPONENTS` for the
+momentum observer, :data:`~exo_ctrl.estimation.kalman.COMPONENTS` for the
+filter).
+
 ``cuff_force_estimate_unobservable`` lists, per cuff, the components the
 estimator cannot observe from the joint torques (:data:`UNOBSERVABLE`).
 
@@ -43,14 +55,17 @@ from .. import _validate as v
 from .._jit import kernel, preload, record
 from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, BodyModel
-from .cuff_geometry import GEOMETRY_FIELDS, _cuff_directions, _geometry, cuff_normal_components
+from .cuff_geometry import GEOMETRY_FIELDS, _cuff_directions, _geometry, cuff_components
+from .kalman import COMPONENTS
 
 __all__ = [
+    "OBSERVER_COMPONENTS",
     "REL_FLOOR_N",
     "STARTUP_S",
     "UNOBSERVABLE",
     "EstimateErrorStats",
     "EstimateErrors",
+    "estimate_components",
     "normal_component_errors",
 ]
 
@@ -76,6 +91,36 @@ UNOBSERVABLE: dict[str, list[str]] = {
 }
 
 
+#: Per cuff and component, where the momentum observer's estimate comes from
+#: (the observer's twin of :data:`~exo_ctrl.estimation.kalman.COMPONENTS`).
+OBSERVER_COMPONENTS: dict[str, dict[str, str]] = {
+    cuff: (
+        {
+            "normal": "seen by the hip torque together with the shank's along-shank force; "
+            "split between them by the assumption κ",
+            "along": "assumed 0: no joint torque sees it",
+        }
+        if cuff.endswith("thigh")
+        else {
+            "normal": "observed: the knee torque",
+            "along": "from the assumption κ: seen by the hip torque only together with the "
+            "thigh's normal force",
+        }
+    )
+    for cuff in CUFF_NAMES
+}
+
+
+def estimate_components(estimator: str) -> dict[str, dict[str, str]]:
+    """Per cuff and component, where ``estimator``'s estimate comes from (a copy).
+
+    ``"kalman"``: :data:`~exo_ctrl.estimation.kalman.COMPONENTS`; otherwise
+    the momentum observer's :data:`OBSERVER_COMPONENTS`.
+    """
+    table = COMPONENTS if estimator == "kalman" else OBSERVER_COMPONENTS
+    return {cuff: dict(parts) for cuff, parts in table.items()}
+
+
 def _relative(rms: np.ndarray, peak: np.ndarray) -> np.ndarray:
     """The RMS over the peak per cuff, NaN where peak < :data:`REL_FLOOR_N`."""
     return np.divide(rms, peak, out=np.full(rms.shape, np.nan), where=peak >= REL_FLOOR_N)
@@ -99,6 +144,9 @@ class EstimateErrors:
         vector_rms_true_N: √(mean |f|²) of the true forces [N], (4,), or None.
         vector_rms_error_rel: their ratio [-], (4,), NaN where
             vector_rms_true_N < :data:`REL_FLOOR_N`; or None.
+        along_rms_error_N: RMS of (u · f̂ − u · f), the along-link component [N],
+            (4,), or None without the estimated forces.
+        along_rms_true_N: RMS of u · f [N], (4,), or None.
 
     """
 
@@ -111,13 +159,17 @@ class EstimateErrors:
     vector_rms_error_N: np.ndarray | None = None
     vector_rms_true_N: np.ndarray | None = None
     vector_rms_error_rel: np.ndarray | None = None
+    along_rms_error_N: np.ndarray | None = None
+    along_rms_true_N: np.ndarray | None = None
 
     def summary(self) -> dict[str, Any]:
         """The summary entries, keyed by cuff (NaN as None; module docstring).
 
         ``cuff_force_estimate_rms_error_N``, ``…_rms_error_rel`` (whole force;
         only with the estimated forces), ``…_normal_rms_error_N``,
-        ``…_normal_rms_over_peak`` and ``…_unobservable`` (a list: "cuff: component").
+        ``…_normal_rms_over_peak``, ``…_normal_rms_error_over_rms``,
+        ``…_along_rms_error_N`` and ``…_along_rms_error_over_rms`` (with the
+        estimated forces), and ``…_unobservable`` (a list: "cuff: component").
         """
 
         def keyed(x: np.ndarray) -> dict[str, float | None]:
@@ -132,6 +184,13 @@ class EstimateErrors:
             out["cuff_force_estimate_rms_error_rel"] = keyed(self.vector_rms_error_rel)
         out["cuff_force_estimate_normal_rms_error_N"] = keyed(self.rms_error_N)
         out["cuff_force_estimate_normal_rms_over_peak"] = keyed(self.rms_error_rel)
+        if self.rms_true_N is not None:
+            normal_rel = _relative(self.rms_error_N, self.rms_true_N)
+            out["cuff_force_estimate_normal_rms_error_over_rms"] = keyed(normal_rel)
+        if self.along_rms_error_N is not None and self.along_rms_true_N is not None:
+            out["cuff_force_estimate_along_rms_error_N"] = keyed(self.along_rms_error_N)
+            along_rel = _relative(self.along_rms_error_N, self.along_rms_true_N)
+            out["cuff_force_estimate_along_rms_error_over_rms"] = keyed(along_rel)
         out["cuff_force_estimate_unobservable"] = [
             f"{c}: {what}" for c, x in UNOBSERVABLE.items() for what in x
         ]
@@ -178,7 +237,7 @@ def normal_component_errors(
     start = max(skip, lag)
     if n - start < 1 or force.shape[0] < n - lag or q.shape[0] < n:
         raise InvalidParameter("skip", skip, f"< {n - lag} rows with these series")
-    truth = cuff_normal_components(q[start:n], force[start - lag : n - lag], exo)
+    truth, along = cuff_components(q[start:n], force[start - lag : n - lag], exo)
     err = est[start:n] - truth
     rms = np.sqrt(np.mean(err**2, axis=0))
     peak = np.max(np.abs(truth), axis=0)
@@ -196,6 +255,9 @@ def normal_component_errors(
         out.vector_rms_error_N = np.sqrt(np.mean(np.sum(diff**2, axis=-1), axis=0))
         out.vector_rms_true_N = np.sqrt(np.mean(np.sum(true_f**2, axis=-1), axis=0))
         out.vector_rms_error_rel = _relative(out.vector_rms_error_N, out.vector_rms_true_N)
+        _, along_est = cuff_components(q[start:n], np.asarray(force_est)[start:n], exo)
+        out.along_rms_error_N = np.sqrt(np.mean((along_est - along) ** 2, axis=0))
+        out.along_rms_true_N = np.sqrt(np.mean(along**2, axis=0))
     return out
 
 
@@ -209,6 +271,9 @@ _STATS_FIELDS = [
     ("peak_true", np.float64, (4,)),
     ("sq_vector_error_sum", np.float64, (4,)),
     ("sq_vector_true_sum", np.float64, (4,)),
+    ("sq_true_sum", np.float64, (4,)),
+    ("sq_along_error_sum", np.float64, (4,)),
+    ("sq_along_true_sum", np.float64, (4,)),
 ]
 
 
@@ -291,6 +356,9 @@ class EstimateErrorStats:
             vector_rms_error_N=vector,
             vector_rms_true_N=vector_true,
             vector_rms_error_rel=_relative(vector, vector_true),
+            rms_true_N=np.sqrt(sums["sq_true_sum"] / rows),
+            along_rms_error_N=np.sqrt(sums["sq_along_error_sum"] / rows),
+            along_rms_true_N=np.sqrt(sums["sq_along_true_sum"] / rows),
         )
 
     def summary(self) -> dict[str, Any]:
@@ -302,7 +370,9 @@ class EstimateErrorStats:
 def _error_sums(state, q, force, normal_est, force_est, start):
     """Add rows start… to :class:`EstimateErrorStats`' sums (Σ e², max |e|, max |truth| …).
 
-    Also the whole force's Σ |f̂ − f|² and Σ |f|².
+    Also the whole force's Σ |f̂ − f|² and Σ |f|², the normal component's
+    Σ (n · f)², and the along component's Σ (u · f̂ − u · f)² and Σ (u · f)²
+    (u = (cos ψ, sin ψ)).
 
     The truth of row i is the normal component n(q_i) · f_{i-1} of the
     previous row's force (``prev_force`` of the record for row 0), per cuff
@@ -326,11 +396,16 @@ def _error_sums(state, q, force, normal_est, force_est, start):
                     fx, fz = st.prev_force[c, 0], st.prev_force[c, 1]
                 else:
                     fx, fz = force[r - 1, c, 0], force[r - 1, c, 1]
-                truth = -math.sin(psi) * fx + math.cos(psi) * fz
+                sin, cos = math.sin(psi), math.cos(psi)
+                truth = -sin * fx + cos * fz
                 err = normal_est[r, c] - truth
                 st.sq_error_sum[c] += err * err
+                st.sq_true_sum[c] += truth * truth
                 ex, ez = force_est[r, c, 0] - fx, force_est[r, c, 1] - fz
                 st.sq_vector_error_sum[c] += ex * ex + ez * ez
+                along, along_err = cos * fx + sin * fz, cos * ex + sin * ez
+                st.sq_along_error_sum[c] += along_err * along_err
+                st.sq_along_true_sum[c] += along * along
                 st.sq_vector_true_sum[c] += fx * fx + fz * fz
                 st.max_error[c] = max(st.max_error[c], abs(err))
                 st.peak_true[c] = max(st.peak_true[c], abs(truth))

@@ -43,6 +43,7 @@ from ..estimation import (
     ESTIMATORS,
     MODEL_DRIVEN,
     EstimateSeries,
+    estimate_components,
     estimate_series,
     kalman_series,
     normal_component_errors,
@@ -141,20 +142,20 @@ class OfflineEstimate:
     def table(self) -> str:
         """The figures as a text table: peak estimate per cuff, and the errors where known.
 
-        Where the truth is known: the whole force's RMS error [N] and over the
-        RMS true force ("rel"), the normal component's RMS error over its peak
-        ("normal/peak"), and a line naming what the estimator cannot observe
-        (the momentum observer) or takes from the device's models (the Kalman filter).
-        A figure not given (a relative error below its floor) shows as "—".
+        Where the truth is known, the summary's error figures (the line under
+        the table says which is which) and what the estimator cannot observe or
+        takes from models.  A figure not given (below its floor) shows as "—".
         """
         summary = self.summary()
         errors = summary.get("cuff_force_estimate_rms_error_N", {})
         rel = summary.get("cuff_force_estimate_rms_error_rel", {})
         normal = summary.get("cuff_force_estimate_normal_rms_over_peak", {})
-        lines = [
-            f"{'cuff':<13}{'peak normal est [N]':>20}"
-            + (f"{'rms err [N]':>13}{'rel':>9}{'normal/peak':>13}" if errors else "")
-        ]
+        normal_rms = summary.get("cuff_force_estimate_normal_rms_error_over_rms", {})
+        along_rms = summary.get("cuff_force_estimate_along_rms_error_over_rms", {})
+        head = (
+            f"{'rms err [N]':>13}{'rel':>9}{'normal/peak':>13}{'normal/rms':>12}{'along/rms':>11}"
+        )
+        lines = [f"{'cuff':<13}{'peak normal est [N]':>20}" + (head if errors else "")]
         if not errors and self.no_accuracy:
             lines.insert(0, f"no accuracy figures: {self.no_accuracy}")
         for cuff, peak in summary["peak_cuff_normal_est_N"].items():
@@ -162,13 +163,15 @@ class OfflineEstimate:
             if errors:
                 line += _cell(errors.get(cuff), 13, "{:.2f}")
                 line += _cell(None if rel.get(cuff) is None else 100 * rel[cuff], 9, "{:.2f}%")
-                value = normal.get(cuff)
-                line += _cell(None if value is None else 100 * value, 13, "{:.2f}%")
+                for figures, width in ((normal, 13), (normal_rms, 12), (along_rms, 11)):
+                    value = figures.get(cuff)
+                    line += _cell(None if value is None else 100 * value, width, "{:.2f}%")
             lines.append(line)
         if errors:
             lines.append(
-                "rms err, rel: the whole 2-D force against the RMS true force; normal/peak: the "
-                "normal component against its peak"
+                "rms err, rel: the whole 2-D force against the RMS true force; normal/peak, "
+                "normal/rms: the normal component's RMS error against its peak, its RMS; "
+                "along/rms: the along-link component's against its RMS"
             )
             if self.series.estimator == "kalman":
                 lines.append(
@@ -412,6 +415,7 @@ def _from_recording(
                 force_est=series.force,
             )
             errors = found.summary()
+            errors["cuff_force_estimate_components"] = estimate_components(estimator)
             if estimator == "kalman":  # every component estimated; these from the models
                 errors["cuff_force_estimate_unobservable"] = list(MODEL_DRIVEN)
             notes += worse_than_none(path, found)

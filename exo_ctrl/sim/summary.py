@@ -8,7 +8,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .._jit import kernel, preload
-from ..estimation import MODEL_DRIVEN, EstimateErrorStats
+from ..estimation import MODEL_DRIVEN, EstimateErrorStats, estimate_components
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .belief import PAPER_PATIENT
 from .config import SimConfig
@@ -214,6 +214,7 @@ class RunStats:
         out["device_belief"] = device_belief(result.config)
         if self.estimate is not None:
             out.update(self.estimate.summary())
+            out["cuff_force_estimate_components"] = estimate_components(result.config.estimator)
             if result.config.estimator == "kalman":
                 # The filter estimates every component; these come from its models
                 # (a copy: the summary is the caller's to change).

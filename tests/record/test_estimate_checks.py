@@ -198,7 +198,7 @@ def test_relative_error_over_a_vanishing_force_is_not_given(tmp_path: Path) -> N
     assert (
         rows[0]
         == f"{'cuff':<13}{'peak normal est [N]':>20}{'rms err [N]':>13}{'rel':>9}"
-        + f"{'normal/peak':>13}"
+        + f"{'normal/peak':>13}{'normal/rms':>12}{'along/rms':>11}"
     )
     for row, cuff in zip(rows[1:5], CUFF_NAMES, strict=True):
         assert row.startswith(cuff) and row.endswith(f"{'—':>9}")

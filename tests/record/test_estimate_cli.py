@@ -74,7 +74,7 @@ def test_vanishing_denominator_shows_a_dash_and_null(tmp_path: Path, capsys) -> 
     assert (
         rows[0]
         == f"{'cuff':<13}{'peak normal est [N]':>20}{'rms err [N]':>13}{'rel':>9}"
-        + f"{'normal/peak':>13}"
+        + f"{'normal/peak':>13}{'normal/rms':>12}{'along/rms':>11}"
     )
     for row, cuff in zip(rows[1:5], CUFF_NAMES, strict=True):
         assert row.startswith(cuff) and row.endswith(" —") and len(row) == len(rows[0])

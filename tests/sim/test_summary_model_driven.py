@@ -14,7 +14,7 @@ from __future__ import annotations
 import pytest
 
 from exo_ctrl.estimation import COMPONENTS, MODEL_DRIVEN
-from exo_ctrl.estimation.errors import UNOBSERVABLE
+from exo_ctrl.estimation.errors import OBSERVER_COMPONENTS, UNOBSERVABLE
 from exo_ctrl.model import CUFF_NAMES
 from exo_ctrl.sim import SimConfig, SimResult, simulate
 
@@ -54,3 +54,29 @@ def test_momentum_observer_lists_its_own_unobservable_components() -> None:
     listed = summary["cuff_force_estimate_unobservable"]
     assert listed == [f"{c}: {w}" for c, x in UNOBSERVABLE.items() for w in x]
     assert listed != MODEL_DRIVEN
+
+
+def test_summary_names_each_components_source(kalman_run) -> None:
+    """Per cuff and component, observed or from which model; consistent with the lists."""
+    components = kalman_run.summary()["cuff_force_estimate_components"]
+    assert components == COMPONENTS
+    from_models = [
+        f"{cuff}: {part}: {how}"
+        for cuff, parts in components.items()
+        for part, how in parts.items()
+        if (cuff, part) not in OBSERVED
+    ]
+    assert from_models == kalman_run.summary()["cuff_force_estimate_unobservable"]
+    components["left_thigh"]["normal"] = "changed by the caller"
+    assert kalman_run.summary()["cuff_force_estimate_components"] == COMPONENTS
+
+
+def test_momentum_observer_names_its_assumptions() -> None:
+    summary = simulate(SimConfig(duration_s=0.06, estimator="momentum")).summary()
+    components = summary["cuff_force_estimate_components"]
+    assert components == OBSERVER_COMPONENTS
+    for cuff in CUFF_NAMES:
+        along = components[cuff]["along"]
+        assert ("assumed 0" in along) == cuff.endswith("thigh")  # no lever arm: UNOBSERVABLE
+        assert ("assumption κ" in along) == cuff.endswith("shank")
+        assert (components[cuff]["normal"] == "observed: the knee torque") == cuff.endswith("shank")
