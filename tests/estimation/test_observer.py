@@ -209,6 +209,9 @@ def test_default_sensor_noise_estimate_is_within_five_percent(noisy_run, check_a
         "cuff_force_estimate_rms_error_rel",
         "cuff_force_estimate_normal_rms_error_N",
         "cuff_force_estimate_normal_rms_over_peak",
+        "cuff_force_estimate_normal_rms_error_over_rms",
+        "cuff_force_estimate_along_rms_error_N",
+        "cuff_force_estimate_along_rms_error_over_rms",
         "cuff_force_estimate_unobservable",
     }
     assert list(summary["cuff_force_estimate_rms_error_rel"]) == list(CUFF_NAMES)
