@@ -8,8 +8,10 @@ Two forms::
 
 Prints the table in Markdown (:meth:`~exo_ctrl.comparison.CompareTable.markdown`)
 and writes ``DIR/compare.csv``, ``DIR/compare.json`` and ``DIR/compare.png``
-(each whole or not at all).  Before any run: ``DIR`` must be an existing
-directory whose three files can be written, and matplotlib must be installed.
+(each whole or not at all).  Before any run: ``DIR`` must be a directory
+whose three files can be written (a new one is made in an existing
+directory, and removed again if the command fails), and matplotlib must be
+installed.
 A progress line per run on stderr.  Exit 0; 1 when a compared run did not
 complete (the table is written all the same); 2 bad input (runs whose
 configurations differ beyond the controller, without ``--allow-different``);
@@ -124,7 +126,8 @@ def _check_args(args: argparse.Namespace, check_files: bool = True) -> None:
     ``check_files`` False: not the files in ``--out`` (a directory not made yet).
 
     Raises:
-        InvalidParameter: a form mixed up, or ``--out`` not an existing directory.
+        InvalidParameter: a form mixed up, or ``--out`` neither a directory nor a
+            new one in an existing directory.
 
     """
     if args.controllers is None:
@@ -154,7 +157,11 @@ def _check_args(args: argparse.Namespace, check_files: bool = True) -> None:
         return
     for attribute, name in OUTPUT_FILES.items():
         setattr(args, attribute, str(Path(args.out) / name))
-    reads = {} if args.controllers is not None else {f"input {p}": p for p in args.inputs}
+    reads = (
+        dict(zip(["the scenario file"], args.inputs, strict=False))
+        if args.controllers is not None
+        else {f"input {p}": p for p in args.inputs}
+    )
     check_outputs(args, reads=reads, **dict.fromkeys(OUTPUT_FILES, "--out"))
 
 
