@@ -236,6 +236,7 @@ def _tracking(
             estimate_gain_per_s=config.observer_gain_per_s,
             restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
             estimator=config.estimator,
+            stance_load=stance_load_for(config, model_exo),
         )
     return PDController(plan, config.gains)
 

@@ -132,6 +132,7 @@ from ...plant.drive import MotorParams
 from ...sensing.readings import SensorReadings
 from ..base import PDGains
 from ..computed_torque import ComputedTorqueController
+from ..stance_load import StanceLoad
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -216,6 +217,9 @@ class QPController(ComputedTorqueController):
             K_O, the estimate as it is).
         estimator: the live force estimator (``SimConfig.estimator``), ``"kalman"``
             (default, a run's) or ``"momentum"``: it sets the default ω_d.
+        stance_load: the stance legs' load in the CT feedforward, with the
+            pelvis on its guide (:mod:`exo_ctrl.control.stance_load`; None:
+            the pelvis fixed), as computed torque's.
 
     Attributes:
         record: the tick's state and figures: the CT's fields, then
@@ -270,6 +274,7 @@ class QPController(ComputedTorqueController):
         estimate_gain_per_s: float = DEFAULT_GAIN_PER_S,
         restored_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S,
         estimator: str = "kalman",
+        stance_load: StanceLoad | None = None,
     ) -> None:
         if estimator not in DISTURBANCE_BANDWIDTH_PER_S:
             allowed = ", ".join(DISTURBANCE_BANDWIDTH_PER_S)
@@ -308,7 +313,7 @@ class QPController(ComputedTorqueController):
         n_poly = n_points * 4 * half
         self._n_rows = 2 * n_poly
         self._n_slots = min(int(screened_rows), 2 * n_poly)
-        super().__init__(plan, exo, patient, motor, gains)
+        super().__init__(plan, exo, patient, motor, gains, stance_load=stance_load)
         # Variables x = (τ, s): the four torques and one slack per cuff, shared by
         # the horizon points, the bound softened to |n_kᵀ f_c(t_i)| ≤ r + s_c with
         # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r,
