@@ -62,7 +62,7 @@ defaults): a real treadmill's deck friction under load must be identified
 into the model (it is not simulated here).  The patient's feet, when they
 meet the belt (``ContactParams.patient_feet``), pull on it too: their shoes'
 load cells (:mod:`exo_ctrl.sensing.foot_load`) enter Σ F_x,i; without them the
-default run with the patient's feet read up to 40 N of friction as a fault
+default run with the patient's feet read their friction (up to 99 N, both feet) as a fault
 and stopped at its first touchdown (0.87 s, 0.039 m/s).
 
 **Persistence** P = N + 1 ticks beyond the threshold on the same side.  A

@@ -99,7 +99,9 @@ load cells (:mod:`exo_ctrl.sensing.foot_load`): the prediction then takes
 the belt's share out, p := −(τ_p − J_pᵀ F_shoe), J_p the foot point's
 Jacobian on the device's patient model at q.  Without that term the healthy
 default run with the patient's feet read α = −1.08 and 0.05 on the shanks
-(both warned); with it, see tests/safety/test_patient_feet_safety.py.
+(both warned); with it the least α is 0.71/0.71 (PD), 0.71/0.57 (QP) and
+0.51/0.32 (CT, whose right shank still warns once: the belt's share is not
+the whole story there, an open point; tests/safety/test_patient_feet_safety.py).
 
 **Cost.**  One RNEA of the nominal patient (four joints) and two compiled
 calls every N ticks, a Python comparison on the others: measured 4.5 µs

@@ -1,7 +1,7 @@
 """The patient's feet on the belt, with the safety supervisor on.
 
 Before the shoes' load cells (sensing/foot_load.py) the belt monitor took the patient's
-feet's friction on the belt (up to some 40 N) for a fault and stopped the healthy default
+feet's friction on the belt (up to 99 N, PD) for a fault and stopped the healthy default
 run at its first touchdown (0.87 s, 0.039 m/s against 0.0148 m/s); the patient-load monitor
 read the shank cuffs as unloaded (α = −1.08 and 0.05).  Now the belt monitor adds the shoes'
 friction to the forces it knows, and a real fault, a belt stop, is still caught within its
