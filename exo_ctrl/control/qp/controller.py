@@ -132,6 +132,8 @@ from ...plant.drive import MotorParams
 from ...sensing.readings import SensorReadings
 from ..base import PDGains
 from ..computed_torque import ComputedTorqueController
+from ..lift_off import LIFT_OFF_BLEND_S
+from ..stance_load import StanceLoad
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -216,6 +218,11 @@ class QPController(ComputedTorqueController):
             K_O, the estimate as it is).
         estimator: the live force estimator (``SimConfig.estimator``), ``"kalman"``
             (default, a run's) or ``"momentum"``: it sets the default ω_d.
+        stance_load: the stance legs' load in the CT feedforward, with the
+            pelvis on its guide (:mod:`exo_ctrl.control.stance_load`; None:
+            the pelvis fixed), as computed torque's.
+        lift_off_blend_s: T_b of :mod:`exo_ctrl.control.lift_off` [s], as
+            computed torque's (0: none).
 
     Attributes:
         record: the tick's state and figures: the CT's fields, then
@@ -270,6 +277,8 @@ class QPController(ComputedTorqueController):
         estimate_gain_per_s: float = DEFAULT_GAIN_PER_S,
         restored_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S,
         estimator: str = "kalman",
+        stance_load: StanceLoad | None = None,
+        lift_off_blend_s: float = LIFT_OFF_BLEND_S,
     ) -> None:
         if estimator not in DISTURBANCE_BANDWIDTH_PER_S:
             allowed = ", ".join(DISTURBANCE_BANDWIDTH_PER_S)
@@ -308,7 +317,7 @@ class QPController(ComputedTorqueController):
         n_poly = n_points * 4 * half
         self._n_rows = 2 * n_poly
         self._n_slots = min(int(screened_rows), 2 * n_poly)
-        super().__init__(plan, exo, patient, motor, gains)
+        super().__init__(plan, exo, patient, motor, gains, stance_load, lift_off_blend_s)
         # Variables x = (τ, s): the four torques and one slack per cuff, shared by
         # the horizon points, the bound softened to |n_kᵀ f_c(t_i)| ≤ r + s_c with
         # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r,
