@@ -37,11 +37,10 @@ from ..sim import SimConfig
 from ..sim.config import CUFF_FITS
 from ..sim.plain import field_types
 from ..sim.scenario_file import (
-    GROUPS,
-    dataclass_of,
     document_from_config,
     field_docs,
     plain_text,
+    table_class,
 )
 from ..sim.session import load_session
 
@@ -212,10 +211,6 @@ _FORM_NOTES = {
 }
 
 
-#: The sections of SimConfig's plain fields (``[run]``, ``[urdf]``, ...).
-_GROUP_SECTIONS = frozenset(group for group, _, _ in GROUPS)
-
-
 #: An option's value's name by the unit its key ends with.
 _METAVARS = {
     "_s": "SEC",
@@ -229,16 +224,11 @@ _METAVARS = {
 
 def _field(key: str) -> tuple[type, str]:
     """The dataclass holding scenario key ``key`` and the field's name."""
-    parts = key.split(".")
-    if parts[0] in _GROUP_SECTIONS:
-        parts = parts[1:]  # a group of SimConfig's plain fields
-    cls: type = SimConfig
-    for part in parts[:-1]:
-        sub = dataclass_of(field_types(cls)[part])
-        if sub is None:
-            raise KeyError(key)
-        cls = sub
-    return cls, parts[-1]
+    *tables, name = key.split(".")
+    cls = table_class(tables)
+    if cls is None:
+        raise KeyError(key)  # the table is this module's own
+    return cls, name
 
 
 @functools.cache
@@ -256,11 +246,11 @@ def _default(key: str) -> Any:
 
 def _number_type(opt: LongOption) -> Callable[[str], Any] | None:
     """The argparse type of a ``value`` option: its field's number type, else text."""
-    hint = field_types(_field(opt.key)[0]).get(_field(opt.key)[1])
-    text = str(hint)
-    if hint is int or text in ("int | None", "typing.Optional[int]"):
+    cls, name = _field(opt.key)
+    text = str(field_types(cls).get(name))
+    if text in ("<class 'int'>", "int | None", "typing.Optional[int]"):
         return int
-    if hint is float or text in ("float | None", "typing.Optional[float]"):
+    if text in ("<class 'float'>", "float | None", "typing.Optional[float]"):
         return float
     return None
 

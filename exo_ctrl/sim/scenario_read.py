@@ -34,6 +34,7 @@ from .scenario_file import (
     dataclass_of,
     item_class,
     part_fields,
+    table_class,
 )
 
 #: A key path (``gait.step_length``, ``faults[0].at_s``).
@@ -238,9 +239,7 @@ def _with_unit(key: str) -> str:
     *tables, name = key.split(".")
     if not tables or "[" in key:
         return key
-    cls: type | None = SimConfig
-    for table in tables if tables[0] not in GROUP_OF.values() else []:
-        cls = dataclass_of(field_types(cls).get(table)) if cls is not None else None
+    cls = table_class(tables)
     fields = field_types(cls) if cls is not None else {}
     if name in fields:
         return key
