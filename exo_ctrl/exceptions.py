@@ -20,6 +20,7 @@ __all__ = [
     "KernelStatusError",
     "MissingDependency",
     "OutputError",
+    "PluginError",
     "RecordingError",
     "SimulationDiverged",
     "SweepError",
@@ -179,6 +180,25 @@ class InvalidLog(ExoCtrlError, ValueError):
         if column:
             where += f", column {column!r}"
         super().__init__(f"invalid log {where}: {reason}")
+
+
+class PluginError(ExoCtrlError, ValueError):
+    """A user's controller broke the interface's contract during a run.
+
+    Attributes:
+        plugin: the controller's ``module:Class`` name.
+        tick: the control tick k at fault.
+        time: its time t_k [s].
+        reason: what it returned and what is allowed.
+
+    """
+
+    def __init__(self, plugin: str, tick: int, time: float, reason: str) -> None:
+        self.plugin = plugin
+        self.tick = tick
+        self.time = time
+        self.reason = reason
+        super().__init__(f"controller {plugin} at tick {tick} (t = {time:.4g} s): {reason}")
 
 
 class SweepError(ExoCtrlError, RuntimeError):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 import os
@@ -11,7 +12,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
 from .. import _validate as v
-from ..control import PDGains
+from ..control import Controller, PDGains, controller_name
 from ..control.modes import ModeParams, PathParams
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
@@ -86,9 +87,12 @@ class SimConfig:
         exo: exoskeleton URDF path (None: the committed default).
         patient: patient URDF path, ``"human"`` (example-robot-data) or None
             (the committed default).
-        controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD) or
+        controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD),
             ``"qp"`` (CT + PD distributed by a QP under drive limits and
-            cuff-force bounds, :mod:`exo_ctrl.control.qp.controller`).
+            cuff-force bounds, :mod:`exo_ctrl.control.qp.controller`), or a
+            user's: an :class:`exo_ctrl.control.Controller` object or its
+            class's import path ``"module:Class"`` (:mod:`exo_ctrl.control.interface`;
+            tracking mode only).
         qp_estimate_bandwidth_per_s: ω_f, the bandwidth the QP brings the
             cuff-force estimate to before it rebuilds the cuff state from it
             [1/s] (:mod:`exo_ctrl.control.qp.observer`; default 200, twice
@@ -210,7 +214,7 @@ class SimConfig:
     gait: GaitParams = field(default_factory=GaitParams)
     exo: str | None = None
     patient: str | None = None
-    controller: str = "pd"
+    controller: str | Controller = "pd"
     gains: PDGains = field(default_factory=PDGains)
     motor: MotorParams = field(default_factory=MotorParams)
     cuffs: CuffParams = field(default_factory=CuffParams)
@@ -261,7 +265,7 @@ class SimConfig:
         for name in ("safety", "safety_use_estimate"):
             object.__setattr__(self, name, v.flag(name, getattr(self, name)))
         v.one_of("exercise", self.exercise, EXERCISES)
-        v.one_of("controller", self.controller, CONTROLLERS)
+        checks.check_controller(self, CONTROLLERS)
         duration = v.positive("duration", self.duration_s, "s")
         rate = v.positive("control_rate", self.control_rate_hz, "Hz")
         if not 10.0 <= rate <= 100_000.0:
@@ -454,8 +458,10 @@ class SimConfig:
         return math.floor(self.duration_s * self.control_rate_hz + 1e-9)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (JSON-able), for summaries and recordings."""
-        return asdict(self)
+        """Plain-data form (JSON-able), for summaries and recordings (a user's controller named)."""
+        plain = copy.copy(self)  # fields shared, no checks run: the controller by its name
+        object.__setattr__(plain, "controller", controller_name(self.controller))
+        return asdict(plain)
 
 
 def _check_parts(config: SimConfig) -> None:

@@ -16,12 +16,15 @@ import numpy as np
 
 from ..control import (
     ComputedTorqueController,
+    Device,
     PDController,
+    PluginController,
     QPController,
     feedforward_torque,
 )
 from ..control.lift_off import LIFT_OFF_BLEND_S
 from ..control.modes import InteractionController, PathController
+from ..control.plugin import is_plugin, load_controller
 from ..control.stance_load import StanceLoad
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
@@ -47,7 +50,7 @@ from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
 from ..plant.pelvis import moving_mass_kg
 from .belief import device_exo, device_patient, nominal_stature
-from .config import SimConfig
+from .config import CONTROLLERS, SimConfig
 from .session import session_controller
 from .sync import online_gait, set_speeds
 
@@ -214,7 +217,14 @@ def _tracking(
     model_patient: BodyModel,
     model_motor: MotorParams,
 ) -> PDController:
-    """A new tracking controller of the run (``config.controller``) on the device's models."""
+    """A new tracking controller of the run (``config.controller``) on the device's models.
+
+    A user's controller (:mod:`exo_ctrl.control.plugin`) is imported if given
+    by its path, and set up with what the device knows.
+    """
+    if is_plugin(config.controller, CONTROLLERS):
+        device = Device(model_exo, model_patient, plan, model_motor, config.dt)
+        return PluginController(load_controller(config.controller), device)  # type: ignore[return-value]
     if config.controller == "ct":
         return ComputedTorqueController(
             plan,

@@ -8,6 +8,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .._jit import kernel, preload
+from ..control import controller_name
 from ..estimation import MODEL_DRIVEN, EstimateErrorStats, estimate_components
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .belief import PAPER_PATIENT
@@ -171,7 +172,7 @@ class RunStats:
         duration = self.ticks * result.config.dt
         wall = result.wall_time_s
         out = {
-            "controller": result.config.controller,
+            "controller": controller_name(result.config.controller),
             "status": result.status,
             "error": result.error,
             "duration_s": duration,

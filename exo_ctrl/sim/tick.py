@@ -146,6 +146,9 @@ class Runner:
         #: The drives' current sensors (the supervisor's current readings), read
         #: with the joints' sensors at the start of the tick (sensing/device.py).
         self.current_sensor = CurrentSensor(config.current_sensor)
+        bind = getattr(setup.controller, "bind_currents", None)
+        if bind is not None:  # a user's torque controller: the driver's current loop reads them
+            bind(self.current_sensor.current)
         self._device_sensors = DeviceSensors(
             self.sensor_model, self.current_sensor, plant.motors.mean_current_A
         )

@@ -51,6 +51,7 @@ from pathlib import Path
 import numba
 
 from .. import _jit_cache
+from ..control import controller_name
 from .config import SimConfig
 
 __all__ = ["ENV", "Warmup", "core_free", "feature_key", "marker_dir"]
@@ -73,7 +74,7 @@ def feature_key(config: SimConfig) -> str:
     """
     belief = config.belief
     features = (
-        config.controller,
+        controller_name(config.controller),
         config.mode,
         config.estimator,
         config.patient_torque,
