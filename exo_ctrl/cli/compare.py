@@ -85,7 +85,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="LIST",
         help=f"controllers to run and compare, comma-separated, from {','.join(CONTROLLERS)} "
-        "(default: none: the recordings given are compared)",
+        "or your own as MODULE:CLASS (docs/controllers.md) (default: none: the recordings "
+        "given are compared)",
     )
     p.add_argument(
         "--out",
