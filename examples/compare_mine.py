@@ -20,7 +20,7 @@ from pathlib import Path
 from exo_ctrl import CompareTable, SimConfig, compare
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # impedance.py beside this file
-from impedance import Impedance  # noqa: E402
+from impedance import Impedance
 
 
 def main(duration_s: float = 3.6) -> CompareTable:

@@ -32,7 +32,7 @@ from ..scenario.load import scenario_document, scenario_from_document
 from ..sim import SimConfig, SimResult, drive_for, simulate
 from ..sim.config import MAX_DURATION_S
 from ..sim.scenario_read import apply_setting
-from .common import check_outputs, format_summary, recording_line, write_json
+from .common import check_outputs, format_summary, import_from_cwd, recording_line, write_json
 from .long_options import add_long_options, given_options, option_settings
 
 __all__ = ["register", "run", "scenario_of", "sim_config"]
@@ -215,6 +215,7 @@ def scenario_of(args: argparse.Namespace) -> Scenario:
     run = doc.setdefault("run", {})
     if args.controller is not None:
         run["controller"] = args.controller
+        origin["run.controller"] = "--controller"
     if args.duration is not None:
         run["duration_s"] = args.duration
         origin["run.duration_s"] = "--duration"
@@ -272,6 +273,7 @@ def run(args: argparse.Namespace) -> int:
     The scenario is read and the output paths checked before anything else;
     the summary is written after the run.
     """
+    import_from_cwd()  # a user's controller given as module:Class
     scenario = scenario_of(args)
     config, recording = scenario.config, scenario.recording
     # the scenario's output: a path the user did not name on the command line

@@ -64,7 +64,7 @@ def controller_list(controllers: Any) -> tuple[str | Controller, ...]:
         InvalidParameter: ``controllers`` empty, naming an unknown controller or one twice.
 
     """
-    allowed = f"one or more of {', '.join(CONTROLLERS)} or your own, each once"
+    allowed = f"one or more of {', '.join(CONTROLLERS)}, each once"
     if isinstance(controllers, str):
         names = tuple(c.strip() for c in controllers.split(","))
     else:

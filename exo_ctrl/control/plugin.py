@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import _validate as v
 from .._jit import record
 from ..exceptions import InvalidParameter, PluginError
 from ..sensing.readings import SensorReadings
@@ -89,7 +90,9 @@ def check_controller(controller: object, built_in: tuple[str, ...]) -> None:
     if isinstance(controller, str):
         if controller in built_in or _PATH.fullmatch(controller):
             return
-        detail = "an import path is 'package.module:Class'" if ":" in controller else ""
+        if ":" not in controller:  # a misspelt built-in name, as before user controllers
+            v.one_of("controller", controller, built_in)
+        detail = "an import path is 'package.module:Class'"
         raise InvalidParameter("controller", controller, ALLOWED, detail)
     if isinstance(controller, Controller):
         _check_kind(type(controller))
@@ -98,8 +101,12 @@ def check_controller(controller: object, built_in: tuple[str, ...]) -> None:
         detail = f"{controller.__name__} is a class: give an object, {controller.__name__}()"
         if not issubclass(controller, Controller):
             detail = f"{controller.__name__} is not a subclass of exo_ctrl.control.Controller"
-    else:
-        detail = f"a {type(controller).__name__} is not an exo_ctrl.control.Controller"
+    elif callable(getattr(controller, "command", None)):  # a controller not on the interface
+        name = type(controller).__name__
+        detail = f"{name} is not a subclass of exo_ctrl.control.Controller"
+    else:  # neither a name nor a controller: the built-in names, as before user controllers
+        v.one_of("controller", controller, built_in)
+        detail = ""
     raise InvalidParameter("controller", controller, ALLOWED, detail)
 
 
@@ -118,7 +125,9 @@ def load_controller(controller: str | Controller) -> Controller:
     try:
         found: Any = importlib.import_module(module)
     except ImportError as exc:
-        raise InvalidParameter("controller", controller, ALLOWED, f"cannot import {exc}") from None
+        raise InvalidParameter(
+            "controller", controller, ALLOWED, f"cannot import {module}: {exc}"
+        ) from None
     except Exception as exc:  # the user's module failed while it was imported
         reason = f"importing {module} raised {type(exc).__name__}: {exc}"
         raise InvalidParameter("controller", controller, ALLOWED, reason) from None
