@@ -106,7 +106,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--controller",
         default=None,
-        metavar="pd|ct|qp|MODULE:CLASS",
+        metavar="NAME",
         help="pd (the paper's PD voltage law), ct (computed torque + PD), qp (CT + PD "
         "through a QP under drive limits and cuff-force bounds), or your own: the import "
         "path of an exo_ctrl.control.Controller subclass, e.g. mypkg.ctl:Impedance "

@@ -16,7 +16,7 @@ and a PI on the measured current sets the voltage.  Per drive, at tick k,
 with ``I_m`` the drive's current sensor (the mean current over the last
 tick, :mod:`exo_ctrl.sensing.current_sensor`), ``ω_m`` the encoder's joint
 speed, ``η^s`` the gearbox factor at the commanded torque and that speed
-(:func:`~exo_ctrl.plant.drive.gear_factor`), and R, L, k_m, k_E, i_G, η,
+(:func:`~exo_ctrl.plant.drive.gear_factor`'s formula), and R, L, k_m, k_E, i_G, η,
 U_max and I_max from the device's datasheet.  The integral ``z`` [A·s]
 advances by ``e Δt`` unless the voltage is at the supply and the error
 pushes it further (conditional integration, the usual anti-windup).  The
@@ -50,9 +50,10 @@ import math
 import numpy as np
 
 from .. import _validate as v
-from ..plant.drive import MotorParams, gear_factor
+from .._jit import kernel
+from ..plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
 
-__all__ = ["CURRENT_LOOP_BANDWIDTH_HZ", "CurrentLoop"]
+__all__ = ["CURRENT_LOOP_BANDWIDTH_HZ", "CurrentLoop", "current_loop_step"]
 
 #: f_c, the current loop's bandwidth in a real servo driver [Hz] (module docstring).
 CURRENT_LOOP_BANDWIDTH_HZ = 1000.0
@@ -91,6 +92,20 @@ class CurrentLoop:
         self.current_ref_A = np.zeros(4)
         self.voltage_V = np.zeros(4)
         self._integral_A_s = np.zeros(4)
+        self._params = np.array(
+            [
+                motor.resistance_ohm,
+                motor.back_emf_V_per_rad_s,
+                motor.torque_per_amp_Nm_per_A,
+                motor.log_efficiency,
+                1.0 / EFFICIENCY_SMOOTHING_RAD_S,
+                motor.current_limit_A,
+                motor.supply_voltage_V,
+                self.kp_V_per_A,
+                self.ki_V_per_A_s,
+                self.dt_s,
+            ]
+        )
 
     def reset(self) -> None:
         """Forget the integral (a new run)."""
@@ -101,27 +116,53 @@ class CurrentLoop:
     ) -> np.ndarray:
         """The drive voltages for joint torque commands [V], (4,): :attr:`voltage_V`.
 
+        One compiled call (:func:`current_loop_step`).
+
         Args:
-            torque_Nm: τ*, the commanded joint torques, (4,) [N·m].
-            omega_rad_s: ω_m, the measured joint speeds, (4,) [rad/s].
-            current_A: I_m, the measured drive currents, (4,) [A].
+            torque_Nm: τ*, the commanded joint torques, (4,) float64 [N·m].
+            omega_rad_s: ω_m, the measured joint speeds, (4,) float64 [rad/s].
+            current_A: I_m, the measured drive currents, (4,) float64 [A].
 
         """
-        m = self.motor
-        gear = gear_factor(m.gear_efficiency, torque_Nm, omega_rad_s)
-        limit = m.current_limit_A
-        ref = np.clip(torque_Nm / (m.torque_per_amp_Nm_per_A * gear), -limit, limit)
-        self.current_ref_A[:] = ref
-        error = ref - current_A
-        step = error * self.dt_s
-        u = (
-            m.resistance_ohm * ref
-            + m.back_emf_V_per_rad_s * omega_rad_s
-            + self.kp_V_per_A * error
-            + self.ki_V_per_A_s * (self._integral_A_s + step)
+        current_loop_step(
+            self._params,
+            self._integral_A_s,
+            self.current_ref_A,
+            self.voltage_V,
+            torque_Nm,
+            omega_rad_s,
+            current_A,
         )
-        supply = m.supply_voltage_V
-        winding_up = (np.abs(u) > supply) & (np.sign(error) == np.sign(u))
-        self._integral_A_s += np.where(winding_up, 0.0, step)
-        np.clip(u, -supply, supply, out=self.voltage_V)
         return self.voltage_V
+
+
+@kernel
+def current_loop_step(
+    params: np.ndarray,
+    integral: np.ndarray,
+    ref_out: np.ndarray,
+    u_out: np.ndarray,
+    torque: np.ndarray,
+    omega: np.ndarray,
+    current: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """One tick of the four drives' current PI (module docstring), in place.
+
+    ``params``: R [Ω], i_G/k_E [V·s/rad], i_G k_m [N·m/A], ln η, 1/ω_η
+    [s/rad], I_max [A], U_max [V], K_p [V/A], K_i [V/(A·s)], Δt [s].
+    ``integral``: z per drive [A·s], advanced unless the voltage is at the
+    supply and the error pushes it further; ``ref_out``: I* [A];
+    ``u_out``: the voltages [V].
+    """
+    r, kb, kt, lneta, inv_w, i_max, u_max, kp, ki, dt = params
+    for j in range(4):
+        tau = torque[j]
+        s = np.sign(tau) * math.tanh(omega[j] * inv_w)
+        ref = min(max(tau / (kt * math.exp(s * lneta)), -i_max), i_max)
+        error = ref - current[j]
+        step = error * dt
+        u = r * ref + kb * omega[j] + kp * error + ki * (integral[j] + step)
+        if not (abs(u) > u_max and np.sign(error) == np.sign(u)):
+            integral[j] += step
+        ref_out[j] = ref
+        u_out[j] = min(max(u, -u_max), u_max)

@@ -22,14 +22,16 @@ controller's go: the supervisor, the drives, the log.
 from __future__ import annotations
 
 import importlib
+import math
 import re
 from typing import Any
 
 import numpy as np
 
 from .. import _validate as v
-from .._jit import record
+from .._jit import kernel, record
 from ..exceptions import InvalidParameter, PluginError
+from ..plan.rows import plan_row
 from ..sensing.readings import SensorReadings
 from .base import COMMAND_FIELDS, CommandCounters
 from .current_loop import CurrentLoop
@@ -41,6 +43,8 @@ __all__ = [
     "PluginController",
     "check_controller",
     "controller_name",
+    "fill_row",
+    "finite_copy",
     "is_plugin",
     "load_controller",
 ]
@@ -189,6 +193,7 @@ class PluginController(CommandCounters):
         self._command = self.record["command"][0]
         self._current_ref = self.record["current_ref"][0]
         self._row = PlanRow()
+        self._rule = device.plan.row_rule
         self._no_estimate = np.zeros((4, 2))
         self._current = np.zeros(4)
         self.current_loop: CurrentLoop | None = None
@@ -209,17 +214,14 @@ class PluginController(CommandCounters):
 
         """
         plan, row = self.plan, self._row
-        r = plan.row(k)
-        if not 0 <= r < plan.q.shape[0]:
+        r = fill_row(k, *self._rule, plan.q, plan.dq, plan.ddq, row.q, row.dq, row.ddq)
+        if r < 0:
             raise InvalidParameter("k", k, f"a control tick on the plan's {plan.q.shape[0]} rows")
         row.row = r
-        row.q[:] = plan.q[r]
-        row.dq[:] = plan.dq[r]
-        row.ddq[:] = plan.ddq[r]
         t = k * self._dt
         est = sensors.cuff_force_est
         out = self.user.command(t, row, sensors, self._no_estimate if est is None else est)
-        self._command[:] = self._checked(out, k, t)
+        self._accept(out, k, t)
         loop = self.current_loop
         if loop is None:
             self._u[:] = self._command
@@ -228,8 +230,8 @@ class PluginController(CommandCounters):
             self._current_ref[:] = loop.current_ref_A
         return self._u
 
-    def _checked(self, out: object, k: int, t: float) -> np.ndarray:
-        """The user's command as 4 finite floats.
+    def _accept(self, out: object, k: int, t: float) -> None:
+        """Copy the user's command into the record's ``command`` if it is 4 finite floats.
 
         Raises:
             PluginError: naming the tick, what came back and what is allowed.
@@ -242,8 +244,34 @@ class PluginController(CommandCounters):
             raise PluginError(self.name, k, t, f"command must return {what}; got {out!r}") from None
         if cmd.shape != (4,):
             raise PluginError(self.name, k, t, f"command must return {what}; got shape {cmd.shape}")
-        if not np.isfinite(cmd).all():
+        if not finite_copy(cmd, self._command):
             raise PluginError(
                 self.name, k, t, f"command must return finite numbers; got {cmd.tolist()}"
             )
-        return cmd
+
+
+@kernel
+def fill_row(k, lead, period, tail, q, dq, ddq, out_q, out_dq, out_ddq):  # pragma: no cover
+    """Copy the plan's row of tick k (:func:`~exo_ctrl.plan.rows.plan_row`) into ``out_*``.
+
+    Returns the row, or -1 (nothing copied) for a tick beyond the plan's rows.
+    """
+    row = plan_row(k, lead, period, tail)
+    if row < 0 or row >= q.shape[0]:
+        return -1
+    for j in range(4):
+        out_q[j] = q[row, j]
+        out_dq[j] = dq[row, j]
+        out_ddq[j] = ddq[row, j]
+    return row
+
+
+@kernel
+def finite_copy(cmd, out):  # pragma: no cover - compiled
+    """Copy the 4 numbers of ``cmd`` into ``out`` if all are finite; whether they were."""
+    for j in range(4):
+        if not math.isfinite(cmd[j]):
+            return False
+    for j in range(4):
+        out[j] = cmd[j]
+    return True
