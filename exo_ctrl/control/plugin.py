@@ -55,8 +55,8 @@ ALLOWED = (
     "subclass, or such a Controller object"
 )
 
-#: The form of an import path: dotted module, a colon, a dotted attribute path.
-_PATH = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*")
+#: The form of an import path: a dotted module, a colon, the attribute path (no spaces).
+_PATH = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:\S+")
 
 #: A user controller's part of its record (after :data:`~exo_ctrl.control.base.COMMAND_FIELDS`):
 #: its last command as returned (``command``: [V] or [N·m]) and, for torque

@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_ctrl import SimConfig, simulate
+from exo_ctrl import SimConfig, read_recording, simulate
 from exo_ctrl.control import Controller, CurrentLoop, PDGains
 from exo_ctrl.plant import MotorBank, MotorParams
+from exo_ctrl.record import RerunRecorder
 from exo_ctrl.safety import SafetyLimits
 from exo_ctrl.sim import drive_for
 from exo_ctrl.sim.setup import build
@@ -88,6 +89,20 @@ def test_the_summary_and_the_plain_data_name_the_class(pd_runs) -> None:
     same = {k: v for k, v in mine.summary().items() if k not in ("controller",)}
     for key in ("rms_tracking_error_rad", "peak_motor_current_A", "peak_cuff_force_N"):
         assert same[key] == pytest.approx(builtin[key], abs=1e-9)
+
+
+def test_a_recording_names_the_class_and_reads_without_it(tmp_path: Path) -> None:
+    def local() -> Controller:  # a class no import path reaches
+        class Local(PlainPD):
+            pass
+
+        return Local()
+
+    path = tmp_path / "mine.rrd"
+    simulate(SimConfig(controller=local(), duration_s=0.05), observers=[RerunRecorder(path)])
+    back = read_recording(path)
+    name = f"{__name__}:test_a_recording_names_the_class_and_reads_without_it.<locals>.local"
+    assert back.config.controller == back.summary()["controller"] == f"{name}.<locals>.Local"
 
 
 def test_the_same_object_is_set_up_again_for_each_run() -> None:
