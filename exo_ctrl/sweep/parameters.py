@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from ..control.plugin import check_controller as check_plugin
 from ..exceptions import InvalidParameter
 from ..model import BodyParams
 from ..plan.gait import MIN_PERIOD_S
@@ -259,10 +260,15 @@ def check_value(info: ParamInfo, value: Any) -> float:
 
 
 def check_controller(value: Any) -> str:
-    """Check a controller name against those :class:`~exo_ctrl.sim.SimConfig` accepts."""
-    if value not in CONTROLLERS:
+    """Check a controller name: a built-in one, or a user's ``module:Class`` path.
+
+    (:func:`~exo_ctrl.control.plugin.check_controller`; a user's object has
+    no place in a sweep's plain data: its name is swept, as in its base.)
+    """
+    if not isinstance(value, str):
         raise InvalidParameter("controller", value, f"one of {', '.join(CONTROLLERS)}")
-    return str(value)
+    check_plugin(value, CONTROLLERS)
+    return value
 
 
 def round_12(x: float) -> float:
