@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
-import sys
 from typing import Any
 
 from .._io import atomic_write, check_output, same_file_key
+from ..control.plugin import import_from_cwd
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..plan import GaitParams
@@ -35,18 +34,6 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         """Print ``prog: error: message`` on one line and exit with code 2."""
         self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def import_from_cwd() -> None:
-    """Let a user's controller path (``--controller mypkg.ctl:Impedance``) import from here.
-
-    The current directory goes first on ``sys.path``, as ``python -m`` puts
-    it (the ``exo-ctrl`` script's own path is its bin directory).
-    """
-    with contextlib.suppress(OSError):  # a current directory that no longer exists
-        cwd = os.getcwd()
-        if cwd not in sys.path and "" not in sys.path:
-            sys.path.insert(0, cwd)
 
 
 def add_gait_options(parser: argparse.ArgumentParser) -> None:

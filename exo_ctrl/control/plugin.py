@@ -21,9 +21,12 @@ controller's go: the supervisor, the drives, the log.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
+import os
 import re
+import sys
 from typing import Any
 
 import numpy as np
@@ -45,6 +48,7 @@ __all__ = [
     "controller_name",
     "fill_row",
     "finite_copy",
+    "import_from_cwd",
     "is_plugin",
     "load_controller",
 ]
@@ -153,6 +157,19 @@ def load_controller(controller: str | Controller) -> Controller:
     except TypeError as exc:
         detail = f"{controller} cannot be built with no arguments: {exc}"
         raise InvalidParameter("controller", controller, ALLOWED, detail) from None
+
+
+def import_from_cwd() -> None:
+    """Let a user's controller path (``--controller mypkg.ctl:Impedance``) import from here.
+
+    For the command line: the current directory goes first on ``sys.path``,
+    as ``python -m`` puts it (the ``exo-ctrl`` script's own path is its bin
+    directory); a sweep's spawned workers inherit it.
+    """
+    with contextlib.suppress(OSError):  # a current directory that no longer exists
+        cwd = os.getcwd()
+        if cwd not in sys.path and "" not in sys.path:
+            sys.path.insert(0, cwd)
 
 
 def _check_kind(cls: type) -> None:
