@@ -52,7 +52,7 @@ import numba
 
 from .. import _jit_cache
 from ..control import controller_name
-from .config import SimConfig
+from .config import CONTROLLERS, SimConfig
 
 __all__ = ["ENV", "Warmup", "core_free", "feature_key", "marker_dir"]
 
@@ -167,6 +167,8 @@ class Warmup:
         setting = os.environ.get(ENV, "")
         if not enabled or setting == "0":
             return
+        if controller_name(config.controller) not in CONTROLLERS:
+            return  # a user's controller: its code runs in the user's process only
         if self.warm or (setting != "1" and not core_free()):
             return
         try:

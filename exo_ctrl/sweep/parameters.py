@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..control.plugin import check_controller as check_plugin
+from ..control.plugin import controller_name
 from ..exceptions import InvalidParameter
 from ..model import BodyParams
 from ..plan.gait import MIN_PERIOD_S
@@ -189,7 +190,8 @@ def parameter_listing(base: SimConfig | None = None) -> str:
         items = set(np.ravel(default).tolist()) if default is not None else set()
         shown = f"{items.pop():g}" if len(items) == 1 else "per joint" if items else "URDF"
         rows.append((info.name, f"[{info.unit or '-'}]", accepted, shown, info.text))
-    rows.append(("controller", "", ", ".join(CONTROLLERS), base.controller, "names"))
+    accepted = ", ".join((*CONTROLLERS, "MODULE:CLASS"))  # a user's: docs/controllers.md
+    rows.append(("controller", "", accepted, controller_name(base.controller), "names"))
     widths = [max(len(row[i]) for row in rows) for i in range(4)]
     lines = ["sweep parameters (name, unit, accepted values, default):"]
     for row in rows:
