@@ -38,9 +38,11 @@ period Δt (1 ms by default, longer than L/R = 0.7 ms), so this loop runs once
 per tick, not at the driver's 25 kHz: its PI part is capped at ω_c ≤ 1/(2Δt)
 (500 rad/s at 1 kHz; the closed loop with the mean-current reading is then
 stable with its slowest mode at 0.59 per tick, while 2π·1 kHz would
-diverge), and the feedforward brings the current to its reference within
-about one tick.  The run's torque response is thus that of a driver whose
-current settles within a control period, as the cited ones do.
+diverge), and the feedforward closes most of a step of the reference in
+one tick (e^(−Δt R/L) = 25 % of it remains after one tick at 1 kHz, 6 %
+after two).  The run's torque response is thus that of a driver whose
+current settles within a control period or two, against the cited drivers'
+1 ms.
 """
 
 from __future__ import annotations
