@@ -8,7 +8,7 @@ import os
 from typing import Any
 
 from .._io import atomic_write, check_output, same_file_key
-from ..control.plugin import import_from_cwd
+from .._plugin import import_from_cwd
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..plan import GaitParams

@@ -21,18 +21,14 @@ controller's go: the supervisor, the drives, the log.
 
 from __future__ import annotations
 
-import contextlib
-import importlib
 import math
-import os
-import re
-import sys
 from typing import Any
 
 import numpy as np
 
 from .. import _validate as v
 from .._jit import kernel, record
+from .._plugin import is_path, load_plugin, plugin_name
 from ..exceptions import InvalidParameter, PluginError
 from ..plan.rows import plan_row
 from ..sensing.readings import SensorReadings
@@ -48,7 +44,6 @@ __all__ = [
     "controller_name",
     "fill_row",
     "finite_copy",
-    "import_from_cwd",
     "is_plugin",
     "load_controller",
 ]
@@ -58,9 +53,6 @@ ALLOWED = (
     "pd, ct, qp, the import path 'module:Class' of an exo_ctrl.control.Controller "
     "subclass, or such a Controller object"
 )
-
-#: The form of an import path: a dotted module, a colon, the attribute path (no spaces).
-_PATH = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:\S+")
 
 #: A user controller's part of its record (after :data:`~exo_ctrl.control.base.COMMAND_FIELDS`):
 #: its last command as returned (``command``: [V] or [N·m]) and, for torque
@@ -77,10 +69,7 @@ def controller_name(controller: str | Controller) -> str:
     A built-in name or an import path as given; an object: its class's
     ``module:QualifiedName``.
     """
-    if isinstance(controller, str):
-        return controller
-    cls = type(controller)
-    return f"{cls.__module__}:{cls.__qualname__}"
+    return plugin_name(controller)
 
 
 def is_plugin(controller: str | Controller, built_in: tuple[str, ...]) -> bool:
@@ -96,7 +85,7 @@ def check_controller(controller: object, built_in: tuple[str, ...]) -> None:
 
     """
     if isinstance(controller, str):
-        if controller in built_in or _PATH.fullmatch(controller):
+        if controller in built_in or is_path(controller):
             return
         if ":" not in controller:  # a misspelt built-in name, as before user controllers
             v.one_of("controller", controller, built_in)
@@ -124,52 +113,16 @@ def load_controller(controller: str | Controller) -> Controller:
     Raises:
         InvalidParameter: the module cannot be imported, has no such class,
             the class is not a Controller subclass or leaves an abstract
-            method unimplemented, or cannot be built with no arguments.
+            method unimplemented, cannot be built with no arguments, or its
+            ``command_kind`` is not one of :data:`COMMAND_KINDS`
+            (:func:`exo_ctrl._plugin.load_plugin`).
 
     """
     if isinstance(controller, Controller):
         return controller
-    module, _, qualname = controller.partition(":")
-    try:
-        found: Any = importlib.import_module(module)
-    except ImportError as exc:
-        raise InvalidParameter(
-            "controller", controller, ALLOWED, f"cannot import {module}: {exc}"
-        ) from None
-    except Exception as exc:  # the user's module failed while it was imported
-        reason = f"importing {module} raised {type(exc).__name__}: {exc}"
-        raise InvalidParameter("controller", controller, ALLOWED, reason) from None
-    for part in qualname.split("."):
-        found = getattr(found, part, None)
-        if found is None:
-            detail = f"module {module} has no attribute {qualname}"
-            raise InvalidParameter("controller", controller, ALLOWED, detail)
-    if not (isinstance(found, type) and issubclass(found, Controller)):
-        detail = f"{controller} is not a subclass of exo_ctrl.control.Controller"
-        raise InvalidParameter("controller", controller, ALLOWED, detail)
-    missing = sorted(getattr(found, "__abstractmethods__", ()))
-    if missing:
-        detail = f"{controller} does not implement {', '.join(m + '()' for m in missing)}"
-        raise InvalidParameter("controller", controller, ALLOWED, detail)
-    _check_kind(found)
-    try:
-        return found()
-    except TypeError as exc:
-        detail = f"{controller} cannot be built with no arguments: {exc}"
-        raise InvalidParameter("controller", controller, ALLOWED, detail) from None
-
-
-def import_from_cwd() -> None:
-    """Let a user's controller path (``--controller mypkg.ctl:Impedance``) import from here.
-
-    For the command line: the current directory goes first on ``sys.path``,
-    as ``python -m`` puts it (the ``exo-ctrl`` script's own path is its bin
-    directory); a sweep's spawned workers inherit it.
-    """
-    with contextlib.suppress(OSError):  # a current directory that no longer exists
-        cwd = os.getcwd()
-        if cwd not in sys.path and "" not in sys.path:
-            sys.path.insert(0, cwd)
+    user = load_plugin(controller, Controller, "controller", ALLOWED)
+    _check_kind(type(user))
+    return user
 
 
 def _check_kind(cls: type) -> None:

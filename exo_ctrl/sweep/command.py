@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from .._io import OUTPUT_ALLOWED, output_problem
-from ..control.plugin import import_from_cwd
+from .._plugin import import_from_cwd
 from ..exceptions import InvalidParameter, MissingDependency, SweepError
 from ..sim import SimConfig
 from .outputs import SweepPaths
