@@ -183,22 +183,26 @@ class InvalidLog(ExoCtrlError, ValueError):
 
 
 class PluginError(ExoCtrlError, ValueError):
-    """A user's controller broke the interface's contract during a run.
+    """A user's controller or estimator broke its interface's contract during a run.
 
     Attributes:
-        plugin: the controller's ``module:Class`` name.
+        plugin: its ``module:Class`` name.
         tick: the control tick k at fault.
         time: its time t_k [s].
         reason: what it returned and what is allowed.
+        kind: ``"controller"`` or ``"estimator"``.
 
     """
 
-    def __init__(self, plugin: str, tick: int, time: float, reason: str) -> None:
+    def __init__(
+        self, plugin: str, tick: int, time: float, reason: str, kind: str = "controller"
+    ) -> None:
         self.plugin = plugin
         self.tick = tick
         self.time = time
         self.reason = reason
-        super().__init__(f"controller {plugin} at tick {tick} (t = {time:.4g} s): {reason}")
+        self.kind = kind
+        super().__init__(f"{kind} {plugin} at tick {tick} (t = {time:.4g} s): {reason}")
 
 
 class SweepError(ExoCtrlError, RuntimeError):

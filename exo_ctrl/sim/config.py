@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 import functools
 import math
 import os
@@ -15,7 +14,7 @@ from .. import _validate as v
 from ..control import Controller, PDGains, controller_name
 from ..control.modes import ModeParams, PathParams
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
-from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
+from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS, Estimator, estimator_name
 from ..exceptions import InvalidParameter
 from ..plan import (
     EXERCISES,
@@ -42,6 +41,7 @@ from . import config_checks as checks
 from .belief import Belief
 from .config_checks import MAX_DURATION_S, MAX_PLANT_SUBSTEPS, PLAN_ROW_BYTES
 from .faults import BELT_STOP_NEEDS, Fault, faults_of
+from .plain import named_copy
 from .schema import log_dtype
 from .session import SessionParams, check_session
 
@@ -158,8 +158,10 @@ class SimConfig:
         estimator: the live cuff-force estimator, ``"kalman"`` (default:
             the filter on the coupled model with the device's patient and
             cuff models, :mod:`exo_ctrl.estimation.kalman`; the better one,
-            smaller whole-force error and lag) or ``"momentum"`` (the
-            momentum observer, :mod:`exo_ctrl.estimation.observer`).
+            smaller whole-force error and lag), ``"momentum"`` (the
+            momentum observer, :mod:`exo_ctrl.estimation.observer`), or a
+            user's :class:`exo_ctrl.estimation.Estimator`: an object, or as
+            the scenario key its import path ``"module:Class"`` (tracking only).
         patient_torque: patient joint torques, ``"none"`` (paper §VI),
             ``"spastic"`` (:mod:`exo_ctrl.plant.patient`) or ``"active"``
             (:mod:`exo_ctrl.plant.patient_active`: their own gait, strength,
@@ -236,7 +238,7 @@ class SimConfig:
     current_sensor: CurrentSensorParams = field(default_factory=CurrentSensorParams)
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
-    estimator: str = "kalman"
+    estimator: str | Estimator = "kalman"
     cuff_force_limit_N: float = 120.0
     qp_estimate_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S
     patient_torque: str = "none"
@@ -288,7 +290,7 @@ class SimConfig:
         if self.stop_reaction is not None:
             check_stop_reaction(self.stop_reaction)
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
-        v.one_of("estimator", self.estimator, ESTIMATORS)
+        checks.check_estimator(self, ESTIMATORS)
         v.positive("qp_estimate_bandwidth", self.qp_estimate_bandwidth_per_s, "1/s")
         v.one_of("cuff_fit", self.cuff_fit, CUFF_FITS)
         Ramp(0.0, self.ramp_out_s, self.duration_s)  # refuses a bad or too long ramp-out
@@ -459,9 +461,8 @@ class SimConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (JSON-able), for summaries and recordings (a user's controller named)."""
-        plain = copy.copy(self)  # fields shared, no checks run: the controller by its name
-        object.__setattr__(plain, "controller", controller_name(self.controller))
-        return asdict(plain)
+        names = controller_name(self.controller), estimator_name(self.estimator)
+        return asdict(named_copy(self, controller=names[0], estimator=names[1]))
 
 
 def _check_parts(config: SimConfig) -> None:

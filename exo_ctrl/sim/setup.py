@@ -26,6 +26,8 @@ from ..control.lift_off import LIFT_OFF_BLEND_S
 from ..control.modes import InteractionController, PathController
 from ..control.plugin import is_plugin, load_controller
 from ..control.stance_load import StanceLoad
+from ..estimation import ESTIMATORS, Estimator
+from ..estimation.plugin import users_estimator
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..model.fit import fit_warnings
@@ -98,6 +100,9 @@ class Setup:
     #: each: a device that does not fit its patient (:func:`~exo_ctrl.model.fit.fit_warnings`),
     #: what the nominal patient was read from (:func:`~.belief.nominal_stature`).
     warnings: tuple[str, ...] = ()
+    #: A user's estimator (``config.estimator`` not a built-in name), built once: the
+    #: tick's (:class:`~exo_ctrl.estimation.plugin.PluginEstimator`); None: a built-in.
+    estimator: Estimator | None = None
 
 
 def build(config: SimConfig) -> Setup:
@@ -154,7 +159,8 @@ def build(config: SimConfig) -> Setup:
         belt_speed = np.stack(sigma[:2], axis=1) * config.gait.belt_speed
         if config.speed_profile is not None:  # σ(t) v(t) of the session's profile
             belt_speed = set_speeds(config, sigma[:2])
-    controller = _tracking(config, plan, model_exo, model_patient, model_motor)
+    user_estimator = users_estimator(config.estimator, ESTIMATORS)  # None: a built-in
+    controller = _tracking(config, plan, model_exo, model_patient, model_motor, user_estimator)
     if config.session is not None:  # one controller per segment, switched bumplessly
         controller = session_controller(  # type: ignore[assignment]
             config,
@@ -199,6 +205,7 @@ def build(config: SimConfig) -> Setup:
         belt_speed,
         online,
         tuple(run_warnings(config, exo, fitted)),
+        user_estimator,
     )
 
 
@@ -216,8 +223,12 @@ def _tracking(
     model_exo: BodyModel,
     model_patient: BodyModel,
     model_motor: MotorParams,
+    user_estimator: Estimator | None = None,
 ) -> PDController:
     """A new tracking controller of the run (``config.controller``) on the device's models.
+
+    With a user's estimator the QP takes its estimate as the momentum
+    observer's, a first-order lag at the class's ``bandwidth_per_s``.
 
     A user's controller (:mod:`exo_ctrl.control.plugin`) is imported if given
     by its path, and set up with what the device knows.
@@ -236,6 +247,9 @@ def _tracking(
             lift_off_blend_s=lift_off_blend_for(config),
         )
     if config.controller == "qp":
+        gain = config.observer_gain_per_s
+        if user_estimator is not None:
+            gain = type(user_estimator).bandwidth_per_s
         return QPController(
             plan,
             model_exo,
@@ -245,9 +259,9 @@ def _tracking(
             cuff_force_limit_N=config.cuff_force_limit_N,
             cuffs=config.belief.cuff_model,
             dt=config.dt,
-            estimate_gain_per_s=config.observer_gain_per_s,
+            estimate_gain_per_s=gain,
             restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
-            estimator=config.estimator,
+            estimator="momentum" if user_estimator is not None else config.estimator,
             stance_load=stance_load_for(config, model_exo),
             lift_off_blend_s=lift_off_blend_for(config),
         )

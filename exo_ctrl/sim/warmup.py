@@ -52,6 +52,7 @@ import numba
 
 from .. import _jit_cache
 from ..control import controller_name
+from ..estimation import ESTIMATORS, estimator_name
 from .config import CONTROLLERS, SimConfig
 
 __all__ = ["ENV", "Warmup", "core_free", "feature_key", "marker_dir"]
@@ -76,7 +77,7 @@ def feature_key(config: SimConfig) -> str:
     features = (
         controller_name(config.controller),
         config.mode,
-        config.estimator,
+        estimator_name(config.estimator),
         config.patient_torque,
         config.safety,
         config.stop_reaction,
@@ -167,8 +168,9 @@ class Warmup:
         setting = os.environ.get(ENV, "")
         if not enabled or setting == "0":
             return
-        if controller_name(config.controller) not in CONTROLLERS:
-            return  # a user's controller: its code runs in the user's process only
+        users = (controller_name(config.controller), estimator_name(config.estimator))
+        if users[0] not in CONTROLLERS or users[1] not in ESTIMATORS:
+            return  # a user's controller or estimator: its code runs in the user's process only
         if self.warm or (setting != "1" and not core_free()):
             return
         try:
