@@ -25,12 +25,12 @@ from .interaction import interaction_stats
 from .load_stats import load_stats
 from .result import SimObserver, SimResult
 from .schema import signal_shapes
-from .setup import build
+from .setup import Setup, build
 from .summary import RunStats, contact_stats, drive_limits
 from .tick import UNTIMED_TICKS, Runner
 from .warmup import Warmup
 
-__all__ = ["STARTING", "simulate"]
+__all__ = ["STARTING", "end_result", "new_result", "simulate"]
 
 #: The progress line of a start-up over a second, by whether the kernels are
 #: known compiled for these features (:attr:`Warmup.warm <.warmup.Warmup.warm>`):
@@ -91,26 +91,8 @@ def _run(
     runner = Runner(setup)
     n = config.n_ticks
     hist_n = n if keep_history else 0
-    history = {name: np.zeros((hist_n, *shape)) for name, shape in signal_shapes().items()}
-    result = SimResult(
-        config=config,
-        t=np.arange(hist_n) * config.dt,
-        signals=history,
-        belt_speed_mps=config.gait.belt_speed,
-        exo_source=setup.exo.source,
-        patient_source=setup.patient.source,
-        warnings=list(setup.warnings),
-        stats=RunStats(
-            EstimateErrorStats(setup.exo, config.dt),
-            contact_stats(config),
-            interaction_stats(config, setup.controller, setup.plan, setup.exo),
-            drive_limits(config, setup.exo.effort_limit),
-        ),
-    )
-    result.stats.gait = gait_score_stats(config)
-    result.stats.load = load_stats(config, setup.exo)
-    if config.mode == "aan":  # the support level per cycle, for the interaction block
-        result.stats.support = setup.controller.support_history
+    result = new_result(setup, hist_n)
+    history = result.signals
     for obs in observers:
         obs.start(result)
     bar = Progress(n, "simulate", enabled=progress)
@@ -177,16 +159,7 @@ def _run(
             fail("error", done * config.dt, f"{type(exc).__name__}: {exc}")
             error = error or exc
     bar.close(done)
-    result.qp_failures = int(runner._records[3][0]["failures"])
-    if setup.plant.motors is not None:
-        result.energy = setup.plant.motors.energy(JOINT_NAMES)
-    if runner.faults is not None:
-        result.events.extend(runner.faults.events)
-    result.events.extend(getattr(setup.controller, "events", ()))  # a session's switches
-    if runner.supervisor is not None:
-        result.events.extend(runner.supervisor.events)
-        result.safety_state = runner.supervisor.state
-    result.events.sort(key=lambda e: e["t"])  # in time order, the run's end last
+    end_result(result, runner)
     if keep_history and done < n:
         result.t = result.t[:done]
         result.signals = {name: arr[:done] for name, arr in history.items()}
@@ -198,3 +171,50 @@ def _run(
     if error is not None:
         raise error
     return result
+
+
+def new_result(setup: Setup, hist_n: int) -> SimResult:
+    """A run's result before its first tick: its statistics ready, ``hist_n`` rows of history.
+
+    Args:
+        setup: the run's pieces (:func:`~exo_ctrl.sim.setup.build`).
+        hist_n: rows of history kept (the run's ticks, or 0: none).
+
+    """
+    config = setup.config
+    history = {name: np.zeros((hist_n, *shape)) for name, shape in signal_shapes().items()}
+    result = SimResult(
+        config=config,
+        t=np.arange(hist_n) * config.dt,
+        signals=history,
+        belt_speed_mps=config.gait.belt_speed,
+        exo_source=setup.exo.source,
+        patient_source=setup.patient.source,
+        warnings=list(setup.warnings),
+        stats=RunStats(
+            EstimateErrorStats(setup.exo, config.dt),
+            contact_stats(config),
+            interaction_stats(config, setup.controller, setup.plan, setup.exo),
+            drive_limits(config, setup.exo.effort_limit),
+        ),
+    )
+    result.stats.gait = gait_score_stats(config)
+    result.stats.load = load_stats(config, setup.exo)
+    if config.mode == "aan":  # the support level per cycle, for the interaction block
+        result.stats.support = setup.controller.support_history
+    return result
+
+
+def end_result(result: SimResult, runner: Runner) -> None:
+    """Fill a result's end from its runner: QP fallbacks, energy, events (in time order), safety."""
+    setup = runner.setup
+    result.qp_failures = int(runner._records[3][0]["failures"])
+    if setup.plant.motors is not None:
+        result.energy = setup.plant.motors.energy(JOINT_NAMES)
+    if runner.faults is not None:
+        result.events.extend(runner.faults.events)
+    result.events.extend(getattr(setup.controller, "events", ()))  # a session's switches
+    if runner.supervisor is not None:
+        result.events.extend(runner.supervisor.events)
+        result.safety_state = runner.supervisor.state
+    result.events.sort(key=lambda e: e["t"])  # in time order, the run's end last

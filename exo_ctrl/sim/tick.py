@@ -262,20 +262,31 @@ class Runner:
 
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into row ``row`` of :attr:`log`."""
-        read, truth, estimate, command, supervise, step = self._stages
+        self.act(k, row, self.measure(k, row))
+
+    def measure(self, k: int, row: int) -> SensorReadings:
+        """Tick ``k``'s first half: the sensors read, the estimate made, row ``row`` begun.
+
+        Returns the readings the controller gets (:meth:`act`'s argument).
+        """
+        read, truth, estimate = self._stages[:3]
         readings = read(k, *truth)
         if self._belt_speed is not None:
             self._belt_tick(k, row)
-        faults = self.faults
-        if faults is not None:
-            readings = faults.readings_at(k, readings)
+        if self.faults is not None:
+            readings = self.faults.readings_at(k, readings)
         if self._est_in is not None:  # the feet's load, known from the foot plates
             self.foot_load.read(self._contact_rec, readings.q, readings.tau)
         estimate()  # on this tick's readings (or the faulted device's, with the feet's load)
-        log = self.log
-        write_measured(log, row, *self._measured)
+        write_measured(self.log, row, *self._measured)
+        return readings
+
+    def act(self, k: int, row: int, readings: SensorReadings) -> None:
+        """Tick ``k``'s second half: command, supervisor, plant steps, row ``row`` ended."""
+        command, supervise, step = self._stages[3:]
         u = command(k, readings)
         age = 0.0
+        faults = self.faults
         if faults is not None:
             u, age = faults.command_at(k, u)
         if supervise is not None:
@@ -289,7 +300,7 @@ class Runner:
             step(u)
         else:
             self._substep(u)
-        write_applied(log, row, *self._applied)
+        write_applied(self.log, row, *self._applied)
 
     def compile_back(self) -> None:
         """Call the tick's stages once, last first, on a run that was not started: they compile.

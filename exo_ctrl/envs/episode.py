@@ -1,0 +1,178 @@
+"""One episode of the environment: the run's ticks, advanced a few at a time.
+
+:class:`Episode` is :func:`~exo_ctrl.sim.simulate`'s loop cut at the
+command: it builds the run (:func:`~exo_ctrl.sim.setup.build`, the
+:class:`~exo_ctrl.sim.tick.Runner`), reads the sensors of the first tick
+(:meth:`~exo_ctrl.sim.tick.Runner.measure`), and :meth:`Episode.advance`
+then finishes that tick with the pending command
+(:meth:`~exo_ctrl.sim.tick.Runner.act`) and runs on, tick after tick, to
+the readings of the next step's first tick.  The log's chunks go to the
+run's statistics and observers (the recorder) as in ``simulate``; no
+history is kept.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..exceptions import SimulationDiverged
+from ..sensing.readings import SensorReadings
+from ..sim import SimConfig, SimObserver, build
+from ..sim.loop import end_result, new_result
+from ..sim.tick import Runner
+from .reward import reward_terms
+
+__all__ = ["Episode"]
+
+
+class Episode:
+    """A run driven from outside, a few ticks at a time (module docstring).
+
+    Args:
+        config: the run.
+        observers: watchers of its chunks (a :class:`~exo_ctrl.record.RerunRecorder`).
+        wrap: replaces the run's controller before the first tick (the
+            residual action's wrapper), or None.
+
+    Attributes:
+        runner: the run's tick.
+        result: its result (statistics, events; no history).
+        k: the next tick to act on (its readings are :attr:`readings`).
+        readings: the sensor readings of tick :attr:`k`.
+        status: ``"running"``, ``"stopped"`` (the supervisor stopped the
+            device), ``"diverged"`` or ``"ended"`` (the run's last tick done).
+
+    """
+
+    def __init__(
+        self,
+        config: SimConfig,
+        observers: Sequence[SimObserver] = (),
+        wrap: Callable[[Any], Any] | None = None,
+    ) -> None:
+        setup = build(config)
+        if wrap is not None:
+            setup.controller = wrap(setup.controller)
+        self.config = config
+        self.runner = Runner(setup)
+        self.result = new_result(setup, 0)
+        self.observers = tuple(observers)
+        self._started: list[SimObserver] = []
+        self._rows = {name: arr for name, arr in self.runner.buf.items()}
+        self._plan = None if setup.online is not None else setup.plan
+        self._dt = config.dt
+        self.k = 0
+        self._row = 0
+        self._chunk_start = 0
+        self.status = "running"
+        self._closed = False
+        for obs in self.observers:
+            obs.start(self.result)
+            self._started.append(obs)
+        self.readings: SensorReadings = self.runner.measure(0, 0)
+
+    @property
+    def stopped(self) -> bool:
+        """Whether the supervisor has stopped the device."""
+        sup = self.runner.supervisor
+        return sup is not None and bool(sup.state_code)
+
+    def advance(self, ticks: int) -> np.ndarray:
+        """Act on tick :attr:`k` and run ``ticks`` ticks in all, or fewer if the episode ends.
+
+        The episode ends at the tick the supervisor stops the device (status
+        ``"stopped"``), on a divergence (``"diverged"``) or after the run's
+        last tick (``"ended"``).
+
+        Returns:
+            The reward's terms over the ticks run (:func:`~.reward.reward_terms`), (3,).
+
+        """
+        runner, n = self.runner, self.config.n_ticks
+        terms = np.zeros(3)
+        first = self._row
+        for _ in range(ticks):
+            k, row = self.k, self._row
+            try:
+                runner.act(k, row, self.readings)
+            except SimulationDiverged as exc:
+                self._fail(exc)
+                break
+            self.k, self._row = k + 1, row + 1
+            if self._row == runner.chunk:
+                terms += self._terms(first, self._row)
+                self._flush()
+                first = 0
+            if self.stopped:
+                self.status = "stopped"
+                break
+            if self.k >= n:
+                self.status = "ended"
+                break
+            self.readings = runner.measure(self.k, self._row)
+        if self._row > first:
+            terms += self._terms(first, self._row)
+        return terms
+
+    def _terms(self, first: int, end: int) -> np.ndarray:
+        """The reward's terms of the chunk's rows ``first:end`` (their plan rows copied in)."""
+        names = ("q", "cuff_force", "voltage", "current")
+        rows = {name: self._rows[name][first:end] for name in names}
+        q_des = self._rows["q_des"]
+        if self._plan is not None:  # a precomputed plan: its rows are logged at the flush
+            index = self._plan.rows(self._chunk_start + first, end - first)
+            q_des[first:end] = self._plan.q[index]
+        rows["q_des"] = q_des[first:end]
+        return reward_terms(rows, self._dt)
+
+    def _fail(self, exc: SimulationDiverged) -> None:
+        """End the episode on a divergence, as :func:`~exo_ctrl.sim.simulate` ends the run."""
+        self.status = "diverged"
+        self.result.status = "diverged"
+        self.result.error = str(exc)
+        self.result.events.append({"t": exc.time, "kind": "diverged", "message": str(exc)})
+
+    def _flush(self) -> None:
+        """Hand the chunk's acted rows to the statistics and the observers."""
+        rows = self._row
+        if rows == 0:
+            return
+        runner, start = self.runner, self._chunk_start
+        runner.fill_plan(start, rows)
+        view = {name: arr[:rows] for name, arr in runner.buf.items()}
+        self.result.stats.update(view)
+        for obs in self._started:
+            obs.chunk(self.result, start, view)
+        self._chunk_start += rows
+        self._row = 0
+
+    def close(self, reason: str) -> None:
+        """End the episode: the last rows flushed, the result's end filled, the observers told.
+
+        Args:
+            reason: why it ended, the last event's message.
+
+        Safe to call more than once (later calls do nothing).
+
+        """
+        if self._closed:
+            return
+        self._closed = True
+        error: Exception | None = None
+        try:
+            self._flush()
+        except Exception as exc:  # the observers still finish, then it propagates
+            error = exc
+        end_result(self.result, self.runner)
+        t = self.k * self._dt
+        self.result.events.append({"t": t, "kind": "episode_end", "message": reason})
+        for obs in self._started:
+            try:
+                obs.finish(self.result)
+            except Exception as exc:
+                error = error or exc
+        if error is not None:
+            raise error
