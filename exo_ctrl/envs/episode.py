@@ -23,7 +23,7 @@ from ..sensing.readings import SensorReadings
 from ..sim import SimConfig, SimObserver, build
 from ..sim.loop import end_result, new_result
 from ..sim.tick import Runner
-from .reward import reward_terms
+from .reward import drawn_energy_J, reward_terms
 
 __all__ = ["Episode"]
 
@@ -64,6 +64,8 @@ class Episode:
         self._rows = {name: arr for name, arr in self.runner.buf.items()}
         self._plan = None if setup.online is not None else setup.plan
         self._dt = config.dt
+        motors = setup.plant.motors
+        self._motors = motors.record if motors is not None else None
         self.k = 0
         self._row = 0
         self._chunk_start = 0
@@ -94,6 +96,7 @@ class Episode:
         runner, n = self.runner, self.config.n_ticks
         terms = np.zeros(3)
         first = self._row
+        drawn = drawn_energy_J(self._motors)
         for _ in range(ticks):
             k, row = self.k, self._row
             try:
@@ -115,18 +118,18 @@ class Episode:
             self.readings = runner.measure(self.k, self._row)
         if self._row > first:
             terms += self._terms(first, self._row)
+        terms[2] = drawn_energy_J(self._motors) - drawn
         return terms
 
     def _terms(self, first: int, end: int) -> np.ndarray:
         """The reward's terms of the chunk's rows ``first:end`` (their plan rows copied in)."""
-        names = ("q", "cuff_force", "voltage", "current")
-        rows = {name: self._rows[name][first:end] for name in names}
+        rows = {name: self._rows[name][first:end] for name in ("q", "cuff_force")}
         q_des = self._rows["q_des"]
         if self._plan is not None:  # a precomputed plan: its rows are logged at the flush
             index = self._plan.rows(self._chunk_start + first, end - first)
             q_des[first:end] = self._plan.q[index]
         rows["q_des"] = q_des[first:end]
-        return reward_terms(rows, self._dt)
+        return reward_terms(rows, self._dt, 0.0)
 
     def _fail(self, exc: SimulationDiverged) -> None:
         """End the episode on a divergence, as :func:`~exo_ctrl.sim.simulate` ends the run."""

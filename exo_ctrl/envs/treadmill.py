@@ -29,6 +29,7 @@ import gymnasium as gym
 import numpy as np
 
 from .. import _validate as v
+from ..control import controller_name
 from ..exceptions import InvalidParameter
 from ..model import load_exo
 from ..record import RerunRecorder
@@ -45,6 +46,9 @@ __all__ = ["ACTIONS", "TreadmillEnv"]
 #: What an action is: drive voltages [V], joint torques [N·m] (through the driver's
 #: current loop), or a residual [V] added to the scenario's built-in controller's voltages.
 ACTIONS = ("torque", "voltage", "residual")
+
+#: The controllers a residual action is added to.
+RESIDUAL_ON = "a built-in one (pd, ct or qp) for residual actions"
 
 #: What ``scenario`` may be, in words (the message of a bad one).
 SCENARIO_ALLOWED = (
@@ -119,11 +123,11 @@ class TreadmillEnv(gym.Env):
         v.one_of("action", action, ACTIONS)
         config = scenario_config(scenario)
         if duration_s is not None:
-            config = dataclasses.replace(config, duration_s=v.positive("duration", duration_s, "s"))
+            duration_s = v.positive("duration_s", duration_s, "s")
+            config = dataclasses.replace(config, duration_s=duration_s)
         if action == "residual" and config.controller not in CONTROLLERS:
-            raise InvalidParameter(
-                "controller", config.controller, "pd, ct or qp for residual actions"
-            )
+            name = controller_name(config.controller)
+            raise InvalidParameter("the scenario's controller", name, RESIDUAL_ON)
         self.ticks_per_step = _ticks_per_step(control_rate, config.control_rate_hz)
         if reward_weights is None:
             reward_weights = RewardWeights()
@@ -219,10 +223,16 @@ class TreadmillEnv(gym.Env):
         """
         episode = self.episode
         if episode is None or episode.status != "running":
-            raise InvalidParameter("step", "called", "after reset() and before the episode ends")
-        a = np.asarray(action, dtype=np.float64)
+            when = "before reset()" if episode is None else f"after the episode {episode.status}"
+            raise InvalidParameter("step()", when, "called between reset() and the episode's end")
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            a = np.full(1, np.nan)
         if a.shape != (4,) or not np.all(np.isfinite(a)):
-            raise InvalidParameter("action", action, "4 finite numbers (the action space's)")
+            shown = a.tolist() if a.shape == (4,) else action
+            detail = f"shape {a.shape}" if a.shape != (4,) else ""
+            raise InvalidParameter("action", shown, "4 finite numbers", detail)
         space = self.action_space
         np.clip(a, space.low, space.high, out=self._pending)
         terms = episode.advance(self.ticks_per_step)
