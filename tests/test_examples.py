@@ -5,7 +5,9 @@ from __future__ import annotations
 import runpy
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -18,7 +20,11 @@ def load(name: str, monkeypatch: pytest.MonkeyPatch) -> dict:
 
 
 def test_every_example_is_run_here() -> None:
-    assert sorted(p.stem for p in EXAMPLES.glob("*.py")) == ["compare_mine", "impedance"]
+    assert sorted(p.stem for p in EXAMPLES.glob("*.py")) == [
+        "compare_mine",
+        "impedance",
+        "numba_pd",
+    ]
 
 
 def test_impedance_walks_on_torque_commands(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
@@ -38,3 +44,22 @@ def test_compare_mine_tabulates_pd_ct_and_impedance(monkeypatch: pytest.MonkeyPa
     # computed torque's feedforward tracks best of the three
     worst = {row.label: max(row.figures["rms_tracking_error_rad"].values()) for row in table.rows}
     assert worst["ct"] < worst["pd"] and worst["ct"] < worst["impedance:Impedance"]
+
+
+def test_numba_pd_is_the_built_in_pd(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    example = load("numba_pd", monkeypatch)
+    assert example["main"](duration_s=0.6) <= 1e-9  # [rad], the whole run
+    assert example["pd_law"].signatures  # compiled, and called through the compiled code
+    out = capsys.readouterr().out
+    assert out.startswith("example_numba_pd:NumbaPD completed largest difference ")
+    # the numpy twin is the same law
+    kp, kd = np.array([300.0, 280.0, 310.0, 290.0]), np.array([5.0, 4.0, 6.0, 3.0])
+    plan, sensors = example["PlanRow"](), SimpleNamespace()
+    plan.q[:], plan.dq[:] = [0.1, 0.2, -0.1, 0.3], [1.0, -1.0, 0.5, 0.0]
+    sensors.q, sensors.dq = np.array([0.0, 0.25, -0.2, 0.3]), np.array([0.5, -1.5, 0.0, 1.0])
+    numba_pd, numpy_pd = example["NumbaPD"](), example["NumpyPD"]()
+    for c in (numba_pd, numpy_pd):
+        c.kp, c.kd = kp, kd
+    expected = kp * (plan.q - sensors.q) + kd * (plan.dq - sensors.dq)
+    np.testing.assert_allclose(numba_pd.command(0.0, plan, sensors, None), expected, rtol=1e-15)
+    np.testing.assert_allclose(numpy_pd.command(0.0, plan, sensors, None), expected, rtol=1e-15)

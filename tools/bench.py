@@ -1,10 +1,11 @@
 """Benchmark of the control tick, its library floor, the real-time factor and the cold start.
 
-    .venv/bin/python tools/bench.py [--ticks N] [--json PATH] [--scenarios pd,ct,qp,qp_spastic]
+    .venv/bin/python tools/bench.py [--ticks N] [--json PATH] [--scenarios pd,ct,...] [--env]
     .venv/bin/python tools/bench.py --cold [--repeat N] [--helper on|off] [--scenarios ...]
 
-For each scenario (:data:`SCENARIOS`: the default run with PD, CT and QP, a
-user's Python controller (``impedance``),
+For each scenario (:data:`SCENARIOS`: the default run with PD, CT and QP,
+users' controllers (``impedance`` in Python, the paper's PD in numpy and
+numba-compiled: ``numpy_pd``, ``numba_pd``),
 and the QP on the spastic patient at a 150 N cuff bound, where its bound
 binds): the cost of one control tick (sensors, estimator, controller,
 safety supervisor, plant step, logging: exactly ``Runner.tick``), median
@@ -24,6 +25,10 @@ QP also the share of ticks that called proxsuite and the median of its
 update + solve + checks on those ticks (a tick's solve takes a few
 iterations, the floor's warm re-solve of a solved problem none).
 Absolute times drift on shared machines; the ratio is the figure to compare.
+
+``--env`` also times the Gymnasium environment's step (:func:`bench_env`:
+voltage, torque and residual actions at one tick a step, and residual at
+ten) beside the built-in PD's tick measured right after it on the same run.
 
 ``--cold`` measures instead the first run after an install: a short run of
 each scenario in a fresh process with a fresh, empty numba cache directory
@@ -54,6 +59,7 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from exo_ctrl.envs import TreadmillEnv
 from exo_ctrl.estimation import CuffForceKalman
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant import ContactParams, PelvisParams
@@ -204,6 +210,10 @@ SCENARIOS = {
     # impedance of examples/impedance.py, torque commands through the driver's current loop;
     # its own Pinocchio calls (two gravity vectors) are not in the floor.
     "impedance": {"controller": "examples.impedance:Impedance"},
+    # The paper's PD written by a user (examples/numba_pd.py): in numpy, and with its
+    # arithmetic one numba-compiled call; beside pd, the built-in compiled one.
+    "numpy_pd": {"controller": "examples.numba_pd:NumpyPD"},
+    "numba_pd": {"controller": "examples.numba_pd:NumbaPD"},
     # The QP where its bound binds (tests/test_qp.py's spastic run).
     "qp_spastic": {
         "controller": "qp",
@@ -277,6 +287,46 @@ def bench_scenario(name: str, ticks: int) -> dict[str, float]:
     }
 
 
+#: The environment's steps timed (--env): action kind and ticks per step.
+ENV_CASES = (("voltage", 1), ("torque", 1), ("residual", 1), ("residual", 10))
+
+
+def bench_env(action: str, ticks_per_step: int, steps: int) -> dict[str, float]:
+    """The Gymnasium environment's step on the default run (``SimConfig()``, as ``pd``'s).
+
+    Times ``env.step`` alone (a zero action; an episode that ends is reset,
+    untimed), and, in the same run, ``Runner.tick`` of the built-in PD on the
+    same configuration: the step's cost over the tick's is what the
+    environment adds (the observation, the reward, the checks).
+    """
+    env = TreadmillEnv(SimConfig(), action=action, control_rate=1000.0 / ticks_per_step)
+    zero = np.zeros(4)
+    samples = np.empty(steps)
+    env.reset(seed=0)
+    for i in range(steps):
+        t0 = time.perf_counter_ns()
+        _, _, terminated, truncated, _ = env.step(zero)
+        samples[i] = time.perf_counter_ns() - t0
+        if terminated or truncated:
+            env.reset()
+    env.close()
+    step = samples[steps // 10 :] / 1e3
+    runner = Runner(build(SimConfig()))
+    ticks = np.empty(min(steps * ticks_per_step, runner.setup.config.n_ticks))
+    for k in range(ticks.size):
+        t0 = time.perf_counter_ns()
+        runner.tick(k, k % runner.chunk)
+        ticks[k] = time.perf_counter_ns() - t0
+    tick = float(np.median(ticks[ticks.size // 10 :])) / 1e3
+    median = float(np.median(step))
+    return {
+        "step_median_us": median,
+        "step_p99_us": float(np.percentile(step, 99)),
+        "pd_tick_median_us": tick,
+        "per_tick_ratio": median / ticks_per_step / tick,
+    }
+
+
 _COLD_RUN = """
 import time
 t0 = time.perf_counter()
@@ -331,6 +381,11 @@ def main() -> int:
         "--cold", action="store_true", help="measure the first run after an install instead"
     )
     parser.add_argument(
+        "--env",
+        action="store_true",
+        help="also time the Gymnasium environment's step (exo_ctrl.envs) beside pd's tick",
+    )
+    parser.add_argument(
         "--repeat", type=int, default=1, help="--cold: the best of N measurements (default 1)"
     )
     parser.add_argument(
@@ -382,6 +437,16 @@ def main() -> int:
                     f"{'':<12}the plant's contact CRBA on {100 * r['contact_crba_share']:.0f} %"
                     " of the ticks (in the floor)"
                 )
+    if args.env and not args.cold:
+        print(f"\n{'env step':<20}{'median':>10}{'p99':>10}{'pd tick':>10}{'per tick/pd':>13}")
+        for action, per_step in ENV_CASES:
+            r = bench_env(action, per_step, max(args.ticks // per_step, 100))
+            name = f"{action}, {per_step} tick{'s' if per_step > 1 else ''}"
+            results[f"env_{action}_{per_step}"] = r
+            print(
+                f"{name:<20}{r['step_median_us']:>8.1f}µs{r['step_p99_us']:>8.1f}µs"
+                f"{r['pd_tick_median_us']:>8.1f}µs{r['per_tick_ratio']:>13.2f}"
+            )
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
     return 0

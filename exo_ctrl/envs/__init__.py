@@ -19,7 +19,7 @@ except ImportError:  # the optional extra
     ) from None
 
 from .observation import OBSERVATION_NAMES
-from .reward import REWARD_TERMS, RewardWeights, reward_terms
+from .reward import REWARD_TERMS, RewardWeights
 from .treadmill import ACTIONS, TreadmillEnv
 
 __all__ = [
@@ -29,7 +29,6 @@ __all__ = [
     "REWARD_TERMS",
     "RewardWeights",
     "TreadmillEnv",
-    "reward_terms",
 ]
 
 #: The environment's id in Gymnasium's registry.

@@ -18,12 +18,14 @@ from typing import Any
 
 import numpy as np
 
+from .._jit import kernel
 from ..exceptions import SimulationDiverged
+from ..plan.rows import plan_row
 from ..sensing.readings import SensorReadings
 from ..sim import SimConfig, SimObserver, build
 from ..sim.loop import end_result, new_result
 from ..sim.tick import Runner
-from .reward import drawn_energy_J, reward_terms
+from .reward import drawn_energy_J, log_terms
 
 __all__ = ["Episode"]
 
@@ -61,7 +63,6 @@ class Episode:
         self.result = new_result(setup, 0)
         self.observers = tuple(observers)
         self._started: list[SimObserver] = []
-        self._rows = {name: arr for name, arr in self.runner.buf.items()}
         self._plan = None if setup.online is not None else setup.plan
         self._dt = config.dt
         motors = setup.plant.motors
@@ -90,13 +91,14 @@ class Episode:
         last tick (``"ended"``).
 
         Returns:
-            The reward's terms over the ticks run (:func:`~.reward.reward_terms`), (3,).
+            The reward's terms over the ticks run (E_q, E_f, E_e: :mod:`.reward`), (3,).
 
         """
         runner, n = self.runner, self.config.n_ticks
         terms = np.zeros(3)
         first = self._row
-        drawn = drawn_energy_J(self._motors)
+        motors = self._motors
+        drawn = 0.0 if motors is None else drawn_energy_J(motors)
         for _ in range(ticks):
             k, row = self.k, self._row
             try:
@@ -106,7 +108,7 @@ class Episode:
                 break
             self.k, self._row = k + 1, row + 1
             if self._row == runner.chunk:
-                terms += self._terms(first, self._row)
+                self._terms(first, self._row, terms)
                 self._flush()
                 first = 0
             if self.stopped:
@@ -117,19 +119,18 @@ class Episode:
                 break
             self.readings = runner.measure(self.k, self._row)
         if self._row > first:
-            terms += self._terms(first, self._row)
-        terms[2] = drawn_energy_J(self._motors) - drawn
+            self._terms(first, self._row, terms)
+        if motors is not None:
+            terms[2] = drawn_energy_J(motors) - drawn
         return terms
 
-    def _terms(self, first: int, end: int) -> np.ndarray:
-        """The reward's terms of the chunk's rows ``first:end`` (their plan rows copied in)."""
-        rows = {name: self._rows[name][first:end] for name in ("q", "cuff_force")}
-        q_des = self._rows["q_des"]
-        if self._plan is not None:  # a precomputed plan: its rows are logged at the flush
-            index = self._plan.rows(self._chunk_start + first, end - first)
-            q_des[first:end] = self._plan.q[index]
-        rows["q_des"] = q_des[first:end]
-        return reward_terms(rows, self._dt, 0.0)
+    def _terms(self, first: int, end: int, out: np.ndarray) -> None:
+        """Add E_q, E_f of the chunk's rows ``first:end`` to ``out`` (their plan rows copied in)."""
+        log = self.runner.log
+        plan = self._plan
+        if plan is not None:  # a precomputed plan: its rows are otherwise logged at the flush
+            plan_into_log(log, first, end, self._chunk_start + first, *plan.row_rule, plan.q)
+        log_terms(log, first, end, self._dt, out)
 
     def _fail(self, exc: SimulationDiverged) -> None:
         """End the episode on a divergence, as :func:`~exo_ctrl.sim.simulate` ends the run."""
@@ -179,3 +180,12 @@ class Episode:
                 error = error or exc
         if error is not None:
             raise error
+
+
+@kernel
+def plan_into_log(log, first, end, k0, lead, period, tail, plan_q):  # pragma: no cover
+    """The plan's q* of ticks k0, k0 + 1, … into the log's rows ``first:end`` (``q_des``)."""
+    for i in range(first, end):
+        row = plan_row(k0 + i - first, lead, period, tail)
+        for j in range(4):
+            log[i].q_des[j] = plan_q[row, j]

@@ -33,6 +33,7 @@ import math
 
 import numpy as np
 
+from .._jit import kernel
 from ..model import CUFF_NAMES, JOINT_NAMES
 from .episode import Episode
 
@@ -62,22 +63,48 @@ OBSERVATION_NAMES = _names()
 def observe(episode: Episode, out: np.ndarray) -> np.ndarray:
     """Fill ``out`` (float32, (len(OBSERVATION_NAMES),)) with tick ``episode.k``'s observation."""
     runner, s = episode.runner, episode.readings
-    out[0:4] = s.q
-    out[4:8] = s.dq
-    out[8:12] = s.tau
-    out[12:16] = runner.current_sensor.current
-    out[16] = 0.0 if s.belt_speed is None else s.belt_speed[0]
-    out[17:21] = runner.foot_load.force.reshape(4)
-    out[21:29] = runner.estimator.force.reshape(8)
     setup = runner.setup
     plan, k = setup.plan, episode.k
-    row = plan.row(k) if setup.online is None else 0
-    out[29:33] = plan.q[row]
-    out[33:37] = plan.dq[row]
-    if setup.online is not None:
-        tau = float(setup.online.record["phase"][0][0])
-    else:
+    online = setup.online
+    if online is None:
+        row = plan.row(k)
         tau = (k * episode.config.dt / episode.config.gait.period) % 1.0
-    out[37] = math.sin(2.0 * math.pi * tau)
-    out[38] = math.cos(2.0 * math.pi * tau)
+    else:
+        row = 0
+        tau = float(online.record["phase"][0][0])
+    belt = 0.0 if s.belt_speed is None else float(s.belt_speed[0])
+    fill_observation(
+        out,
+        s.q,
+        s.dq,
+        s.tau,
+        runner.current_sensor.current,
+        belt,
+        runner.foot_load.force,
+        runner.estimator.force,
+        plan.q[row],
+        plan.dq[row],
+        tau,
+    )
     return out
+
+
+@kernel
+def fill_observation(out, q, dq, tau, current, belt, foot, est, q_plan, dq_plan, phase):
+    """The observation's blocks (module docstring) into ``out``."""  # pragma: no cover
+    for j in range(4):
+        out[j] = q[j]
+        out[4 + j] = dq[j]
+        out[8 + j] = tau[j]
+        out[12 + j] = current[j]
+        out[29 + j] = q_plan[j]
+        out[33 + j] = dq_plan[j]
+    out[16] = belt
+    for f in range(2):
+        out[17 + 2 * f] = foot[f, 0]
+        out[18 + 2 * f] = foot[f, 1]
+    for c in range(4):
+        out[21 + 2 * c] = est[c, 0]
+        out[22 + 2 * c] = est[c, 1]
+    out[37] = math.sin(2.0 * math.pi * phase)
+    out[38] = math.cos(2.0 * math.pi * phase)

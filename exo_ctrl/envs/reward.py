@@ -34,16 +34,16 @@ the cuffs, its drives draw about 100 W.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import _validate as v
+from .._jit import kernel
 
-__all__ = ["REWARD_TERMS", "RewardWeights", "drawn_energy_J", "reward_terms"]
+__all__ = ["REWARD_TERMS", "RewardWeights", "drawn_energy_J", "log_terms"]
 
-#: The names of the reward's terms, in :func:`reward_terms`' order, with their units.
+#: The names of the reward's terms (E_q, E_f, E_e: module docstring), with their units.
 REWARD_TERMS = ("tracking_rad2_s", "interaction_N2_s", "energy_J")
 
 
@@ -77,30 +77,36 @@ class RewardWeights:
         return np.array([self.tracking, self.interaction, self.energy])
 
 
-def reward_terms(rows: Mapping[str, np.ndarray], dt_s: float, drawn_J: float) -> np.ndarray:
-    """(E_q, E_f, E_e) of the ticks in ``rows`` (module docstring), (3,).
+@kernel
+def log_terms(log, first, end, dt, out):  # pragma: no cover - compiled
+    """Add E_q and E_f of the log's rows ``first:end`` to ``out[0]``, ``out[1]`` (module docstring).
 
-    Args:
-        rows: the ticks' logged signals (``q_des``, ``q``: (n, 4) [rad];
-            ``cuff_force``: (n, 4, 2) [N]).
-        dt_s: the control period Δt [s].
-        drawn_J: E_e, the energy the drives drew from the supply over the ticks [J]
-            (:func:`drawn_energy_J` after less before).
-
+    ``log``: the run's log chunk (:func:`~exo_ctrl.sim.schema.log_dtype`:
+    ``q_des``, ``q`` [rad], ``cuff_force`` [N]); ``dt``: Δt [s].
     """
-    track = float(np.sum((rows["q_des"] - rows["q"]) ** 2)) * dt_s
-    force = float(np.sum(rows["cuff_force"] ** 2)) * dt_s
-    return np.array([track, force, drawn_J])
+    track = 0.0
+    force = 0.0
+    for i in range(first, end):
+        r = log[i]
+        for j in range(4):
+            e = r.q_des[j] - r.q[j]
+            track += e * e
+            fx = r.cuff_force[j, 0]
+            fz = r.cuff_force[j, 1]
+            force += fx * fx + fz * fz
+    out[0] += track * dt
+    out[1] += force * dt
 
 
-def drawn_energy_J(motors: np.ndarray | None) -> float:
+@kernel
+def drawn_energy_J(motors):  # pragma: no cover - compiled
     """The energy the drives have drawn from the supply since the run's start [J].
 
-    Σ_j (net electrical + regenerated), the sum over the plant's steps of
-    max(W, 0) (:mod:`exo_ctrl.plant.energy`); ``motors``: the drives'
-    record (None: no drives, 0).
+    Σ_j (net electrical + regenerated) of the drives' record ``motors``
+    (:mod:`exo_ctrl.plant.energy`): the sum over the plant's steps of max(W, 0).
     """
-    if motors is None:
-        return 0.0
     m = motors[0]
-    return float(np.sum(m["e_electrical"]) + np.sum(m["e_regenerated"]))
+    total = 0.0
+    for j in range(m.e_electrical.shape[0]):
+        total += m.e_electrical[j] + m.e_regenerated[j]
+    return total

@@ -29,6 +29,7 @@ import gymnasium as gym
 import numpy as np
 
 from .. import _validate as v
+from .._jit import kernel
 from ..control import controller_name
 from ..exceptions import InvalidParameter
 from ..model import load_exo
@@ -148,6 +149,8 @@ class TreadmillEnv(gym.Env):
             self._controller = action_controller(action)
             self.scenario_config = dataclasses.replace(config, controller=self._controller)
         self.action_space = _action_space(action, config)
+        self._bounds = np.stack([self.action_space.low, self.action_space.high])
+        self._weights = reward_weights.vector
         n = len(OBSERVATION_NAMES)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (n,), np.float32)
         self.observation_names = OBSERVATION_NAMES
@@ -225,23 +228,24 @@ class TreadmillEnv(gym.Env):
         if episode is None or episode.status != "running":
             when = "before reset()" if episode is None else f"after the episode {episode.status}"
             raise InvalidParameter("step()", when, "called between reset() and the episode's end")
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            a = np.full(1, np.nan)
-        if a.shape != (4,) or not np.all(np.isfinite(a)):
+        a = action
+        if not (type(a) is np.ndarray and a.dtype == np.float64):
+            try:
+                a = np.asarray(action, dtype=np.float64)
+            except (TypeError, ValueError):
+                a = np.full(1, np.nan)
+        if a.shape != (4,) or not clip_action(a, self._bounds, self._pending):
             shown = a.tolist() if a.shape == (4,) else action
             detail = f"shape {a.shape}" if a.shape != (4,) else ""
             raise InvalidParameter("action", shown, "4 finite numbers", detail)
-        space = self.action_space
-        np.clip(a, space.low, space.high, out=self._pending)
         terms = episode.advance(self.ticks_per_step)
-        reward = -float(self.weights.vector @ terms)
-        terminated = episode.status in ("stopped", "diverged")
-        truncated = episode.status == "ended"
+        reward = -float(self._weights @ terms)
+        status = episode.status
+        terminated = status == "stopped" or status == "diverged"
+        truncated = status == "ended"
         if terminated or truncated:
-            self._end(f"the episode {episode.status} at tick {episode.k}")
-        if episode.status != "diverged":
+            self._end(f"the episode {status} at tick {episode.k}")
+        if status != "diverged":
             observe(episode, self._obs)
         return self._obs.copy(), reward, terminated, truncated, self._info(terms)
 
@@ -281,6 +285,17 @@ class TreadmillEnv(gym.Env):
             "safety_state": sup.state if sup is not None else "normal",
             "reward_terms": dict(zip(REWARD_TERMS, terms.tolist(), strict=True)),
         }
+
+
+@kernel
+def clip_action(action, bounds, out):  # pragma: no cover - compiled
+    """``action`` clipped to [bounds[0], bounds[1]] into ``out`` if all 4 are finite; whether."""
+    for j in range(4):
+        if not math.isfinite(action[j]):
+            return False
+    for j in range(4):
+        out[j] = min(max(action[j], bounds[0, j]), bounds[1, j])
+    return True
 
 
 def _ticks_per_step(control_rate: float | None, tick_rate_hz: float) -> int:
