@@ -121,7 +121,7 @@ class Episode:
         if self._row > first:
             self._terms(first, self._row, terms)
         if motors is not None:
-            terms[2] = drawn_energy_J(motors) - drawn
+            terms[2] = max(drawn_energy_J(motors) - drawn, 0.0)  # a sum's rounding, not < 0
         return terms
 
     def _terms(self, first: int, end: int, out: np.ndarray) -> None:
