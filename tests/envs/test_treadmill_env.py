@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 
@@ -318,3 +320,15 @@ def test_the_observation_is_what_the_device_measured(tmp_path: Path) -> None:
     tau = names.index("left_hip_tau_Nm")
     np.testing.assert_array_equal(seen[:, tau : tau + 4], as32("tau_sensor"))
     assert dataclasses.asdict(env.config.sensors)["seed"] != 0  # drawn from the env's seed
+
+
+def test_without_gymnasium_the_import_names_the_extra() -> None:
+    code = (
+        "import sys; sys.modules['gymnasium'] = None\n"
+        "try:\n    import exo_ctrl.envs\n"
+        "except Exception as e:\n    print(type(e).__name__, '|', e)"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == (
+        'MissingDependency | the Gymnasium environment needs gymnasium: pip install "exo-ctrl[gym]"'
+    )
