@@ -158,17 +158,18 @@ def test_the_energy_term_is_what_the_drives_drew_at_their_current_limit(tmp_path
     assert terms[:, 2].sum() == pytest.approx(drawn, rel=1e-12)
 
 
-def test_a_voltage_action_is_the_drives_command_clipped_to_the_supply(tmp_path: Path) -> None:
-    env = TreadmillEnv(action="voltage", duration_s=0.01, record_dir=tmp_path)
+def test_a_voltage_action_is_the_drives_command_clipped_and_held(tmp_path: Path) -> None:
+    env = TreadmillEnv(action="voltage", duration_s=0.02, control_rate=500.0, record_dir=tmp_path)
     env.reset(seed=0)
-    actions = [np.array([1.5, -2.0, 0.25, 1e3]), np.array([-1e3, 0.0, 3.0, -4.0])]
-    for a in actions * 5:
+    actions = np.array([[1.5, -2.0, 0.25, 1e3], [-1e3, 0.0, 3.0, -4.0]] * 5)
+    for a in actions:
         env.step(a)
     env.close()
     s = read_recording(tmp_path / "episode_0000.rrd").signals
     supply = env.config.motor.supply_voltage_V
-    expected = np.clip(np.array(actions * 5), -supply, supply)
-    np.testing.assert_array_equal(s["voltage_cmd"], expected)
+    held = np.repeat(np.clip(actions, -supply, supply), 2, axis=0)  # two ticks a step
+    np.testing.assert_array_equal(s["voltage_cmd"], held)
+    np.testing.assert_array_equal(s["voltage"], held)  # the supply passes them all
 
 
 def test_a_torque_action_never_draws_more_than_the_drivers_current_limit(tmp_path: Path) -> None:
