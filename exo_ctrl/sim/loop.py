@@ -178,6 +178,9 @@ def _run(
             error = error or exc
     bar.close(done)
     result.qp_failures = int(runner._records[3][0]["failures"])
+    controller_record = runner._records[3]
+    if "margin_peak" in (controller_record.dtype.names or ()):
+        result.cuff_bound_margin_N = controller_record["margin_peak"][0].copy()
     if setup.plant.motors is not None:
         result.energy = setup.plant.motors.energy(JOINT_NAMES)
     if runner.faults is not None:

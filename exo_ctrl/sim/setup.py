@@ -231,13 +231,22 @@ def _tracking(
             model_motor,
             config.gains,
             cuff_force_limit_N=config.cuff_force_limit_N,
-            cuffs=config.belief.cuff_model,
+            cuffs=config.belief.cuff_model_for(config.controller),
             dt=config.dt,
             estimate_gain_per_s=config.observer_gain_per_s,
             restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
             estimator=config.estimator,
+            tighten=config.qp_tighten_bound,
+            gait=_gait_words(config),
         )
     return PDController(plan, config.gains)
+
+
+def _gait_words(config: SimConfig) -> str:
+    """The gait in words, for a refusal's message."""
+    step = config.gait.step_length
+    shown = f"{step:g} m" if isinstance(step, (int, float)) else str(step)
+    return f"the gait with period {config.gait.period:g} s and step_length {shown}"
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:

@@ -108,7 +108,7 @@ class Runner:
                 setup.device_exo,
                 setup.device_patient,
                 config.dt,
-                cuffs=config.belief.cuff_model,
+                cuffs=config.belief.cuff_model_for(config.controller),
                 sensors=config.sensors,
             )
         else:
@@ -123,6 +123,7 @@ class Runner:
             tune(self.estimator)
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
+        self.sensors.cuff_force_std = getattr(self.estimator, "force_std", None)
         #: The foot plates' load cells (sensing/foot_load.py; read with the belt only).
         self.foot_load = FootLoad(config.foot_load, setup.device_exo)
         #: The belt-speed sensor (read each tick with contact on).
