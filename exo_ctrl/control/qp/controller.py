@@ -60,14 +60,13 @@ the plan when the controller is built; a bound whose margin leaves less
 than the cuff's working force is refused then
 (:class:`~exo_ctrl.exceptions.CuffBoundTooTight`).  ``record["margin"]``
 holds the tick's m_c, ``record["margin_peak"]`` its largest so far.
-Measured peaks against the bound: docs/performance.md ("Load held").
+Measured peaks against the bound: docs/performance.md ("The QP's cuff-force bound").
 
 **Ticks without proxsuite.**  When τ_cmd clipped into the torque box meets
 every cuff row it is the QP's optimum (the clip test of
 :mod:`~exo_ctrl.control.qp.screening`) and the tick takes it without calling
-proxsuite.  Measured on the default runs (tools/bench.py): proxsuite is called
-on 0.3 % of the default run's ticks (120 N; none without the lead–lag) and
-on 22 % of the spastic patient's at 150 N.  Otherwise proxsuite solves over
+proxsuite (how often: docs/performance.md, "Speed of a tick" and "The QP's
+cuff-force bound").  Otherwise proxsuite solves over
 the :data:`SCREENED_ROWS` rows most nearly binding, widened by violated rows at most
 :data:`SCREEN_ROUNDS` times (the screening of the same module).
 
