@@ -64,7 +64,8 @@ class InvalidScenario(ExoCtrlError, ValueError):
     """A scenario file (or a ``--set`` override) cannot be used.
 
     Attributes:
-        source: the file's path (or ``--set``).
+        source: the file's path, or the option that set the key (``--set``,
+            ``--period``).
         key: the key path at fault (``gait.step_length``; "" for the whole file).
         reason: what is wrong and what is allowed.
 
@@ -74,6 +75,9 @@ class InvalidScenario(ExoCtrlError, ValueError):
         self.source = source
         self.key = key
         self.reason = reason
+        if source.startswith("--"):  # an option of the command line set the key
+            super().__init__(f"{source}: {key}: {reason}" if key else f"{source}: {reason}")
+            return
         where = f"{source}: {key}" if key else source
         super().__init__(f"scenario {where}: {reason}")
 

@@ -5,17 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from dataclasses import asdict
 from typing import Any
 
 from .._io import atomic_write, check_output, same_file_key
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..plan import GaitParams
+from .long_options import GAIT_OPTIONS, add_long_options
 
 __all__ = [
     "INPUT_OPTIONS",
-    "SUPPORTED_GAIT",
     "Parser",
     "add_accept_implausible",
     "add_gait_options",
@@ -27,17 +26,6 @@ __all__ = [
 ]
 
 
-#: The gait's hip height H_s and excursion e [m] and duty factor β by default
-#: with the pelvis supported: the 0.52 + 0.52 m legs extend to 19.5° of knee
-#: flexion at mid-stance (36° at the transfers; a 0.90 m fixed hip walks a
-#: 56–60° crouch, tests/plan/test_hip_excursion.py), 13.7 mm within the leg's
-#: reach; β = 0.6, normal walking's 60 % stance (Perry & Burnfield, Gait
-#: Analysis, 2nd ed. 2010, ch. 1), so that the load passes from foot to foot
-#: over a double support and the plan's loading phase can sink the loaded
-#: foot (:mod:`exo_ctrl.plan.loading`).
-SUPPORTED_GAIT = {"hip_height": 1.0, "pelvis_excursion": 0.05, "duty_factor": 0.6}
-
-
 class Parser(argparse.ArgumentParser):
     """argparse with exit code 2 and a one-line message on bad usage."""
 
@@ -47,71 +35,8 @@ class Parser(argparse.ArgumentParser):
 
 
 def add_gait_options(parser: argparse.ArgumentParser) -> None:
-    """The gait parameter options shared by the subcommands (defaults: GaitParams)."""
-    d = GaitParams()
-    g = parser.add_argument_group("gait (paper §III)")
-    g.add_argument(
-        "--step-length",
-        type=float,
-        default=d.step_length,
-        metavar="S",
-        help=f"step length s [m] (default {d.step_length})",
-    )
-    g.add_argument(
-        "--lift-height",
-        type=float,
-        default=d.lift_height,
-        metavar="H",
-        help=f"foot lift h_s [m] (default {d.lift_height})",
-    )
-    s = SUPPORTED_GAIT
-    g.add_argument(
-        "--hip-height",
-        type=float,
-        default=None,
-        metavar="HS",
-        help=f"hip height above the belt H_s [m] (default {d.hip_height}; "
-        f"{s['hip_height']:g} with simulate's --pelvis supported)",
-    )
-    g.add_argument(
-        "--pelvis-excursion",
-        type=float,
-        default=None,
-        metavar="M",
-        help="peak-to-peak rise and fall e of the hip over the gait cycle [m]: the hip at "
-        "H_s + (e/2) cos(4π t / T_s), highest at mid-stance, lowest at the support transfers; "
-        "beyond the paper, for a pelvis free to move vertically, about 0.04-0.05 in normal "
-        f"gait (default {d.pelvis_excursion:g}: the hip fixed; {s['pelvis_excursion']:g} with "
-        "simulate's --pelvis supported)",
-    )
-    g.add_argument(
-        "--shape-coeff",
-        type=float,
-        default=d.shape_coeff,
-        metavar="KV",
-        help=f"shape coefficient k_v = v_f / v_b, no unit (default {d.shape_coeff})",
-    )
-    g.add_argument(
-        "--period",
-        type=float,
-        default=d.period,
-        metavar="T",
-        help=f"gait period T_s [s] (default {d.period})",
-    )
-    g.add_argument(
-        "--duty-factor",
-        type=float,
-        default=None,
-        metavar="B",
-        help=f"stance fraction β of the period, no unit (default {d.duty_factor}; "
-        f"{s['duty_factor']:g} with simulate's --pelvis supported)",
-    )
-    g.add_argument(
-        "--exo",
-        default=None,
-        metavar="URDF",
-        help="exoskeleton URDF file (default: urdf/exoskeleton.urdf)",
-    )
+    """The gait's options (:data:`~.long_options.GAIT_OPTIONS`; GaitParams' defaults)."""
+    add_long_options(parser, GAIT_OPTIONS)
 
 
 def add_accept_implausible(parser: argparse.ArgumentParser) -> None:
@@ -126,24 +51,13 @@ def add_accept_implausible(parser: argparse.ArgumentParser) -> None:
 
 
 def gait_params_from(args: argparse.Namespace) -> GaitParams:
-    """GaitParams from the parsed gait options.
-
-    Unset ``--hip-height``, ``--pelvis-excursion`` and ``--duty-factor`` take
-    GaitParams' defaults, or :data:`SUPPORTED_GAIT`'s with ``simulate --pelvis supported``.
-    """
-    supported = getattr(args, "pelvis", "fixed") == "supported"
-    d = SUPPORTED_GAIT if supported else asdict(GaitParams())
-    hip = args.hip_height if args.hip_height is not None else d["hip_height"]
-    excursion = args.pelvis_excursion
-    return GaitParams(
-        step_length=args.step_length,
-        lift_height=args.lift_height,
-        hip_height=hip,
-        pelvis_excursion=excursion if excursion is not None else d["pelvis_excursion"],
-        shape_coeff=args.shape_coeff,
-        period=args.period,
-        duty_factor=args.duty_factor if args.duty_factor is not None else d["duty_factor"],
-    )
+    """GaitParams from the gait options given (GaitParams' defaults for the others)."""
+    given = {}
+    for opt in GAIT_OPTIONS:
+        section, _, name = opt.key.partition(".")
+        if section == "gait" and hasattr(args, opt.dest):
+            given[name] = getattr(args, opt.dest)
+    return GaitParams(**given)
 
 
 #: The options of the subcommands that name input files, attribute → name: every

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     rate = v.positive("rate", args.rate, "Hz")
     n = int(np.floor(duration * rate + 1e-9)) + 1
     _check_size(args, duration, rate, n)
-    exo = load_exo(args.exo)
+    exo = load_exo(getattr(args, "exo", None))
     t = np.arange(n) / rate
     joints = plan_joints(GaitPlan(params), exo, t)
     rows = np.column_stack(
@@ -123,7 +123,7 @@ def _check_size(args: argparse.Namespace, duration: float, rate: float, n: int) 
         )
     else:
         name = "duration" if args.duration is not None else "period"
-        value = args.duration if args.duration is not None else args.period
+        value = args.duration if args.duration is not None else duration
         limit = f"at most {most / rate:.4g} s at {rate:g} Hz"
         if args.duration is None:
             note = "the duration defaults to one period"

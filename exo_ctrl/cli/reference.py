@@ -53,10 +53,13 @@ def options_markdown() -> str:
                 "",
                 f"### exo-ctrl {name}: the long options",
                 "",
-                "Hidden from `--help` and kept: given without a scenario file or preset, they "
-                "describe the run on the `paper-free-air` preset (`SimConfig()`'s defaults), "
-                "as they always have; beside a file or a preset they are refused (use `--set "
-                "section.key=value`).",
+                "Hidden from `--help`: each is another spelling of the scenario key it names, "
+                "its meaning, unit and default read from the dataclasses (as the scenario "
+                "file's comments are).  Beside a scenario file or a preset they override its "
+                "keys, as `--set section.key=value` does (the long options first, then "
+                "`--set`).  Given alone they describe a run on the `paper-free-air` preset "
+                "(`SimConfig()`'s defaults, the defaults shown here) lasting its ramp-in and "
+                "two gait cycles.",
                 "",
                 "| option | meaning |",
                 "|---|---|",

@@ -4,15 +4,14 @@ The run is a scenario (:mod:`exo_ctrl.scenario`): a TOML file, a preset, or
 the default preset (the paper's device and gait on the belt).  A few common
 options override it (``--controller``, ``--cycles``/``--duration``,
 ``--out``, ``--summary``, ``--no-record``) and ``--set section.key=value``
-reaches any setting.  The older long options (``--contact on``,
-``--patient-torque spastic``, ...; :mod:`.simulate_options`) are still
-accepted, hidden from ``--help``: each one given becomes a setting.
+reaches any setting.  The long options (``--contact on``,
+``--patient-torque spastic``, ...; :mod:`.long_options`) are accepted,
+hidden from ``--help``: each is another spelling of one scenario key.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import sys
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ from .._io import DefaultOutput
 from ..exceptions import InvalidParameter
 from ..model import load_exo
 from ..plan import GaitParams
+from ..plan.exercise import CALIBRATION_DURATION_S
 from ..plant import consistency_warning
 from ..record import RerunRecorder
 from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
@@ -30,12 +30,11 @@ from ..scenario import DEFAULT_PRESET, PRESETS, RecordingParams, Scenario
 from ..scenario.load import scenario_document, scenario_from_document
 from ..sim import CONTROLLERS, SimConfig, SimResult, drive_for, simulate
 from ..sim.config import MAX_DURATION_S
-from ..sim.scenario_file import document_from_config
 from ..sim.scenario_read import apply_setting
 from .common import check_outputs, format_summary, recording_line, write_json
-from .simulate_options import add_run_options, flags_config
+from .long_options import add_long_options, given_options, option_settings
 
-__all__ = ["flag_settings", "register", "run", "scenario_of", "sim_config"]
+__all__ = ["register", "run", "scenario_of", "sim_config"]
 
 #: The options ``simulate --help`` shows; the long tail is hidden (docs/cli.md).
 SHOWN = frozenset(
@@ -65,8 +64,8 @@ USAGE = (
 EPILOG = (
     "Every setting of a run is a key of the scenario file: 'exo-ctrl scenario --preset "
     f"{DEFAULT_PRESET} --out my.toml' writes them all with their units, defaults and "
-    "meaning (docs/scenarios.md). The older long options (--contact on, --patient-torque "
-    "spastic, ...) are still accepted: docs/cli.md lists them."
+    "meaning (docs/scenarios.md). Each also has a long option (--contact on, --period 1.1, "
+    "...), hidden here: docs/options.md lists them."
 )
 
 
@@ -160,150 +159,84 @@ def register(sub: argparse._SubParsersAction) -> None:
     outputs.add_argument(
         "--spawn", action="store_true", help="also stream to a rerun viewer while it runs"
     )
-    add_run_options(p)
-    for action in p._actions:  # argparse keeps its actions there; no public accessor
-        if action.dest not in SHOWN:
-            action.hidden_help = action.help  # what docs/cli.md lists
-            action.help = argparse.SUPPRESS
-            _FLAG_DEFAULTS[action.dest] = action.default
-            _FLAG_OPTIONS[action.dest] = action.option_strings[0]
-            action.default = _UNSET  # tells a flag given from one left out
+    for action in add_long_options(p):
+        action.hidden_help = action.help  # what docs/options.md lists
+        action.help = argparse.SUPPRESS
     p.set_defaults(func=run)
 
-
-#: A hidden option's default while parsing: whether it was given is ``value is not _UNSET``.
-_UNSET = object()
-
-#: The hidden options' own defaults, and their option strings, by destination.
-_FLAG_DEFAULTS: dict[str, Any] = {}
-_FLAG_OPTIONS: dict[str, str] = {}
 
 #: The base of a run given by long options alone: SimConfig()'s defaults, as they always were.
 FLAGS_PRESET = "paper-free-air"
 
 
-def given_flags(args: argparse.Namespace) -> list[str]:
-    """The long (hidden) options given in ``args``, by destination."""
-    return [dest for dest in _FLAG_DEFAULTS if getattr(args, dest, _UNSET) is not _UNSET]
-
-
-def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
-    """``args`` with every long option not given at its own default."""
-    filled = argparse.Namespace(**vars(args))
-    for dest, default in _FLAG_DEFAULTS.items():
-        if getattr(filled, dest, _UNSET) is _UNSET:
-            setattr(filled, dest, default)
-    return filled
-
-
-@functools.cache
-def _default_flags_config() -> SimConfig:
-    """The SimConfig of the long options' defaults (no option given)."""
-    common = {"duration": None, "cycles": None, "controller": None}
-    return flags_config(argparse.Namespace(**_FLAG_DEFAULTS, **common))
-
-
-def _leaves(data: Any, prefix: tuple[str, ...] = ()) -> dict[tuple[str, ...], Any]:
-    """A plain document's values by key path (dicts recursed; anything else a leaf)."""
-    if not isinstance(data, dict):
-        return {prefix: data}
-    out: dict[tuple[str, ...], Any] = {}
-    for key, value in data.items():
-        out.update(_leaves(value, (*prefix, key)))
-    return out
-
-
-def flag_settings(args: argparse.Namespace) -> list[tuple[tuple[str, ...], Any]]:
-    """The settings (scenario key path, value) the long options given in ``args`` make.
-
-    The SimConfig the options build and the one their defaults build, as
-    scenario documents, compared key by key; a sub-table unset on one side
-    is one value.  The duration is left to ``--duration``/``--cycles`` when
-    either is given.
-    """
-    given = flags_config(_with_defaults(args))
-    doc_given = _as_read(document_from_config(given))
-    doc_base = _as_read(document_from_config(_default_flags_config()))
-    new, old = _leaves(doc_given), _leaves(doc_base)
-    settings = []
-    for path, value in new.items():
-        if path in old and old[path] == value:
-            continue
-        if path not in old:  # a table that was unset: set it whole
-            path = next(p for p in _prefixes(path) if p in old)
-            value = _get(doc_given, path)
-        settings.append((path, value))
-    for path in old:
-        if path not in new and not any(p[: len(path)] == path for p in new):
-            settings.append((path, None))  # unset where the default is set
-    if args.duration is not None or args.cycles is not None:
-        settings = [(p, val) for p, val in settings if p != ("run", "duration_s")]
-    return list(dict(settings).items())
-
-
-def _as_read(data: Any) -> Any:
-    """A plain document as a TOML file reads back: its tuples lists."""
-    if isinstance(data, dict):
-        return {key: _as_read(value) for key, value in data.items()}
-    if isinstance(data, (list, tuple)):
-        return [_as_read(value) for value in data]
-    return data
-
-
-def _prefixes(path: tuple[str, ...]) -> list[tuple[str, ...]]:
-    return [path[:i] for i in range(1, len(path))]
-
-
-def _get(doc: dict[str, Any], path: tuple[str, ...]) -> Any:
-    for key in path:
-        doc = doc.get(key) if isinstance(doc, dict) else None
-    return doc
-
-
-def _set(doc: dict[str, Any], path: tuple[str, ...], value: Any) -> None:
-    for key in path[:-1]:
+def _set(doc: dict[str, Any], path: str, value: Any) -> None:
+    """Set key ``path`` (``gait.period``) of a scenario document; None unsets it."""
+    keys = path.split(".")
+    for key in keys[:-1]:
         doc = doc.setdefault(key, {})
     if value is None:
-        doc.pop(path[-1], None)
+        doc.pop(keys[-1], None)
     else:
-        doc[path[-1]] = value
+        doc[keys[-1]] = value
 
 
 def scenario_of(args: argparse.Namespace) -> Scenario:
     """The run ``args`` describe: the scenario, the long options given, ``--set``, the rest.
 
-    Precedence, lowest first: the scenario file, the preset, or the long
-    options (``--contact on``, ...; they describe the run on
-    :data:`FLAGS_PRESET`, ``SimConfig()``'s defaults, and are refused beside
-    a file or a preset), then ``--set`` in order, then ``--controller`` and
-    ``--duration``/``--cycles``.  With none of them the run is
+    Precedence, lowest first: the scenario file or the preset, the long
+    options (:mod:`.long_options`, each a key of the scenario), ``--set`` in
+    order, then ``--controller`` and ``--duration``/``--cycles``.  Long
+    options given without a file or a preset describe a run on
+    :data:`FLAGS_PRESET` (``SimConfig()``'s defaults) lasting its ramp-in and
+    two gait cycles (the calibration exercise its own duration, a session
+    its segments'), as they always have.  With nothing given the run is
     :data:`~exo_ctrl.scenario.DEFAULT_PRESET`.
+
+    Raises:
+        InvalidScenario: a key out of its range, naming the option or
+            ``--set`` that set it.
+
     """
-    flags = given_flags(args)
+    given = given_options(args)
     chosen = args.scenario is not None or args.preset is not None
-    preset = args.preset if chosen or not flags else FLAGS_PRESET
+    preset = args.preset if chosen or not given else FLAGS_PRESET
     doc, source = scenario_document(args.scenario, preset)
-    if chosen and flags:
-        raise InvalidParameter(
-            _FLAG_OPTIONS[flags[0]],
-            getattr(args, flags[0]),
-            "left out with a scenario file or preset",
-            "the long options describe a run on their own; with a scenario, set its keys "
-            "with --set SECTION.KEY=VALUE (exo-ctrl scenario --preset paper --out s.toml "
-            "lists them)",
-        )
-    for path, value in flag_settings(args):
+    origin: dict[str, str] = {}
+    for path, value, option in option_settings(args):
         _set(doc, path, value)
+        origin[path] = option
     for setting in args.set:
         apply_setting(doc, setting)
+        origin[setting.partition("=")[0].strip()] = "--set"
+    _check_options(args, doc, given)
     run = doc.setdefault("run", {})
     if args.controller is not None:
         run["controller"] = args.controller
     if args.duration is not None:
         run["duration_s"] = args.duration
+        origin["run.duration_s"] = "--duration"
     elif args.cycles is not None:
         run["duration_s"] = _cycles_duration(doc, args.cycles)
-    return scenario_from_document(doc, source)
+        origin["run.duration_s"] = "--cycles"
+    elif given and not chosen and "duration_s" not in run:
+        calibration = run.get("exercise") == "calibration"
+        two = round(_cycles_duration(doc, 2.0), 9)  # to the nanosecond: 3.6 s, not 3.5999…
+        run["duration_s"] = CALIBRATION_DURATION_S if calibration else two
+    return scenario_from_document(doc, source, origin)
+
+
+def _check_options(args: argparse.Namespace, doc: dict[str, Any], given: list) -> None:
+    """Refuse an active patient's options without one, and ``--cycles`` beside a session."""
+    torque = doc.get("interaction", {}).get("patient_torque", "none")
+    active = [opt.option for opt in given if opt.key.startswith("patient_active.")]
+    if active and torque != "active":
+        raise InvalidParameter(
+            "patient_torque", torque, f"active with {active[0]} (an active patient's)"
+        )
+    if args.cycles is not None and any(opt.form == "session" for opt in given):
+        raise InvalidParameter(
+            "cycles", args.cycles, "unset with --session", "its segments' durations set the run"
+        )
 
 
 def _cycles_duration(doc: dict[str, Any], cycles: float) -> float:

@@ -74,8 +74,8 @@ class PDGains:
     0.52 rad/(V·s), was run with k_p = 100, k_d = 2: :meth:`paper_printed`.)
 
     Attributes:
-        kp: proportional gain per joint [V/rad], (4,) or scalar.
-        kd: derivative gain per joint [V·s/rad], (4,) or scalar.
+        kp: proportional gain per joint [V/rad].
+        kd: derivative gain per joint [V·s/rad].
 
     Both are stored as 4 floats, in JOINT_NAMES order.
 

@@ -15,7 +15,11 @@ that moves the patient is the patient's own inverse dynamics.  Patient joint
 torques are unknown to the controller and taken as zero.  τ_ff becomes a
 voltage through the steady-state motor model, U_ff = R τ_ff / (i_G k_m) +
 i_G q̇* / k_E (the back-EMF at the planned speed is the larger part), and is
-added to the PD voltage.  As U_ff depends on the plan only, it is tabulated
+added to the PD voltage.  The swing leg's planned acceleration is blended in
+over its first T_b = 10 ms after lift-off (q̈* → q̈_b,
+:mod:`exo_ctrl.control.lift_off`): the paper's C¹ swing path would otherwise
+step the feedforward while the foot is still on the belt, and throw it into
+a slide.  As U_ff depends on the plan only, it is tabulated
 for every plan row (the ramps' rows and one gait period for a periodic plan) when the controller
 is built; a tick looks its row up, in the PD's kernel
 (:func:`~exo_ctrl.control.pd.pd_law`): one compiled call per tick.
@@ -26,12 +30,15 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from .. import _validate as v
 from .._jit import kernel
 from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
+from ..model.leg_kernels import legs_record
 from ..plan.kinematics import JointTrajectory
 from ..plant.drive import MotorParams
 from ..plant.motor import drive_model, steady_voltage
 from .base import PDGains
+from .lift_off import LIFT_OFF_BLEND_S, blend_lift_off
 from .pd import PDController
 from .stance_load import StanceLoad, stance_load_record, stance_load_torque
 
@@ -52,6 +59,12 @@ class ComputedTorqueController(PDController):
         gains: the PD gains (the same as the plain PD for a fair comparison).
         stance_load: what the device knows of the weight its stance legs carry
             (with the pelvis on its guide; None: the pelvis fixed, no load).
+        lift_off_blend_s: T_b, the swing leg's acceleration feedforward
+            blended in over this time after lift-off [s]
+            (:mod:`exo_ctrl.control.lift_off`; 0: the plan's q̈* throughout).
+
+    Raises:
+        InvalidParameter: a negative or non-finite ``lift_off_blend_s``.
 
     """
 
@@ -65,11 +78,12 @@ class ComputedTorqueController(PDController):
         motor: MotorParams,
         gains: PDGains | None = None,
         stance_load: StanceLoad | None = None,
+        lift_off_blend_s: float = LIFT_OFF_BLEND_S,
     ) -> None:
         super().__init__(plan, gains)
         # The feedforward depends on the plan only: tabulated once per plan row
         # (the ramps and one gait period for a periodic plan), looked up per tick.
-        self._ff = _Feedforward(exo, patient, motor, stance_load)
+        self._ff = _Feedforward(exo, patient, motor, stance_load, lift_off_blend_s)
         self._torque_ff, self._u_ff = self._ff.tables(plan)
 
     def refresh_row(self, row: int = 0) -> None:
@@ -80,8 +94,9 @@ class ComputedTorqueController(PDController):
         controller's own models, one kernel).
         """
         plan = self.plan
+        lift = None if plan.lift_off_s is None else plan.lift_off_s[row]
         self._ff.row(
-            plan.q[row], plan.dq[row], plan.ddq[row], self._torque_ff[row], self._u_ff[row]
+            plan.q[row], plan.dq[row], plan.ddq[row], self._torque_ff[row], self._u_ff[row], lift
         )
 
     @property
@@ -117,7 +132,11 @@ class _Feedforward:
         patient: BodyModel | None,
         motor: MotorParams,
         stance_load: StanceLoad | None = None,
+        lift_off_blend_s: float = LIFT_OFF_BLEND_S,
     ) -> None:
+        self._blend_s = v.non_negative("lift_off_blend", lift_off_blend_s, "s")
+        self._legs = legs_record(exo)
+        self._ddq = np.zeros(4)
         self._me = pin.Model(exo.model)
         self._load = None if stance_load is None else stance_load_record(stance_load, exo)
         self._tau_e = np.zeros(4)
@@ -143,8 +162,16 @@ class _Feedforward:
         ddq: np.ndarray,
         tau_out: np.ndarray,
         u_out: np.ndarray | None = None,
+        lift: np.ndarray | None = None,
     ) -> None:
-        """τ_ff [N·m] into ``tau_out`` and U_ff [V] into ``u_out`` for one plan row."""
+        """τ_ff [N·m] into ``tau_out`` and U_ff [V] into ``u_out`` for one plan row.
+
+        ``lift``: the row's time since each leg's lift-off [s], (2,)
+        (:mod:`exo_ctrl.control.lift_off`; None: q̈* as planned).
+        """
+        if lift is not None and self._blend_s > 0.0:
+            blend_lift_off(self._legs, q, dq, ddq, lift, self._blend_s, self._ddq)
+            ddq = self._ddq
         tau_e = pin.rnea(self._me, self._de, q, dq, ddq)
         if self._load is not None:  # the stance legs' load (control/stance_load.py)
             tau_e = np.copyto(self._tau_e, tau_e) or self._tau_e
@@ -157,8 +184,10 @@ class _Feedforward:
         """τ_ff and U_ff along a plan, (N, 4) each: every row, or the first ``rows``."""
         n = plan.q.shape[0] if rows is None else min(rows, plan.q.shape[0])
         tau, u = np.zeros((n, 4)), np.zeros((n, 4))
+        lift = plan.lift_off_s
         for k in range(n):
-            self.row(plan.q[k], plan.dq[k], plan.ddq[k], tau[k], u[k])
+            row_lift = None if lift is None else lift[k]
+            self.row(plan.q[k], plan.dq[k], plan.ddq[k], tau[k], u[k], row_lift)
         return tau, u
 
 
@@ -168,9 +197,13 @@ def feedforward_torque(
     patient: BodyModel | None,
     motor: MotorParams,
     rows: int | None = None,
+    lift_off_blend_s: float = LIFT_OFF_BLEND_S,
 ) -> np.ndarray:
-    """τ_ff along a plan, (N, 4) [N·m]: every row, or the first ``rows``."""
-    return _Feedforward(exo, patient, motor).tables(plan, rows)[0]
+    """τ_ff along a plan, (N, 4) [N·m]: every row, or the first ``rows``.
+
+    ``lift_off_blend_s``: T_b of :mod:`exo_ctrl.control.lift_off` [s] (0: none).
+    """
+    return _Feedforward(exo, patient, motor, None, lift_off_blend_s).tables(plan, rows)[0]
 
 
 @kernel

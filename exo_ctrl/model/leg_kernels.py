@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import leaf, record
+from .._jit import kernel, leaf, record
 from .loader import BodyModel
 from .names import SIDES
 
-__all__ = ["LEG_FIELDS", "fill_legs", "foot_bias", "foot_point", "legs_record"]
+__all__ = ["LEG_FIELDS", "feet_torque", "fill_legs", "foot_bias", "foot_point", "legs_record"]
 
 #: A record's leg geometry, per leg (left, right): ``l1``, ``l2`` [m],
 #: ``s_h``, ``s_k`` [-], ``phi1_0``, ``phi2_0`` [rad].
@@ -89,3 +89,20 @@ def foot_bias(g: Any, leg: int, q_hip: float, q_knee: float, dq_hip: float, dq_k
         -l1 * w1 * w1 * np.cos(a1) - l2 * w2 * w2 * np.cos(a2),
         -l1 * w1 * w1 * np.sin(a1) - l2 * w2 * w2 * np.sin(a2),
     )
+
+
+@kernel
+def feet_torque(g: Any, q: np.ndarray, force: np.ndarray, out: np.ndarray) -> None:
+    """τ = J_xᵀ F_x + J_zᵀ F_z of a force (x, z) on each foot point, (4,) [N·m].
+
+    ``g``: a record with :data:`LEG_FIELDS` (:func:`legs_record`); ``q``:
+    joint angles [rad], (4,) in JOINT_NAMES order; ``force``: (2, 2) [N],
+    per leg (left, right) its x and z components.
+    """
+    r = g[0]
+    for leg in range(2):
+        i = 2 * leg
+        _, _, jx0, jx1, jz0, jz1 = foot_point(r, leg, q[i], q[i + 1])
+        fx, fz = force[leg, 0], force[leg, 1]
+        out[i] = jx0 * fx + jz0 * fz
+        out[i + 1] = jx1 * fx + jz1 * fz

@@ -286,6 +286,25 @@ class GaitPlan:
         c, s = np.cos(arg), np.sin(arg)
         return half * c, -half * omega * s, -half * omega * omega * c
 
+    def since_lift_off(self, t: np.ndarray | float) -> np.ndarray:
+        """Each leg's time since its planned lift-off (D) while it swings [s], (N, 2).
+
+        u = τ − τ_D in the swing D → A and u = τ + T_s − τ_D in A → B (τ the
+        leg's phase time, τ_D = T_sw/2 + T_st); +inf in stance.  At t = 0 the
+        left leg is at A, so its first swing reads as if it had lifted off
+        T_sw/2 before.  What the controllers need to blend the swing leg's
+        acceleration feedforward in (:mod:`exo_ctrl.control.lift_off`).
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        p = self.params
+        out = np.full((t.shape[0], 2), np.inf)
+        for leg, offset in enumerate((0.0, 0.5 * p.period)):
+            tau = np.mod(t + offset, p.period)
+            late, early = tau >= self._stance_end, tau < self._half_swing
+            out[late, leg] = tau[late] - self._stance_end
+            out[early, leg] = tau[early] + p.period - self._stance_end
+        return out
+
     def sinks(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each leg's planned sink Δs [m] and its rates [m/s, m/s²] at ``t``, (N, 3) each.
 

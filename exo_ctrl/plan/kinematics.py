@@ -143,6 +143,10 @@ class JointTrajectory:
         hip: (N, 3): the hip's planned rise above H_s and its rates, ΔH [m],
             ΔḢ [m/s], ΔḦ [m/s²] (:meth:`~exo_ctrl.plan.gait.GaitPlan.hip`,
             ramped); None: the hip does not move (``pelvis_excursion`` 0).
+        lift_off_s: (N, 2): each leg's time since its planned lift-off while
+            it swings, +inf in stance [s]
+            (:meth:`~exo_ctrl.plan.gait.GaitPlan.since_lift_off`); None: the
+            plan has no lift-offs (a calibration motion, an exercise).
 
     """
 
@@ -157,6 +161,7 @@ class JointTrajectory:
     lead_ticks: int = 0
     tail_tick: int | None = None
     hip: np.ndarray | None = None
+    lift_off_s: np.ndarray | None = None
 
     @property
     def row_rule(self) -> tuple[int, int, int]:
@@ -220,7 +225,15 @@ def plan_joints(plan: GaitPlan | RampedGait, body: BodyModel, t: np.ndarray) -> 
     check_range(body, t, q, "plan")
     hip = np.column_stack(plan.hip(t)) if plan.params.pelvis_excursion > 0.0 else None
     return JointTrajectory(
-        t=t, q=q, dq=dq, ddq=ddq, phi=phi, foot_pos=feet.pos, foot_vel=feet.vel, hip=hip
+        t=t,
+        q=q,
+        dq=dq,
+        ddq=ddq,
+        phi=phi,
+        foot_pos=feet.pos,
+        foot_vel=feet.vel,
+        hip=hip,
+        lift_off_s=plan.since_lift_off(t),
     )
 
 

@@ -112,7 +112,9 @@ FREEZE_S = 0.02
 #: (4 each), foot position and velocity (2 × 2 each), flat; ``hip``: the hip's
 #: planned rise σ ΔH [m] and its rates [m/s, m/s²] at the same tick; ``sink``
 #: the loading sink's parameters (:meth:`~exo_ctrl.plan.loading.StanceSink.kernel_params`)
-#: and ``sink_on`` 1 when the stance feet are planned into the belt.
+#: and ``sink_on`` 1 when the stance feet are planned into the belt; ``lift``
+#: each leg's time since its lift-off while it swings, +inf in stance [s]
+#: (the plan's ``lift_off_s``).
 ONLINE_FIELDS = [
     ("dt", np.float64),
     ("law", np.float64, (5,)),
@@ -131,6 +133,7 @@ ONLINE_FIELDS = [
     ("hip", np.float64, (3,)),
     ("sink", np.float64, (5,)),
     ("sink_on", np.int64),
+    ("lift", np.float64, (2,)),
 ]
 
 
@@ -192,6 +195,7 @@ class OnlineGait:
             foot_vel=out[20:24].reshape(1, 2, 2),
             period_ticks=1,
             hip=self.record["hip"][0].reshape(1, 3) if gait.pelvis_excursion > 0.0 else None,
+            lift_off_s=self.record["lift"][0].reshape(1, 2),
         )
         self.start(self.belt_speed(0.0)[0])
 
@@ -332,6 +336,9 @@ def _write_leg(g, leg, tau, r, dr, a_belt, t) -> int:  # pragma: no cover - comp
     ddx = g.ddx[leg]  # swing: the acceleration of the cubic it followed, at its end
     if half <= tau < 1.0 - half:
         ddx = -a_belt
+        g.lift[leg] = math.inf
+    else:  # the time since lift-off at τ_D = 1 − half, at the present rate
+        g.lift[leg] = (tau - (1.0 - half) + (1.0 if tau < half else 0.0)) / r
     sig, dsig, ddsig = ramp_factor(t, g.ramp_in)
     zz, z1, z2 = lift(tau, half, g.h)
     if g.exc > 0.0:  # relative to the moving hip: Z - ΔH

@@ -215,6 +215,14 @@ class RampedGait:
         s, ds, dds = self.ramp.factor(t)
         return s * h, ds * h + s * dh, dds * h + 2.0 * ds * dh + s * ddh
 
+    def since_lift_off(self, t: np.ndarray | float) -> np.ndarray:
+        """The gait's :meth:`~exo_ctrl.plan.gait.GaitPlan.since_lift_off` [s], (N, 2).
+
+        The ramps scale the path, not its timing: a foot lifts off when the
+        gait's does.
+        """
+        return self.gait.since_lift_off(t)
+
     def belt_speed_at(self, t: np.ndarray | float) -> np.ndarray:
         """σ(t) v_f: the belt speed the plan assumes at times ``t`` [m/s]."""
         return self.ramp.factor(np.atleast_1d(np.asarray(t, dtype=float)))[0] * (

@@ -113,7 +113,7 @@ class ActiveParams:
             120, knee 90).
         period_cv: c_T, coefficient of variation of the cycle time (default 0.02).
         step_cv: c_s, coefficient of variation of the excursions (default 0.02).
-        seed: seed of the variability.
+        seed: seed of the step-to-step variability [-].
         spastic: add the spastic torques of :class:`SpasticPatient`.
         strength_change_at_s: time the strength changes [s] (None: never).
         strength_after: the strength from then on, per joint.

@@ -45,11 +45,11 @@ part of their legs' weight (peak F_n ≈ 130 N, ≤ 3.8 mm deep), touch down
 ahead of the exoskeleton's (they hang lower) while still moving relative to
 the belt, so they slide (slip RMS 0.08 m/s against the exoskeleton's
 0.01 m/s: the plan's synchronised touchdown holds at the exoskeleton's foot
-point).  The foot plates' load cells read the exoskeleton's feet only
-(:mod:`exo_ctrl.sensing.foot_load`), so to the safety supervisor's belt
-monitor the patient's feet's friction is an unexplained load on the belt:
-with the supervisor on, the default run stops at the first touchdown that
-slides (0.87 s, belt speed deviation 0.039 m/s).
+point).  The device reads the patient's feet with load cells under the
+shoes (:mod:`exo_ctrl.sensing.foot_load`), so the safety supervisor's belt
+monitor counts their friction on the belt (without them the default run
+stopped at its first touchdown that slides: 0.87 s, belt speed deviation
+0.039 m/s).
 
 **Cost.**  Nothing with the option off: its kernels are behind a compile-time
 switch (:func:`~exo_ctrl.plant.step.plant_switches`) and the plant picks the

@@ -42,8 +42,10 @@ monitor record, m/s) is |r_k|, formed from tick 2N on.
 - quantisation: each count is floor(x / Δx), off by [0, Δx), so the second
   difference of counts is off by less than 2 Δx: |ε_q| < 2 q, q = Δx / (N Δt)
   (3.8 mm/s with the default encoder: 7.6 mm/s);
-- the load cells' noise σ_F per foot (white): σ_r = (Δt / N) √(Σ g²) √2 σ_F / m_b
-  (0.37 mm/s with 2 N), taken at :data:`NOISE_SIGMAS` = 6 σ_r;
+- the load cells' noise σ_F per foot (white): σ_r = (Δt / N) √(Σ g²) √n_f σ_F / m_b
+  for the n_f feet read (0.37 mm/s with 2 N and the two foot plates; with the
+  patient's feet on the belt their shoes' load cells too, n_f = 4: 0.52 mm/s),
+  taken at :data:`NOISE_SIGMAS` = 6 σ_r;
 - a bias of the drive's report (its current measurement) of
   :data:`DRIVE_REPORT_ACCURACY` = 1 % of its force limit F_max (assumed: an
   industrial servo drive measures its current within 1–2 % of its rating):
@@ -57,7 +59,11 @@ or not (7.0–7.9 mm/s with the pelvis fixed), where |v_set − v̂| reaches
 the readings are the last substep's (8.6 mm/s at 4 substeps).  Forces on
 the belt the model lacks enter r as N Δt δF / m_b (0.5 mm/s per N with the
 defaults): a real treadmill's deck friction under load must be identified
-into the model (it is not simulated here).
+into the model (it is not simulated here).  The patient's feet, when they
+meet the belt (``ContactParams.patient_feet``), pull on it too: their shoes'
+load cells (:mod:`exo_ctrl.sensing.foot_load`) enter Σ F_x,i; without them the
+default run with the patient's feet read their friction (up to 99 N, both feet) as a fault
+and stopped at its first touchdown (0.87 s, 0.039 m/s).
 
 **Persistence** P = N + 1 ticks beyond the threshold on the same side.  A
 count off at one tick moves r at three isolated ticks; a count jump (a lost
@@ -127,6 +133,7 @@ def threshold_mps(
     load_noise_N: float,
     mass_kg: float,
     force_limit_N: float,
+    feet: int = 2,
 ) -> float:
     """r_th = 2 q + 6 σ_r + N Δt (0.01 F_max) / m_b [m/s] (module docstring).
 
@@ -137,12 +144,13 @@ def threshold_mps(
         load_noise_N: the load cells' noise σ_F per component [N].
         mass_kg: the belt's equivalent mass m_b (datasheet) [kg].
         force_limit_N: the drive's force limit F_max (datasheet) [N].
+        feet: n_f, the feet whose load cells are read (2, or 4 with the patient's).
 
     """
     n = int(window_ticks)
     g = residual_weights(n)
     quantisation = 2.0 * resolution_m / (n * dt)
-    noise = dt / n * math.sqrt(float(g @ g)) * math.sqrt(2.0) * load_noise_N / mass_kg
+    noise = dt / n * math.sqrt(float(g @ g)) * math.sqrt(feet) * load_noise_N / mass_kg
     bias = n * dt * DRIVE_REPORT_ACCURACY * force_limit_N / mass_kg
     return quantisation + NOISE_SIGMAS * noise + bias
 
@@ -194,8 +202,9 @@ class BeltMonitor:
 
     Args:
         encoder: the belt encoder (its reading ``speed``, window and count).
-        foot_load: the foot plates' load cells (their reading ``force`` (2, 2)
-            [N], x the friction on each foot, and their noise).
+        foot_load: the foot plates' load cells (their reading ``belt_force``
+            (4, 2) [N], x the friction on each foot, the patient's shoes' rows
+            zero without them; their noise and the feet read).
         drive_force: the treadmill drive's report of its force, (1,) [N],
             written by the caller each tick before :func:`belt_monitor` runs.
         datasheet: the treadmill's datasheet (m_b and F_max; not the belt's state).
@@ -223,9 +232,10 @@ class BeltMonitor:
             foot_load.params.noise_std_N,
             datasheet.mass_kg,
             datasheet.force_limit_N,
+            foot_load.feet,
         )
         self.record = belt_monitor_record(window, dt, datasheet.mass_kg)
-        self.args = (encoder.speed, drive_force, foot_load.force, self.record)
+        self.args = (encoder.speed, drive_force, foot_load.belt_force, self.record)
 
 
 @kernel
@@ -235,8 +245,8 @@ def belt_monitor(speed, drive, foot, state, mon):
     Args:
         speed: the belt encoder's reading v̂_k, (1,) [m/s].
         drive: the drive's report of its force over the last step, (1,) [N].
-        foot: the load cells' reading of the last step, (2, 2) [N] (column 0:
-            the friction on each foot along x).
+        foot: the load cells' reading of the last step, (n, 2) [N] (column 0:
+            the friction on each foot along x; every row is summed).
         state: the record of :data:`BELT_MONITOR_FIELDS`.
         mon: the monitor record (``excess`` and ``limit`` row BELT; column
             0 is the channel, columns 1-3 stay unused, -1).
@@ -248,7 +258,10 @@ def belt_monitor(speed, drive, foot, state, mon):
     k = s.ticks
     size = s.travel.shape[0]
     if k > 0:  # the last step's forces: m_b dv_b/dt = F_d + Σ F_x,i
-        u = s.dt * (drive[0] + foot[0, 0] + foot[1, 0]) * s.inv_m
+        total = drive[0]
+        for i in range(foot.shape[0]):
+            total += foot[i, 0]
+        u = s.dt * total * s.inv_m
         s.y += s.dt * (s.w + 0.5 * u)
         s.w += u
     s.travel[k % size] = s.y

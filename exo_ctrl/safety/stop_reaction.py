@@ -78,8 +78,8 @@ The per-tick step of the command is |U_y − U_0| Δt / T_y.
 
 *From a hold* the yield starts at once, with no ramp.  The premise above is
 a held speed command; the hold's command is a position lock, U_g +
-k_p (q_h − q) − k_d q̇ recomputed every tick (k_p = 100 V/rad is
-K_p = k_p i_G k_m / R = 4.5 kN·m/rad at the joint), and the patient who
+k_p (q_h − q) − k_d q̇ recomputed every tick (the default k_p = 300 V/rad is
+K_p = k_p i_G k_m / R = 13.5 kN·m/rad at the joint), and the patient who
 pushes against it has the joints at rest (ω_0 ≈ 0).  The (1 − α) of it a
 ramp keeps goes on holding the limb that loads the cuff, so the force goes
 on rising at its rate ḟ for about T_y/2 more: in tests/safety/test_hold_pushed.py,

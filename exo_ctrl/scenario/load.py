@@ -8,7 +8,7 @@ override in order (``exo-ctrl simulate --set``).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -117,9 +117,11 @@ def load_scenario(
 
     """
     doc, source = scenario_document(path, preset)
+    origin = {}
     for setting in overrides:
         apply_setting(doc, setting)
-    return scenario_from_document(doc, source)
+        origin[setting.partition("=")[0].strip()] = "--set"
+    return scenario_from_document(doc, source, origin)
 
 
 def scenario_document(
@@ -143,14 +145,57 @@ def scenario_document(
     return parse_scenario(text, source), source
 
 
-def scenario_from_document(doc: dict[str, Any], source: str) -> Scenario:
+def scenario_from_document(
+    doc: dict[str, Any], source: str, origin: Mapping[str, str] | None = None
+) -> Scenario:
     """The scenario a document describes (SimConfig's sections and ``[recording]``).
+
+    Args:
+        doc: the document (a file's, with the command line's settings applied).
+        source: where the document came from (a file's path, ``preset NAME``).
+        origin: the keys the command line set, key path → the option that
+            set it (``gait.period`` → ``--set``): an error in one of them
+            names the option instead of ``source``.
 
     Raises:
         InvalidScenario: an unknown section or key, a wrong type or an
-            out-of-range value, naming ``source`` and the key path.
+            out-of-range value, naming ``source`` (or the option) and the key path.
 
     """
+    try:
+        return _scenario(doc, source)
+    except InvalidScenario as exc:
+        setter = _set_by(exc.key, origin or {})
+        if setter is None:
+            raise
+        raise InvalidScenario(setter, exc.key, exc.reason) from None
+
+
+def _set_by(key: str, origin: Mapping[str, str]) -> str | None:
+    """The option that set the key an error names, if one did.
+
+    ``key`` itself or a table holding it (``contact`` for ``contact.belt``);
+    else a key it names without its unit (``pelvis.body_mass`` for
+    ``pelvis.body_mass_kg``); else the one key set inside the table it names,
+    or beside it in its table.
+    """
+    if not key:
+        return None
+    for path, setter in origin.items():
+        if key == path or key.startswith((f"{path}.", f"{path}[")):
+            return setter
+    for path, setter in origin.items():
+        if path.startswith(f"{key}_"):  # the field named without its unit
+            return setter
+    inside = {s for path, s in origin.items() if path.startswith(f"{key}.")}
+    if len(inside) == 1:  # a table's check, one key set in it
+        return inside.pop()
+    table = key.rpartition(".")[0]
+    near = {s for path, s in origin.items() if table and path.rpartition(".")[0] == table}
+    return near.pop() if len(near) == 1 else None
+
+
+def _scenario(doc: dict[str, Any], source: str) -> Scenario:
     config, extra = config_from_document(doc, source, extras=("recording",))
     table = extra.get("recording", {})
     if not isinstance(table, dict):

@@ -21,6 +21,19 @@ estimators (:mod:`exo_ctrl.estimation`) are given τ_s + τ_g, the torque
 sensors' reading with it, as the torque acting on the legs besides the
 cuffs' (logged as ``tau_ground_meas``, so the offline estimate adds the same).
 
+**The patient's feet** (``ContactParams.patient_feet``,
+:mod:`exo_ctrl.plant.patient_feet`): where the patient's shoes meet the belt
+they too carry load and pull on the belt.  The device reads them with load
+cells of the same class under each shoe (instrumented shoes measuring the
+ground reaction force: Liedtke et al. 2007, Gait & Posture 26:39-47;
+Schepers, Koopman & Veltink 2007, IEEE Trans. Biomed. Eng. 54:895-902), the
+same noise σ_F from a stream of their own (seed [``seed``, 1]): rows 2-3 of
+``force``.  Their force acts on the patient's legs, which reach the device
+through the cuffs, so it is no part of τ_g (the cuff estimate would
+otherwise lose it); the belt monitor (:mod:`exo_ctrl.safety.belt_monitor`)
+counts it among the forces on the belt.  Without the patient's feet those
+rows stay zero.
+
 **Defaults** (chosen; the class of a strain-gauge foot plate of 2 kN range
 read at 0.1 % of its range): ``noise_std_N`` = 2 N, ``seed`` = 2 (a stream
 of its own, apart from the joint sensors' and the current sensors').
@@ -77,17 +90,20 @@ class FootLoadParams:
 
 #: Fields of the load cells' record: the device's leg geometry per leg
 #: (``l1``, ``l2`` [m], ``s_h``, ``s_k``, ``phi1_0``, ``phi2_0`` [rad]);
-#: ``force`` the reading (x, z) per foot [N], ``tau`` τ_g [N·m] (4),
-#: ``tau_known`` τ_s + τ_g [N·m] (4), ``row``
-#: of the noise block, ``depleted``, ``noise`` (NOISE_BLOCK, 4) [N].
+#: ``force`` the reading (x, z) per foot [N] (rows: exoskeleton left, right,
+#: patient left, right; the patient's zero without their feet on the belt),
+#: ``tau`` τ_g [N·m] (4), ``tau_known`` τ_s + τ_g [N·m] (4), ``row``
+#: of the noise blocks, ``depleted``, ``noise`` (NOISE_BLOCK, 4) [N] and
+#: ``patient_noise`` (NOISE_BLOCK, 4) [N] (drawn with the patient's feet only).
 FOOT_LOAD_FIELDS = [
     *LEG_FIELDS,
-    ("force", np.float64, (2, 2)),
+    ("force", np.float64, (4, 2)),
     ("tau", np.float64, (4,)),
     ("tau_known", np.float64, (4,)),
     ("row", np.int64),
     ("depleted", np.bool_),
     ("noise", np.float64, (NOISE_BLOCK, 4)),
+    ("patient_noise", np.float64, (NOISE_BLOCK, 4)),
 ]
 
 
@@ -97,21 +113,36 @@ class FootLoad:
     Args:
         params: the load cells.
         exo: the exoskeleton model the device holds (its legs' geometry).
+        patient_feet: the plant's record of the patient's feet
+            (:mod:`exo_ctrl.plant.patient_feet`) when they meet the belt: the
+            shoes' load cells are read too (module docstring); None: not.
 
     """
 
-    def __init__(self, params: FootLoadParams, exo: BodyModel) -> None:
+    def __init__(
+        self, params: FootLoadParams, exo: BodyModel, patient_feet: np.ndarray | None = None
+    ) -> None:
         self.params = params
         self.record = record(FOOT_LOAD_FIELDS)
         r = self.record[0]
         fill_legs(r, exo)
-        #: The reading (x, z) per foot [N], (2, 2), and τ_g [N·m], (4,): views of the record.
-        self.force = r["force"]
+        #: The foot plates' reading (x, z) per foot [N], (2, 2), and τ_g [N·m],
+        #: (4,): views of the record.
+        self.force = r["force"][:2]
         self.tau = r["tau"]
+        #: Every reading of a force on the belt (x, z) [N], (4, 2): the plates',
+        #: then the patient's shoes' (zero without them).
+        self.belt_force = r["force"]
+        #: Feet whose force on the belt the device reads: 2, or 4 with the patient's.
+        self.feet = 2 if patient_feet is None else 4
         #: τ_s + τ_g of the last read [N·m], (4,): what the estimators are given.
         self.tau_known = r["tau_known"]
         self._noise = r["noise"]
         self._rng = np.random.default_rng(params.seed)
+        self._patient = patient_feet
+        self._patient_rng = None
+        if patient_feet is not None:
+            self._patient_rng = np.random.default_rng([params.seed, 1])
         self.draw()
 
     def read(self, contact: Any, q_meas: np.ndarray, tau_sensor: np.ndarray) -> np.ndarray:
@@ -120,6 +151,8 @@ class FootLoad:
         ``q_meas``: the encoders' angles [rad]; ``tau_sensor``: the joint
         torque sensors' reading [N·m], to which τ_g is added.
         """
+        if self._patient is not None:  # before read_foot_load moves the row on
+            read_shoe_load(self.record, self._patient)
         read_foot_load(self.record, contact, q_meas, tau_sensor)
         if self.record["depleted"][0]:
             self.draw()
@@ -129,6 +162,10 @@ class FootLoad:
         """Draw the next block of noise (a read calls it when the block is used up)."""
         self._rng.standard_normal(out=self._noise)
         np.multiply(self._noise, self.params.noise_std_N, out=self._noise)
+        if self._patient_rng is not None:
+            noise = self.record["patient_noise"][0]
+            self._patient_rng.standard_normal(out=noise)
+            np.multiply(noise, self.params.noise_std_N, out=noise)
         self.record["row"][0] = 0
         self.record["depleted"][0] = False
 
@@ -154,3 +191,17 @@ def read_foot_load(sensor: np.ndarray, contact: Any, q: np.ndarray, tau_s: np.nd
         s.tau_known[j] = tau_s[j] + s.tau[j]
     s.row = i + 1
     s.depleted = i + 1 == s.noise.shape[0]
+
+
+@kernel
+def read_shoe_load(sensor: np.ndarray, feet: Any) -> None:
+    """The patient's shoes: rows 2-3 of ``force``, F + n_F at this tick's noise row.
+
+    ``feet``: the plant's patient feet record (``ft``, ``fn`` of the last step).
+    """
+    s = sensor[0]
+    f = feet[0]
+    i = s.row
+    for leg in range(2):
+        s.force[2 + leg, 0] = f.ft[leg] + s.patient_noise[i, 2 * leg]
+        s.force[2 + leg, 1] = f.fn[leg] + s.patient_noise[i, 2 * leg + 1]

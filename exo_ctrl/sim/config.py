@@ -142,7 +142,7 @@ class SimConfig:
         cuff_fit: how the cuffs are fitted at the start, one of
             :data:`CUFF_FITS` (default ``"equilibrium"``).
         control_rate_hz: control rate [Hz] (default 1 kHz).
-        plant_substeps: plant steps per control tick (plant step = Δt / n),
+        plant_substeps: plant steps per control tick [-] (plant step = Δt / n),
             1 to :data:`MAX_PLANT_SUBSTEPS`.
         chunk_ticks: rows per logging chunk.
         sensors: encoder and joint torque sensor models (defaults: real

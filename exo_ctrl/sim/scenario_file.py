@@ -35,6 +35,7 @@ __all__ = [
     "AUTO",
     "DEVICE_GAIT_KEYS",
     "GROUPS",
+    "GROUP_NAMES",
     "GROUP_OF",
     "ORDER",
     "dataclass_of",
@@ -44,6 +45,7 @@ __all__ = [
     "part_fields",
     "plain_text",
     "scenario_toml",
+    "table_class",
 ]
 
 #: SimConfig's plain fields by section: (section, what it holds, fields).
@@ -127,6 +129,9 @@ AUTO = "auto"
 DEVICE_GAIT_KEYS = ("hip_height", "step_length")
 
 GROUP_OF = {name: group for group, _, names in GROUPS for name in names}
+
+#: The group sections' names.
+GROUP_NAMES = frozenset(group for group, _, _ in GROUPS)
 
 
 def part_fields() -> tuple[str, ...]:
@@ -258,6 +263,20 @@ def dataclass_of(hint: Any) -> type | None:
         classes = [a for a in typing.get_args(hint) if is_dataclass_type(a)]
         return classes[0] if len(classes) == 1 else None
     return None
+
+
+def table_class(tables: Sequence[str]) -> type | None:
+    """The dataclass whose fields are the keys of table ``tables`` (``("contact", "belt")``).
+
+    A group section (``run``, ...) holds SimConfig's own fields; None for a
+    path that is no table.
+    """
+    if tables and tables[0] in GROUP_NAMES:
+        return SimConfig if len(tables) == 1 else None
+    cls: type | None = SimConfig
+    for table in tables:
+        cls = dataclass_of(field_types(cls).get(table)) if cls is not None else None
+    return cls
 
 
 def item_class(hint: Any) -> type | None:

@@ -34,6 +34,7 @@ from .scenario_file import (
     dataclass_of,
     item_class,
     part_fields,
+    table_class,
 )
 
 #: A key path (``gait.step_length``, ``faults[0].at_s``).
@@ -133,9 +134,17 @@ def config_from_document(
         return SimConfig(**kwargs), extra
     except (ExoCtrlError, TypeError, ValueError) as exc:
         name = getattr(exc, "name", None)
-        if name in GROUP_OF:  # a plain field's own check: its section is known
-            raise located_error(source, GROUP_OF[name], exc) from None
+        field = name if name in GROUP_OF else _unit_field(name)
+        if field is not None:  # a plain field's own check: its key is known
+            reason = str(exc).removeprefix(str(name)).strip()
+            raise InvalidScenario(source, f"{GROUP_OF[field]}.{field}", reason) from None
         raise InvalidScenario(source, "", str(exc)) from None
+
+
+def _unit_field(name: object) -> str | None:
+    """SimConfig's plain field a check names without its unit (``duration``: ``duration_s``)."""
+    found = [f for f in GROUP_OF if isinstance(name, str) and f.startswith(f"{name}_")]
+    return found[0] if len(found) == 1 else None
 
 
 def _device_gait(doc: dict[str, Any], source: str) -> dict[str, Any]:
@@ -217,8 +226,25 @@ def located_error(source: str, where: str, exc: Exception) -> InvalidScenario:
     if isinstance(exc, InvalidParameter) and _KEY_PATH.fullmatch(name):
         key = name if "." in name or name.startswith(where) else f"{where}.{name}"
         reason = str(exc).removeprefix(name).strip()
-        return InvalidScenario(source, key, reason)
+        return InvalidScenario(source, _with_unit(key), reason)
     return InvalidScenario(source, where, str(exc))
+
+
+def _with_unit(key: str) -> str:
+    """``key`` with its field's unit where a check named it without (``pelvis.bws``).
+
+    A key path that is no field of its table but the start of exactly one
+    (``pelvis.bws_fraction``) is that field's; any other is left as it is.
+    """
+    *tables, name = key.split(".")
+    if not tables or "[" in key:
+        return key
+    cls = table_class(tables)
+    fields = field_types(cls) if cls is not None else {}
+    if name in fields:
+        return key
+    found = [f for f in fields if f.startswith(f"{name}_")]
+    return ".".join((*tables, found[0])) if len(found) == 1 else key
 
 
 def _part(section: str, hint: Any, table: Any) -> Any:

@@ -20,6 +20,7 @@ from ..control import (
     QPController,
     feedforward_torque,
 )
+from ..control.lift_off import LIFT_OFF_BLEND_S
 from ..control.modes import InteractionController, PathController
 from ..control.stance_load import StanceLoad
 from ..exceptions import InvalidParameter
@@ -222,6 +223,7 @@ def _tracking(
             model_motor,
             config.gains,
             stance_load=stance_load_for(config, model_exo),
+            lift_off_blend_s=lift_off_blend_for(config),
         )
     if config.controller == "qp":
         return QPController(
@@ -238,6 +240,8 @@ def _tracking(
             estimator=config.estimator,
             tighten=config.qp_tighten_bound,
             gait=_gait_words(config),
+            stance_load=stance_load_for(config, model_exo),
+            lift_off_blend_s=lift_off_blend_for(config),
         )
     return PDController(plan, config.gains)
 
@@ -263,6 +267,15 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     if motor.current_limit_A <= cap:
         return motor
     return dataclasses.replace(motor, current_limit_A=cap)
+
+
+def lift_off_blend_for(config: SimConfig) -> float:
+    """T_b of the swing leg's feedforward blend (:mod:`exo_ctrl.control.lift_off`) [s].
+
+    With the belt (contact on) a foot leaves it at lift-off; without it no foot is
+    loaded, and the plan's q̈* is fed forward as planned (0).
+    """
+    return LIFT_OFF_BLEND_S if config.contact.enabled else 0.0
 
 
 def stance_load_for(config: SimConfig, model_exo: BodyModel) -> StanceLoad | None:

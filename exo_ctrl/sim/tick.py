@@ -124,8 +124,11 @@ class Runner:
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
         self.sensors.cuff_force_std = getattr(self.estimator, "force_std", None)
-        #: The foot plates' load cells (sensing/foot_load.py; read with the belt only).
-        self.foot_load = FootLoad(config.foot_load, setup.device_exo)
+        #: The foot plates' load cells, and the patient's shoes' with their feet on the
+        #: belt (sensing/foot_load.py; read with the belt only).
+        shoes = plant.record["patient_feet"] if config.contact.patient_feet else None
+        self.foot_load = FootLoad(config.foot_load, setup.device_exo, shoes)
+        self._shoes = None if shoes is None else self.foot_load.belt_force[2:]
         #: The belt-speed sensor (read each tick with contact on).
         self.belt_encoder = BeltEncoder(config.belt_encoder, config.dt)
         self._belt = plant.contact.belt
@@ -180,7 +183,7 @@ class Runner:
         if config.safety and not all(why for _, why in schedule):
             period, tau_ext = config.gait.period, self.estimator.tau_ext
             self.cuff_load = CuffLoadMonitor(
-                setup.device_patient, tau_ext, config.dt, period, schedule
+                setup.device_patient, tau_ext, config.dt, period, schedule, shoes=self._shoes
             )
             self.cuff_load.preload(self.sensors.q, self.sensors.dq)
         #: On a stop the harness locks the pelvis (plant/pelvis.py) and the treadmill

@@ -37,12 +37,14 @@ def _refused(capsys: pytest.CaptureFixture, argv: list[str]) -> str:
     [
         (
             ["simulate", "--duration", "1e300"],
-            "duration must be in [0.001, 1e+07] s; got 1e+300 (at least one control tick at "
+            "--duration: run.duration_s: must be in [0.001, 1e+07] s; got 1e+300 (at least one "
+            "control tick at "
             "1000 Hz)",
         ),
         (
             ["simulate", "--duration", "1e-4", "--contact", "on"],
-            "duration must be in [0.001, 1e+07] s; got 0.0001 (at least one control tick at "
+            "--duration: run.duration_s: must be in [0.001, 1e+07] s; got 0.0001 (at least one "
+            "control tick at "
             "1000 Hz)",
         ),
         (
@@ -52,20 +54,22 @@ def _refused(capsys: pytest.CaptureFixture, argv: list[str]) -> str:
         ),
         (
             ["simulate", "--substeps", "100000"],
-            "plant_substeps must be an integer in [1, 1000]; got 100000",
+            "--substeps: run.plant_substeps: must be an integer in [1, 1000]; got 100000",
         ),
         (
             ["simulate", "--period", "1e-300"],
-            "period must be >= 0.1 s; got 1e-300 (ten gait cycles a second is no gait, and the "
+            "--period: gait.period: must be >= 0.1 s; got 1e-300 (ten gait cycles a second is no "
+            "gait, and the "
             "plan's cubic pieces need durations whose squares do not underflow)",
         ),
         (
             [*("simulate", "--contact", "on", "--pelvis", "supported"), "--body-mass", "1e6"],
-            "body_mass must be in (0, 300] kg; got 1000000.0",
+            "--body-mass: pelvis.body_mass_kg: must be in (0, 300] kg; got 1000000.0",
         ),
         (
             ["simulate", "--contact", "on", "--speed-profile", "0:1e-300"],
-            "speed_profile must be speeds >= 0.01 m/s; got '0:1e-300' (point 1, 0:1e-300)",
+            "--speed-profile: treadmill.speed_profile: must be speeds >= 0.01 m/s; got '0:1e-300' "
+            "(point 1, 0:1e-300)",
         ),
         (
             ["simulate", "--step-length", "2"],

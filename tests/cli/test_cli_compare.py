@@ -93,7 +93,7 @@ def test_compare_without_matplotlib_stops_before_any_run(tmp_path: Path) -> None
          "got 'pd,lqr' ('lqr' is not one)"),
         (["--controllers", "pd", "paper.toml"], "scenario paper.toml: no such file"),
         (["--controllers", "pd", "--preset", "paper", "--set", "gait.stride=1"],
-         "scenario preset paper: gait.stride: must be a key of GaitParams ({gait_keys}); got 1"),
+         "--set: gait.stride: must be a key of GaitParams ({gait_keys}); got 1"),
         (["a.rrd", "--preset", "paper"], "--preset must be given only with --controllers; "
          "got 'paper'"),
     ],

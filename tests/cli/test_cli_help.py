@@ -105,8 +105,12 @@ def test_simulate_help_shows_the_numbers(capsys) -> None:
         for a in subparsers()["simulate"]._actions
         if hasattr(a, "hidden_help")
     }
-    assert hidden["kd"] == "PD derivative gain [V·s/rad], all joints (default 5)"
-    assert hidden["step_length"] == "step length s [m] (default 0.35)"
+    assert hidden["kd"].startswith("derivative gain per joint [V·s/rad]; one number for every")
+    assert hidden["kd"].endswith("(scenario key gains.kd) (default 5)")
+    assert hidden["step_length"] == (
+        "s, distance the foot travels on the belt per stance [m] (scenario key "
+        "gait.step_length) (default 0.35)"
+    )
 
 
 def test_top_level_help_says_what_the_command_does(capsys) -> None:

@@ -83,7 +83,8 @@ def test_simulate_and_sweep_refuse_it_too(tmp_path: Path, capsys: pytest.Capture
     code = cli.main(["simulate", "--pelvis-excursion=-1", "--no-record"])
     assert code == 2
     assert capsys.readouterr().err == (
-        "exo-ctrl simulate: error: pelvis_excursion must be >= 0 m; got -1.0\n"
+        "exo-ctrl simulate: error: --pelvis-excursion: gait.pelvis_excursion: must be >= 0 m; "
+        "got -1.0\n"
     )
     out = tmp_path / "sweep.parquet"
     code = cli.main(["sweep", "--param", "pelvis_excursion=0.6", "--out", str(out)])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from exo_ctrl import cli
-from exo_ctrl.cli.common import SUPPORTED_GAIT
+from exo_ctrl.cli.long_options import SUPPORTED_GAIT
 from exo_ctrl.cli.simulate import sim_config
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plan.kinematics import inverse_kinematics
@@ -43,6 +43,7 @@ def test_bws_without_the_supported_pelvis_exits_2(capsys: pytest.CaptureFixture)
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert code == 2
     assert err == (
-        "exo-ctrl simulate: error: bws must be 0 with the pelvis fixed (--pelvis supported); "
+        "exo-ctrl simulate: error: scenario preset paper-free-air: bws must be 0 with the pelvis "
+        "fixed (--pelvis supported); "
         "got 0.3"
     )

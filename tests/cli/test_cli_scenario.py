@@ -81,13 +81,12 @@ def test_scenario_list_names_every_preset(capsys) -> None:
         ),
         (
             ["--set", "gait.period"],
-            "scenario --set: gait.period: expected section.key=value, e.g. gait.period=1.1",
+            "--set: gait.period: expected section.key=value, e.g. gait.period=1.1",
         ),
-        (["--set", "gait.perod=1.1"], "scenario preset paper: gait.perod: must be a key of"),
+        (["--set", "gait.perod=1.1"], "--set: gait.perod: must be a key of"),
         (
-            ["--preset", "paper", "--contact", "off"],
-            "--contact must be left out with a scenario file or preset; got 'off' (the long "
-            "options describe a run on their own;",
+            ["--preset", "paper", "--bws", "2"],
+            "--bws: pelvis.bws_fraction: must be in [0, 1] (a fraction of body weight); got 2.0",
         ),
     ],
 )

@@ -153,21 +153,25 @@ def test_gait_memory_per_sample_is_bounded_by_the_stated_figure(
 
 
 SIM_PLAN = (
-    "exo-ctrl simulate: error: duration must be at most 2275 s at 1000 Hz so that the plan "
+    "exo-ctrl simulate: error: --duration: run.duration_s: must be at most 2275 s at 1000 Hz so "
+    "that the plan "
     "rows fit in the 1 GiB memory cap (at most 2,274,876 of 472 B each); got 100000.0 "
     "(100,000,001 plan rows would need 43.96 GiB; the plan holds every tick, as the period "
     "1.2003 s is not a whole number of 1 ms ticks)\n"
 )
 SIM_PERIOD = (  # the gait period's own bound comes first (GaitParams, MAX_PERIOD_S)
-    "exo-ctrl simulate: error: period must be <= 100 s; got 1000000.0 (one gait cycle sizes "
+    "exo-ctrl simulate: error: --period: gait.period: must be <= 100 s; got 1000000.0 (one "
+    "gait cycle sizes "
     "the plan and the monitors' windows: a longer one would not fit in memory, or overflow)\n"
 )
 SIM_PERIOD_AT_SPEED = (  # the gait period's own bound comes first (GaitParams, MAX_PERIOD_S)
-    "exo-ctrl simulate: error: period must be <= 100 s; got 1000000.0 (one gait cycle sizes "
+    "exo-ctrl simulate: error: --period: gait.period: must be <= 100 s; got 1000000.0 (one "
+    "gait cycle sizes "
     "the plan and the monitors' windows: a longer one would not fit in memory, or overflow)\n"
 )
 SIM_ESTOP = (  # the default run: the ramp-in and two cycles, 3.6 s
-    "exo-ctrl simulate: error: estop_at must be in [0, 3.599] s, within the run; got 4.0 "
+    "exo-ctrl simulate: error: --estop-at: safety.estop_at_s: must be in [0, 3.599] s, within the "
+    "run; got 4.0 "
     "(the run lasts 3.6 s; its last control tick is at t = 3.599 s)\n"
 )
 

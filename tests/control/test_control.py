@@ -22,6 +22,7 @@ from exo_ctrl.control import (
     SensorReadings,
     feedforward_torque,
 )
+from exo_ctrl.control.lift_off import LIFT_OFF_BLEND_S
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import (
     FRICTION_SMOOTHING_RAD_S,
@@ -147,10 +148,37 @@ def test_pd_gains_take_numpy_numbers() -> None:
 # --------------------------------------------------------------------------- feedforward
 
 
+def blended(exo: BodyModel, q, dq, ddq, lift) -> np.ndarray:
+    """q̈_b = q̈_s + α (q̈* − q̈_s), q̈_s = −J⁻¹ J̇ q̇ (control/lift_off.py), from Pinocchio's
+    foot frames: the joint acceleration that scales the plan's foot acceleration by α(u)."""
+    model, data = exo.model, exo.model.createData()
+    pin.forwardKinematics(model, data, q, dq, np.zeros(4))
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    out = np.array(ddq, dtype=float)
+    for leg, name in enumerate(("left_foot", "right_foot")):
+        u = lift[leg]
+        if not 0.0 <= u < LIFT_OFF_BLEND_S:
+            continue
+        x = u / LIFT_OFF_BLEND_S
+        alpha = x**3 * (10.0 - 15.0 * x + 6.0 * x * x)
+        frame = model.getFrameId(name)
+        rows = [0, 2]
+        cols = slice(2 * leg, 2 * leg + 2)
+        jac = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)[rows][:, cols]
+        bias = pin.getFrameClassicalAcceleration(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+        still = -np.linalg.solve(jac, bias.linear[rows])
+        out[cols] = still + alpha * (out[cols] - still)
+    return out
+
+
 def independent_feedforward(
-    exo: BodyModel, patient: BodyModel | None, motor: MotorParams, q, dq, ddq
+    exo: BodyModel, patient: BodyModel | None, motor: MotorParams, q, dq, ddq, lift=None
 ) -> np.ndarray:
-    """τ_ff = (M_e + i_G² J_r) q̈ + n_e + b q̇ + f tanh(q̇/ε) (+ the patient's, rigidly coupled)."""
+    """τ_ff = (M_e + i_G² J_r) q̈ + n_e + b q̇ + f tanh(q̇/ε) (+ the patient's, rigidly coupled),
+    q̈ the plan's blended over lift-off when ``lift`` (the plan row's times since) is given."""
+    if lift is not None:
+        ddq = blended(exo, q, dq, ddq, lift)
     tau = np.zeros(4)
     bodies = [(exo, motor.gear_ratio**2 * motor.rotor_inertia_kgm2)]
     if patient is not None:
@@ -176,7 +204,8 @@ def test_feedforward_voltage_is_the_steady_state_motor_inverse(exo, patient, pla
         s = readings(rng)
         u_pd = np.array(pd.command(k, s))
         u_ct = np.array(ct.command(k, s))
-        tau = independent_feedforward(exo, patient, motor, plan.q[k], plan.dq[k], plan.ddq[k])
+        args = (plan.q[k], plan.dq[k], plan.ddq[k], plan.lift_off_s[k])
+        tau = independent_feedforward(exo, patient, motor, *args)
         np.testing.assert_allclose(ct.torque_ff, tau, rtol=1e-9, atol=1e-9)
         # L dI/dt = 0:  U = R I + i_G ω / k_E  with  I = τ_m / (i_G k_m), where the
         # gearbox needs τ_m = τ / η motoring and τ η braking (smoothed over 0.05 rad/s).
@@ -191,8 +220,8 @@ def test_feedforward_voltage_is_the_steady_state_motor_inverse(exo, patient, pla
 
 def test_feedforward_includes_the_patient_and_the_rotor(exo, patient, plan) -> None:
     motor = MotorParams()
-    k = 300
-    args = (plan.q[k], plan.dq[k], plan.ddq[k])
+    k = 300  # the right foot's lift-off: its q̈ blended in from q̈_s
+    args = (plan.q[k], plan.dq[k], plan.ddq[k], plan.lift_off_s[k])
     with_patient = ComputedTorqueController(plan, exo, patient, motor)
     alone = ComputedTorqueController(plan, exo, None, motor)
     with_patient.command(k, readings(np.random.default_rng(2)))
@@ -208,7 +237,7 @@ def test_feedforward_includes_the_patient_and_the_rotor(exo, patient, plan) -> N
     ctrl.command(k, readings(np.random.default_rng(2)))
     np.testing.assert_allclose(
         ctrl.torque_ff - alone.torque_ff,
-        motor.gear_ratio**2 * motor.rotor_inertia_kgm2 * plan.ddq[k],
+        motor.gear_ratio**2 * motor.rotor_inertia_kgm2 * blended(exo, *args),
         rtol=1e-9,
         atol=1e-9,
     )

@@ -205,9 +205,11 @@ def test_an_absurd_gait_period_is_refused_by_name(
 ) -> None:
     monkeypatch.chdir(tmp_path)
     code, err = run(argv, capsys)
+    prefix = "--period: gait.period: " if argv[0] == "simulate" else ""  # simulate names the key
     assert (code, err) == (
         2,
-        f"exo-ctrl {argv[0]}: error: period must be <= 100 s; got {value} (one gait cycle sizes "
+        f"exo-ctrl {argv[0]}: error: {prefix or 'period '}must be <= 100 s; got {value} (one gait "
+        "cycle sizes "
         "the plan and the monitors' windows: a longer one would not fit in memory, or "
         "overflow)\n",
     )

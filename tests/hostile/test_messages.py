@@ -63,7 +63,7 @@ def test_an_ascii_terminal_gets_escapes_not_a_traceback(tmp_path: Path) -> None:
 @pytest.mark.parametrize("option", ["--ramp-in", "--ramp-out"])
 def test_a_vanishing_ramp_is_refused_by_name(tmp_path: Path, capsys, option: str) -> None:
     code = main(["simulate", option, "1e-300", *SHORT_RUN])
-    name = option[2:].replace("-", "_")
+    name = f"{option}: run.{option[2:].replace('-', '_')}_s:"
     assert (code, capsys.readouterr().err) == (
         2,
         f"exo-ctrl simulate: error: {name} must be 0 (no ramp) or at least 1e-06 s; "

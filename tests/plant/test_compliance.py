@@ -369,13 +369,19 @@ def test_the_cli_runs_a_compliant_joint(tmp_path: Path, capsys) -> None:
 @pytest.mark.parametrize(
     ("args", "expected"),
     [
-        (["--joint-stiffness", "-5"], "joint_stiffness must be >= 0 N·m/rad; got -5.0"),
+        (
+            ["--joint-stiffness", "-5"],
+            "--joint-stiffness: joint_compliance.joint_stiffness: must be > 0 N·m/rad; got -5.0",
+        ),
         (
             ["--joint-stiffness", "1e6"],
             "joint_stiffness must be at most 5.795e+04 N·m/rad at a plant step of 1 ms; "
             "got 1000000.0",
         ),
-        (["--joint-damping", "-1"], "joint_damping must be >= 0 N·m·s/rad; got -1.0"),
+        (
+            ["--joint-damping", "-1"],
+            "--joint-damping: joint_compliance.joint_damping: must be >= 0 N·m·s/rad; got -1.0",
+        ),
     ],
 )
 def test_the_cli_refuses_a_bad_joint(

@@ -229,7 +229,8 @@ def test_bad_patient_feet_parameters_are_refused(capsys: pytest.CaptureFixture) 
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert code == 2
     assert err == (
-        "exo-ctrl simulate: error: patient_feet must be False with the contact off "
+        "exo-ctrl simulate: error: --patient-feet: contact.patient_feet: must be False with "
+        "the contact off "
         "(enabled=False); got True (the patient's feet meet the belt only with the belt "
         "contact on: --contact on)"
     )

@@ -179,10 +179,18 @@ def test_new_and_old_estimate_metrics_against_the_logged_signals(misalignment, e
 @pytest.mark.parametrize(
     ("value", "message"),
     [
-        ("abc", "misalignment_knee must be two numbers DX,DZ in [-0.1, 0.1] m; got 'abc'"),
-        ("0.01", "misalignment_knee must be two numbers DX,DZ in [-0.1, 0.1] m; got '0.01'"),
-        ("0.5,0", "misalignment_knee must be two numbers DX,DZ in [-0.1, 0.1] m; got (0.5, 0.0)"),
-        ("nan,0", "misalignment_knee must be two numbers DX,DZ in [-0.1, 0.1] m; got (nan, 0.0)"),
+        ("abc", "--misalignment-knee must be 2 comma-separated numbers; got 'abc'"),
+        ("0.01", "--misalignment-knee must be 2 comma-separated numbers; got '0.01'"),
+        (
+            "0.5,0",
+            "scenario preset paper-free-air: misalignment_knee: must be two numbers DX,DZ in "
+            "[-0.1, 0.1] m; got (0.5, 0.0)",
+        ),
+        (
+            "nan,0",
+            "scenario preset paper-free-air: misalignment_knee: must be two numbers DX,DZ in "
+            "[-0.1, 0.1] m; got (nan, 0.0)",
+        ),
     ],
 )
 def test_bad_misalignment_option_exits_2_with_one_line(value, message, capsys) -> None:

@@ -197,7 +197,8 @@ def test_cli_refuses_bad_sessions_in_one_line(tmp_path: Path, capsys) -> None:
                 "--duration",
                 "2",
             ],
-            "session total duration must be equal to the run's duration, 2 s; got 1.0 "
+            "scenario preset paper-free-air: session total duration must be equal to the "
+            "run's duration, 2 s; got 1.0 "
             "(the sum of its 1 segments' durations [s])",
         ),
     ]

@@ -286,21 +286,23 @@ def test_start_on_the_gait_at_speed_with_the_patient_settled() -> None:
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--ramp-in", "-1"], "ramp_in must be >= 0 s; got -1.0"),
-        (["--ramp-in", "nan"], "ramp_in must be a finite number [s]; got nan"),
-        (["--ramp-out", "-0.5"], "ramp_out must be >= 0 s; got -0.5"),
+        (["--ramp-in", "-1"], "--ramp-in: run.ramp_in_s: must be >= 0 s; got -1.0"),
+        (["--ramp-in", "nan"], "--ramp-in: run.duration_s: must be a finite number [s]; got nan"),
+        (["--ramp-out", "-0.5"], "--ramp-out: run.ramp_out_s: must be >= 0 s; got -0.5"),
         (
             ["--ramp-in", "5", "--duration", "3"],
-            "ramp_in must be at most 3 s, within the run; got 5.0 (the run lasts 3 s)",
+            "--ramp-in: run.ramp_in_s: must be at most 3 s, within the run; got 5.0 (the run "
+            "lasts 3 s)",
         ),
         (
             ["--ramp-in", "2", "--ramp-out", "1.5", "--duration", "3"],
-            "ramp_in must be at most 1.5 s, within the run; got 2.0 "
+            "--ramp-in: run.ramp_in_s: must be at most 1.5 s, within the run; got 2.0 "
             "(the run lasts 3 s, of which the ramp-out takes the last 1.5 s)",
         ),
         (
             ["--ramp-out", "4", "--duration", "3"],
-            "ramp_out must be at most 3 s, within the run; got 4.0 (the run lasts 3 s)",
+            "--ramp-out: run.ramp_out_s: must be at most 3 s, within the run; got 4.0 (the run "
+            "lasts 3 s)",
         ),
     ],
 )

@@ -117,16 +117,19 @@ def test_sync_off_keeps_the_precomputed_plan() -> None:
     [
         (
             ["--speed-profile", "3:0.5,1:0.6"],
-            "speed_profile must be times in increasing order; got '3:0.5,1:0.6' "
+            "--speed-profile: treadmill.speed_profile: must be times in increasing order; got "
+            "'3:0.5,1:0.6' "
             "(point 2, 1:0.6 is not after 3 s)",
         ),
         (
             ["--speed-profile", "0:-0.5"],
-            "speed_profile must be speeds >= 0.01 m/s; got '0:-0.5' (point 1, 0:-0.5)",
+            "--speed-profile: treadmill.speed_profile: must be speeds >= 0.01 m/s; got "
+            "'0:-0.5' (point 1, 0:-0.5)",
         ),
         (
             ["--speed-profile", "0:0.5;1"],
-            "speed_profile must be points T:V separated by commas, T in s and V in m/s "
+            "--speed-profile: treadmill.speed_profile: must be points T:V separated by commas, T "
+            "in s and V in m/s "
             "(e.g. \"0:0.4,3:0.7\"); got '0:0.5;1' ('0:0.5;1' is not T:V)",
         ),
         (
@@ -149,8 +152,14 @@ def test_sync_off_keeps_the_precomputed_plan() -> None:
             ["--belt-height", "1.2"],
             "belt height must be in (0, 1.04) m, within the leg's reach; got 1.2",
         ),
-        (["--friction", "0"], "friction coefficient must be > 0; got 0.0"),
-        (["--friction", "-0.3"], "friction coefficient must be > 0; got -0.3"),
+        (
+            ["--friction", "0"],
+            "scenario preset paper-free-air: contact: friction coefficient must be > 0; got 0.0",
+        ),
+        (
+            ["--friction", "-0.3"],
+            "scenario preset paper-free-air: contact: friction coefficient must be > 0; got -0.3",
+        ),
     ],
 )
 def test_bad_belt_inputs_are_refused_with_exit_2(args, message, capsys, tmp_path) -> None:
@@ -166,13 +175,15 @@ def test_sync_and_a_profile_need_the_belt(capsys) -> None:
     code = cli.main(["simulate", "--no-record", "--duration", "0.1", "--speed-profile", "0:0.5"])
     assert code == 2
     assert capsys.readouterr().err.strip() == (
-        "exo-ctrl simulate: error: speed_profile must be unset without the belt (contact on); "
+        "exo-ctrl simulate: error: --speed-profile: treadmill.speed_profile: must be unset "
+        "without the belt (contact on); "
         "got '0:0.5'"
     )
     code = cli.main(["simulate", "--no-record", "--duration", "0.1", "--sync", "on"])
     assert code == 2
     assert capsys.readouterr().err.strip() == (
-        "exo-ctrl simulate: error: sync must be off here; got 'on' (the belt's speed is "
+        "exo-ctrl simulate: error: --sync: treadmill.sync: must be off here; got 'on' (the "
+        "belt's speed is "
         "measured with contact on only)"
     )
 

@@ -69,7 +69,7 @@ class ModeParams:
             covariance converging from the initial uncertainty) is not
             motion to anticipate — with ideal sensors the unramped lead drove
             the estimated shank force to 150 N at t = 3 ms.
-        aan_forgetting: f ∈ [0, 1), the forgetting factor of the
+        aan_forgetting: f ∈ [0, 1), the forgetting factor [-] of the
             assist-as-needed support, F_{k+1} = f F_k + g e_k (Emken et al.
             2007); the support fades by f per cycle, time constant
             −1 / ln f cycles.  Default 0.8 (4.5 cycles; choice).

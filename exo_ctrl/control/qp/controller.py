@@ -29,10 +29,8 @@ above ``(U_max + R I_max) k_E / i_G`` ≈ 5.9 rad/s with the defaults) no
 command meets the limits and the tick falls back (below).
 
 **Cuff forces, affine in τ, over a horizon** (design.md §5).  The cuffs
-are springs with the patient's leg on them (modes 5–12 Hz): a one-tick
-rigid-cuff prediction (the first version of this controller) cannot
-bound their force — measured with it: spastic patient, 150 N
-bound, real peak 194 N; passive, 80 N, 109 N.  The controller instead
+are springs with the patient's leg on them (modes 5–12 Hz), which a
+one-tick rigid-cuff prediction cannot bound.  The controller
 predicts the elastic cuffs' forces at P horizon points (default 5, 10, 20,
 30, 40 ms) with the drive voltage for τ held
 (:class:`~exo_ctrl.control.qp.prediction.CuffHorizonModel`), ``f(t_i) = A_i τ
@@ -114,6 +112,8 @@ from ...plant.drive import MotorParams
 from ...sensing.readings import SensorReadings
 from ..base import PDGains
 from ..computed_torque import ComputedTorqueController
+from ..lift_off import LIFT_OFF_BLEND_S
+from ..stance_load import StanceLoad
 from .margin import ESTIMATE_SIGMAS, checked_margin
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
@@ -202,11 +202,14 @@ class QPController(ComputedTorqueController):
         tighten: tighten each cuff's bound by its margin (default; False:
             the bound as given, for tests of the QP itself).
         gait: the gait in words, for the refusal's message.
-
-    Attributes (besides the above):
-        margin: the margin's static terms and working force (:class:`BoundMargin`).
+        stance_load: the stance legs' load in the CT feedforward, with the
+            pelvis on its guide (:mod:`exo_ctrl.control.stance_load`; None:
+            the pelvis fixed), as computed torque's.
+        lift_off_blend_s: T_b of :mod:`exo_ctrl.control.lift_off` [s], as
+            computed torque's (0: none).
 
     Attributes:
+        margin: the margin's static terms and working force (:class:`BoundMargin`).
         record: the tick's state and figures: the CT's fields, then
             :func:`~exo_ctrl.control.qp.tick.qp_fields`; ``u_cmd`` is the
             command returned last.  The arrays below are views of its fields.
@@ -263,6 +266,8 @@ class QPController(ComputedTorqueController):
         estimator: str = "kalman",
         tighten: bool = True,
         gait: str = "",
+        stance_load: StanceLoad | None = None,
+        lift_off_blend_s: float = LIFT_OFF_BLEND_S,
     ) -> None:
         if estimator not in DISTURBANCE_BANDWIDTH_PER_S:
             allowed = ", ".join(DISTURBANCE_BANDWIDTH_PER_S)
@@ -301,7 +306,7 @@ class QPController(ComputedTorqueController):
         n_poly = n_points * 4 * half
         self._n_rows = 2 * n_poly
         self._n_slots = min(int(screened_rows), 2 * n_poly)
-        super().__init__(plan, exo, patient, motor, gains)
+        super().__init__(plan, exo, patient, motor, gains, stance_load, lift_off_blend_s)
         # Variables x = (τ, s): the four torques and one slack per cuff, shared by
         # the horizon points, the bound softened to |n_kᵀ f_c(t_i)| ≤ r + s_c with
         # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r,
