@@ -7,8 +7,8 @@ Draws N points (default 200) from ``numpy.random.default_rng(S)`` (default
 seed 0; point i is the same whatever N > i), each
 
 - a gait: step length U(0.25, 0.50) m, period U(0.9, 1.5) s (hip height
-  and lift the defaults scaled to the patient's leg length, as
-  tools/robustness.py does);
+  and lift the defaults scaled to the patient's leg length, as the
+  robustness tool does);
 - a bound F_max U(100, 180) N on every cuff;
 - a true patient: stature U(1.55, 1.95) m, body mass U(50, 110) kg within a
   body-mass index of 18.5–35 kg/m² (as the robustness cohort,

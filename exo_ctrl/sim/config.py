@@ -99,7 +99,7 @@ class SimConfig:
             130 N, with a margin.  The QP holds its prediction within the bound
             less each cuff's margin (:mod:`exo_ctrl.control.qp.margin`).
         qp_tighten_bound: tighten the bound by the margin (False: the
-            prediction held at the bound itself, as before issue 31).
+            prediction held at the bound itself).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
         cuffs: the true cuffs: normal and shear stiffness and damping, strap

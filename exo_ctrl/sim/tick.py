@@ -418,7 +418,7 @@ def write_applied(log, row, controller, supervisor, plant, encoder, phase, foot)
     """The command and what acted over [t_k, t_k+1), into log row ``row``.
 
     ``controller``: its record (``u_cmd``, ``active_constraints``,
-    ``failures``); ``supervisor``: its record (``state``); ``plant``: its
+    ``failures``, ``margin``); ``supervisor``: its record (``state``); ``plant``: its
     record (``voltage``, ``current``, ``drive_torque``, ``patient_torque``,
     ``stop_torque``, ``deflection``, ``cuff_force``; ``contact``,
     :mod:`exo_ctrl.plant.contact`, all zero with contact off; ``patient_feet``,
@@ -436,6 +436,7 @@ def write_applied(log, row, controller, supervisor, plant, encoder, phase, foot)
     r.qp_failures = c.failures
     for j in range(4):
         r.voltage_cmd[j] = c.u_cmd[j]
+        r.cuff_bound_margin[j] = c.margin[j]
         r.voltage[j] = p.voltage[j]
         r.current[j] = p.current[j]
         r.drive_torque[j] = p.drive_torque[j]

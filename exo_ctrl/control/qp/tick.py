@@ -44,8 +44,9 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
     ``torque`` [N·m] and ``slack`` [N]; ``fitted``: zeros, the cuff state
     taken without an estimate; the octagon's ``directions`` and ``radius``
     r_c per cuff [N]; the bound ``limit`` F_max [N], the margin's static
-    part ``margin_static`` [N], the estimate's ``sigmas`` k, the tick's
-    ``margin`` m_c and its largest value so far ``margin_peak`` [N], the
+    part ``margin_static`` [N], the estimate's ``sigmas`` k, the largest
+    margin so far ``margin_peak`` [N] (the tick's m_c is the common
+    ``margin``), the
     cuffs' ``working`` force [N], the ``ticks`` tightened so far
     (:mod:`~exo_ctrl.control.qp.margin`); the cuff ``rows`` (n_rows, 8) and
     their ``upper`` bounds [N]; the screening's scratch ``value``, ``mark``
@@ -69,7 +70,6 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
         ("limit", f8),
         ("margin_static", f8, (4,)),
         ("sigmas", f8),
-        ("margin", f8, (4,)),
         ("margin_peak", f8, (4,)),
         ("working", f8, (4,)),
         ("ticks", np.int64),

@@ -174,3 +174,19 @@ def test_closed_loop_tightened_qp_tracks_within_10_percent_of_ct(ct_passive, qp_
 def test_closed_loop_tightened_qp_commands_within_the_supply(request, run) -> None:
     result = request.getfixturevalue(run)
     assert np.abs(result.signals["voltage_cmd"]).max() <= SimConfig().motor.supply_voltage_V + 1e-9
+
+
+@pytest.mark.parametrize("run", ["qp_passive", "qp_tight", "qp_spastic"])
+def test_closed_loop_recorded_margin_peaks_at_the_summarys(request, run) -> None:
+    """The log's per-tick margin m_c: never below its static part, its largest the summary's."""
+    result = request.getfixturevalue(run)
+    logged = result.signals["cuff_bound_margin"]
+    stated = np.array(list(result.summary()["cuff_bound_margin_N"].values()))
+    assert np.array_equal(logged.max(axis=0), stated)
+    assert (logged.min(axis=0) > 0.0).all()
+    assert logged.min(axis=0).max() < stated.max()  # the estimate's term varies per tick
+
+
+def test_closed_loop_ct_records_no_margin(ct_passive) -> None:
+    assert not ct_passive.signals["cuff_bound_margin"].any()
+    assert ct_passive.summary()["cuff_bound_margin_N"] is None
