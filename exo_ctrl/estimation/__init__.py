@@ -31,6 +31,7 @@ from .errors import (
     estimate_components,
     normal_component_errors,
 )
+from .excitation import ExcitationReport
 from .identification import (
     CalibrationSamples,
     Identification,
@@ -57,6 +58,7 @@ __all__ = [
     "EstimateErrorStats",
     "EstimateErrors",
     "EstimateSeries",
+    "ExcitationReport",
     "Identification",
     "InvalidLog",
     "KalmanNoise",
