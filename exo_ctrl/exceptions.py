@@ -21,6 +21,7 @@ __all__ = [
     "KernelStatusError",
     "MissingDependency",
     "OutputError",
+    "PluginError",
     "RecordingError",
     "SimulationDiverged",
     "SweepError",
@@ -214,6 +215,29 @@ class InvalidLog(ExoCtrlError, ValueError):
         if column:
             where += f", column {column!r}"
         super().__init__(f"invalid log {where}: {reason}")
+
+
+class PluginError(ExoCtrlError, ValueError):
+    """A user's controller or estimator broke its interface's contract during a run.
+
+    Attributes:
+        plugin: its ``module:Class`` name.
+        tick: the control tick k at fault.
+        time: its time t_k [s].
+        reason: what it returned and what is allowed.
+        kind: ``"controller"`` or ``"estimator"``.
+
+    """
+
+    def __init__(
+        self, plugin: str, tick: int, time: float, reason: str, kind: str = "controller"
+    ) -> None:
+        self.plugin = plugin
+        self.tick = tick
+        self.time = time
+        self.reason = reason
+        self.kind = kind
+        super().__init__(f"{kind} {plugin} at tick {tick} (t = {time:.4g} s): {reason}")
 
 
 class SweepError(ExoCtrlError, RuntimeError):

@@ -2,9 +2,9 @@
 
 The rule (docs/index.md, "How these pages are tested"):
 
-- Each page runs in a fresh directory that links the repository's ``.venv``, ``tools`` and
-  ``urdf``; its ``bash`` blocks run line by line and its ``python`` blocks as scripts, in page
-  order, so a command can use what an earlier one wrote.
+- Each page runs in a fresh directory that links the repository's ``.venv``, ``tools``,
+  ``urdf`` and ``examples``; its ``bash`` blocks run line by line and its ``python`` blocks as
+  scripts, in page order, so a command can use what an earlier one wrote.
 - ``exo-ctrl simulate``, ``sweep`` and ``compare`` are cut short to ``--duration 0.5`` (in place
   of their ``--duration``/``--cycles``), except the runs of :data:`FULL_RUNS` and the blocks
   whose output the text quotes, which run as written.
@@ -149,7 +149,7 @@ def workdir(tmp: Path) -> Path:
     """A directory with the repository's environment, tools and models linked in."""
     local = ROOT / ".venv"
     (tmp / ".venv").symlink_to(local if local.is_dir() else Path(sys.prefix))
-    for name in ("tools", "urdf"):
+    for name in ("tools", "urdf", "examples"):
         (tmp / name).symlink_to(ROOT / name)
     return tmp
 

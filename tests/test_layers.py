@@ -2,7 +2,7 @@
 
 model < plan < plant < sensing < estimation < control < safety < sim < record
 < comparison < sweep < cli, with the small shared modules (exceptions, _jit, _jit_cache, _validate,
-_io, _progress, _lifetime) below them all.  A module may import its own package and the
+_io, _progress, _lifetime, _plugin) below them all.  A module may import its own package and the
 packages below it, never one above; no module imports another of the
 project's lazily (inside a function), so no cycle can hide; the module graph
 has no cycle; the plant never imports control, and only the cli, the
@@ -29,6 +29,7 @@ RANKS = {
     "_io": 0,
     "_progress": 0,
     "_lifetime": 0,
+    "_plugin": 0,
     "_version": 0,
     "model": 1,
     "plan": 2,

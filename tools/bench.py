@@ -3,7 +3,8 @@
     .venv/bin/python tools/bench.py [--ticks N] [--json PATH] [--scenarios pd,ct,qp,qp_spastic]
     .venv/bin/python tools/bench.py --cold [--repeat N] [--helper on|off] [--scenarios ...]
 
-For each scenario (:data:`SCENARIOS`: the default run with PD, CT and QP,
+For each scenario (:data:`SCENARIOS`: the default run with PD, CT and QP, a
+user's Python controller (``impedance``),
 and the QP on the spastic patient at a 150 N cuff bound, where its bound
 binds): the cost of one control tick (sensors, estimator, controller,
 safety supervisor, plant step, logging: exactly ``Runner.tick``), median
@@ -199,6 +200,10 @@ SCENARIOS = {
     "aan": {"mode": "aan", "patient_torque": "active"},
     # Path control with free timing (control/modes/path.py), the default 0.03 m tunnel.
     "path": {"mode": "path", "patient_torque": "active"},
+    # A user's controller in Python on the public interface (docs/controllers.md): the joint
+    # impedance of examples/impedance.py, torque commands through the driver's current loop;
+    # its own Pinocchio calls (two gravity vectors) are not in the floor.
+    "impedance": {"controller": "examples.impedance:Impedance"},
     # The QP where its bound binds (tests/test_qp.py's spastic run).
     "qp_spastic": {
         "controller": "qp",

@@ -8,6 +8,7 @@ import os
 from typing import Any
 
 from .._io import atomic_write, check_output, same_file_key
+from .._plugin import import_from_cwd
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..plan import GaitParams
@@ -21,6 +22,7 @@ __all__ = [
     "check_outputs",
     "format_summary",
     "gait_params_from",
+    "import_from_cwd",
     "recording_line",
     "write_json",
 ]

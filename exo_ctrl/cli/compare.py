@@ -38,7 +38,7 @@ from ..comparison.recordings import compare_recordings
 from ..exceptions import InvalidParameter
 from ..scenario import DEFAULT_PRESET, PRESETS, load_scenario
 from ..sim import CONTROLLERS
-from .common import check_outputs
+from .common import check_outputs, import_from_cwd
 
 __all__ = ["OUTPUT_FILES", "register", "run"]
 
@@ -85,7 +85,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="LIST",
         help=f"controllers to run and compare, comma-separated, from {','.join(CONTROLLERS)} "
-        "(default: none: the recordings given are compared)",
+        "or your own as MODULE:CLASS (docs/controllers.md) (default: none: the recordings "
+        "given are compared)",
     )
     p.add_argument(
         "--out",
@@ -187,6 +188,7 @@ def run(args: argparse.Namespace) -> int:
     A new ``--out`` directory is made after the other checks, and removed
     again (if still empty) when the command fails.
     """
+    import_from_cwd()  # a user's controller given as module:Class
     created = not os.path.isdir(args.out)
     if created:
         require_matplotlib()  # before anything is made

@@ -18,6 +18,7 @@ from typing import Any
 
 from .. import _validate as v
 from .._io import DefaultOutput
+from ..control import controller_name
 from ..exceptions import InvalidParameter
 from ..model import load_exo
 from ..plan import GaitParams
@@ -28,10 +29,10 @@ from ..record.sizing_plot import OperatingPoints, write_torque_speed_plot
 from ..record.viewer import find_viewer
 from ..scenario import DEFAULT_PRESET, PRESETS, RecordingParams, Scenario
 from ..scenario.load import scenario_document, scenario_from_document
-from ..sim import CONTROLLERS, SimConfig, SimResult, drive_for, simulate
+from ..sim import SimConfig, SimResult, drive_for, simulate
 from ..sim.config import MAX_DURATION_S
 from ..sim.scenario_read import apply_setting
-from .common import check_outputs, format_summary, recording_line, write_json
+from .common import check_outputs, format_summary, import_from_cwd, recording_line, write_json
 from .long_options import add_long_options, given_options, option_settings
 
 __all__ = ["register", "run", "scenario_of", "sim_config"]
@@ -56,7 +57,7 @@ SHOWN = frozenset(
 )
 
 USAGE = (
-    "exo-ctrl simulate [SCENARIO.toml | --preset NAME] [--controller pd|ct|qp] "
+    "exo-ctrl simulate [SCENARIO.toml | --preset NAME] [--controller pd|ct|qp|MODULE:CLASS] "
     "[--cycles N | --duration SEC] [--set SECTION.KEY=VALUE ...] [--out PATH.rrd] "
     "[--summary PATH.json] [--no-record] [--plots DIR] [--spawn]"
 )
@@ -104,10 +105,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--controller",
-        choices=CONTROLLERS,
         default=None,
-        help="pd (the paper's PD voltage law), ct (computed torque + PD) or qp (CT + PD "
-        "through a QP under drive limits and cuff-force bounds) (default: the scenario's)",
+        metavar="NAME",
+        help="pd (the paper's PD voltage law), ct (computed torque + PD), qp (CT + PD "
+        "through a QP under drive limits and cuff-force bounds), or your own: the import "
+        "path of an exo_ctrl.control.Controller subclass, e.g. mypkg.ctl:Impedance "
+        "(docs/controllers.md) (default: the scenario's)",
     )
     span = p.add_mutually_exclusive_group()
     span.add_argument(
@@ -212,6 +215,7 @@ def scenario_of(args: argparse.Namespace) -> Scenario:
     run = doc.setdefault("run", {})
     if args.controller is not None:
         run["controller"] = args.controller
+        origin["run.controller"] = "--controller"
     if args.duration is not None:
         run["duration_s"] = args.duration
         origin["run.duration_s"] = "--duration"
@@ -269,6 +273,7 @@ def run(args: argparse.Namespace) -> int:
     The scenario is read and the output paths checked before anything else;
     the summary is written after the run.
     """
+    import_from_cwd()  # a user's controller given as module:Class
     scenario = scenario_of(args)
     config, recording = scenario.config, scenario.recording
     # the scenario's output: a path the user did not name on the command line
@@ -304,7 +309,8 @@ def run(args: argparse.Namespace) -> int:
     print(format_summary(summary))
     if points is not None:
         exo = load_exo(config.exo)
-        title = f"{config.controller} controller, {config.duration_s:g} s of the gait"
+        name = controller_name(config.controller)
+        title = f"{name} controller, {config.duration_s:g} s of the gait"
         motor = drive_for(config.motor, exo)
         write_torque_speed_plot(points, motor, exo.effort_limit, args.plot_file, title)
         print(f"torque-speed plot: {args.plot_file}")

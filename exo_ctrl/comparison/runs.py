@@ -15,6 +15,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from .. import _validate as v
+from ..control import Controller, controller_name
+from ..control.plugin import check_controller
 from ..exceptions import InvalidParameter, Terminated
 from ..scenario import Scenario, load_scenario
 from ..sim import CONTROLLERS, SimConfig, simulate
@@ -51,8 +53,12 @@ def _base_config(scenario: Any) -> SimConfig:
     )
 
 
-def controller_list(controllers: str | Sequence[str]) -> tuple[str, ...]:
+def controller_list(controllers: Any) -> tuple[str | Controller, ...]:
     """The controllers to compare: a sequence or ``"pd,ct,qp"``, each once, at least one.
+
+    Each is a built-in name, a user's ``module:Class`` path or a
+    :class:`~exo_ctrl.control.Controller` object (in a sequence); two with one
+    name (:func:`~exo_ctrl.control.controller_name`) are one twice.
 
     Raises:
         InvalidParameter: ``controllers`` empty, naming an unknown controller or one twice.
@@ -66,11 +72,16 @@ def controller_list(controllers: str | Sequence[str]) -> tuple[str, ...]:
             names = tuple(controllers)
         except TypeError:
             raise InvalidParameter("controllers", controllers, allowed) from None
-    if not names or len(set(names)) != len(names):
+    labels = [controller_name(c) if isinstance(c, (str, Controller)) else c for c in names]
+    if not names or len(set(map(repr, labels))) != len(labels):
         raise InvalidParameter("controllers", controllers, allowed)
     for name in names:
-        if not isinstance(name, str) or name not in CONTROLLERS:
-            raise InvalidParameter("controllers", controllers, allowed, f"{name!r} is not one")
+        try:
+            check_controller(name, CONTROLLERS)
+        except InvalidParameter:
+            raise InvalidParameter(
+                "controllers", controllers, allowed, f"{name!r} is not one"
+            ) from None
     return names
 
 
@@ -108,7 +119,7 @@ def run_config(
 
 def compare(
     scenario: Any,
-    controllers: str | Sequence[str] = CONTROLLERS,
+    controllers: str | Sequence[str | Controller] = CONTROLLERS,
     *,
     cycles: float | None = None,
     duration_s: float | None = None,
@@ -124,7 +135,9 @@ def compare(
             :class:`~exo_ctrl.scenario.Scenario` or a scenario file's path
             (its controller is replaced by each of ``controllers``).
         controllers: the controllers, in the table's order (``("pd", "ct")``
-            or ``"pd,ct"``); each row is labelled by its controller.
+            or ``"pd,ct"``; a user's as ``"module:Class"`` or a
+            :class:`~exo_ctrl.control.Controller` object); each row is
+            labelled by its controller's name.
         cycles: gait cycles at full speed (:func:`run_config`); None: the scenario's duration.
         duration_s: the whole run [s]; None: the scenario's.
         allow_different: compare runs whose configurations differ beyond
@@ -147,9 +160,10 @@ def compare(
             for SIGTERM); the runs after it are not started.
 
     """
-    names = controller_list(controllers)
+    chosen = controller_list(controllers)
+    names = [controller_name(c) for c in chosen]
     base = run_config(scenario, cycles, duration_s)
-    configs = [dataclasses.replace(base, controller=name) for name in names]
+    configs = [dataclasses.replace(base, controller=c) for c in chosen]
     differences = config_differences([c.to_dict() for c in configs])
     check_same(differences, names, v.flag("allow_different", allow_different))
     rows: list[CompareRow] = []

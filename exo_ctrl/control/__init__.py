@@ -1,7 +1,14 @@
 """Controllers: plan and sensor readings in, drive voltages out.
 
-- :mod:`~exo_ctrl.control.base`: what every controller sees and returns, its
-  record's common fields, the PD gains.
+- :mod:`~exo_ctrl.control.interface`: the public interface a user's
+  controller implements (:class:`Controller`, given :class:`Device` once and
+  a :class:`PlanRow` each tick; voltages or torques out).
+- :mod:`~exo_ctrl.control.plugin`: a user's controller in the run (its name,
+  its import from ``module:Class``, the tick's adapter).
+- :mod:`~exo_ctrl.control.current_loop`: the driver's current loop that
+  turns torque commands into voltages.
+- :mod:`~exo_ctrl.control.base`: what the tick calls (:class:`TickController`),
+  its record's common fields, the PD gains.
 - :mod:`~exo_ctrl.control.pd`: the paper's PD voltage law.
 - :mod:`~exo_ctrl.control.computed_torque`: PD plus model-based feedforward.
 - :mod:`~exo_ctrl.control.qp`: CT + PD distributed by a QP under drive limits
@@ -9,19 +16,30 @@
 """
 
 from ..sensing.readings import SensorReadings
-from .base import COMMAND_FIELDS, Controller, PDGains
+from .base import COMMAND_FIELDS, PDGains, TickController
 from .computed_torque import ComputedTorqueController, feedforward_torque
+from .current_loop import CURRENT_LOOP_BANDWIDTH_HZ, CurrentLoop
+from .interface import COMMAND_KINDS, Controller, Device, PlanRow
 from .pd import PDController
+from .plugin import PluginController, controller_name
 from .qp import QPController, TorqueQP
 
 __all__ = [
     "COMMAND_FIELDS",
+    "COMMAND_KINDS",
+    "CURRENT_LOOP_BANDWIDTH_HZ",
     "ComputedTorqueController",
     "Controller",
+    "CurrentLoop",
+    "Device",
     "PDController",
     "PDGains",
+    "PlanRow",
+    "PluginController",
     "QPController",
     "SensorReadings",
+    "TickController",
     "TorqueQP",
+    "controller_name",
     "feedforward_torque",
 ]

@@ -1,10 +1,15 @@
-"""What every controller sees and returns.
+"""What every controller sees and returns on the tick (the internal interface).
+
+The run's tick calls every controller through :class:`TickController`; the
+built-in ones implement it with compiled kernels, a user's
+(:class:`~exo_ctrl.control.interface.Controller`, the public interface)
+through :class:`~exo_ctrl.control.plugin.PluginController`.
 
 A controller is built with the plan (joint targets sampled at the control
 rate) and, per tick, gets the tick index and the sensor readings; it returns
 the four drive voltages [V] in JOINT_NAMES order.  It never reads the plant.
 
-Each controller keeps what a tick produced in :attr:`Controller.record`, a
+Each controller keeps what a tick produced in :attr:`TickController.record`, a
 structured array of one element (:func:`exo_ctrl._jit.record`) whose fields
 start with :data:`COMMAND_FIELDS`; the loop logs them by name.
 """
@@ -21,11 +26,11 @@ from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..sensing.readings import SensorReadings
 
-__all__ = ["COMMAND_FIELDS", "CommandCounters", "Controller", "PDGains"]
+__all__ = ["COMMAND_FIELDS", "CommandCounters", "PDGains", "TickController"]
 
 #: The fields every controller's record has (numpy dtype syntax):
 #:
-#: - ``u_cmd`` [V], (4,): the voltages :meth:`Controller.command` returned last;
+#: - ``u_cmd`` [V], (4,): the voltages :meth:`TickController.command` returned last;
 #: - ``active_constraints``: the QP's active bounds in the last tick (0 for PD/CT);
 #: - ``failures``: the QP's fallbacks so far (0 for PD/CT);
 #: - ``margin`` [N], (4,): the QP's margin m_c on each cuff's bound this tick
@@ -54,8 +59,8 @@ class CommandCounters:
         return int(self.record["failures"][0])
 
 
-class Controller(Protocol):
-    """Plan and sensors in, drive voltages out."""
+class TickController(Protocol):
+    """Plan and sensors in, drive voltages out: what the tick calls."""
 
     name: str
     #: One element with at least the :data:`COMMAND_FIELDS`.

@@ -13,7 +13,9 @@ Modules, in the order they build on each other:
 - :mod:`.bias`: torque-sensor bias, its effect and its measurement;
 - :mod:`.csvlog`: sensor logs as CSV files;
 - :mod:`.identification` (with :mod:`.segment_fit`): the patient's segment
-  inertial parameters from a calibration run.
+  inertial parameters from a calibration run;
+- :mod:`.interface`: the public :class:`Estimator` a user's estimator
+  subclasses, and :mod:`.plugin`, its place in the run.
 """
 
 from ..exceptions import InvalidLog
@@ -39,8 +41,10 @@ from .identification import (
     calibration_samples,
     identify_patient,
 )
+from .interface import Estimator, EstimatorDevice
 from .kalman import COMPONENTS, ESTIMATORS, MODEL_DRIVEN, CuffForceKalman, KalmanNoise
 from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
+from .plugin import PluginEstimator, estimator_name
 from .series import EstimateSeries, estimate_series, first_order_filter, kalman_series
 
 __all__ = [
@@ -58,10 +62,13 @@ __all__ = [
     "EstimateErrorStats",
     "EstimateErrors",
     "EstimateSeries",
+    "Estimator",
+    "EstimatorDevice",
     "ExcitationReport",
     "Identification",
     "InvalidLog",
     "KalmanNoise",
+    "PluginEstimator",
     "PriorSpread",
     "bias_effect_bound",
     "calibration_samples",
@@ -71,6 +78,7 @@ __all__ = [
     "estimate_bias",
     "estimate_components",
     "estimate_series",
+    "estimator_name",
     "first_order_filter",
     "identify_patient",
     "kalman_series",

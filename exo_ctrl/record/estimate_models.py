@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import os
 
-from ..estimation import ESTIMATORS, CuffForceKalman
+from ..estimation import ESTIMATORS, CuffForceKalman, estimator_name
 from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
 from ..model import BodyModel, load_patient
 from ..sim.belief import device_patient
@@ -66,6 +66,13 @@ def chosen_estimator(
             )
         return "momentum"
     chosen = estimator if estimator is not None else config.estimator
+    if chosen not in ESTIMATORS:  # the run's was a user's (exo_ctrl.estimation.plugin)
+        raise InvalidParameter(
+            "estimator",
+            estimator_name(chosen),
+            f"one of {', '.join(ESTIMATORS)} for a recording's estimate",
+            "the recording's run used a user's estimator: give --estimator",
+        )
     if chosen == "kalman" and gain_per_s is not None:
         recorded = "" if estimator is not None else " (the recording's estimator)"
         raise InvalidParameter(

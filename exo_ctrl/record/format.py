@@ -76,6 +76,7 @@ from typing import Any
 
 import numpy as np
 
+from ..control import controller_name
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from ..sim import SimResult, schema
 from ..sim.scenario_file import scenario_toml
@@ -365,7 +366,7 @@ def params_markdown(result: SimResult, meta: dict[str, Any]) -> str:
         "",
         "| | |",
         "|---|---|",
-        f"| controller | `{config.controller}` |",
+        f"| controller | `{controller_name(config.controller)}` |",
         f"| duration | {config.duration_s:g} s ({config.n_ticks} ticks) |",
         f"| control rate | {config.control_rate_hz:g} Hz (Δt = {config.dt:g} s), "
         f"{config.plant_substeps} plant substep(s) |",

@@ -11,10 +11,10 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
 from .. import _validate as v
-from ..control import PDGains
+from ..control import Controller, PDGains, controller_name
 from ..control.modes import ModeParams, PathParams
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
-from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS
+from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS, Estimator, estimator_name
 from ..exceptions import InvalidParameter
 from ..plan import (
     EXERCISES,
@@ -41,6 +41,7 @@ from . import config_checks as checks
 from .belief import Belief
 from .config_checks import MAX_DURATION_S, MAX_PLANT_SUBSTEPS, PLAN_ROW_BYTES
 from .faults import BELT_STOP_NEEDS, Fault, faults_of
+from .plain import named_copy
 from .schema import log_dtype
 from .session import SessionParams, check_session
 
@@ -86,9 +87,11 @@ class SimConfig:
         exo: exoskeleton URDF path (None: the committed default).
         patient: patient URDF path, ``"human"`` (example-robot-data) or None
             (the committed default).
-        controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD) or
+        controller: ``"pd"`` (paper), ``"ct"`` (computed torque + PD),
             ``"qp"`` (CT + PD distributed by a QP under drive limits and
-            cuff-force bounds, :mod:`exo_ctrl.control.qp.controller`).
+            cuff-force bounds, :mod:`exo_ctrl.control.qp.controller`), or a
+            user's: an :class:`exo_ctrl.control.Controller` object or its
+            class's path ``"module:Class"`` (:mod:`exo_ctrl.control.interface`; tracking only).
         qp_estimate_bandwidth_per_s: ω_f, the bandwidth the QP brings the
             cuff-force estimate to before it rebuilds the cuff state from it
             [1/s] (:mod:`exo_ctrl.control.qp.observer`; default 200, twice
@@ -96,10 +99,9 @@ class SimConfig:
             the estimate as it is).
         cuff_force_limit_N: the QP's bound on each cuff's force [N].  Default
             120 N: ISO/TS 15066 Annex A's quasi-static limit for the lower leg,
-            130 N, with a margin.  The QP holds its prediction within the bound
-            less each cuff's margin (:mod:`exo_ctrl.control.qp.margin`).
-        qp_tighten_bound: tighten the bound by the margin (False: the
-            prediction held at the bound itself).
+            130 N, with a margin.  The QP holds its prediction within the
+            bound less each cuff's margin (:mod:`exo_ctrl.control.qp.margin`).
+        qp_tighten_bound: tighten the bound by the margin (False: at the bound).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
         cuffs: the true cuffs: normal and shear stiffness and damping, strap
@@ -156,8 +158,10 @@ class SimConfig:
         estimator: the live cuff-force estimator, ``"kalman"`` (default:
             the filter on the coupled model with the device's patient and
             cuff models, :mod:`exo_ctrl.estimation.kalman`; the better one,
-            smaller whole-force error and lag) or ``"momentum"`` (the
-            momentum observer, :mod:`exo_ctrl.estimation.observer`).
+            smaller whole-force error and lag), ``"momentum"`` (the
+            momentum observer, :mod:`exo_ctrl.estimation.observer`), or a
+            user's :class:`exo_ctrl.estimation.Estimator`: an object, or as
+            the scenario key its import path ``"module:Class"`` (tracking only).
         patient_torque: patient joint torques, ``"none"`` (paper §VI),
             ``"spastic"`` (:mod:`exo_ctrl.plant.patient`) or ``"active"``
             (:mod:`exo_ctrl.plant.patient_active`: their own gait, strength,
@@ -212,7 +216,7 @@ class SimConfig:
     gait: GaitParams = field(default_factory=GaitParams)
     exo: str | None = None
     patient: str | None = None
-    controller: str = "pd"
+    controller: str | Controller = "pd"
     gains: PDGains = field(default_factory=PDGains)
     motor: MotorParams = field(default_factory=MotorParams)
     cuffs: CuffParams = field(default_factory=CuffParams)
@@ -234,7 +238,7 @@ class SimConfig:
     current_sensor: CurrentSensorParams = field(default_factory=CurrentSensorParams)
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
-    estimator: str = "kalman"
+    estimator: str | Estimator = "kalman"
     cuff_force_limit_N: float = 120.0
     qp_estimate_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S
     qp_tighten_bound: bool = True
@@ -264,7 +268,7 @@ class SimConfig:
         for name in ("safety", "safety_use_estimate", "qp_tighten_bound"):
             object.__setattr__(self, name, v.flag(name, getattr(self, name)))
         v.one_of("exercise", self.exercise, EXERCISES)
-        v.one_of("controller", self.controller, CONTROLLERS)
+        checks.check_controller(self, CONTROLLERS)
         duration = v.positive("duration", self.duration_s, "s")
         rate = v.positive("control_rate", self.control_rate_hz, "Hz")
         if not 10.0 <= rate <= 100_000.0:
@@ -287,7 +291,7 @@ class SimConfig:
         if self.stop_reaction is not None:
             check_stop_reaction(self.stop_reaction)
         v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
-        v.one_of("estimator", self.estimator, ESTIMATORS)
+        checks.check_estimator(self, ESTIMATORS)
         v.positive("qp_estimate_bandwidth", self.qp_estimate_bandwidth_per_s, "1/s")
         v.one_of("cuff_fit", self.cuff_fit, CUFF_FITS)
         Ramp(0.0, self.ramp_out_s, self.duration_s)  # refuses a bad or too long ramp-out
@@ -457,8 +461,9 @@ class SimConfig:
         return math.floor(self.duration_s * self.control_rate_hz + 1e-9)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data form (JSON-able), for summaries and recordings."""
-        return asdict(self)
+        """Plain-data form (JSON-able), for summaries and recordings (a user's controller named)."""
+        names = controller_name(self.controller), estimator_name(self.estimator)
+        return asdict(named_copy(self, controller=names[0], estimator=names[1]))
 
 
 def _check_parts(config: SimConfig) -> None:

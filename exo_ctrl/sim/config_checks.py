@@ -14,6 +14,10 @@ import numpy as np
 
 from .. import _validate as v
 from ..control.modes import MODES
+from ..control.plugin import check_controller as check_plugin
+from ..control.plugin import is_plugin
+from ..estimation.plugin import check_estimator as check_user_estimator
+from ..estimation.plugin import is_plugin_estimator
 from ..exceptions import InvalidParameter
 from ..plan import PLAN_BYTES_PER_SAMPLE, SpeedProfile
 from ..plan.ramp import ramp_time
@@ -23,6 +27,8 @@ __all__ = [
     "MAX_DURATION_S",
     "MAX_PLANT_SUBSTEPS",
     "PLAN_ROW_BYTES",
+    "check_controller",
+    "check_estimator",
     "check_estop",
     "check_mode",
     "check_plan_size",
@@ -43,6 +49,43 @@ MAX_PLANT_SUBSTEPS = 1000
 #: (:data:`~exo_ctrl.plan.PLAN_BYTES_PER_SAMPLE`) and the computed-torque
 #: tables of feedforward torque and voltage (4 + 4 numbers).
 PLAN_ROW_BYTES = 8 + PLAN_BYTES_PER_SAMPLE + 2 * 4 * 8
+
+
+def check_controller(config: Any, built_in: tuple[str, ...]) -> None:
+    """Refuse a controller that is none of the allowed kinds, or a user's outside tracking.
+
+    A user's controller (:mod:`exo_ctrl.control.plugin`) runs in the tracking
+    mode without a session: the modes and a session's segments build the
+    built-in controllers.
+    """
+    check_plugin(config.controller, built_in)
+    if not is_plugin(config.controller, built_in):
+        return
+    if config.mode != "tracking":
+        why = "a user's controller runs in tracking mode"
+        raise InvalidParameter("mode", config.mode, "tracking with a user's controller", why)
+    if config.session is not None:
+        raise InvalidParameter(
+            "session", "given", "unset with a user's controller", "a session switches modes"
+        )
+
+
+def check_estimator(config: Any, built_in: tuple[str, ...]) -> None:
+    """Refuse an estimator that is none of the allowed kinds, or a user's outside tracking.
+
+    A user's estimator (:mod:`exo_ctrl.estimation.plugin`) runs in the
+    tracking mode without a session: the modes tune the built-in ones.
+    """
+    check_user_estimator(config.estimator, built_in)
+    if not is_plugin_estimator(config.estimator, built_in):
+        return
+    if config.mode != "tracking":
+        why = "a user's estimator runs in tracking mode"
+        raise InvalidParameter("mode", config.mode, "tracking with a user's estimator", why)
+    if config.session is not None:
+        raise InvalidParameter(
+            "session", "given", "unset with a user's estimator", "a session switches modes"
+        )
 
 
 def check_mode(config: Any) -> None:

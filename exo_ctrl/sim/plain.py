@@ -14,6 +14,7 @@ switch), is refused with its key path (``gait.step_length``); without it
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import types
@@ -22,7 +23,7 @@ from typing import Any
 
 from ..exceptions import InvalidParameter
 
-__all__ = ["coerce", "field_types", "from_plain", "is_dataclass_type"]
+__all__ = ["coerce", "field_types", "from_plain", "is_dataclass_type", "named_copy"]
 
 
 @functools.cache
@@ -32,6 +33,18 @@ def field_types(cls: type) -> dict[str, Any]:
         return typing.get_type_hints(cls)
     except (NameError, TypeError):  # an annotation naming what the module cannot see
         return {}
+
+
+def named_copy(obj: Any, **names: str) -> Any:
+    """A shallow copy of a frozen dataclass with fields set to names, its checks not run.
+
+    For the plain form of a configuration holding a user's objects (a
+    controller, an estimator): each by its ``module:Class`` name.
+    """
+    plain = copy.copy(obj)
+    for name, value in names.items():
+        object.__setattr__(plain, name, value)
+    return plain
 
 
 def _default_type(f: dataclasses.Field) -> type | None:

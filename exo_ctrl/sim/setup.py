@@ -15,14 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control import (
-    ComputedTorqueController,
     PDController,
-    QPController,
     feedforward_torque,
 )
-from ..control.lift_off import LIFT_OFF_BLEND_S
 from ..control.modes import InteractionController, PathController
-from ..control.stance_load import StanceLoad
+from ..estimation import ESTIMATORS, Estimator
+from ..estimation.plugin import users_estimator
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
 from ..model.fit import fit_warnings
@@ -45,11 +43,11 @@ from ..plant import (
 )
 from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
-from ..plant.pelvis import moving_mass_kg
 from .belief import device_exo, device_patient, nominal_stature
 from .config import SimConfig
 from .session import session_controller
 from .sync import online_gait, set_speeds
+from .tracking import stance_load_for, tracking_controller
 
 __all__ = [
     "Setup",
@@ -95,6 +93,9 @@ class Setup:
     #: each: a device that does not fit its patient (:func:`~exo_ctrl.model.fit.fit_warnings`),
     #: what the nominal patient was read from (:func:`~.belief.nominal_stature`).
     warnings: tuple[str, ...] = ()
+    #: A user's estimator (``config.estimator`` not a built-in name), built once: the
+    #: tick's (:class:`~exo_ctrl.estimation.plugin.PluginEstimator`); None: a built-in.
+    estimator: Estimator | None = None
 
 
 def build(config: SimConfig) -> Setup:
@@ -151,14 +152,17 @@ def build(config: SimConfig) -> Setup:
         belt_speed = np.stack(sigma[:2], axis=1) * config.gait.belt_speed
         if config.speed_profile is not None:  # σ(t) v(t) of the session's profile
             belt_speed = set_speeds(config, sigma[:2])
-    controller = _tracking(config, plan, model_exo, model_patient, model_motor)
+    user_estimator = users_estimator(config.estimator, ESTIMATORS)  # None: a built-in
+    controller = tracking_controller(
+        config, plan, model_exo, model_patient, model_motor, user_estimator
+    )
     if config.session is not None:  # one controller per segment, switched bumplessly
         controller = session_controller(  # type: ignore[assignment]
             config,
             plan,
             model_exo,
             model_motor,
-            lambda: _tracking(config, plan, model_exo, model_patient, model_motor),
+            lambda: tracking_controller(config, plan, model_exo, model_patient, model_motor),
             patient=model_patient,
         )
     elif config.mode == "path":  # the tunnel with free timing, on the device's models
@@ -196,6 +200,7 @@ def build(config: SimConfig) -> Setup:
         belt_speed,
         online,
         tuple(run_warnings(config, exo, fitted)),
+        user_estimator,
     )
 
 
@@ -205,52 +210,6 @@ def run_warnings(config: SimConfig, exo: BodyModel, fitted: BodyModel) -> list[s
     if config.belief.patient == "nominal":
         out += nominal_stature(config.belief, config.patient, fitted)[2]
     return out
-
-
-def _tracking(
-    config: SimConfig,
-    plan: JointTrajectory,
-    model_exo: BodyModel,
-    model_patient: BodyModel,
-    model_motor: MotorParams,
-) -> PDController:
-    """A new tracking controller of the run (``config.controller``) on the device's models."""
-    if config.controller == "ct":
-        return ComputedTorqueController(
-            plan,
-            model_exo,
-            model_patient,
-            model_motor,
-            config.gains,
-            stance_load=stance_load_for(config, model_exo),
-            lift_off_blend_s=lift_off_blend_for(config),
-        )
-    if config.controller == "qp":
-        return QPController(
-            plan,
-            model_exo,
-            model_patient,
-            model_motor,
-            config.gains,
-            cuff_force_limit_N=config.cuff_force_limit_N,
-            cuffs=config.belief.cuff_model_for(config.controller),
-            dt=config.dt,
-            estimate_gain_per_s=config.observer_gain_per_s,
-            restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
-            estimator=config.estimator,
-            tighten=config.qp_tighten_bound,
-            gait=_gait_words(config),
-            stance_load=stance_load_for(config, model_exo),
-            lift_off_blend_s=lift_off_blend_for(config),
-        )
-    return PDController(plan, config.gains)
-
-
-def _gait_words(config: SimConfig) -> str:
-    """The gait in words, for a refusal's message."""
-    step = config.gait.step_length
-    shown = f"{step:g} m" if isinstance(step, (int, float)) else str(step)
-    return f"the gait with period {config.gait.period:g} s and step_length {shown}"
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
@@ -267,31 +226,6 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     if motor.current_limit_A <= cap:
         return motor
     return dataclasses.replace(motor, current_limit_A=cap)
-
-
-def lift_off_blend_for(config: SimConfig) -> float:
-    """T_b of the swing leg's feedforward blend (:mod:`exo_ctrl.control.lift_off`) [s].
-
-    With the belt (contact on) a foot leaves it at lift-off; without it no foot is
-    loaded, and the plan's q̈* is fed forward as planned (0).
-    """
-    return LIFT_OFF_BLEND_S if config.contact.enabled else 0.0
-
-
-def stance_load_for(config: SimConfig, model_exo: BodyModel) -> StanceLoad | None:
-    """What the device knows of its stance legs' load: the pelvis supported, else None.
-
-    The moving mass from the body mass entered at the device and its own
-    exoskeleton model; the support it applies.
-    """
-    pelvis = config.pelvis_resolved
-    if not pelvis.supported:
-        return None
-    return StanceLoad(
-        moving_mass_kg(pelvis, model_exo.model),
-        pelvis.support_N,
-        -float(model_exo.model.gravity.linear[2]),
-    )
 
 
 def stance_sink_for(config: SimConfig, model_exo: BodyModel) -> StanceSink | None:

@@ -8,7 +8,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from .._jit import kernel, preload
-from ..estimation import MODEL_DRIVEN, EstimateErrorStats, estimate_components
+from ..control import controller_name
+from ..estimation import MODEL_DRIVEN, EstimateErrorStats
+from ..estimation.plugin import components_of, estimator_name
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .belief import PAPER_PATIENT
 from .config import SimConfig
@@ -182,7 +184,7 @@ class RunStats:
         duration = self.ticks * result.config.dt
         wall = result.wall_time_s
         out = {
-            "controller": result.config.controller,
+            "controller": controller_name(result.config.controller),
             "status": result.status,
             "error": result.error,
             "duration_s": duration,
@@ -226,7 +228,7 @@ class RunStats:
         out["device_belief"] = device_belief(result.config)
         if self.estimate is not None:
             out.update(self.estimate.summary())
-            out["cuff_force_estimate_components"] = estimate_components(result.config.estimator)
+            out["cuff_force_estimate_components"] = components_of(result.config.estimator)
             if result.config.estimator == "kalman":
                 # The filter estimates every component; these come from its models
                 # (a copy: the summary is the caller's to change).
@@ -477,7 +479,7 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
         "cuffs": "given" if b.cuffs is not None else _default_cuffs(config.controller),
         "belt": "datasheet" if b.belt is None else "given",
         "soles": "datasheet" if b.soles is None else "given",
-        "estimator": config.estimator,
+        "estimator": estimator_name(config.estimator),
         "plan": "synchronised" if config.synced else "precomputed",
         "safety_cuff_force": "estimate" if config.safety_use_estimate else "truth",
     }

@@ -29,7 +29,7 @@ import numpy as np
 
 from .._jit import kernel, record
 from ..control.modes.path import PathController
-from ..estimation import CuffForceEstimator, CuffForceKalman
+from ..estimation import CuffForceEstimator, CuffForceKalman, EstimatorDevice, PluginEstimator
 from ..plan.online import online_step
 from ..plant import PatientTorque
 from ..safety import SafetyLimits, SafetySupervisor
@@ -102,8 +102,11 @@ class Runner:
         self.log = np.zeros(self.chunk, dtype=log_dtype())
         self.buf = {name: self.log[name] for name in self.log.dtype.names}
         self.sensor_model = Sensors(config.sensors, config.dt)
-        self.estimator: CuffForceEstimator | CuffForceKalman
-        if config.estimator == "kalman":  # the coupled model's filter (estimation/kalman.py)
+        self.estimator: CuffForceEstimator | CuffForceKalman | PluginEstimator
+        if setup.estimator is not None:  # a user's (estimation/plugin.py)
+            device = EstimatorDevice(setup.device_exo, setup.device_patient, config.dt)
+            self.estimator = PluginEstimator(setup.estimator, device)
+        elif config.estimator == "kalman":  # the coupled model's filter (estimation/kalman.py)
             self.estimator = CuffForceKalman(
                 setup.device_exo,
                 setup.device_patient,
@@ -147,6 +150,9 @@ class Runner:
         #: The drives' current sensors (the supervisor's current readings), read
         #: with the joints' sensors at the start of the tick (sensing/device.py).
         self.current_sensor = CurrentSensor(config.current_sensor)
+        bind = getattr(setup.controller, "bind_currents", None)
+        if bind is not None:  # a user's torque controller: the driver's current loop reads them
+            bind(self.current_sensor.current)
         self._device_sensors = DeviceSensors(
             self.sensor_model, self.current_sensor, plant.motors.mean_current_A
         )

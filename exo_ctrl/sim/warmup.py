@@ -51,7 +51,9 @@ from pathlib import Path
 import numba
 
 from .. import _jit_cache
-from .config import SimConfig
+from ..control import controller_name
+from ..estimation import ESTIMATORS, estimator_name
+from .config import CONTROLLERS, SimConfig
 
 __all__ = ["ENV", "Warmup", "core_free", "feature_key", "marker_dir"]
 
@@ -73,9 +75,9 @@ def feature_key(config: SimConfig) -> str:
     """
     belief = config.belief
     features = (
-        config.controller,
+        controller_name(config.controller),
         config.mode,
-        config.estimator,
+        estimator_name(config.estimator),
         config.patient_torque,
         config.safety,
         config.stop_reaction,
@@ -166,6 +168,9 @@ class Warmup:
         setting = os.environ.get(ENV, "")
         if not enabled or setting == "0":
             return
+        users = (controller_name(config.controller), estimator_name(config.estimator))
+        if users[0] not in CONTROLLERS or users[1] not in ESTIMATORS:
+            return  # a user's controller or estimator: its code runs in the user's process only
         if self.warm or (setting != "1" and not core_free()):
             return
         try:

@@ -19,8 +19,9 @@ from collections.abc import Sequence
 from typing import Any
 
 from .._io import OUTPUT_ALLOWED, output_problem
+from .._plugin import import_from_cwd
 from ..exceptions import InvalidParameter, MissingDependency, SweepError
-from ..sim import CONTROLLERS, SimConfig
+from ..sim import SimConfig
 from .outputs import SweepPaths
 from .parameters import parameter_listing
 from .run import SweepInterrupted, run_sweep
@@ -95,9 +96,10 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--controller",
-        choices=CONTROLLERS,
         default=None,
-        help="controller when not swept (default pd)",
+        metavar="NAME",
+        help="controller when not swept: pd, ct, qp or your own as MODULE:CLASS "
+        "(docs/controllers.md) (default pd)",
     )
     parser.add_argument(
         "--rate", type=float, default=1000.0, metavar="HZ", help="control rate [Hz] (default 1000)"
@@ -157,6 +159,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
     among them (:func:`exo_ctrl._io.check_output` of each file beside
     ``--out``), before any run starts.
     """
+    import_from_cwd()  # a user's controller given as module:Class
     names = [p.partition("=")[0].strip() for p in args.param]
     if args.controller is not None and "controller" in names:
         raise InvalidParameter(

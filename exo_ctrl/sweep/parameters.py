@@ -38,6 +38,8 @@ from typing import Any
 
 import numpy as np
 
+from ..control.plugin import check_controller as check_plugin
+from ..control.plugin import controller_name
 from ..exceptions import InvalidParameter
 from ..model import BodyParams
 from ..plan.gait import MIN_PERIOD_S
@@ -188,7 +190,8 @@ def parameter_listing(base: SimConfig | None = None) -> str:
         items = set(np.ravel(default).tolist()) if default is not None else set()
         shown = f"{items.pop():g}" if len(items) == 1 else "per joint" if items else "URDF"
         rows.append((info.name, f"[{info.unit or '-'}]", accepted, shown, info.text))
-    rows.append(("controller", "", ", ".join(CONTROLLERS), base.controller, "names"))
+    accepted = ", ".join((*CONTROLLERS, "MODULE:CLASS"))  # a user's: docs/controllers.md
+    rows.append(("controller", "", accepted, controller_name(base.controller), "names"))
     widths = [max(len(row[i]) for row in rows) for i in range(4)]
     lines = ["sweep parameters (name, unit, accepted values, default):"]
     for row in rows:
@@ -259,10 +262,15 @@ def check_value(info: ParamInfo, value: Any) -> float:
 
 
 def check_controller(value: Any) -> str:
-    """Check a controller name against those :class:`~exo_ctrl.sim.SimConfig` accepts."""
-    if value not in CONTROLLERS:
+    """Check a controller name: a built-in one, or a user's ``module:Class`` path.
+
+    (:func:`~exo_ctrl.control.plugin.check_controller`; a user's object has
+    no place in a sweep's plain data: its name is swept, as in its base.)
+    """
+    if not isinstance(value, str):
         raise InvalidParameter("controller", value, f"one of {', '.join(CONTROLLERS)}")
-    return str(value)
+    check_plugin(value, CONTROLLERS)
+    return value
 
 
 def round_12(x: float) -> float:

@@ -164,6 +164,11 @@ def write_report(table: Any, spec: SweepSpec, path: str | os.PathLike[str]) -> P
     return Path(path)
 
 
+def _label(controller: str) -> str:
+    """A controller's legend label: a built-in name in capitals, a user's by its class's name."""
+    return controller.upper() if controller in ("pd", "ct", "qp") else controller.rpartition(":")[2]
+
+
 def write_plots(table: Any, spec: SweepSpec, paths: SweepPaths) -> list[Path]:
     """Write one load diagram per swept numeric parameter; returns the files.
 
@@ -184,8 +189,11 @@ def write_plots(table: Any, spec: SweepSpec, paths: SweepPaths) -> list[Path]:
     controllers = (
         cols["controller"][ok].astype(str) if "controller" in cols else np.full(ok.sum(), "")
     )
-    kinds = [c for c in ("pd", "ct", "qp") if c in set(controllers)] or [""]
+    built_in = [c for c in ("pd", "ct", "qp") if c in set(controllers)]
+    users = [c for c in dict.fromkeys(controllers) if c not in ("pd", "ct", "qp")]
+    kinds = built_in + users or [""]
     markers = dict(zip(("pd", "ct", "qp", ""), "os^o", strict=True))
+    markers.update({c: "Dv<>xP*h"[i % 8] for i, c in enumerate(users)})  # a user's own
     colours = dict(
         zip(JOINT_NAMES, ("tab:blue", "tab:orange", "tab:green", "tab:red"), strict=True)
     )
@@ -216,7 +224,7 @@ def write_plots(table: Any, spec: SweepSpec, paths: SweepPaths) -> list[Path]:
             Line2D([], [], color=colours[j], lw=2, label=j.replace("_", " ")) for j in JOINT_NAMES
         ]
         handles += [
-            Line2D([], [], color="0.3", ls="none", marker=markers[k], mfc="none", label=k.upper())
+            Line2D([], [], color="0.3", ls="none", marker=markers[k], mfc="none", label=_label(k))
             for k in kinds
             if k
         ]

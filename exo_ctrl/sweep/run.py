@@ -29,6 +29,7 @@ from typing import Any
 
 from .._lifetime import die_with_parent
 from .._progress import Progress
+from ..control import controller_name
 from ..exceptions import ExoCtrlError, InvalidParameter, SweepError
 from ..model import BodyParams, urdf_xml, write_urdf
 from ..sim import SimConfig, simulate
@@ -152,12 +153,19 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
         belief=belief,
         gait=dataclasses.replace(base.gait, **groups["gait"]),
         patient=patient,
-        controller=values.get("controller", base.controller),
+        controller=_controller(base, values.get("controller")),
         motor=dataclasses.replace(base.motor, **groups["motor"]),
         cuffs=dataclasses.replace(base.cuffs, **groups["cuffs"]),
         gains=dataclasses.replace(base.gains, **groups["gains"]),
         duration_s=values.get("duration_s", base.duration_s),
     )
+
+
+def _controller(base: SimConfig, name: str | None) -> Any:
+    """The run's controller: the base's own (a user's object too) when ``name`` is its name."""
+    if name is None or name == controller_name(base.controller):
+        return base.controller
+    return name
 
 
 def run_point(

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..control import controller_name
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES
 from ..sim import SimConfig
@@ -292,7 +293,7 @@ def base_values(base: SimConfig) -> dict[str, Any]:
         value = value_in(info, base)
         if value is not None and info.target != "gains":
             values[name] = value
-    values["controller"] = base.controller
+    values["controller"] = controller_name(base.controller)  # plain data: a user's by its name
     return values
 
 

@@ -130,8 +130,8 @@ def test_listing_gives_every_parameter_its_unit_range_and_default():
     assert rows["kd"].split()[:5] == ["kd", "[V·s/rad]", "[0,", "20]", "5"]
     assert rows["controller"].split() == [
         "controller",
-        *[f"{c}," for c in CONTROLLERS[:-1]],
-        CONTROLLERS[-1],
+        *[f"{c}," for c in CONTROLLERS],
+        "MODULE:CLASS",
         "pd",
         "names",
     ]

@@ -1,6 +1,6 @@
 r"""Interaction modes: guidance, transparent and assist-as-needed, behind the one interface.
 
-Each mode is a :class:`~exo_ctrl.control.base.Controller` (plan and sensor
+Each mode is a :class:`~exo_ctrl.control.base.TickController` (plan and sensor
 readings in, drive voltages out) built on the device's own models (the
 exoskeleton URDF it holds, the drive's datasheet): never the plant's.  All
 three share the **free command**, the voltage that makes the exoskeleton
