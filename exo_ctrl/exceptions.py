@@ -12,6 +12,7 @@ import math
 import os
 
 __all__ = [
+    "CuffBoundTooTight",
     "ExoCtrlError",
     "InvalidLog",
     "InvalidModel",
@@ -129,6 +130,40 @@ class UnreachableFootTarget(ExoCtrlError, ValueError):
             f"{what} (x = {point[0]:.4g} m, z = {point[1]:.4g} m){at} is "
             f"{distance:.4g} m from the hip; the leg reaches from "
             f"{reach[0]:.4g} m to {reach[1]:.4g} m" + (f" ({cause})" if cause else "")
+        )
+
+
+class CuffBoundTooTight(ExoCtrlError, ValueError):
+    """A cuff-force bound whose margin leaves less than the force the gait needs.
+
+    The QP holds each cuff's predicted force within F_max − m_c
+    (:mod:`exo_ctrl.control.qp.margin`); below the working force F_work,c
+    (the nominal patient's gravity load along the plan) no command can keep
+    the bound while carrying the leg.
+
+    Attributes:
+        bound_N: F_max, the user's bound [N].
+        margin_N: m_c, the cuff's margin [N].
+        working_N: F_work,c [N].
+        cuff: the cuff's name.
+        gait: the gait, in words.
+
+    """
+
+    def __init__(
+        self, bound_N: float, margin_N: float, working_N: float, cuff: str, gait: str
+    ) -> None:
+        self.bound_N = bound_N
+        self.margin_N = margin_N
+        self.working_N = working_N
+        self.cuff = cuff
+        self.gait = gait
+        super().__init__(
+            f"qp.cuff_force_limit_N = {bound_N:g} N cannot be held on {gait}: the "
+            f"{cuff} cuff's margin of {margin_N:.1f} N (what the device does not know) "
+            f"leaves {bound_N - margin_N:.1f} N, less than the {working_N:.1f} N the cuff "
+            f"carries of the leg's weight along the plan; raise the bound to at least "
+            f"{math.ceil(margin_N + working_N)} N or choose a slower gait"
         )
 
 

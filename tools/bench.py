@@ -30,6 +30,12 @@ Absolute times drift on shared machines; the ratio is the figure to compare.
 voltage, torque and residual actions at one tick a step, and residual at
 ten) beside the built-in PD's tick measured right after it on the same run.
 
+The peer (with MuJoCo installed: ``.venv/bin/pip install -e ".[bench]"``): right after
+each scenario, the same exoskeleton, patient legs and cuffs in MuJoCo stepped
+by a plain Python PD loop (``tools/mujoco_peer.py``: no motors, sensors,
+estimator, supervisor or logging; :data:`PEER_S` simulated seconds, best of
+:data:`RTF_PAIRS` runs), its real-time factor and ours over it.
+
 ``--cold`` measures instead the first run after an install: a short run of
 each scenario in a fresh process with a fresh, empty numba cache directory
 (``NUMBA_CACHE_DIR``), so every kernel it needs compiles, then the same run
@@ -59,12 +65,17 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import mujoco_peer  # tools/: the peer, the same bodies in MuJoCo
+
 from exo_ctrl.envs import TreadmillEnv
 from exo_ctrl.estimation import CuffForceKalman
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant import ContactParams, PelvisParams
 from exo_ctrl.record import RerunRecorder
 from exo_ctrl.sim import Runner, SimConfig, build, simulate
+
+#: Simulated time of each run of the MuJoCo peer (tools/mujoco_peer.py) [s].
+PEER_S = 5.0
 
 
 def _time_calls(calls, repeats: int = 2000) -> float:
@@ -413,18 +424,29 @@ def main() -> int:
                 f"{r['warm_run_s']:>6.1f}s{r['warm_total_s']:>7.1f}s{r['warm_cpu_s']:>6.1f}s"
             )
     else:
+        peer = mujoco_peer.Peer(build(SimConfig(duration_s=PEER_S))) if mujoco_peer.mujoco else None
         print(
             f"{'scenario':<12}{'tick median':>12}{'tick p99':>10}{'floor':>8}{'ratio':>7}"
             f"{'RTF':>7}{'RTF rec':>9}{'rec/no rec':>12}{'whole run':>11}"
+            + (f"{'MuJoCo RTF':>12}{'RTF/MuJoCo':>12}" if peer else "")
         )
         for name in names:
             r = bench_scenario(name, args.ticks)
+            if peer is not None:  # right after the scenario: the machine's speed drifts
+                wall = min(mujoco_peer.run_peer(peer)[0] for _ in range(RTF_PAIRS))
+                r["mujoco_real_time_factor"] = PEER_S / wall
+                r["over_mujoco"] = r["real_time_factor"] / r["mujoco_real_time_factor"]
             results[name] = r
             print(
                 f"{name:<12}{r['tick_median_us']:>10.1f}µs{r['tick_p99_us']:>8.1f}µs"
                 f"{r['floor_us']:>6.1f}µs{r['ratio']:>7.2f}{r['real_time_factor']:>7.1f}"
                 f"{r['real_time_factor_recording']:>9.1f}{r['recording_ratio']:>12.2f}"
                 f"{r['recording_ratio_whole_run']:>11.2f}"
+                + (
+                    f"{r['mujoco_real_time_factor']:>12.1f}{r['over_mujoco']:>12.2f}"
+                    if peer
+                    else ""
+                )
             )
             if "qp_solver_share" in r:
                 print(

@@ -32,11 +32,14 @@ __all__ = ["COMMAND_FIELDS", "CommandCounters", "PDGains", "TickController"]
 #:
 #: - ``u_cmd`` [V], (4,): the voltages :meth:`TickController.command` returned last;
 #: - ``active_constraints``: the QP's active bounds in the last tick (0 for PD/CT);
-#: - ``failures``: the QP's fallbacks so far (0 for PD/CT).
+#: - ``failures``: the QP's fallbacks so far (0 for PD/CT);
+#: - ``margin`` [N], (4,): the QP's margin m_c on each cuff's bound this tick
+#:   (:mod:`~exo_ctrl.control.qp.margin`; 0 for PD/CT).
 COMMAND_FIELDS: list[tuple[Any, ...]] = [
     ("u_cmd", np.float64, (4,)),
     ("active_constraints", np.float64),
     ("failures", np.float64),
+    ("margin", np.float64, (4,)),
 ]
 
 

@@ -32,7 +32,7 @@ The feedforward is the inverse dynamics at (q*, q̇*, q̈_b)
 so the PD takes what the blend leaves out.  S has S' = S'' = 0 at both ends:
 the feedforward torque is continuous across lift-off and joins the plan's own
 at u = T_b.  Only what the device knows enters: its plan and its leg model.
-A run blends with the belt on only (:func:`~exo_ctrl.sim.setup.lift_off_blend_for`):
+A run blends with the belt on only (:func:`~exo_ctrl.sim.tracking.lift_off_blend_for`):
 in free air no foot is loaded at lift-off, and the QP's hips, held in its
 torque box where they pass zero speed, tracked worse with the blend there
 (1.13/0.97 against 0.92/0.76 mrad; tests/control/qp/test_closed_loop.py).

@@ -33,6 +33,7 @@ from .errors import (
     estimate_components,
     normal_component_errors,
 )
+from .excitation import ExcitationReport
 from .identification import (
     CalibrationSamples,
     Identification,
@@ -63,6 +64,7 @@ __all__ = [
     "EstimateSeries",
     "Estimator",
     "EstimatorDevice",
+    "ExcitationReport",
     "Identification",
     "InvalidLog",
     "KalmanNoise",

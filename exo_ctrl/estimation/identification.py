@@ -44,9 +44,17 @@ URDF written is a :class:`~exo_ctrl.model.BodyParams`: per segment a mass
 m, a centre of mass c L on the link's axis and a transverse radius of
 gyration ρ L, fitted to β̂ (weighted by its covariance) with the prior on
 them, m = m₀ e^μ and ρ, c bounded: every answer is a positive mass with a
-positive-definite inertia.  The masses alone are not identifiable (a fixed hip: only m c and
-I about the joint are); the prior's ratios c and ρ, tighter than its
-masses, resolve them.
+positive-definite inertia.
+
+**Not excited** (:mod:`exo_ctrl.estimation.excitation`).  With the hips
+fixed, no motion and no joint-side sensor separates a segment's mass from
+its COM and gyration ratios: per segment only m c L and the moment about
+the joint m L² (ρ² + c²) are seen (the shank's mass also only through the
+thigh's).  Two directions of (m, c, ρ) of the two segments leave every
+joint torque unchanged; along them the answer is the prior's, with the
+cohort's spreads (:class:`PriorSpread`: mass 10 %, COM ratio 4 %, gyration
+ratio 5 %).  The masses are then as good as the prior's ratios: the
+identification prints those directions (:attr:`Identification.excitation`).
 """
 
 from __future__ import annotations
@@ -63,6 +71,7 @@ import pinocchio as pin
 from .. import _validate as v
 from ..exceptions import InvalidLog, InvalidParameter
 from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel, BodyParams, load_patient, write_urdf
+from .excitation import ExcitationReport, excitation_report
 from .segment_fit import (
     SEGMENTS,
     PriorSpread,
@@ -87,10 +96,8 @@ __all__ = [
 ]
 
 #: Cut-off of the fit's zero-phase low-pass [Hz]: above the calibration's
-#: fastest sine (1.05 Hz), well below the cuffs' ~8 Hz.  On the default
-#: calibration with the default cuffs and sensors, a patient 20 % heavier than
-#: nominal: masses within 1 % at 2 Hz, 3-6 % at 3 Hz (the cuffs' dynamics
-#: leak in).
+#: fastest sine (1.05 Hz), well below the cuffs' ~8 Hz (at 3 Hz the cuffs'
+#: dynamics leak into the shank's inertia).
 DEFAULT_CUTOFF_HZ = 2.0
 
 #: Cut-off of the zero-phase low-pass on the encoder angles before they are
@@ -320,6 +327,8 @@ class Identification:
         physical: per segment mass [kg], COM and gyration ratios [-] and
             their standard errors, and the damping [N·m·s/rad].
         base_map: T (r, 21), β = T π.
+        excitation: the parameters the run does not excite (and whose
+            values are the prior's), :mod:`~exo_ctrl.estimation.excitation`.
 
     """
 
@@ -333,6 +342,7 @@ class Identification:
     patient: BodyParams
     physical: dict[str, dict[str, float]] = field(default_factory=dict)
     base_map: np.ndarray = field(default_factory=lambda: np.zeros((0, 21)))
+    excitation: ExcitationReport | None = None
 
     def base_of(self, patient: BodyModel) -> np.ndarray:
         """β = T π of a patient model (e.g. the truth, to compare)."""
@@ -351,6 +361,7 @@ class Identification:
                 )
             ],
             "physical": {k: {f: float(x) for f, x in d.items()} for k, d in self.physical.items()},
+            "not_excited": self.excitation.summary() if self.excitation else None,
         }
 
     def table(self) -> str:
@@ -369,6 +380,8 @@ class Identification:
             lines.append(
                 f"{name:<44}{d['estimate']:>12.5g}{d['std_err']:>11.3g}{d['prior']:>12.5g}"
             )
+        if self.excitation is not None:
+            lines += self.excitation.lines()
         return "\n".join(lines)
 
 
@@ -465,6 +478,9 @@ def identify_patient(
         "std_err": theta_se[6],
         "prior": theta0[6],
     }
+    excitation = excitation_report(
+        t_map, names, _column_name, lambda th: t_map @ standard_of(th, prior), theta, sig_theta
+    )
     return Identification(
-        names, beta, se, beta0, cond, resid, wb.shape[0], patient, physical, t_map
+        names, beta, se, beta0, cond, resid, wb.shape[0], patient, physical, t_map, excitation
     )

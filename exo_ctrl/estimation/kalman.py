@@ -218,6 +218,8 @@ _FIELDS = [
     ("cuff_normal", np.float64, (4,)),
     ("cuff_force", np.float64, (4, 2)),
     ("cuff_along", np.float64, (4,)),
+    # σ_c of each cuff force's estimate, from the covariance (kalman_step.force_std) [N].
+    ("cuff_force_std", np.float64, (4,)),
     ("skipped", np.int64),
 ]
 
@@ -248,6 +250,9 @@ class CuffForceKalman:
         normal: normal components [N], (4,), CUFF_NAMES order.
         along: along-link components [N], (4,) (joint → cuff).
         force: cuff forces on the exoskeleton (x, z) [N], (4, 2).
+        force_std: σ_c, the standard deviation of each cuff force's estimate
+            along its most uncertain direction, from the posterior covariance
+            (:func:`~exo_ctrl.estimation.kalman_step.force_std`) [N], (4,).
         components: :data:`COMPONENTS`.
 
     Raises:
@@ -314,6 +319,7 @@ class CuffForceKalman:
         self.normal = rec["cuff_normal"][0]
         self.along = rec["cuff_along"][0]
         self.force = rec["cuff_force"][0]
+        self.force_std = rec["cuff_force_std"][0]
         self._started = False
 
     # ------------------------------------------------------------------ public

@@ -15,6 +15,7 @@ from ..plant.cuffs import forces_of, isotropic_forces
 
 __all__ = [
     "cuff_jacobian",
+    "force_std",
     "kalman_outputs",
     "kalman_step",
     "leg_covariance",
@@ -47,6 +48,53 @@ def kalman_outputs(state, cuffs, split):
         st.cuff_normal[c] = -uz * fx + ux * fz
         st.cuff_along[c] = ux * fx + uz * fz
         st.tau_ext[c] = cr.tau[c]
+    force_std(st, cr)
+
+
+@kernel
+def force_std(st, cr):
+    """σ_c, the square root of the largest eigenvalue of cuff c's force covariance H_c P H_cᵀ.
+
+    f_c = −𝒦_c J_c Δq − 𝒞_c J_c Δv to first order (J_c: rows c and 4 + c of
+    J_Δ, the last prediction's; 𝒦_c = k_n n nᵀ + k_u u uᵀ, 𝒞_c likewise), so
+    H_c (2 × 10, the leg's state) holds −𝒦_c J_c on the angles, −𝒞_c J_c on
+    the speeds and zeros on d; P is the leg's posterior covariance [N].
+    """
+    for c in range(4):
+        s = c // 2
+        joints = st.joints[s]
+        P = st.cov[s]
+        cc, sc = cr.cs[c], cr.cs[8 + c]
+        ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
+        uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc
+        nx, nz = -uz, ux
+        kxx = cr.k * nx * nx + cr.k_u * ux * ux
+        kxz = cr.k * nx * nz + cr.k_u * ux * uz
+        kzz = cr.k * nz * nz + cr.k_u * uz * uz
+        cxx = cr.c * nx * nx + cr.c_u * ux * ux
+        cxz = cr.c * nx * nz + cr.c_u * ux * uz
+        czz = cr.c * nz * nz + cr.c_u * uz * uz
+        hx = st.work[8]  # rows 8, 9 of the work matrix: H_c (the update is done with it)
+        hz = st.work[9]
+        for i in range(4):
+            g = joints[i]
+            jx, jz = st.jd[c, g], st.jd[4 + c, g]
+            hx[i] = -(kxx * jx + kxz * jz)
+            hz[i] = -(kxz * jx + kzz * jz)
+            hx[4 + i] = -(cxx * jx + cxz * jz)
+            hz[4 + i] = -(cxz * jx + czz * jz)
+        sxx = sxz = szz = 0.0
+        for i in range(8):
+            px = pz = 0.0
+            for j in range(8):
+                px += P[i, j] * hx[j]
+                pz += P[i, j] * hz[j]
+            sxx += hx[i] * px
+            sxz += hz[i] * px
+            szz += hz[i] * pz
+        mid = 0.5 * (sxx + szz)
+        half = 0.5 * (sxx - szz)
+        st.cuff_force_std[c] = math.sqrt(max(mid + math.sqrt(half * half + sxz * sxz), 0.0))
 
 
 @kernel

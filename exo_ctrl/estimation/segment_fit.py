@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from .. import _validate as v
-from ..model import BodyParams
+from ..model import BodyParams, CohortSpread
 
 __all__ = [
     "COM_BOUNDS",
@@ -55,27 +55,45 @@ COM_BOUNDS = (0.05, 0.95)
 class PriorSpread:
     """How far the patient may be from the nominal model (1 σ), the prior of the fit.
 
-    Chosen values: segment masses differ between people of one stature and
-    body mass by tens of percent (30 %); the COM and gyration ratios, which
-    de Leva's tables give as fractions of the segment length, by a few (5 %);
-    joint damping by its own size (100 %).
+    The defaults are the virtual cohort's coefficients of variation
+    (:class:`~exo_ctrl.model.CohortSpread`, whose sources its module cites:
+    segment mass 10 %, centre-of-mass ratio 4 %, gyration ratio 5 %), so
+    that the prior says what the project's population model says about a
+    patient of a stature, mass and sex; the segment lengths are measured (the
+    exoskeleton is fitted to them) and carry no spread.  The patient's joint
+    damping is given its own size (100 %, chosen) and a COM off the link's
+    axis 2 % of its length (chosen).  The calibration cannot separate a
+    segment's mass from its ratios (:mod:`~exo_ctrl.estimation.identification`,
+    "Not excited"): along those directions the answer is this prior's.
 
     Attributes:
         mass_rel: segment mass, relative [-].
-        ratio_rel: COM and gyration ratios, relative [-].
+        com_rel: centre-of-mass ratio, relative [-].
+        gyration_rel: transverse gyration ratio, relative [-].
         damping_rel: the patient's joint damping, relative [-].
         com_x_ratio: the COM off the link's axis, over the link length [-].
 
     """
 
-    mass_rel: float = 0.30
-    ratio_rel: float = 0.05
+    mass_rel: float = CohortSpread.mass
+    com_rel: float = CohortSpread.com_ratio
+    gyration_rel: float = CohortSpread.gyration_ratio
     damping_rel: float = 1.0
     com_x_ratio: float = 0.02
 
     def __post_init__(self) -> None:
-        for name in ("mass_rel", "ratio_rel", "damping_rel", "com_x_ratio"):
+        for name in ("mass_rel", "com_rel", "gyration_rel", "damping_rel", "com_x_ratio"):
             v.positive(name, getattr(self, name))
+
+    @classmethod
+    def from_cohort(cls, spread: CohortSpread, **overrides: float) -> PriorSpread:
+        """The prior of a cohort's spreads (mass, COM and gyration ratios); keywords override."""
+        values = {
+            "mass_rel": spread.mass,
+            "com_rel": spread.com_ratio,
+            "gyration_rel": spread.gyration_ratio,
+        }
+        return cls(**{**values, **overrides})
 
 
 def segment_parameters(
@@ -117,7 +135,8 @@ def theta_sigma(theta0: np.ndarray, spread: PriorSpread) -> np.ndarray:
     sig = np.empty(9)
     for s in range(2):
         sig[3 * s] = spread.mass_rel
-        sig[3 * s + 1 : 3 * s + 3] = spread.ratio_rel * theta0[3 * s + 1 : 3 * s + 3]
+        sig[3 * s + 1] = spread.com_rel * theta0[3 * s + 1]
+        sig[3 * s + 2] = spread.gyration_rel * theta0[3 * s + 2]
     sig[6] = spread.damping_rel * max(theta0[6], 0.05)
     sig[7:] = spread.com_x_ratio
     return sig

@@ -20,8 +20,9 @@ reports the condition number: 6.7 on the default 6 s run, columns
 normalised).  All frequencies stay well below the cuffs' natural frequency
 (about 8 Hz for the shank on 8 N/mm), where exoskeleton and patient move as
 one: with a fast sine at 1.7-2.3 Hz the cuffs' dynamics added 10 % to the
-apparent shank inertia and the identified masses were 4-16 % off; at
-0.8-1.05 Hz they are within 1.5 % (the patient 20 % heavier than nominal).
+apparent shank inertia; at 0.8-1.05 Hz they add about 4 % (the default
+patient).  No motion of the fixed-hip legs separates a segment's mass from
+its ratios (:mod:`exo_ctrl.estimation.excitation`).
 The right leg runs half a slow period behind the left, so the two legs do
 not swing in phase.
 

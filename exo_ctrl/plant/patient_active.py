@@ -8,7 +8,7 @@ active torque is
 
 .. math::
 
-    τ_a = s_j(t)\,\mathrm{clip}\bigl(τ_{ff}(t) + K_p e(t - δ) + K_d \dot e(t - δ),
+    τ_a = s_j(t)\,\mathrm{clip}\bigl(τ_{ff}(t) + K_p e(t - δ) + K_d \dot e(t),
           \ ±τ_{max}\bigr),\qquad e = q_{ref} - q,
 
 - ``q_ref``: the reference gait (below), the patient's intent;
@@ -19,10 +19,18 @@ active torque is
   (Wolpert & Kawato 1998; Kawato 1999).  Without it a feedback loop with a
   physiological delay could not both be stable and carry the leg against
   gravity;
-- a joint-level PD on the error δ seconds ago: the long-latency (transcortical)
-  stretch reflex, 50–100 ms after a stretch (Matthews 1991; Lee & Tatton
-  1975), slower voluntary corrections after 100–150 ms.  Default δ = 60 ms
-  (choice inside that range);
+- a stiffness on the position error δ seconds ago: the long-latency
+  (transcortical) stretch reflex, 50–100 ms after a stretch (Matthews 1991;
+  Lee & Tatton 1975), slower voluntary corrections after 100–150 ms.
+  Default δ = 60 ms (choice inside that range);
+- a damping on the speed error now: the active muscles' intrinsic
+  viscosity, which acts without a neural delay (the intrinsic pathway of the
+  parallel-cascade model of joint impedance, Kearney, Stein & Parameswaran
+  1997).  Delayed as well, the damping feeds the cuffs' modes (5–12 Hz,
+  where δ = 60 ms is a lag of 110–260°) instead of damping them: with the
+  patient's legs in the cuffs of a device that tracks its plan, patients
+  other than the default one then shook the cuffs to 0.3–1.2 kN (computed
+  torque, the cuff campaign's points of ``tools/load_held.py``);
 - gains: chosen for the delay (the tests run them): a crossover ω_c of
   about 5 rad/s at the hip (leg inertia ≈ 4 kg·m² about the hip) and 9 rad/s at
   the knee (≈ 0.6 kg·m²), where the delay costs ω_c δ ≈ 17–31° of a PD's
@@ -63,6 +71,9 @@ References:
     for motor control. Neural Netw 11(7–8):1317–1329.
     Kawato M (1999). Internal models for motor control and trajectory
     planning. Curr Opin Neurobiol 9(6):718–727.
+    Kearney RE, Stein RB, Parameswaran L (1997). Identification of
+    intrinsic and reflex contributions to human ankle stiffness dynamics.
+    IEEE Trans Biomed Eng 44(6):493–504.
     Hausdorff JM (2005). Gait variability: methods, modeling and meaning.
     J NeuroEng Rehabil 2:19.
     Winter DA (2009). Biomechanics and Motor Control of Human Movement, 4th
@@ -106,7 +117,8 @@ class ActiveParams:
         strength: s, 0 (paralysed) … 1 (healthy), per joint.
         step_length_m: the patient's preferred step length [m] (None: the device's).
         period_s: the patient's preferred gait period [s] (None: the device's).
-        delay_s: δ, the feedback delay [s] (default 0.06, long-latency reflex).
+        delay_s: δ, the reflex stiffness's delay [s] (default 0.06, long-latency
+            reflex; the damping acts without delay).
         stiffness_Nm_per_rad: K_p per joint [N·m/rad] (default hip 100, knee 30).
         damping_Nms_per_rad: K_d per joint [N·m·s/rad] (default hip 35, knee 5).
         torque_max_Nm: τ_max, the healthy joint's capacity [N·m] (default hip
@@ -397,7 +409,8 @@ def active_torque(state, errors, t, q, dq, tau_ff, out):  # pragma: no cover - c
     """τ_a of the module docstring into ``out`` and ``state[0].tau_active`` [N·m].
 
     ``errors``: the ring of (e, ė) of the last ``delay_steps + 1`` plant
-    steps, (D + 1, 8), indexed by the step round(t / h); ``tau_ff``: the
+    steps, (D + 1, 8), indexed by the step round(t / h) (ė is used now,
+    e after the delay); ``tau_ff``: the
     inverse dynamics along q_ref [N·m] (the URDF damping and friction are
     added here).
     """
@@ -415,8 +428,9 @@ def active_torque(state, errors, t, q, dq, tau_ff, out):  # pragma: no cover - c
     for j in range(4):
         dr = s.dq_ref[j]
         tau = tau_ff[j] + s.damping[j] * dr + s.friction[j] * np.tanh(dr / FRICTION_SMOOTHING_RAD_S)
+        tau += s.kd[j] * errors[now, 4 + j]  # intrinsic: no delay
         if past >= 0:
-            tau += s.kp[j] * errors[past, j] + s.kd[j] * errors[past, 4 + j]
+            tau += s.kp[j] * errors[past, j]  # the reflex, δ late
         cap = s.tau_max[j]
         if tau > cap:
             tau = cap

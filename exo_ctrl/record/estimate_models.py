@@ -109,7 +109,11 @@ def recorded_kalman(
             f"model cannot be rebuilt ({exc}); --estimator momentum needs none"
         ) from None
     return CuffForceKalman(
-        exo, patient, config.dt, cuffs=config.belief.cuff_model, sensors=config.sensors
+        exo,
+        patient,
+        config.dt,
+        cuffs=config.belief.cuff_model_for(config.controller),
+        sensors=config.sensors,
     )
 
 

@@ -108,7 +108,7 @@ FEATURES: tuple[Feature, ...] = (
     Feature(
         "the QP controller (--controller pd or ct)",
         lambda c: c.controller != "qp",
-        ("qp_active", "qp_failures"),
+        ("qp_active", "qp_failures", "cuff_bound_margin"),
     ),
     Feature(
         "the path mode (no --mode path, no path segment)",

@@ -42,7 +42,10 @@ left shank cuff read 70 N rising at 4.8 N/ms on a 4.2 kg axis: a catch-up of
 110 N, a bound of 130 N, and the yield came there; the true forces from that
 tick on peaked at 116 N (shank) and 152 N (thigh).  Yielding on the force
 over the limit instead, switched at once, the shank's true force was 136 N at
-the switch and peaked at 137 N.
+the switch and peaked at 137 N.  (Measured on the patient model
+before its reflex damping acted at once; on the model since, a patient
+with 2.5× the default reflex stiffness keeps pushing the released limb,
+past the limits: tests/safety/test_hold_pushed.py.)
 
 **Conservative, not exact.**  The cuff's damper (damping ratio about 0.3,
 :class:`~exo_ctrl.plant.cuffs.CuffParams`) takes energy out of the catch-up

@@ -90,7 +90,10 @@ cuff force, released; the cuff's spring keeps the force continuous while
 it accelerates the exoskeleton's link after the limb.  The rest of that
 overshoot was the trigger's (:mod:`.release`): yielding while a release
 still keeps the cuffs within their limits, the worst true forces from the
-switch on are 152 N (thigh) and 116 N (shank).
+switch on are 152 N (thigh) and 116 N (shank).  (Measured on the patient model
+before its reflex damping acted at once; on the model since, a patient
+with 2.5× the default reflex stiffness keeps pushing the released limb,
+past the limits: tests/safety/test_hold_pushed.py.)
 
 **The speed \hat ω**: the encoder's difference (q_k − q_{k−1})/Δt through a
 first-order filter of :data:`SPEED_FILTER_HZ` = 150 Hz (as the interaction

@@ -19,6 +19,9 @@ class SensorReadings:
         tau: joint torques at the drive outputs, from the torque sensors [N·m].
         cuff_force_est: estimated cuff forces on the exoskeleton, (4, 2) [N],
             when an estimator runs (None otherwise).
+        cuff_force_std: the estimate's own standard deviation per cuff, (4,)
+            [N], when the estimator states one (the Kalman filter's
+            covariance; None otherwise).
         belt_speed: the treadmill's belt-speed reading, (1,) [m/s], when the
             run models the belt (None otherwise;
             :mod:`exo_ctrl.sensing.belt_encoder`).
@@ -29,4 +32,5 @@ class SensorReadings:
     dq: np.ndarray
     tau: np.ndarray
     cuff_force_est: np.ndarray | None = None
+    cuff_force_std: np.ndarray | None = None
     belt_speed: np.ndarray | None = None

@@ -163,6 +163,21 @@ class Belief:
         """The cuffs the device believes in (``cuffs``, or the nominal isotropic cuffs)."""
         return self.cuffs if self.cuffs is not None else CuffParams.isotropic()
 
+    def cuff_model_for(self, controller: str) -> CuffParams:
+        """The cuffs the device believes in for a run of ``controller``.
+
+        ``cuffs`` when given; else the QP's device holds the published split
+        cuffs (:class:`~exo_ctrl.plant.cuffs.CuffParams`' defaults, cited
+        there), because its bound is only as good as its cuff model (the
+        isotropic model shares a hip's load between thigh and shank otherwise,
+        :mod:`exo_ctrl.control.qp.margin`'s e_cuffs: 31–34 N on the default
+        gait), and every other controller the nominal isotropic cuffs
+        (:attr:`cuff_model`).
+        """
+        if self.cuffs is None and controller == "qp":
+            return CuffParams()
+        return self.cuff_model
+
     def motor_model(self, installed: MotorParams) -> MotorParams:
         """The drive the device believes in: ``motor``, or the installed drive's datasheet.
 

@@ -91,17 +91,17 @@ class SimConfig:
             ``"qp"`` (CT + PD distributed by a QP under drive limits and
             cuff-force bounds, :mod:`exo_ctrl.control.qp.controller`), or a
             user's: an :class:`exo_ctrl.control.Controller` object or its
-            class's import path ``"module:Class"`` (:mod:`exo_ctrl.control.interface`;
-            tracking mode only).
+            class's path ``"module:Class"`` (:mod:`exo_ctrl.control.interface`; tracking only).
         qp_estimate_bandwidth_per_s: ω_f, the bandwidth the QP brings the
             cuff-force estimate to before it rebuilds the cuff state from it
             [1/s] (:mod:`exo_ctrl.control.qp.observer`; default 200, twice
             the estimator's: its lag halved; ``observer_gain_per_s`` leaves
             the estimate as it is).
-        cuff_force_limit_N: the QP's bound on each cuff's PREDICTED force [N].
-            Default 120 N: ISO/TS 15066 Annex A's quasi-static limit for the
-            lower leg, 130 N, with a margin.  The real elastic cuff force can
-            exceed it (measured in :mod:`exo_ctrl.control.qp.controller`).
+        cuff_force_limit_N: the QP's bound on each cuff's force [N].  Default
+            120 N: ISO/TS 15066 Annex A's quasi-static limit for the lower leg,
+            130 N, with a margin.  The QP holds its prediction within the
+            bound less each cuff's margin (:mod:`exo_ctrl.control.qp.margin`).
+        qp_tighten_bound: tighten the bound by the margin (False: at the bound).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
         cuffs: the true cuffs: normal and shear stiffness and damping, strap
@@ -241,6 +241,7 @@ class SimConfig:
     estimator: str | Estimator = "kalman"
     cuff_force_limit_N: float = 120.0
     qp_estimate_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S
+    qp_tighten_bound: bool = True
     patient_torque: str = "none"
     safety: bool = True
     safety_limits: SafetyLimits = field(default_factory=SafetyLimits)
@@ -264,7 +265,7 @@ class SimConfig:
             value = getattr(self, name)
             if value is not None and not isinstance(value, (str, os.PathLike)):
                 raise InvalidParameter(name, value, "a URDF path or None")
-        for name in ("safety", "safety_use_estimate"):
+        for name in ("safety", "safety_use_estimate", "qp_tighten_bound"):
             object.__setattr__(self, name, v.flag(name, getattr(self, name)))
         v.one_of("exercise", self.exercise, EXERCISES)
         checks.check_controller(self, CONTROLLERS)

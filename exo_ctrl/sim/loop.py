@@ -209,6 +209,9 @@ def end_result(result: SimResult, runner: Runner) -> None:
     """Fill a result's end from its runner: QP fallbacks, energy, events (in time order), safety."""
     setup = runner.setup
     result.qp_failures = int(runner._records[3][0]["failures"])
+    controller_record = runner._records[3]
+    if "margin_peak" in (controller_record.dtype.names or ()):
+        result.cuff_bound_margin_N = controller_record["margin_peak"][0].copy()
     if setup.plant.motors is not None:
         result.energy = setup.plant.motors.energy(JOINT_NAMES)
     if runner.faults is not None:

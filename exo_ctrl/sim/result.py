@@ -48,6 +48,9 @@ class SimResult:
         events: violations, e-stops and the run's end (t, kind, message, ...).
         safety_state: the supervisor's final state.
         qp_failures: the QP's fallbacks.
+        cuff_bound_margin_N: the QP's largest margin per cuff after the
+            estimator's start-up (:mod:`exo_ctrl.control.qp.margin`) [N], (4,);
+            None for another controller.
         energy: the drives' energy books (:func:`exo_ctrl.plant.energy.energy_report`):
             ``energy_J`` per joint and ``energy_balance_residual_rel``.
         warnings: what to know before trusting the figures, one sentence each
@@ -68,6 +71,7 @@ class SimResult:
     events: list[dict[str, Any]] = field(default_factory=list)
     safety_state: str = "normal"
     qp_failures: int = 0
+    cuff_bound_margin_N: np.ndarray | None = None
     energy: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     stats: RunStats = field(default_factory=RunStats, repr=False)

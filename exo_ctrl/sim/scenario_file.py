@@ -76,7 +76,11 @@ GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
         "the live cuff-force estimator",
         ("estimator", "observer_gain_per_s", "cuff_stiffness_ratio"),
     ),
-    ("qp", "the QP controller's cuff bound", ("cuff_force_limit_N", "qp_estimate_bandwidth_per_s")),
+    (
+        "qp",
+        "the QP controller's cuff bound",
+        ("cuff_force_limit_N", "qp_estimate_bandwidth_per_s", "qp_tighten_bound"),
+    ),
     ("treadmill", "the belt's set speed and the plan's synchronisation", ("speed_profile", "sync")),
     (
         "safety",

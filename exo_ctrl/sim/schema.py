@@ -82,6 +82,13 @@ SIGNALS: list[Signal] = [
     Signal("cuff_force_est", (4, 2), "N", "estimated cuff force on the exoskeleton (x, z)", "cuff"),
     Signal("qp_active", (), "", "QP controller: active constraints"),
     Signal("qp_failures", (), "", "QP controller: fallbacks so far"),
+    Signal(
+        "cuff_bound_margin",
+        (4,),
+        "N",
+        "QP controller: margin its cuff bound is tightened by (estimate, horizon, model; 0: no QP)",
+        "cuff",
+    ),
     # The belt and the feet on it (contact on; zero otherwise), per foot (left, right).
     Signal("ground_force", (2, 2), "N", "belt's force on each exoskeleton foot (x, z)", "foot"),
     Signal(

@@ -15,17 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control import (
-    ComputedTorqueController,
-    Device,
     PDController,
-    PluginController,
-    QPController,
     feedforward_torque,
 )
-from ..control.lift_off import LIFT_OFF_BLEND_S
 from ..control.modes import InteractionController, PathController
-from ..control.plugin import is_plugin, load_controller
-from ..control.stance_load import StanceLoad
 from ..estimation import ESTIMATORS, Estimator
 from ..estimation.plugin import users_estimator
 from ..exceptions import InvalidParameter
@@ -50,11 +43,11 @@ from ..plant import (
 )
 from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
-from ..plant.pelvis import moving_mass_kg
 from .belief import device_exo, device_patient, nominal_stature
-from .config import CONTROLLERS, SimConfig
+from .config import SimConfig
 from .session import session_controller
 from .sync import online_gait, set_speeds
+from .tracking import stance_load_for, tracking_controller
 
 __all__ = [
     "Setup",
@@ -160,14 +153,16 @@ def build(config: SimConfig) -> Setup:
         if config.speed_profile is not None:  # σ(t) v(t) of the session's profile
             belt_speed = set_speeds(config, sigma[:2])
     user_estimator = users_estimator(config.estimator, ESTIMATORS)  # None: a built-in
-    controller = _tracking(config, plan, model_exo, model_patient, model_motor, user_estimator)
+    controller = tracking_controller(
+        config, plan, model_exo, model_patient, model_motor, user_estimator
+    )
     if config.session is not None:  # one controller per segment, switched bumplessly
         controller = session_controller(  # type: ignore[assignment]
             config,
             plan,
             model_exo,
             model_motor,
-            lambda: _tracking(config, plan, model_exo, model_patient, model_motor),
+            lambda: tracking_controller(config, plan, model_exo, model_patient, model_motor),
             patient=model_patient,
         )
     elif config.mode == "path":  # the tunnel with free timing, on the device's models
@@ -217,57 +212,6 @@ def run_warnings(config: SimConfig, exo: BodyModel, fitted: BodyModel) -> list[s
     return out
 
 
-def _tracking(
-    config: SimConfig,
-    plan: JointTrajectory,
-    model_exo: BodyModel,
-    model_patient: BodyModel,
-    model_motor: MotorParams,
-    user_estimator: Estimator | None = None,
-) -> PDController:
-    """A new tracking controller of the run (``config.controller``) on the device's models.
-
-    With a user's estimator the QP takes its estimate as the momentum
-    observer's, a first-order lag at the class's ``bandwidth_per_s``.
-
-    A user's controller (:mod:`exo_ctrl.control.plugin`) is imported if given
-    by its path, and set up with what the device knows.
-    """
-    if is_plugin(config.controller, CONTROLLERS):
-        device = Device(model_exo, model_patient, plan, model_motor, config.dt)
-        return PluginController(load_controller(config.controller), device)  # type: ignore[return-value]
-    if config.controller == "ct":
-        return ComputedTorqueController(
-            plan,
-            model_exo,
-            model_patient,
-            model_motor,
-            config.gains,
-            stance_load=stance_load_for(config, model_exo),
-            lift_off_blend_s=lift_off_blend_for(config),
-        )
-    if config.controller == "qp":
-        gain = config.observer_gain_per_s
-        if user_estimator is not None:
-            gain = type(user_estimator).bandwidth_per_s
-        return QPController(
-            plan,
-            model_exo,
-            model_patient,
-            model_motor,
-            config.gains,
-            cuff_force_limit_N=config.cuff_force_limit_N,
-            cuffs=config.belief.cuff_model,
-            dt=config.dt,
-            estimate_gain_per_s=gain,
-            restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
-            estimator="momentum" if user_estimator is not None else config.estimator,
-            stance_load=stance_load_for(config, model_exo),
-            lift_off_blend_s=lift_off_blend_for(config),
-        )
-    return PDController(plan, config.gains)
-
-
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     """The drive as configured for this exoskeleton.
 
@@ -282,31 +226,6 @@ def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:
     if motor.current_limit_A <= cap:
         return motor
     return dataclasses.replace(motor, current_limit_A=cap)
-
-
-def lift_off_blend_for(config: SimConfig) -> float:
-    """T_b of the swing leg's feedforward blend (:mod:`exo_ctrl.control.lift_off`) [s].
-
-    With the belt (contact on) a foot leaves it at lift-off; without it no foot is
-    loaded, and the plan's q̈* is fed forward as planned (0).
-    """
-    return LIFT_OFF_BLEND_S if config.contact.enabled else 0.0
-
-
-def stance_load_for(config: SimConfig, model_exo: BodyModel) -> StanceLoad | None:
-    """What the device knows of its stance legs' load: the pelvis supported, else None.
-
-    The moving mass from the body mass entered at the device and its own
-    exoskeleton model; the support it applies.
-    """
-    pelvis = config.pelvis_resolved
-    if not pelvis.supported:
-        return None
-    return StanceLoad(
-        moving_mass_kg(pelvis, model_exo.model),
-        pelvis.support_N,
-        -float(model_exo.model.gravity.linear[2]),
-    )
 
 
 def stance_sink_for(config: SimConfig, model_exo: BodyModel) -> StanceSink | None:

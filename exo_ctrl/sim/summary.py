@@ -53,6 +53,17 @@ class RunOutcome(Protocol):
     timed_ticks: int
 
 
+def _default_cuffs(controller: str) -> str:
+    """The default cuff model's name: the QP's published split cuffs, else isotropic."""
+    return "published" if controller == "qp" else "isotropic"
+
+
+def _margin(result: RunOutcome) -> dict[str, float] | None:
+    """The QP's ``cuff_bound_margin_N`` per cuff, or None (another controller, a recording)."""
+    margin = getattr(result, "cuff_bound_margin_N", None)
+    return None if margin is None else _keyed(margin, CUFF_NAMES)
+
+
 def _keyed(values: np.ndarray, names: tuple[str, ...]) -> dict[str, float]:
     return {name: float(x) for name, x in zip(names, values, strict=True)}
 
@@ -193,6 +204,7 @@ class RunStats:
             "peak_cuff_force_N": _keyed(cuff, CUFF_NAMES),
             "peak_cuff_force_est_N": _keyed(self._peak_est, CUFF_NAMES),
             "qp_failures": result.qp_failures,
+            "cuff_bound_margin_N": _margin(result),
             "safety_state": result.safety_state,
             "safety_events": [e for e in result.events if e.get("kind") in SAFETY_EVENT_KINDS],
             "wall_time_s": wall,
@@ -447,7 +459,8 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
     ``patient_mass_kg``, ``patient_sex`` (the nominal model's, None for the
     others), ``exo`` (the URDF the device holds, None: the true one's file),
     ``drive`` (``"datasheet"``: the installed drive's nominal values, or
-    ``"given"``), ``cuffs`` (``"isotropic"``, the nominal default, or
+    ``"given"``), ``cuffs`` (``"isotropic"``, the nominal default;
+    ``"published"``, the QP's default split cuffs; or
     ``"given"``), ``belt`` (the treadmill's datasheet: ``"datasheet"`` or
     ``"given"``), ``soles`` (the soles' contact law: ``"datasheet"`` or
     ``"given"``), ``estimator``, ``plan`` (``"synchronised"`` with the
@@ -463,7 +476,7 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
         "patient_sex": b.patient_sex if nominal else None,
         "exo": b.exo,
         "drive": "datasheet" if b.motor is None else "given",
-        "cuffs": "isotropic" if b.cuffs is None else "given",
+        "cuffs": "given" if b.cuffs is not None else _default_cuffs(config.controller),
         "belt": "datasheet" if b.belt is None else "given",
         "soles": "datasheet" if b.soles is None else "given",
         "estimator": estimator_name(config.estimator),

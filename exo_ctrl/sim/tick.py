@@ -111,7 +111,7 @@ class Runner:
                 setup.device_exo,
                 setup.device_patient,
                 config.dt,
-                cuffs=config.belief.cuff_model,
+                cuffs=config.belief.cuff_model_for(config.controller),
                 sensors=config.sensors,
             )
         else:
@@ -126,6 +126,7 @@ class Runner:
             tune(self.estimator)
         self.sensors = self.sensor_model.readings
         self.sensors.cuff_force_est = self.estimator.force  # filled in place
+        self.sensors.cuff_force_std = getattr(self.estimator, "force_std", None)
         #: The foot plates' load cells, and the patient's shoes' with their feet on the
         #: belt (sensing/foot_load.py; read with the belt only).
         shoes = plant.record["patient_feet"] if config.contact.patient_feet else None
@@ -434,7 +435,7 @@ def write_applied(log, row, controller, supervisor, plant, encoder, phase, foot)
     """The command and what acted over [t_k, t_k+1), into log row ``row``.
 
     ``controller``: its record (``u_cmd``, ``active_constraints``,
-    ``failures``); ``supervisor``: its record (``state``); ``plant``: its
+    ``failures``, ``margin``); ``supervisor``: its record (``state``); ``plant``: its
     record (``voltage``, ``current``, ``drive_torque``, ``patient_torque``,
     ``stop_torque``, ``deflection``, ``cuff_force``; ``contact``,
     :mod:`exo_ctrl.plant.contact`, all zero with contact off; ``patient_feet``,
@@ -452,6 +453,7 @@ def write_applied(log, row, controller, supervisor, plant, encoder, phase, foot)
     r.qp_failures = c.failures
     for j in range(4):
         r.voltage_cmd[j] = c.u_cmd[j]
+        r.cuff_bound_margin[j] = c.margin[j]
         r.voltage[j] = p.voltage[j]
         r.current[j] = p.current[j]
         r.drive_torque[j] = p.drive_torque[j]

@@ -68,7 +68,13 @@ def test_identify_recording_writes_a_loadable_patient(
     masses = [patient.model.inertias[j].mass for j in patient.joint_ids]
     assert masses[0] == pytest.approx(truth.thigh_mass, rel=0.05)
     assert masses[1] == pytest.approx(truth.shank_mass, rel=0.05)
+    # what the motion cannot excite is said, in the table and in the summary
+    assert "not excited by the calibration" in printed
+    assert "folded: shank.m only as part of thigh.mcz, thigh.Iyy" in printed
+    assert "same torques for any motion: thigh mass +10 %" in printed
     data = json.loads(summary.read_text())
+    assert data["not_excited"]["folded"] == {"shank.m": ["thigh.mcz", "thigh.Iyy"]}
+    assert set(data["not_excited"]["null_directions"]) == {"thigh mass", "shank mass"}
     assert len(data["base_parameters"]) == 7
     assert data["condition_number"] < 20.0
     # the identified model is what the device then holds

@@ -1,8 +1,8 @@
 """Guidance's force loop: its own first-order low-pass, and the closed loop it keeps bounded.
 
-Issues 17/18: with the Kalman filter as the estimator, guidance (0 < G < 1)
-with an active patient let the cuff forces grow run over run; the cause and
-the measurements are in :mod:`exo_ctrl.control.modes.controller`'s module
+Guidance (0 < G < 1) low-passes the cuff-force estimate it feeds back, so
+that the Kalman filter and the momentum observer give the same forces; the
+measurements are in :mod:`exo_ctrl.control.modes.controller`'s module
 docstring.  The figures are printed (pytest -s) as well as checked.
 """
 
@@ -147,13 +147,15 @@ def test_guidance_forces_do_not_depend_on_the_estimator() -> None:
     np.testing.assert_allclose(k, m, rtol=0.1, atol=2.0)
 
 
-def test_the_unfiltered_loop_grows() -> None:
-    """The cause, kept measurable: fed the Kalman estimate unfiltered, guidance grows.
+def test_the_unfiltered_loop_stays_bounded() -> None:
+    """Fed the Kalman estimate unfiltered, guidance no longer grows.
 
-    The same run as above at G = 0.25 with the filter's step weight 1: the
-    late second well above the early one (measured 2.4×), the growth at the
-    reflex mode's 5-6 Hz (the 3-9 Hz content of the cuff forces rises more
-    than the rest).
+    The same run as above at G = 0.25 with the filter's step weight 1.  The
+    growth once measured here (2.4× from the 2nd to the 8th second, at 5-6 Hz)
+    came from the patient's reflex damping acting 60 ms late; with the
+    intrinsic damping acting at once (:mod:`exo_ctrl.plant.patient_active`)
+    the late second is within 15 % of the early one (measured 1.07×) and the
+    3-9 Hz share of the cuff forces does not rise.
     """
     r = _run("kalman", 0.25, UNFILTERED_HZ)
     early, late = _rms(r, EARLY), _rms(r, LATE)
@@ -172,5 +174,5 @@ def test_the_unfiltered_loop_grows() -> None:
         + " ".join(f"{x:.0f}" for x in _per_second(r))
         + f"; late/early {late / early:.2f}; 3-9 Hz share {b0 / t0:.2f} -> {b1 / t1:.2f}"
     )
-    assert late > 1.8 * early
-    assert b1 / t1 > b0 / t0
+    assert late < 1.15 * early
+    assert b1 / t1 <= b0 / t0

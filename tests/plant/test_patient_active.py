@@ -144,6 +144,29 @@ def test_feedback_acts_after_the_delay_and_scales_with_strength(patient) -> None
     np.testing.assert_allclose(weak_t, full_t * np.array([0.3, 0.5, 0.0, 1.0]), atol=1e-12)
 
 
+def test_damping_acts_on_the_speed_error_at_once(patient) -> None:
+    """A speed error appears in the torque on its own step as K_d ė (intrinsic viscosity).
+
+    Only the reflex stiffness waits for the delay; the torque's change is
+    K_d ė from the first step on, and K_d ė + K_p e once the delay has passed
+    (the position error here stays zero).
+    """
+    delay = 0.06
+    full = _make(patient, delay_s=delay, period_cv=0.0, step_cv=0.0)
+    probe = _make(patient, delay_s=delay, period_cv=0.0, step_cv=0.0)
+    slow = np.array([0.2, -0.1, 0.05, 0.3])  # ė [rad/s]
+    n0, steps = 500, round(delay / H)
+    kd = np.array(full.params.damping_Nms_per_rad)
+    for n in range(n0 + steps + 3):
+        t = n * H
+        clean = probe(t, np.zeros(4), np.zeros(4), np.zeros(4))
+        q, dq = probe.record["q_ref"][0].copy(), probe.record["dq_ref"][0].copy()
+        clean = probe(t, q, dq, np.zeros(4)).copy()
+        got = full(t, q, dq - slow if n >= n0 else dq, np.zeros(4))
+        want = clean + (kd * slow if n >= n0 else 0.0)
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9, err_msg=f"step {n}")
+
+
 def test_strength_changes_at_its_time(patient) -> None:
     ap = _make(patient, strength=0.2, strength_change_at_s=1.0, strength_after=0.8)
     before = ap(0.999, np.zeros(4), np.zeros(4), np.zeros(4)).copy()

@@ -84,7 +84,8 @@ def test_csv_export_equals_the_recording(short_run, entity_columns, tmp_path: Pa
         timeout=300,
     )
     assert done.returncode == 0, done.stderr
-    assert done.stdout == f"{out}: 300 rows, {1 + 133} columns (t [s] first)\n"
+    columns = 1 + sum(int(np.prod(s.shape)) for s in SIGNALS)
+    assert done.stdout == f"{out}: 300 rows, {columns} columns (t [s] first)\n"
     got, want = _read_csv(out), _expected(path)
     assert list(got) == list(want)
     for name, values in want.items():

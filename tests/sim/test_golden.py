@@ -32,9 +32,10 @@ LEGACY = {
     "qp_estimate_bandwidth_per_s": 100.0,  # the estimator's own: the estimate as it is
     "cuffs": CuffParams.isotropic(),  # the cuffs before normal and shear were split
     # What the device held then: the true patient, the true cuff forces.
-    "belief": Belief("truth"),
+    "belief": Belief("truth", cuffs=CuffParams.isotropic()),
     "safety_use_estimate": False,
     "estimator": "momentum",  # the only estimator then (the default is the Kalman filter now)
+    "qp_tighten_bound": False,  # the QP's bound as given (issue 31 tightened it by a margin)
 }
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "golden_runs.npz"

@@ -69,28 +69,20 @@ The modes (``mode`` of :class:`~exo_ctrl.control.modes.params.ModeParams`):
   gone.  Outside the gait's periodic rows (the ramps) the support is zero
   and nothing is learned.
 
-**Why guidance filters its force feedback** (issues 17/18).  With an
-active patient the loop closes through the patient's long-latency reflex
-(a PD on the error 60 ms ago, :mod:`exo_ctrl.plant.patient_active`),
-whose delay makes its damping negative at the 5–6 Hz mode of the leg in
-the cuffs against the guidance spring.  Measured on the healthy active
-patient (1.0 s, 0.30 m) at G = 0.25, 8 s, without the filter: fed the TRUE
-interaction torque the mode grows (the cuff forces' 3–9 Hz content at
-+0.24/s, peak at 5.4 Hz); with the reflex's gains or its delay at zero,
-or with a passive patient, it does not.  The lag of a first-order filter
-turns part of the rendered spring into damping: (1 + K' ω_f/(s + ω_f))⁻¹
-≈ (1 + s/ω_f)/(1 + K'), K' = (1 − G) K_f, below (1 + K') ω_f.  The
-momentum observer has that lag built in (100 rad/s: its knee torque lags
-20° at 5.4 Hz), the Kalman filter does not (3°), so guidance grew with the
-Kalman filter (the four cuffs' RMS force 51 N in the 2nd second, 123 N in
-the 8th, the same phase of the patient's 6 s beat with the plan) and not
-with the observer (52 → 43 N).  With the filter the true torque, the Kalman filter and the
-observer give the same forces (second by second within 1 N).  Transparent
-mode has no spring for the lag to damp, only the rendered inertia, which
-the lag turns into negative damping (the observer behind the filter
-yields there: 72 N RMS against 13 N), so it is left unfiltered; explicit
-damping on ė in place of the filter (k_p τ_g, τ_g = 10–20 ms) did not bound the
-true-torque loop.  ``tests/control/test_guidance_force_loop.py``.
+**Why guidance filters its force feedback.**  The lag of a first-order
+filter turns part of the rendered spring into damping: (1 + K' ω_f/(s +
+ω_f))⁻¹ ≈ (1 + s/ω_f)/(1 + K'), K' = (1 − G) K_f, below (1 + K') ω_f.  The
+momentum observer has that lag built in (100 rad/s), the Kalman filter
+does not; with the filter the two estimators give the same guidance forces
+(second by second within 10 % + 2 N).  Fed the Kalman estimate unfiltered,
+the loop stays bounded too (healthy active patient, 1.0 s, 0.30 m, at G =
+0.25: the 8th second's RMS cuff force 1.07× the 2nd's, the same phase of
+the patient's 6 s beat with the plan); it grew (2.4×, at 5–6 Hz) only
+while the patient model's reflex damping acted 60 ms late
+(:mod:`exo_ctrl.plant.patient_active`).  Transparent mode has no spring
+for the lag to damp, only the rendered inertia, which the lag turns into
+negative damping, so it is left unfiltered.
+``tests/control/test_guidance_force_loop.py``.
 
 All per-tick arithmetic is one compiled kernel (:func:`mode_command`),
 plus one Pinocchio call (gravity) and, for guidance and aan, the tracking

@@ -85,9 +85,9 @@ class ModeParams:
             frequency once the back-EMF is compensated).
         force_filter_hz: f_f, cut-off of the first-order low-pass on the
             estimated interaction torque before K_f in ``guidance`` with
-            0 < G < 1 [Hz] (the controller's module docstring: its lag
-            damps the active patient's reflex mode against the guidance
-            spring).  Default 100 / (2π) ≈ 15.9 Hz, the momentum
+            0 < G < 1 [Hz] (the controller's module docstring: with it the
+            Kalman filter and the momentum observer give the same guidance
+            forces).  Default 100 / (2π) ≈ 15.9 Hz, the momentum
             observer's bandwidth, with which K_f was tuned.
         speed_filter_hz: cut-off of the first-order filter on the encoder's
             difference that gives the speed for the drive's back-EMF [Hz].
@@ -132,6 +132,11 @@ class ModeParams:
       estimate's lag: absent at a 30 ms delay or fed the true force): from
       2.2–6 s to 8–12 s the force grew 1.55× at a knee gain of 14, 2.6× at
       16, and on one seed of three at 12; the hips took 24 (1.07×, seed 0).
+      These gains and figures were measured on a patient model whose
+      reflex damping acted 60 ms late; with it acting at once (the model
+      since: :mod:`exo_ctrl.plant.patient_active`) the healthy patient is
+      carried at 4.6 N (6.9 %; tests/sim/test_modes_run.py) and the bound
+      on K_f has not been measured again.
 
     Together 7.7–8.2 % over seeds 0–5 and 2.2–6 s, 7.6–7.9 % over 6–12 s
     (weak 0.3 and spastic patients: 4.1–4.2 N RMS, stable).  With the

@@ -10,14 +10,14 @@
   state from the force estimate.
 - :mod:`~exo_ctrl.control.qp.screening`: the octagon rows, the clip test, the
   screening of rows for proxsuite.
-- :mod:`~exo_ctrl.control.qp.margin`: :func:`stated_margin`, the error
-  budget of the bound.
+- :mod:`~exo_ctrl.control.qp.margin`: :func:`bound_margin`, what the
+  device does not know, by which each cuff's bound is tightened.
 - :mod:`~exo_ctrl.control.qp.workspace`: :class:`TorqueQP`, the persistent
   proxsuite workspace, its checks and its fallback.
 """
 
 from .controller import CONTROLLER_EPS_ABS, NO_BOUND, SLACK_WEIGHT, QPController
-from .margin import stated_margin
+from .margin import BoundMargin, bound_margin
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -33,10 +33,11 @@ __all__ = [
     "SCREENED_ROWS",
     "SCREEN_ROUNDS",
     "SLACK_WEIGHT",
+    "BoundMargin",
     "CuffHorizonModel",
     "CuffStateObserver",
     "QPController",
     "TorqueQP",
+    "bound_margin",
     "polygon_rows",
-    "stated_margin",
 ]

@@ -15,7 +15,7 @@ over the torques τ and one slack s_c per cuff,
 
     \min_{τ, s} \tfrac12 (τ - τ_{cmd})^T W (τ - τ_{cmd}) + \tfrac12 ρ\, s^T s
     \quad \text{s.t.} \quad τ_{lo} \le τ \le τ_{hi}, \quad s \ge 0, \quad
-    |n_k^T f_c(τ)| \le F_{max} \cos(π/8) + s_c \;\; (k = 0..3,\ c = \text{4 cuffs}),
+    |n_k^T f_c(τ)| \le (F_{max} - m_c) \cos(π/8) + s_c \;\; (k = 0..3,\ c = \text{4 cuffs}),
 
 then converts back, ``U = R τ / (i_G k_m) + i_G ω / k_E``.  With no bound
 active the answer is τ_cmd and the command is the CT+PD voltage itself.
@@ -29,10 +29,8 @@ above ``(U_max + R I_max) k_E / i_G`` ≈ 5.9 rad/s with the defaults) no
 command meets the limits and the tick falls back (below).
 
 **Cuff forces, affine in τ, over a horizon** (design.md §5).  The cuffs
-are springs with the patient's leg on them (modes 5–12 Hz): a one-tick
-rigid-cuff prediction (the first version of this controller) cannot
-bound their force — measured with it: spastic patient, 150 N
-bound, real peak 194 N; passive, 80 N, 109 N.  The controller instead
+are springs with the patient's leg on them (modes 5–12 Hz), which a
+one-tick rigid-cuff prediction cannot bound.  The controller
 predicts the elastic cuffs' forces at P horizon points (default 5, 10, 20,
 30, 40 ms) with the drive voltage for τ held
 (:class:`~exo_ctrl.control.qp.prediction.CuffHorizonModel`), ``f(t_i) = A_i τ
@@ -49,42 +47,24 @@ estimate (or ``force_feedback=False``) the cuffs are taken as fitted
 shared by the horizon points, costs ρ s_c² (ρ = :data:`SLACK_WEIGHT` = 1e4:
 1 N over the bound costs as much as 100 N·m off the command).
 
-**What the bound achieves — measured** (default 3.6 s run: ramp-in and two
-cycles, the default drive, default sensors, safety off,
-tests/control/qp/test_closed_loop.py):
-
-- spastic patient, F_max = 150 N: real peak 157.6 N (+5.1 %; CT: 180.7 N),
-  RMS error 3.0/17.7 mrad hip/knee, no fallback;
-- passive patient, F_max = 80 N: real peak 87.6 N (+9.5 %; CT: 104.6 N),
-  RMS 11.6/3.2 mrad, no fallback;
-- passive patient, 120 N (default): the cuff bound does not bind; RMS
-  0.92/0.81 mrad against CT's 0.58/0.80: the hips pass through zero speed
-  near 120 N·m, where the torque box (1/η of a braking joint, judged from
-  the measured speed's sign) binds.
-
-Margin (:func:`~exo_ctrl.control.qp.margin.stated_margin`): the error
-budget of the compliant prediction, absolute — the horizon model's own
-error given the true cuff state (≤ 5.5 N, test), the nominal patient
-model's (13.8 N more), and the force estimate's error, which grows as the
-gait quickens (momentum observer: 18 N at the 1.2 s period, scaled by
-1.2 s/T; the Kalman filter: 1.5 N); at least 10 %.  The cuff model
-must be the cuffs' own: on the default split cuffs the isotropic model
-lets the spastic run reach 171.6 N at 150 N (+14.4 %), the split model
-(``Belief(cuffs=CuffParams())``) 159.0 N (+6.0 %; 159.1 N with the nominal
-patient).  Over the grid of tools/load_held.py (spastic patient, period
-0.9–1.5 s, step 0.25–0.45 m, bound 100–150 N; its corners in
-tests/control/qp/test_load_held.py), nominal patient and split cuff model:
-worst +30.1 % at 0.9 s, 0.45 m, 100 N with the momentum observer (stated
-43.3 %); +9.0 % at 0.9 s, 0.25 m, 100 N with the Kalman filter (stated
-21.3 %; +11.3 % with d̂ at 30 1/s, +7.1 % at 120 1/s).  At 80 N on the passive patient 15 %
-is asserted (tests/control/qp/test_closed_loop.py).
+**The bound, tightened** (:mod:`~exo_ctrl.control.qp.margin`).  Each
+cuff's prediction is held within ``F_max − m_c``, m_c what the device does
+not know: the horizon model's own error, the patient model's (the cohort's
+spreads), the cuff model's (0 with the published split cuffs, the QP's
+default model: :meth:`~exo_ctrl.sim.belief.Belief.cuff_model_for`) and the
+estimate's (three standard deviations from the Kalman filter's covariance,
+per tick, ``sensors.cuff_force_std``).  The static part is computed along
+the plan when the controller is built; a bound whose margin leaves less
+than the cuff's working force is refused then
+(:class:`~exo_ctrl.exceptions.CuffBoundTooTight`).  ``record["margin"]``
+holds the tick's m_c, ``record["margin_peak"]`` its largest so far.
+Measured peaks against the bound: docs/performance.md ("The QP's cuff-force bound").
 
 **Ticks without proxsuite.**  When τ_cmd clipped into the torque box meets
 every cuff row it is the QP's optimum (the clip test of
 :mod:`~exo_ctrl.control.qp.screening`) and the tick takes it without calling
-proxsuite.  Measured on the default runs (tools/bench.py): proxsuite is called
-on 0.3 % of the default run's ticks (120 N; none without the lead–lag) and
-on 22 % of the spastic patient's at 150 N.  Otherwise proxsuite solves over
+proxsuite (how often: docs/performance.md, "Speed of a tick" and "The QP's
+cuff-force bound").  Otherwise proxsuite solves over
 the :data:`SCREENED_ROWS` rows most nearly binding, widened by violated rows at most
 :data:`SCREEN_ROUNDS` times (the screening of the same module).
 
@@ -134,6 +114,7 @@ from ..base import PDGains
 from ..computed_torque import ComputedTorqueController
 from ..lift_off import LIFT_OFF_BLEND_S
 from ..stance_load import StanceLoad
+from .margin import ESTIMATE_SIGMAS, checked_margin
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -218,6 +199,9 @@ class QPController(ComputedTorqueController):
             K_O, the estimate as it is).
         estimator: the live force estimator (``SimConfig.estimator``), ``"kalman"``
             (default, a run's) or ``"momentum"``: it sets the default ω_d.
+        tighten: tighten each cuff's bound by its margin (default; False:
+            the bound as given, for tests of the QP itself).
+        gait: the gait in words, for the refusal's message.
         stance_load: the stance legs' load in the CT feedforward, with the
             pelvis on its guide (:mod:`exo_ctrl.control.stance_load`; None:
             the pelvis fixed), as computed torque's.
@@ -225,6 +209,7 @@ class QPController(ComputedTorqueController):
             computed torque's (0: none).
 
     Attributes:
+        margin: the margin's static terms and working force (:class:`BoundMargin`).
         record: the tick's state and figures: the CT's fields, then
             :func:`~exo_ctrl.control.qp.tick.qp_fields`; ``u_cmd`` is the
             command returned last.  The arrays below are views of its fields.
@@ -250,6 +235,8 @@ class QPController(ComputedTorqueController):
 
     Raises:
         InvalidParameter: a bad limit, weight, iteration count or estimator, or no patient.
+        CuffBoundTooTight: a bound whose margin leaves less than a cuff's
+            working force on this plan (:mod:`~exo_ctrl.control.qp.margin`).
         InvalidModel: a model the cuff model cannot use
             (:meth:`~exo_ctrl.model.BodyModel.require_leg_chains`), or an effort limit
             that is not > 0.
@@ -277,6 +264,8 @@ class QPController(ComputedTorqueController):
         estimate_gain_per_s: float = DEFAULT_GAIN_PER_S,
         restored_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S,
         estimator: str = "kalman",
+        tighten: bool = True,
+        gait: str = "",
         stance_load: StanceLoad | None = None,
         lift_off_blend_s: float = LIFT_OFF_BLEND_S,
     ) -> None:
@@ -335,7 +324,22 @@ class QPController(ComputedTorqueController):
         for name, value in box_constants(motor, effort).items():
             rec[name] = value
         rec["force_feedback"] = bool(force_feedback)
-        rec["radius"] = self.cuff_force_limit_N * math.cos(math.pi / POLYGON_SIDES)
+        rec["limit"] = self.cuff_force_limit_N
+        self.margin = checked_margin(
+            plan,
+            (exo, patient, motor, cuffs),
+            self.cuff_model,
+            (estimator, disturbance_bandwidth_per_s),
+            self.cuff_force_limit_N,
+            gait if tighten else None,
+        )
+        rec["margin_static"] = self.margin.static_N
+        rec["working"] = self.margin.working_N
+        rec["margin"] = self.margin.static_N
+        rec["sigmas"] = ESTIMATE_SIGMAS if tighten and estimator == "kalman" else 0.0
+        rec["radius"] = (self.cuff_force_limit_N - self.margin.static_N) * math.cos(
+            math.pi / POLYGON_SIDES
+        )
         rec["directions"] = polygon_rows(1)  # (S/2, 2): n_k of one cuff
         rec["slots"] = np.arange(self._n_slots)
         view = self._view
@@ -361,6 +365,7 @@ class QPController(ComputedTorqueController):
         self._pin = (self.cuff_model.model, self.cuff_model.data)
         self._q_all, self._v_all = self.cuff_model.q_all, self.cuff_model.v_all
         self._no_force = np.zeros((4, 2))
+        self._no_std = np.zeros(4)
 
     def _fields(self) -> list[tuple[Any, ...]]:
         return super()._fields() + qp_fields(self._n_rows, self._n_slots)
@@ -410,11 +415,15 @@ class QPController(ComputedTorqueController):
         pin_model, pin_data = self._pin
         mass = pin.crba(pin_model, pin_data, self._q_all)
         nle = pin.nonLinearEffects(pin_model, pin_data, self._q_all, self._v_all)
-        est = sensors.cuff_force_est
+        est, std = sensors.cuff_force_est, getattr(sensors, "cuff_force_std", None)
+        if std is None:
+            std = self._no_std
         if est is None:
-            status = tail(rec, model, self._obs_rec, mass, nle, q, dq, self._no_force, False, sw)
+            status = tail(
+                rec, model, self._obs_rec, mass, nle, q, dq, self._no_force, False, sw, std
+            )
         else:
-            status = tail(rec, model, self._obs_rec, mass, nle, q, dq, est, True, sw)
+            status = tail(rec, model, self._obs_rec, mass, nle, q, dq, est, True, sw, std)
         if status:
             return self._refused(status, dq, est)
         if self._needs_solve[0]:

@@ -1,103 +1,334 @@
-r"""The margin by which the real cuff force may exceed the QP's bound: the error budget.
+r"""The margin by which the QP tightens each cuff's bound: what the device does not know.
 
 The QP bounds the cuff forces it PREDICTS (:mod:`~exo_ctrl.control.qp.prediction`)
-from a cuff state rebuilt from the live force ESTIMATE
-(:mod:`~exo_ctrl.control.qp.observer`).  The real (elastic) force exceeds
-the bound by the prediction's error at the peak, an absolute figure with
-three parts, each measured on its own and summed (worst cases, so the sum
-is conservative):
+from a cuff state rebuilt from the live force ESTIMATE; the real force
+differs from the prediction by what the device does not know.  The QP
+therefore holds the prediction of cuff c within ``F_max − m_c`` instead of
+F_max, with the margin
 
-- the horizon model's own error given the true cuff state and the true
-  patient: :data:`MODEL_ERROR_N` (split cuffs with the split cuff model:
-  ≤ 5.5 N on forces up to 142 N; isotropic cuffs and model: ≤ 4.9 N;
-  tests/control/qp/test_prediction.py, which also shows the isotropic
-  model on split cuffs off by 73 N: a device must hold the shear);
-- the patient model's error: with the nominal patient (de Leva's segments
-  for the paper's 1.75 m, 80 kg man, the device's default) instead of the
-  true one, the same test's worst error is 19.2 N (7.3 N at 5 ms, 12.2 N
-  at 10 ms, 19.2 N at 20 ms), the model's error held as the torque that
-  explains the truth's motion (what the observer's d̂ converges to);
-  :data:`PATIENT_MODEL_ERROR_N` is the difference, 13.8 N;
-- the estimate's error at the peak, which scales with the force's rate of
-  rise, 1/T for a given step: :data:`LAG_ERROR_N` per estimator at the
-  reference period :data:`REFERENCE_PERIOD_S`, scaled by T_ref/T.  The
-  momentum observer's estimate lags the joint-space cuff load by 3–4 ms
-  after the observer's lead–lag (best-fit lag on the 0.9 s spastic run),
-  with a residual of 9 N·m at the hips; with the true patient and split
-  cuffs over tools/load_held.py's grid (period 0.9–1.5 s, step 0.25–0.45 m,
-  bound 100–150 N, spastic, safety off) the worst overshoot less
-  :data:`MODEL_ERROR_N`, scaled to 1.2 s, is 17.9 N (1.05 s, 0.45 m,
-  100 N): 18 N.  The Kalman filter on the coupled model
-  (:mod:`exo_ctrl.estimation.kalman`, with the device's split cuff model)
-  shows no lag (best fit 0 to −1 ms against the true forces on the
-  0.9 s, 0.25 m run; the lead–lag puts f̃ 4–5 ms ahead); with the
-  controller's patient-torque estimate d̂ at the filter's ω_d = 60 1/s
-  (``DISTURBANCE_BANDWIDTH_PER_S``; at 30 1/s, 33 ms behind the spastic
-  reflex, the term was 2.1 N; at 120 1/s 2.4 N) its truth-patient grid's
-  largest overshoot less :data:`MODEL_ERROR_N`, scaled to 1.2 s, is 1.5 N
-  (1.2 s, 0.45 m, 100 N: 7.0 N); with the nominal patient that grid's
-  worst is +9.0 % (0.9 s, 0.25 m, 100 N; +11.3 % at 30 1/s).
+.. math::
 
-The margin is their sum over the bound, and never below the 10 % the
-controller was first stated with (:func:`stated_margin`).  Given the true
-cuff forces instead of the estimate (``tools/load_held.py --truth``) the
-peak stays within 5.1 % (true patient) and 9.8 % (nominal) at the 0.9 s,
-100 N points: the estimate, not the model, the torque box or the slack
-weight, sets the margin with the momentum observer.
+    m_c(t) = e_{pred} + e_{patient,c} + e_{cuffs,c} + e_{est,c}(t),
+
+each term an absolute force [N]:
+
+- **the horizon's prediction error** e_pred = :data:`PREDICTION_ERROR_N`:
+  the horizon model against the plant (nonlinear, elastic cuffs, drive
+  current dynamics) stepped 40 ms with the voltage held, given the true cuff
+  state and patient: at most 5.5 N with the split cuff model on split cuffs
+  (asserted in tests/control/qp/test_prediction.py);
+- **the patient model's error** e_patient,c, from the cohort's spreads
+  (:class:`~exo_ctrl.model.CohortSpread`, cited there: segment mass 10 %,
+  centre-of-mass ratio 4 %, radius-of-gyration ratio 5 %; the leg lengths
+  are measured, the exoskeleton is fitted to them).  A plausible true
+  patient is any corner of the box ``x = x_0 (1 ± z_max s_x)``
+  (z_max = :data:`~exo_ctrl.model.cohort.TRUNCATION_Z`, the cohort's
+  truncation: every drawn patient lies inside) for the three parameters
+  of each segment, 2⁶ = 64 patients.  Inverse dynamics is linear in the
+  inertial parameters π (:func:`pinocchio.computeJointTorqueRegressor`,
+  τ = Y(q, q̇, q̈) π), so along the plan (q*, q̇*, q̈*) the joint load a
+  corner adds is Δτ(t) = Y(t) (π_corner − π_nominal).  The device's
+  patient-torque estimates (the filter's d, the QP observer's d̂ at ω_d)
+  absorb the slow part of Δτ; what is left at the first horizon point t₁ is
+
+  .. math::
+
+      r(t) = Δτ(t + t_1) - \mathrm{LP}_{ω_d}[Δτ](t),
+
+  LP the first-order low-pass of d̂.  The cuffs share a joint-space load s
+  as the device's cuff model does (quasi-static: G_K δ = s, f = −W_K δ,
+  :mod:`~exo_ctrl.control.qp.split_cuffs`), so cuff c's share is
+  ``D_c s`` with ``D = −W_K G_K^{-1}`` per leg (isotropic:
+  ``−J (JᵀJ)^{-1}``).  The QP predicts afresh each tick from an estimate
+  that sees the real force, so what the unabsorbed load r adds to the
+  predicted force at t₁ is the response of the patient on its cuff springs
+  to r applied as a step: ``(1 − cos ω t₁) D_c r``, ω² the largest
+  eigenvalue of ``M_p^{-1} G_K`` (the leg's fastest cuff mode, the
+  exoskeleton held; ω t₁ capped at π), and
+  e_patient,c = max over t and corners of ``(1 − cos ω t₁) ‖D_c r‖``;
+- **the cuff model's error** e_cuffs,c: a true patient's cuffs are the
+  published split stiffness (:class:`~exo_ctrl.plant.cuffs.CuffParams`,
+  cited there); a device holding another model shares the nominal
+  patient's load s_n(t) = Y(t) π_nominal between its cuffs otherwise:
+  e_cuffs,c = max_t ‖(D_c^{model} − D_c^{published}) s_n‖ (0 when the
+  device holds the published cuffs);
+- **the estimate's own uncertainty** e_est,c(t), per tick: with the
+  Kalman filter (:mod:`exo_ctrl.estimation.kalman`) :data:`ESTIMATE_SIGMAS`
+  times σ_c, the square root of the largest eigenvalue of cuff c's force
+  covariance ``H_c P H_cᵀ`` (P the filter's posterior covariance, H_c the
+  force's linearisation; ``cuff_force_std``); the momentum observer has no
+  covariance: its measured lag error :data:`MOMENTUM_ERROR_N` at
+  :data:`REFERENCE_PERIOD_S`, scaled by T_ref/T (the force's rate of rise
+  is 1/T for a given step).  The filter's term applies after its start-up
+  (:data:`SETTLE_TICKS`), when its covariance no longer is the initial guess.
+
+**Working force.**  Whatever the bound, the cuffs must carry the leg: the
+nominal patient's gravity load along the plan, shared the same way,
+F_work,c = max_t ‖D_c g(q*)‖.  A bound whose margin leaves less,
+``F_max − (e_pred + e_patient,c + e_cuffs,c) < F_work,c``, cannot be held
+on that gait: :class:`~exo_ctrl.exceptions.CuffBoundTooTight` is raised
+before the run, naming the bound, the margin and the gait.
 """
 
 from __future__ import annotations
 
-from ... import _validate as v
-from ...exceptions import InvalidParameter
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from ...exceptions import CuffBoundTooTight
+from ...model import CUFF_NAMES, BodyModel, CohortSpread
+from ...model.cohort import TRUNCATION_Z
+from ...plan.kinematics import JointTrajectory
+from ...plant.cuffs import CuffParams
+from ...plant.drive import MotorParams
+from .prediction import CuffHorizonModel
 
 __all__ = [
-    "LAG_ERROR_N",
-    "MODEL_ERROR_N",
-    "PATIENT_MODEL_ERROR_N",
+    "ESTIMATE_SIGMAS",
+    "MOMENTUM_ERROR_N",
+    "PREDICTION_ERROR_N",
     "REFERENCE_PERIOD_S",
-    "stated_margin",
+    "SETTLE_TICKS",
+    "BoundMargin",
+    "bound_margin",
+    "checked_margin",
+    "share_matrices",
+    "step_factors",
 ]
 
-#: The horizon model's error given the true cuff state and patient [N].
-MODEL_ERROR_N = 5.5
-#: What the nominal patient model adds to it [N].
-PATIENT_MODEL_ERROR_N = 13.8
-#: The estimate's error at the reference period, per estimator [N].
-LAG_ERROR_N = {"momentum": 18.0, "kalman": 1.5}
-#: The gait period the lag error is stated at [s] (the default gait's).
+#: e_pred, the horizon model's error given the true cuff state and patient [N]
+#: (split cuffs and model; tests/control/qp/test_prediction.py asserts it).
+PREDICTION_ERROR_N = 5.5
+#: k in e_est = k σ: three standard deviations of the filter's force estimate [-].
+ESTIMATE_SIGMAS = 3.0
+#: The momentum observer's estimate error at the reference period [N]: its
+#: lag behind the cuff load (3–4 ms after the QP's lead–lag; issue 19's grid).
+MOMENTUM_ERROR_N = 18.0
+#: The gait period the momentum observer's error is stated at [s].
 REFERENCE_PERIOD_S = 1.2
-#: The smallest margin stated [-].
-MIN_MARGIN = 0.10
+#: Ticks of the filter's start-up (its covariance converging from the initial
+#: guess: σ_c from 86 N to below 2.4 N within 50 ms on the default run), after
+#: which the estimate's term applies and the largest margin is kept [ticks].
+SETTLE_TICKS = 100
+#: Plan rows between the samples of the margin's scan [ticks].
+SCAN_STRIDE = 2
 
 
-def stated_margin(
-    period_s: float, bound_N: float, estimator: str = "kalman", true_patient: bool = False
-) -> float:
-    """The stated margin of the real peak cuff force over the bound, a fraction [-].
+@dataclass(frozen=True)
+class BoundMargin:
+    """The static part of each cuff's margin and the working force, per cuff [N], (4,) each.
 
-    ``(MODEL_ERROR_N + PATIENT_MODEL_ERROR_N + LAG_ERROR_N[estimator] · T_ref / T) / F_max``,
-    at least :data:`MIN_MARGIN` (module docstring), for a device holding the
-    split cuff model on the split cuffs (or the isotropic model on isotropic
-    cuffs).
-
-    Args:
-        period_s: the gait period T [s], > 0.
-        bound_N: the bound F_max [N], > 0.
-        estimator: the run's live cuff-force estimator (``SimConfig.estimator``),
-            ``"momentum"`` or ``"kalman"``; default ``"kalman"``, the default
-            run's (a run with another estimator must name it).
-        true_patient: the device holds the true patient model (the ideal
-            comparison): no :data:`PATIENT_MODEL_ERROR_N`.
-
-    Raises:
-        InvalidParameter: a period or bound that is not a number > 0, an
-            unknown estimator.
+    Attributes:
+        prediction_N: e_pred (the same for every cuff).
+        patient_N: e_patient,c.
+        cuffs_N: e_cuffs,c.
+        estimate_N: the estimate's term when it is fixed (the momentum
+            observer's), else zeros (the filter's term is per tick).
+        working_N: F_work,c.
 
     """
-    t = v.positive("period", period_s, "s")
-    f = v.positive("cuff_force_limit", bound_N, "N")
-    if estimator not in LAG_ERROR_N:
-        raise InvalidParameter("estimator", estimator, f"one of {', '.join(LAG_ERROR_N)}")
-    error = MODEL_ERROR_N + (0.0 if true_patient else PATIENT_MODEL_ERROR_N)
-    return max(MIN_MARGIN, (error + LAG_ERROR_N[estimator] * REFERENCE_PERIOD_S / t) / f)
+
+    prediction_N: np.ndarray
+    patient_N: np.ndarray
+    cuffs_N: np.ndarray
+    estimate_N: np.ndarray
+    working_N: np.ndarray
+
+    @property
+    def static_N(self) -> np.ndarray:
+        """e_pred + e_patient + e_cuffs (+ the fixed estimate term), (4,) [N]."""
+        return self.prediction_N + self.patient_N + self.cuffs_N + self.estimate_N
+
+
+def share_matrices(model: CuffHorizonModel, split: bool) -> np.ndarray:
+    """D per leg, (2, 4, 2): cuff forces (thigh x, z, shank x, z) per joint-space load [1/m].
+
+    From ``model``'s last :meth:`~CuffHorizonModel.linearise`: ``−W_K G_K⁻¹``
+    (split cuffs) or ``−J (JᵀJ)⁻¹`` (isotropic).
+    """
+    out = np.empty((2, 4, 2))
+    for leg in range(2):
+        if split:
+            out[leg] = -model.wk[leg] @ np.linalg.inv(model.gk[leg])
+        else:
+            jac = model.jac[leg]
+            out[leg] = -jac @ np.linalg.inv(jac.T @ jac)
+    return out
+
+
+def step_factors(model: CuffHorizonModel, split: bool, t1_s: float) -> np.ndarray:
+    """1 − cos(ω t₁) per leg, (2,): ω² the largest eigenvalue of M_p⁻¹ G_K (module docstring)."""
+    out = np.empty(2)
+    for leg in range(2):
+        j = slice(2 * leg, 2 * leg + 2)
+        if split:
+            stiffness = model.gk[leg]
+        else:
+            jac = model.jac[leg]
+            stiffness = model.stiffness * (jac.T @ jac)
+        omega2 = np.linalg.eigvals(np.linalg.solve(model.mass_patient[j, j], stiffness)).real.max()
+        out[leg] = 1.0 - math.cos(min(math.sqrt(max(omega2, 0.0)) * t1_s, math.pi))
+    return out
+
+
+def _corner_parameters(patient: BodyModel, spread: CohortSpread) -> np.ndarray:
+    """π of the nominal patient (column 0) and of the 64 corner patients, (10 n_bodies, 65)."""
+    model = patient.model
+    nominal = np.concatenate(
+        [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
+    )
+    columns = [nominal]
+    z = TRUNCATION_Z
+    factors = [
+        (1 + sm * spread.mass, 1 + sc * spread.com_ratio, 1 + sg * spread.gyration_ratio)
+        for sm, sc, sg in itertools.product((-z, z), repeat=3)
+    ]
+    for thigh, shank in itertools.product(factors, repeat=2):
+        params = []
+        for j in range(1, model.njoints):
+            inertia = model.inertias[j]
+            mass, com, gyr = thigh if "hip" in model.names[j] else shank
+            rotational = inertia.inertia * mass * gyr * gyr
+            scaled = pin.Inertia(inertia.mass * mass, inertia.lever * com, rotational)
+            params.append(scaled.toDynamicParameters())
+        columns.append(np.concatenate(params))
+    return np.stack(columns, axis=1)
+
+
+def _scan_rows(plan: JointTrajectory) -> np.ndarray:
+    """The plan rows in time order, the periodic part twice (the low-pass's steady state)."""
+    n = plan.q.shape[0]
+    if plan.period_ticks is None:
+        rows = np.arange(n)
+    else:
+        period = np.arange(plan.lead_ticks, plan.lead_ticks + plan.period_ticks)
+        rows = np.concatenate((np.arange(plan.lead_ticks + plan.period_ticks), period))
+        rows = rows[rows < n]
+    return rows[::SCAN_STRIDE]
+
+
+def bound_margin(
+    plan: JointTrajectory,
+    patient: BodyModel,
+    model: CuffHorizonModel,
+    published: CuffHorizonModel | None,
+    disturbance_bandwidth_per_s: float,
+    estimator: str,
+    gait_period_s: float,
+    spread: CohortSpread | None = None,
+) -> BoundMargin:
+    """The static margin terms and the working force along ``plan`` (module docstring).
+
+    Args:
+        plan: the joint targets (q*, q̇*, q̈*).
+        patient: the nominal patient the device holds.
+        model: the QP's cuff model (the device's cuffs); re-linearised here.
+        published: the same with the published cuffs, or None when the
+            device holds them (then e_cuffs = 0).
+        disturbance_bandwidth_per_s: ω_d of the patient-torque estimate [1/s].
+        estimator: ``"kalman"`` (its term is per tick) or ``"momentum"``.
+        gait_period_s: T [s], for the momentum observer's term.
+        spread: the cohort's spreads (default :class:`CohortSpread`).
+
+    """
+    spread = spread or CohortSpread()
+    params = _corner_parameters(patient, spread)
+    pmodel = patient.model
+    pdata = pmodel.createData()
+    rows = _scan_rows(plan)
+    h = plan.t[1] - plan.t[0] if plan.t.shape[0] > 1 else model.dt
+    step = h * SCAN_STRIDE
+    lead = max(round(model.horizon_ticks[0] / SCAN_STRIDE), 1)
+    a_lp = -math.expm1(-step * disturbance_bandwidth_per_s)
+    loads = np.empty((rows.shape[0], 4, params.shape[1]))
+    gravity = np.empty((rows.shape[0], 4))
+    shares = np.empty((rows.shape[0], 2, 4, 2))
+    shares_pub = np.empty_like(shares)
+    factors = np.empty((rows.shape[0], 2))
+    t1 = model.horizon_s[0]
+    for i, r in enumerate(rows):
+        q, dq, ddq = plan.q[r], plan.dq[r], plan.ddq[r]
+        reg = pin.computeJointTorqueRegressor(pmodel, pdata, q, dq, ddq)
+        loads[i] = reg @ params
+        gravity[i] = pin.computeGeneralizedGravity(pmodel, pdata, q)
+        model.linearise(q, dq)
+        shares[i] = share_matrices(model, model.split)
+        factors[i] = step_factors(model, model.split, t1)
+        if published is not None:
+            published.linearise(q, dq)
+            shares_pub[i] = share_matrices(published, True)
+    delta = loads[:, :, 1:] - loads[:, :, :1]
+    low = np.empty_like(delta)
+    acc = delta[0].copy()
+    for i in range(delta.shape[0]):
+        acc += a_lp * (delta[i] - acc)
+        low[i] = acc
+    ahead = np.concatenate((delta[lead:], np.repeat(delta[-1:], lead, axis=0)))
+    resid = ahead - low  # (rows, 4 joints, corners)
+    patient_n = np.zeros(4)
+    cuffs_n = np.zeros(4)
+    working = np.zeros(4)
+    for leg in range(2):
+        j = slice(2 * leg, 2 * leg + 2)
+        share = shares[:, leg]  # (rows, 4, 2)
+        f_res = np.einsum("rij,rjk->rik", share, resid[:, j])  # (rows, 4 comps, corners)
+        f_res *= factors[:, leg, None, None]
+        f_grav = np.einsum("rij,rj->ri", share, gravity[:, j])
+        for k in range(2):  # thigh, shank
+            c = 2 * leg + k
+            comp = slice(2 * k, 2 * k + 2)
+            patient_n[c] = np.linalg.norm(f_res[:, comp], axis=1).max()
+            working[c] = np.linalg.norm(f_grav[:, comp], axis=1).max()
+            if published is not None:
+                diff = np.einsum("rij,rj->ri", share - shares_pub[:, leg], loads[:, j, 0])
+                cuffs_n[c] = np.linalg.norm(diff[:, comp], axis=1).max()
+    estimate = np.zeros(4)
+    if estimator == "momentum":
+        estimate[:] = MOMENTUM_ERROR_N * REFERENCE_PERIOD_S / gait_period_s
+    return BoundMargin(np.full(4, PREDICTION_ERROR_N), patient_n, cuffs_n, estimate, working)
+
+
+def checked_margin(
+    plan: JointTrajectory,
+    device: tuple[BodyModel, BodyModel, MotorParams, CuffParams],
+    model: CuffHorizonModel,
+    estimate: tuple[str, float],
+    limit_N: float,
+    gait: str | None,
+) -> BoundMargin:
+    """The QP's margin along ``plan``, the bound checked against it (module docstring).
+
+    Args:
+        plan: the joint targets.
+        device: the exoskeleton, patient, drive and cuff models the device holds.
+        model: the QP's cuff model (on ``device``'s cuffs).
+        estimate: the live estimator's name and ω_d of the patient-torque estimate [1/s].
+        limit_N: F_max [N].
+        gait: the gait in words for the refusal's message ("": the plan's
+            period); None: no tightening (every term zero).
+
+    Raises:
+        CuffBoundTooTight: F_max − (static margin) below a cuff's working force.
+
+    """
+    if gait is None:
+        zero = np.zeros(4)
+        return BoundMargin(zero, zero, zero, zero, zero)
+    exo, patient, motor, cuffs = device
+    estimator, bandwidth = estimate
+    published = None
+    if cuffs != CuffParams():
+        published = CuffHorizonModel(
+            exo, patient, motor, CuffParams(), model.dt, model.horizon_ticks
+        )
+    period = (plan.period_ticks or plan.q.shape[0]) * model.dt
+    margin = bound_margin(plan, patient, model, published, bandwidth, estimator, period)
+    for c, name in enumerate(CUFF_NAMES):
+        if limit_N - margin.static_N[c] < margin.working_N[c]:
+            where = gait or f"a plan of period {period:g} s"
+            raise CuffBoundTooTight(limit_N, margin.static_N[c], margin.working_N[c], name, where)
+    return margin

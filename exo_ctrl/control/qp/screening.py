@@ -2,7 +2,8 @@ r"""The QP's cuff rows: the octagon bound, the clip test, and the screening of r
 
 **Octagon rows.**  ``|f_c(t_i)| ≤ F_max`` is replaced by a regular polygon
 of :data:`POLYGON_SIDES` = 8 sides inscribed in the circle:
-``|n_kᵀ f_c| ≤ r = F_max cos(π/8)`` for ``n_k = (cos kπ/4, sin kπ/4)``,
+``|n_kᵀ f_c| ≤ r_c = (F_max − m_c) cos(π/8)`` (m_c the cuff's margin,
+:mod:`~exo_ctrl.control.qp.margin`) for ``n_k = (cos kπ/4, sin kπ/4)``,
 k = 0 … 3, each as two one-sided rows; with f = A τ + b (the horizon
 prediction) and one slack s_c per cuff, row ``16 p + 4 c + k`` of the
 32 P rows is ``n_kᵀ (A τ + b)_c − s_c ≤ r`` and row ``16 P + 16 p + 4 c + k``
@@ -84,11 +85,14 @@ def bound_rows(
     directions: np.ndarray,
     A: np.ndarray,
     b: np.ndarray,
-    radius: float,
+    radius: np.ndarray,
     rows_C: np.ndarray,
     rows_upper: np.ndarray,
 ) -> float:  # pragma: no cover - compiled
-    """Fill the cuff rows ±n_kᵀ(A τ + b)_c ≤ r (τ columns) and their bounds.
+    """Fill the cuff rows ±n_kᵀ(A τ + b)_c ≤ r_c (τ columns) and their bounds.
+
+    ``radius``: r_c per cuff, (4,) [N] (the tightened bound's apothem,
+    :mod:`~exo_ctrl.control.qp.margin`).
 
     Row ``16 p + 4 c + k`` (and the same plus half the rows, negated) holds
     n_k = ``directions[k]`` on cuff c's (f_x, f_z) rows ``8 p + 2c, +1`` of
@@ -111,8 +115,8 @@ def bound_rows(
                     rows_C[n_poly + row, j] = -na
                     total += na
                 nb = cx * b[ix] + cz * b[ix + 1]
-                rows_upper[row] = radius - nb
-                rows_upper[n_poly + row] = radius + nb
+                rows_upper[row] = radius[c] - nb
+                rows_upper[n_poly + row] = radius[c] + nb
                 total += nb
     return total
 

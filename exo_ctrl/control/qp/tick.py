@@ -20,13 +20,14 @@ import numpy as np
 
 from ..._jit import Status, kernel
 from ..pd import pd_law
+from .margin import SETTLE_TICKS
 from .observer import observe
 from .prediction import gather, pair, predict
 from .screening import POLYGON_SIDES, bound_rows, clip_if_feasible, screen, widen
 from .torque_box import TORQUE_BOX_FIELDS, torque_box, voltage
 from .workspace import ACTIVE_TOL
 
-__all__ = ["front", "load", "qp_fields", "tail", "take", "volts", "widen_rows"]
+__all__ = ["front", "load", "qp_fields", "tail", "take", "tighten", "volts", "widen_rows"]
 
 
 def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
@@ -42,8 +43,14 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
     (:data:`~exo_ctrl.control.qp.torque_box.TORQUE_BOX_FIELDS`); the answer
     ``torque`` [N·m] and ``slack`` [N]; ``fitted``: zeros, the cuff state
     taken without an estimate; the octagon's ``directions`` and ``radius``
-    [N]; the cuff ``rows`` (n_rows, 8) and their ``upper`` bounds [N]; the
-    screening's scratch ``value``, ``mark`` and the QP row ``slots``.
+    r_c per cuff [N]; the bound ``limit`` F_max [N], the margin's static
+    part ``margin_static`` [N], the estimate's ``sigmas`` k, the largest
+    margin so far ``margin_peak`` [N] (the tick's m_c is the common
+    ``margin``), the
+    cuffs' ``working`` force [N], the ``ticks`` tightened so far
+    (:mod:`~exo_ctrl.control.qp.margin`); the cuff ``rows`` (n_rows, 8) and
+    their ``upper`` bounds [N]; the screening's scratch ``value``, ``mark``
+    and the QP row ``slots``.
     """
     f8 = np.float64
     return [
@@ -59,7 +66,13 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
         ("slack", f8, (4,)),
         ("fitted", f8, (4,)),
         ("directions", f8, (POLYGON_SIDES // 2, 2)),
-        ("radius", f8),
+        ("radius", f8, (4,)),
+        ("limit", f8),
+        ("margin_static", f8, (4,)),
+        ("sigmas", f8),
+        ("margin_peak", f8, (4,)),
+        ("working", f8, (4,)),
+        ("ticks", np.int64),
         ("rows", f8, (n_rows, 8)),
         ("upper", f8, (n_rows,)),
         ("value", f8, (n_rows,)),
@@ -106,11 +119,14 @@ def tail(
     force: np.ndarray,
     has_estimate: bool,
     split: bool | None,
+    force_std: np.ndarray,
 ) -> int:  # pragma: no cover
     """The tick after Pinocchio, up to proxsuite (module docstring, "Cost").
 
     Linearisation, observer (force feedback on and an estimate given),
-    prediction, octagon rows and the clip test.  If the clip meets every row,
+    prediction, the tightened bound (m_c = static part + k σ_c, ``force_std``
+    σ_c [N], (4,); r_c = max(F_max − m_c, 0) cos(π/8)), octagon rows and the
+    clip test.  If the clip meets every row,
     the tick is done: τ, zero slacks, the voltage ``u_cmd`` and the tick's
     figures written; else ``needs_solve``.  ``split``: the cuff model's switch
     (:attr:`~exo_ctrl.control.qp.prediction.CuffHorizonModel.split_switch`).
@@ -130,6 +146,7 @@ def tail(
     else:  # the cuffs taken as fitted: δ = δ̇ = d = 0
         delta = ddelta = dist = s.fitted
     predict(m, delta, ddelta, dist, split)
+    tighten(s, force_std)
     if not math.isfinite(bound_rows(s.directions, m.A, m.b, s.radius, s.rows, s.upper)):
         return Status.NOT_FINITE.value
     feasible, active = clip_if_feasible(
@@ -145,6 +162,30 @@ def tail(
         s.screen_rounds = 0.0
         s.solved = True
     return Status.OK.value
+
+
+@kernel
+def tighten(s: np.void, force_std: np.ndarray) -> None:  # pragma: no cover - compiled
+    """m_c = ``margin_static`` + k σ_c, at most F_max − F_work,c; r_c = (F_max − m_c) cos(π/8).
+
+    The estimate's term applies after the filter's start-up, the first
+    :data:`~exo_ctrl.control.qp.margin.SETTLE_TICKS` ticks (its covariance
+    then is the initial guess, not the estimate's error, while the run
+    starts from the cuffs fitted at rest), and is capped so that the bound
+    never falls below the cuff's working force; ``margin_peak`` follows m_c
+    after the start-up.
+    """
+    apothem = math.cos(math.pi / POLYGON_SIDES)
+    s.ticks += 1
+    settled = s.ticks > SETTLE_TICKS
+    for c in range(4):
+        sigma = force_std[c] if math.isfinite(force_std[c]) and settled else 0.0
+        margin = min(s.margin_static[c] + s.sigmas * sigma, s.limit - s.working[c])
+        margin = max(margin, s.margin_static[c])
+        s.margin[c] = margin
+        if settled and margin > s.margin_peak[c]:
+            s.margin_peak[c] = margin
+        s.radius[c] = max(s.limit - margin, 0.0) * apothem
 
 
 @kernel

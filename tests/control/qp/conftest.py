@@ -99,7 +99,7 @@ class SoftProblem:
     hi: np.ndarray
     A: np.ndarray
     b: np.ndarray
-    radius: float
+    radius: np.ndarray
 
     def edge_excess(self, tau: np.ndarray) -> np.ndarray:
         """max over horizon points and k of |n_kᵀ f_c| − r per cuff, f = A τ + b [N]."""
@@ -115,14 +115,16 @@ def _soft_problem(ctrl: QPController, b: np.ndarray | None = None) -> SoftProble
     # Row 16p + 4c + k holds n_k at cuff c's columns of horizon point p.
     n_rows = np.kron(np.eye(4 * points), _octagon())
     e = np.kron(np.ones((points, 1)), np.kron(np.eye(4), np.ones((4, 1))))  # → slack c
-    radius = ctrl.cuff_force_limit_N * math.cos(math.pi / 8)
+    # r_c = (F_max − m_c) cos(π/8), the tightened bound of the tick (margin.py), per cuff.
+    radius = ctrl.record["radius"][0].copy()
+    per_row = np.tile(np.repeat(radius, 4), points)
     na = n_rows @ A
     return SoftProblem(
         w=np.concatenate((np.ones(4), np.full(4, RHO))),
         t=np.concatenate((ctrl.torque_cmd, np.zeros(4))),
         C=np.vstack((np.hstack((na, -e)), np.hstack((-na, -e)))),
         lower=np.full(2 * n_rows.shape[0], -np.inf),
-        upper=np.concatenate((radius - n_rows @ b, radius + n_rows @ b)),
+        upper=np.concatenate((per_row - n_rows @ b, per_row + n_rows @ b)),
         lo=np.concatenate((ctrl.torque_lo, np.zeros(4))),
         hi=np.concatenate((ctrl.torque_hi, np.full(4, np.inf))),
         A=A,

@@ -1,4 +1,4 @@
-"""The QP controller in the closed loop: tracking, the bound within its stated margin, fallbacks.
+"""The QP controller in the closed loop: tracking, the user's bound within 5 %, fallbacks.
 
 The default 2.4 s scenario through :func:`exo_ctrl.sim.loop.simulate`,
 default sensors (so the estimated cuff forces feed the QP), safety
@@ -11,41 +11,31 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_ctrl.control.qp import stated_margin
-from exo_ctrl.plant import CuffParams
 from exo_ctrl.sim import SimConfig, SimResult, simulate
 
 #: The QP may track worse than CT by at most this, per joint (brief: 5 %),
 #: where no bound binds.
 RMS_TOLERANCE = 0.05
-
+#: The QP's RMS tracking error over all joints may exceed CT's by at most this
+#: on the passive default patient, its bound tightened by the margin (issue 31).
+TRACKING_TOLERANCE = 0.10
 #: The hips' RMS error over CT's where the torque box binds (measured 1.6).
 HIP_BOX_TOLERANCE = 1.8
+#: A bound the passive default run does not need [N].
+F_FREE = 150.0
 #: A bound below CT's peak on the default run (≈ 106 N with the default sensors) [N].
 F_TIGHT = 80.0
-#: Stated margin of the real (elastic) cuff force over F_TIGHT on the passive run:
-#: measured 87.6 N (+9.5 %, left shank; CT 104.6 N), asserted at 15 %.  The
-#: error budget of the compliant prediction (the horizon model's ≤ 4.6 N given
-#: the true cuff state, below, plus the cuff state reconstructed from a force
-#: estimate lagging 5 ms after the controller's lead–lag) is absolute, so at
-#: 80 N it is a larger fraction than at 150 N.
-TIGHT_MARGIN = 0.15
-#: The spastic scenario's bound [N] and its stated margin at the default 1.2 s
-#: gait with the run's estimator (the default, the Kalman filter) and the
-#: nominal patient, (5.5 N + 13.8 N + 1.5 N) / 150 N = 13.9 %
-#: (exo_ctrl.control.qp.margin; the grid of gaits: test_load_held.py).
-#: Measured 154.1 N (+2.7 %; CT 180.7 N); 157.6 N (+5.1 %) with the
-#: momentum observer and the true patient model.
+#: The spastic scenario's bound [N].
 F_SPASTIC = 150.0
-SPASTIC_MARGIN = stated_margin(1.2, F_SPASTIC, SimConfig().estimator)
+#: The user's promise: the true peak within 5 % of the bound they set (issue 31),
+#: never a margin the code under test computes.
+BOUND_TOLERANCE = 0.05
 #: URDF effort of every joint [N·m].
 EFFORT = 150.0
 
 
 def _run(**kwargs) -> SimResult:
-    # The QP's cuff model is isotropic: its stated margins hold for such cuffs
-    # (the default split cuffs cost them, reported in the QP's docstring).
-    kwargs.setdefault("cuffs", CuffParams.isotropic())
+    # The default (split) cuffs; the QP's device holds the published split model.
     return simulate(SimConfig(safety=False, **kwargs))
 
 
@@ -56,7 +46,10 @@ def ct_passive() -> SimResult:
 
 @pytest.fixture(scope="module")
 def qp_passive() -> SimResult:
-    return _run(controller="qp")  # default cuff_force_limit_N = 120 N
+    # 150 N: above CT's true peak on the default split cuffs (126 N at the thighs)
+    # plus the margin (≈ 9.4 N), so no cuff bound binds.  At the default 120 N it
+    # binds: the QP departs from the plan to hold it (hips 4.9 mrad RMS).
+    return _run(controller="qp", cuff_force_limit_N=F_FREE)
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +86,7 @@ def describe(name: str, result: SimResult) -> str:
 
 
 def test_closed_loop_qp_tracks_as_well_as_ct(ct_passive, qp_passive) -> None:
-    print(f"\n{describe('ct', ct_passive)}\n{describe('qp 120 N', qp_passive)}")
+    print(f"\n{describe('ct', ct_passive)}\n{describe(f'qp {F_FREE:g} N', qp_passive)}")
     assert ct_passive.status == qp_passive.status == "completed"
     assert qp_passive.qp_failures == 0
     # The knees: no bound binds, the QP's answer is the CT command.  The hips
@@ -101,7 +94,7 @@ def test_closed_loop_qp_tracks_as_well_as_ct(ct_passive, qp_passive) -> None:
     # once the gearbox's 1/η of a braking joint is counted from the measured
     # speed's sign: the QP holds them in the box where CT's command goes
     # beyond it (the plant's current limit then caps CT).  Measured: hips
-    # 0.92/0.76 mrad against CT's 0.58/0.53, knees equal.
+    # 0.77/0.63 mrad against CT's 0.59/0.55, knees equal (split cuffs and model).
     qp, ct = rms(qp_passive), rms(ct_passive)
     assert np.all(qp[[1, 3]] <= (1.0 + RMS_TOLERANCE) * ct[[1, 3]])
     assert np.all(qp[[0, 2]] <= HIP_BOX_TOLERANCE * ct[[0, 2]])
@@ -110,16 +103,17 @@ def test_closed_loop_qp_tracks_as_well_as_ct(ct_passive, qp_passive) -> None:
     np.testing.assert_allclose(peak_force(qp_passive), peak_force(ct_passive), rtol=0.05)
 
 
-def test_closed_loop_tight_bound_stays_within_the_stated_margin(ct_passive, qp_tight) -> None:
+def test_closed_loop_tight_bound_holds_within_5_percent(ct_passive, qp_tight) -> None:
     peak = peak_force(qp_tight)
     print(
         f"\n{describe(f'qp {F_TIGHT:g} N', qp_tight)}\n"
-        f"peak {peak.max():.1f} N = bound + {100 * (peak.max() / F_TIGHT - 1):.1f} % "
-        f"(stated margin {100 * TIGHT_MARGIN:.0f} %); ct peak {peak_force(ct_passive).max():.1f} N"
+        f"peak {peak.max():.1f} N = bound + {100 * (peak.max() / F_TIGHT - 1):.1f} %; "
+        f"margin {qp_tight.summary()['cuff_bound_margin_N']}; "
+        f"ct peak {peak_force(ct_passive).max():.1f} N"
     )
     assert qp_tight.status == "completed"
     assert np.all(np.isfinite(rms(qp_tight)))
-    assert np.all(peak <= F_TIGHT * (1.0 + TIGHT_MARGIN))
+    assert np.all(peak <= F_TIGHT * (1.0 + BOUND_TOLERANCE))
     # Fallbacks are counted, in the summary and in the logged signal alike.
     assert qp_tight.summary()["qp_failures"] == qp_tight.qp_failures
     assert qp_tight.signals["qp_failures"][-1] == qp_tight.qp_failures
@@ -163,5 +157,36 @@ def test_closed_loop_spastic_patient_qp_completes_and_counts_its_fallbacks(qp_sp
     assert np.all(np.diff(qp_spastic.signals["qp_failures"]) >= 0)
 
 
-def test_closed_loop_spastic_patient_qp_keeps_the_bound_within_the_margin(qp_spastic) -> None:
-    assert peak_force(qp_spastic).max() <= F_SPASTIC * (1.0 + SPASTIC_MARGIN)
+def test_closed_loop_spastic_patient_qp_keeps_the_bound_within_5_percent(qp_spastic) -> None:
+    assert peak_force(qp_spastic).max() <= F_SPASTIC * (1.0 + BOUND_TOLERANCE)
+
+
+def test_closed_loop_tightened_qp_tracks_within_10_percent_of_ct(ct_passive, qp_passive) -> None:
+    """The passive default patient, the bound (F_FREE) tightened by its margin."""
+    qp, ct = np.sqrt(np.mean(rms(qp_passive) ** 2)), np.sqrt(np.mean(rms(ct_passive) ** 2))
+    margin = qp_passive.summary()["cuff_bound_margin_N"]
+    print(f"\nRMS over the joints: qp {1e3 * qp:.3f} mrad, ct {1e3 * ct:.3f} mrad; margin {margin}")
+    assert all(m > 0.0 for m in margin.values())
+    assert qp <= (1.0 + TRACKING_TOLERANCE) * ct
+
+
+@pytest.mark.parametrize("run", ["qp_passive", "qp_tight", "qp_spastic"])
+def test_closed_loop_tightened_qp_commands_within_the_supply(request, run) -> None:
+    result = request.getfixturevalue(run)
+    assert np.abs(result.signals["voltage_cmd"]).max() <= SimConfig().motor.supply_voltage_V + 1e-9
+
+
+@pytest.mark.parametrize("run", ["qp_passive", "qp_tight", "qp_spastic"])
+def test_closed_loop_recorded_margin_peaks_at_the_summarys(request, run) -> None:
+    """The log's per-tick margin m_c: never below its static part, its largest the summary's."""
+    result = request.getfixturevalue(run)
+    logged = result.signals["cuff_bound_margin"]
+    stated = np.array(list(result.summary()["cuff_bound_margin_N"].values()))
+    assert np.array_equal(logged.max(axis=0), stated)
+    assert (logged.min(axis=0) > 0.0).all()
+    assert logged.min(axis=0).max() < stated.max()  # the estimate's term varies per tick
+
+
+def test_closed_loop_ct_records_no_margin(ct_passive) -> None:
+    assert not ct_passive.signals["cuff_bound_margin"].any()
+    assert ct_passive.summary()["cuff_bound_margin_N"] is None

@@ -62,7 +62,7 @@ def test_a_tight_limit_the_torques_can_meet_puts_the_force_on_the_polygon(
     binding = fallbacks = 0
     slack_max = 0.0
     for k in range(0, 1200, 5):
-        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0, tighten=False)
         ctrl.command(k, on_plan(plan, k))
         if ctrl.last_status != "solved":
             assert ctrl.last_status.startswith("fallback: τ_cmd clipped to the torque box")
@@ -133,7 +133,9 @@ def test_a_limit_the_torque_box_cannot_meet_is_softened_not_a_fallback(
     assert_is_the_soft_optimum,
 ) -> None:
     """Drives too weak (URDF effort cut to 1, 5 or 60 N·m) to keep the cuffs within F_max."""
-    ctrl = QPController(plan, weak_exo(exo, effort), patient, motor, cuff_force_limit_N=limit)
+    ctrl = QPController(
+        plan, weak_exo(exo, effort), patient, motor, cuff_force_limit_N=limit, tighten=False
+    )
     u = ctrl.command(k, on_plan(plan, k))
     problem = soft_problem(ctrl)
     # Independent confirmation that no torque in the box meets the octagon.
@@ -187,7 +189,7 @@ def test_controller_qps_are_soft_optima_near_the_plan(
 ) -> None:
     """The controller's own instances (real cuff rows, a 40 N bound) pass the KKT check."""
     rng = np.random.default_rng(5)
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0, tighten=False)
     binding = 0
     for k in rng.integers(0, plan.q.shape[0], 150):
         ctrl.command(int(k), near_plan(plan, rng, int(k), dq_noise=0.5))
@@ -206,7 +208,13 @@ def test_without_a_force_estimate_the_prediction_starts_from_fitted_cuffs(
         (True, np.array([[np.nan, 0.0]] + [[0.0, 0.0]] * 3)),
     ):
         ctrl = QPController(
-            plan, exo, patient, motor, cuff_force_limit_N=80.0, force_feedback=feedback
+            plan,
+            exo,
+            patient,
+            motor,
+            cuff_force_limit_N=80.0,
+            force_feedback=feedback,
+            tighten=False,
         )
         ctrl.command(300, on_plan(plan, 300, est))
         assert ctrl.last_status == "solved" and ctrl.failures == 0
@@ -292,7 +300,9 @@ def test_no_torque_beyond_its_limits_on_random_inputs(exo, patient, plan, capped
     empty_above = (motor.supply_voltage_V + motor.resistance_ohm * motor.current_limit_A) / kb
     at_limit = fallbacks = 0
     for limit in (30.0, 80.0, 300.0):
-        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=limit)
+        # The QP itself at bounds from 30 N (below the legs' working force: a
+        # tightened 30 N bound is refused) to 300 N: the bound as given.
+        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=limit, tighten=False)
         radius = limit * math.cos(math.pi / 8)
         for _ in range(150):
             k = int(rng.integers(0, plan.q.shape[0]))
@@ -341,7 +351,7 @@ def test_no_torque_beyond_its_limits_on_random_inputs(exo, patient, plan, capped
 def test_a_solvable_tick_is_solved_not_a_fallback(
     exo, patient, motor, plan, k, q, dq, limit, on_plan
 ):
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=limit)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=limit, tighten=False)
     if q is None:
         readings = [(j, on_plan(plan, j)) for j in range(k, k + 4)]
     else:
@@ -419,7 +429,7 @@ def test_runs_with_the_human_patient(exo, human, motor, plan, near_plan, octagon
     """example-robot-data's human (other link lengths, added cuff frames) is usable."""
     ctrl = QPController(plan, exo, human, motor, cuff_force_limit_N=100.0)
     rng = np.random.default_rng(8)
-    radius = 100.0 * math.cos(math.pi / 8)
+    radius = ctrl.record["radius"][0]  # (F_max − m_c) cos(π/8), tightened by the margin
     for k in range(0, 1200, 97):
         u = ctrl.command(k, near_plan(plan, rng, k))
         assert ctrl.last_status == "solved", ctrl.last_status
@@ -433,8 +443,8 @@ def test_the_record_holds_the_command_the_active_bounds_and_the_fallbacks(
     exo, patient, motor, plan, on_plan
 ) -> None:
     """What the loop logs by name: ``u_cmd``, ``active_constraints``, ``failures``."""
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0)
-    other = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0, tighten=False)
+    other = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0, tighten=False)
     assert ctrl.record.dtype is other.record.dtype  # one dtype object (see _jit.shared_dtype)
     rec = ctrl.record
     active = 0

@@ -1,81 +1,61 @@
-"""The QP's cuff-force bound over a coarse grid of gaits and bounds ("Load held", issue 19).
+"""The QP's cuff-force bound on a reduced, seeded campaign of tools/load_held.py (issue 31).
 
-The corners of tools/load_held.py's grid: period 0.9 and 1.5 s × step 0.25
-and 0.45 m × bound 100 and 150 N, the spastic patient, safety off, the
-default 3.6 s run (the peaks come anywhere from the ramp-in's end to the
-last cycle, so the run is not shortened), the default (split) cuffs.  The
-device holds its default knowledge — the nominal patient, the datasheet
-drive — plus the split cuff model, with either live force estimator.  The
-real (elastic) peak cuff force must stay within the margin stated for the
-point and the estimator (:func:`exo_ctrl.control.qp.stated_margin`, the
-error budget of the prediction), with no fallback; the full 75-point grid
-is the tool's.
+Twelve points of the campaign's seed 0 drawn with the spastic patient and
+the pelvis fixed: step length 0.25–0.50 m, period 0.9–1.5 s, bound
+100–180 N, a true patient of 1.55–1.95 m and 50–110 kg drawn around de
+Leva's by the cohort's spreads (the exoskeleton fitted to its legs, the
+device holding the nominal patient), knee misaligned 0–2 cm.  Every point
+that runs must keep the true peak cuff force within 5 % of the USER's bound
+(the bound × 1.05, never a margin the code computes), with no QP fallback
+after the start.  The full campaign (200 points, spastic and active,
+fixed and supported pelvis) is the tool's: its table is in
+docs/performance.md, where the cases that do not hold yet are measured.
 """
 
 from __future__ import annotations
 
-import itertools
+import sys
+from pathlib import Path
 
-import numpy as np
 import pytest
 
-from exo_ctrl.control.qp import stated_margin
-from exo_ctrl.control.qp.margin import (
-    LAG_ERROR_N,
-    MIN_MARGIN,
-    MODEL_ERROR_N,
-    PATIENT_MODEL_ERROR_N,
-)
-from exo_ctrl.exceptions import InvalidParameter
-from exo_ctrl.plan import GaitParams
-from exo_ctrl.plant import CuffParams
-from exo_ctrl.sim import SimConfig, simulate
-from exo_ctrl.sim.belief import Belief
+ROOT = Path(__file__).resolve().parents[3]
+sys.path.insert(0, str(ROOT / "tools"))
 
-CORNERS = list(itertools.product((0.9, 1.5), (0.25, 0.45), (100.0, 150.0)))
+import load_held as tool  # noqa: E402
+
+#: The user's promise: the true peak within 5 % of the bound they set.
+TOLERANCE = 0.05
+POINTS = 12
+SEED = 0
 
 
-@pytest.mark.parametrize("estimator", ["momentum", "kalman"])
-@pytest.mark.parametrize(("period", "step", "bound"), CORNERS)
-def test_load_held_within_the_stated_margin(period, step, bound, estimator) -> None:
-    result = simulate(
-        SimConfig(
-            gait=GaitParams(period=period, step_length=step),
-            controller="qp",
-            patient_torque="spastic",
-            cuff_force_limit_N=bound,
-            safety=False,
-            estimator=estimator,
-            belief=Belief("nominal", cuffs=CuffParams()),  # the truth's cuffs are split
-        ),
-        keep_history=True,
-    )
-    peak = float(np.linalg.norm(result.signals["cuff_force"], axis=2).max())
-    margin = stated_margin(period, bound, estimator)
-    print(
-        f"\n{estimator}: T {period} s, s {step} m, F_max {bound:g} N: peak {peak:.1f} N "
-        f"({100 * (peak / bound - 1):+.1f} %, stated {100 * margin:.1f} %)"
-    )
-    assert result.status == "completed"
-    assert result.qp_failures == 0
-    assert peak <= bound * (1.0 + margin)
+@pytest.fixture(scope="module")
+def campaign() -> list[dict]:
+    return tool.campaign(POINTS, SEED, progress=False, patients=("spastic",), pelvis=("fixed",))
 
 
-def test_stated_margin_is_the_error_budget() -> None:
-    model = MODEL_ERROR_N + PATIENT_MODEL_ERROR_N
-    # (19.3 N + 18 N · 1.2/0.9) / 100 N at the fastest gait with the momentum observer.
-    assert stated_margin(0.9, 100.0, "momentum") == pytest.approx((model + 18.0 * 1.2 / 0.9) / 100)
-    assert stated_margin(1.2, 150.0, "momentum") == pytest.approx((model + 18.0) / 150)
-    assert stated_margin(1.2, 150.0, "momentum", true_patient=True) == pytest.approx(
-        (MODEL_ERROR_N + 18.0) / 150
-    )
-    # The Kalman filter: a smaller estimate term; the 10 % floor where the budget is below it.
-    kalman = LAG_ERROR_N["kalman"]
-    assert stated_margin(0.9, 100.0, "kalman") == pytest.approx((model + kalman * 1.2 / 0.9) / 100)
-    assert stated_margin(1.5, 150.0, "kalman", true_patient=True) == MIN_MARGIN
-    with pytest.raises(InvalidParameter, match="period"):
-        stated_margin(0.0, 100.0)
-    with pytest.raises(InvalidParameter, match="cuff_force_limit"):
-        stated_margin(1.2, float("nan"))
-    with pytest.raises(InvalidParameter, match="estimator must be one of momentum, kalman"):
-        stated_margin(1.2, 150.0, "ekf")
+def test_the_points_are_seeded_and_span_the_ranges() -> None:
+    points = tool.draw_points(POINTS, SEED, ("spastic",), ("fixed",))
+    assert points == tool.draw_points(POINTS, SEED, ("spastic",), ("fixed",))
+    assert points[:3] == tool.draw_points(3, SEED, ("spastic",), ("fixed",))
+    for p in points:
+        assert tool.STEP_M[0] <= p["step_length_m"] <= tool.STEP_M[1]
+        assert tool.PERIOD_S[0] <= p["period_s"] <= tool.PERIOD_S[1]
+        assert tool.BOUND_N[0] <= p["bound_N"] <= tool.BOUND_N[1]
+        assert tool.HEIGHT_M[0] <= p["height_m"] <= tool.HEIGHT_M[1]
+        assert tool.MASS_KG[0] <= p["mass_kg"] <= tool.MASS_KG[1]
+        assert sum(x * x for x in p["knee_xz"]) <= tool.KNEE_MISALIGNMENT_M**2
+        assert p["patient_torque"] == "spastic" and p["pelvis"] == "fixed"
+
+
+def test_every_point_holds_within_5_percent_of_the_users_bound(campaign) -> None:
+    text, _ = tool.report(campaign)
+    print("\n" + text)
+    ran = [r for r in campaign if r["outcome"] == "completed"]
+    assert len(ran) >= POINTS - 2  # the planner refuses few points
+    for r in campaign:
+        assert r["outcome"] in ("completed", "refused"), r
+        if r["outcome"] == "completed":
+            assert r["peak_N"] <= r["bound_N"] * (1.0 + TOLERANCE), r
+            assert r["margin_N"] > 0.0

@@ -41,7 +41,7 @@ def test_slack_weight_and_polygon_are_as_designed(octagon) -> None:
 def test_controller_builds_the_soft_cuff_rows(
     exo, patient, motor, plan, on_plan, soft_problem
 ) -> None:
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0, tighten=False)
     for k in range(300, 1200, 25):  # the first tick on the plan that calls proxsuite
         ctrl.command(k, on_plan(plan, k))
         if ctrl.screen_rounds:
@@ -81,7 +81,7 @@ def test_screening_hands_proxsuite_the_rows_nearest_to_binding(
     of the measure at τ_cmd and at 0, and the answer meets every row."""
     checked = 0
     for k in range(0, 1200, 5):
-        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+        ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0, tighten=False)
         ctrl.command(k, on_plan(plan, k))
         if ctrl.last_status != "solved" or ctrl.screen_rounds != 1:
             continue
@@ -108,7 +108,7 @@ def test_a_tick_whose_clipped_command_meets_every_row_skips_proxsuite(
     problem; a tick with proxsuite is one whose clipped τ_cmd violates a row.
     """
     rng = np.random.default_rng(13)
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=80.0)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=80.0, tighten=False)
     skipped = clipped = solved = 0
     for i, k in enumerate(rng.integers(0, plan.q.shape[0], 80)):
         # Alternately close to the plan (τ_cmd inside the box) and far (clipped).
@@ -137,7 +137,7 @@ def test_a_tick_whose_clipped_command_meets_every_row_skips_proxsuite(
 def test_screened_rows_keep_their_slots_from_tick_to_tick(
     exo, patient, motor, plan, near_plan
 ) -> None:
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0)
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=60.0, tighten=False)
     rng = np.random.default_rng(8)
     kept = 0
     previous = None
@@ -163,7 +163,9 @@ def test_few_screened_rows_are_widened_until_every_row_holds(
     than SCREEN_ROUNDS solves falls back with the stated reason.
     """
     rng = np.random.default_rng(5)
-    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=40.0, screened_rows=4)
+    ctrl = QPController(
+        plan, exo, patient, motor, cuff_force_limit_N=40.0, screened_rows=4, tighten=False
+    )
     assert ctrl.qp.n_in == 4
     widened = solved = 0
     for k in rng.integers(0, plan.q.shape[0], 60):
