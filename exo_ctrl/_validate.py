@@ -134,7 +134,8 @@ def allocation(
     size = format_bytes(need)
     if size == cap:  # just over: rounding would hide it
         size = f"{need:,} B"
-    detail = f"{int(count):,} {what} would need {size}"
+    shown = f"{int(count):,}" if count < 1e15 else f"{float(count):.4g}"  # not 300 digits
+    detail = f"{shown} {what} would need {size}"
     raise InvalidParameter(
         name,
         value,

@@ -95,12 +95,12 @@ def check_outputs(
             two options name one file, or an output names an input.
 
     """
-    inputs = {
+    named = {
         name: getattr(args, attribute)
         for attribute, name in INPUT_OPTIONS.items()
         if isinstance(getattr(args, attribute, None), (str, os.PathLike))
     }
-    inputs.update(reads or {})
+    inputs = {**(reads or {}), **named}  # an option the user typed names the file first
     taken = {
         same_file_key(path): name
         for name, path in inputs.items()

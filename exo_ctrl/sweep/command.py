@@ -18,7 +18,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from .._io import OUTPUT_ALLOWED, output_problem
+from .._io import OUTPUT_ALLOWED, DerivedOutput, output_problem
 from ..exceptions import InvalidParameter, MissingDependency, SweepError
 from ..sim import CONTROLLERS, SimConfig
 from .outputs import SweepPaths
@@ -142,7 +142,8 @@ def check_sweep_outputs(out: str, names: Sequence[str] = ()) -> SweepPaths:
     except InvalidParameter as exc:
         raise InvalidParameter("--out", out, exc.allowed) from None
     plots = [paths.plot(name) for name in names if name != "controller"]
-    for path in (paths.table, paths.csv, paths.journal, paths.report, *plots):
+    derived = [DerivedOutput(p) for p in (paths.csv, paths.journal, paths.report, *plots)]
+    for path in (paths.table, *derived):  # the files beside --out: never through a link
         problem = output_problem(path)
         if problem is not None:
             raise InvalidParameter("--out", out, OUTPUT_ALLOWED, problem)
