@@ -265,7 +265,11 @@ def load_body(
             raise InvalidModel(src, joint_map[ours], "must be a 1-DoF revolute joint")
         kind = model.joints[jid].shortname()  # JointModelRY, JointModelPY, ...Unaligned
         if kind.startswith(("JointModelP", "JointModelPrismatic")):
-            raise InvalidModel(src, joint_map[ours], f"must be a revolute joint; got {kind}")
+            raise InvalidModel(
+                src,
+                joint_map[ours],
+                f"must be a revolute joint (the drive turns it); got a prismatic joint ({kind})",
+            )
     check_inertias(src, model, joint_ids)
     if extra_frames:
         _add_anatomical_frames(model, joint_ids)
