@@ -136,16 +136,20 @@ def test_a_recording_naming_a_hostile_urdf_is_refused_and_a_named_one_announced(
     code, err = run(["estimate", str(rrd)], capsys)
     assert code == 0
     assert err == (
-        f"exo-ctrl estimate: warning: {rrd}: estimated with the exoskeleton it names, {exo}\n"
+        f"exo-ctrl estimate: warning: {rrd}: read with the exoskeleton URDF it names, {exo} "
+        "(--exo: another)\n"
     )
     chained_urdf(tmp_path, 6000, name="my_exo.urdf")  # the file the recording names, replaced
-    code, err = run(["estimate", str(rrd)], capsys)
-    assert (code, err) == (
-        2,
-        f"exo-ctrl estimate: error: cannot estimate from {rrd}: its exoskeleton {exo} cannot be "
-        f"loaded (invalid model: {exo}: more than 1000 links; a URDF may have at most 1000 "
-        "(Pinocchio's parser crashes on about 6000 chained joints)); give the model with --exo\n",
+    reason = (
+        f"cannot read {rrd}: the exoskeleton URDF it names, {exo}, cannot be loaded (invalid "
+        f"model: {exo}: more than 1000 links; a URDF may have at most 1000 (Pinocchio's parser "
+        "crashes on about 6000 chained joints)); give the model with --exo"
     )
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert (code, err) == (2, f"exo-ctrl estimate: error: {reason}\n")
+    # sibling: identify reads the recording's exoskeleton the same way
+    code, err = run(["identify", str(rrd), "--out", str(tmp_path / "p.urdf")], capsys)
+    assert (code, err) == (2, f"exo-ctrl identify: error: {reason}\n")
 
 
 def test_csv_logs_beyond_the_memory_cap_are_refused_before_reading(tmp_path: Path, capsys) -> None:
