@@ -55,6 +55,7 @@ __all__ = [
     "claim_partial",
     "is_special",
     "new_file_mode",
+    "not_a_file",
     "open_special",
     "output_problem",
     "partial_in_use",
@@ -138,6 +139,19 @@ def output_problem(path: str | os.PathLike[str]) -> str | None:
     if target.exists() and not os.access(target, os.W_OK):
         return f"permission denied on {target}"
     return None
+
+
+def not_a_file(path: str | os.PathLike[str]) -> str:
+    """Why an input ``path`` that is not a regular file cannot be read, in words.
+
+    An input is read only from a regular file: a FIFO or a device could
+    block or never end.
+    """
+    if not os.path.exists(path):
+        return "file not found"
+    if os.path.isdir(path):
+        return "a directory, not a file"
+    return "not a regular file (a FIFO or a device is not read: it may never end)"
 
 
 def check_output(path: str | os.PathLike[str], name: str) -> Path:

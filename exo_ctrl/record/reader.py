@@ -27,6 +27,7 @@ import numpy as np
 from rerun.chunk import RrdReader
 
 from .. import _validate as v
+from .._io import not_a_file
 from ..estimation import EstimateErrorStats
 from ..exceptions import ExoCtrlError, RecordingError
 from ..model import load_body
@@ -135,7 +136,7 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
     """
     p = Path(path)
     if not p.is_file():
-        raise RecordingError(f"cannot read recording {p}: file not found")
+        raise RecordingError(f"cannot read recording {p}: {not_a_file(p)}")
     chunks, cut = _read_chunks(p)
     note = f"; the file was cut at byte {cut} of {p.stat().st_size}" if cut is not None else ""
 

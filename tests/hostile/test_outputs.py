@@ -283,3 +283,29 @@ def test_same_file_key_counts_hard_and_symbolic_links(tmp_path: Path) -> None:
     assert _io.same_file_key(tmp_path / "b") == key == _io.same_file_key(tmp_path / "c")
     assert _io.same_file_key(tmp_path / "d") != key
     assert _io.same_file_key(tmp_path / "new") == ("path", str(tmp_path / "new"))
+
+
+NOT_READ = "not a regular file (a FIFO or a device is not read: it may never end)"
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        # siblings of the FIFO outputs in issue 32: a FIFO as an input would block the read
+        (
+            ["simulate", "--exo", "fifo", "--duration", "0.05", "--no-record"],
+            f"invalid model: fifo: {NOT_READ}",
+        ),
+        (["estimate", "fifo.csv"], f"invalid log fifo.csv: {NOT_READ}"),
+        (["export", "fifo.rrd", "--out", "x.csv"], f"cannot read recording fifo.rrd: {NOT_READ}"),
+        (["estimate", "D.rrd"], "cannot read recording D.rrd: a directory, not a file"),
+    ],
+)
+def test_a_fifo_or_directory_as_input_is_refused_not_read(
+    inputs: Path, capsys, argv: list[str], message: str
+) -> None:
+    for name in ("fifo", "fifo.csv", "fifo.rrd"):
+        _mkfifo(inputs / name)
+    (inputs / "D.rrd").mkdir()
+    code, err = run(argv, capsys)
+    assert (code, err) == (2, f"exo-ctrl {argv[0]}: error: {message}\n")
