@@ -126,14 +126,18 @@ def csv_log(
     return path
 
 
-def meta_rrd(directory: Path, meta_text: str, name: str = "meta.rrd") -> Path:
-    """A recording holding only ``raw/meta`` with the given text (rerun's own file sink)."""
+def meta_rrd(
+    directory: Path, meta_text: str, name: str = "meta.rrd", outcome_text: str | None = None
+) -> Path:
+    """A recording holding only ``raw/meta`` (and ``raw/outcome``) with the given texts."""
     import rerun as rr
 
     path = directory / name
     rec = rr.RecordingStream("exo_ctrl_hostile")
     rec.save(str(path))
     rec.log("raw/meta", rr.TextDocument(meta_text), static=True)
+    if outcome_text is not None:
+        rec.log("raw/outcome", rr.TextDocument(outcome_text), static=True)
     rec.disconnect()
     return path
 

@@ -125,6 +125,54 @@ def test_recording_metadata_is_checked_before_allocation(
     assert (code, err) == (2, f"exo-ctrl estimate: error: cannot read recording {rrd}: {reason}\n")
 
 
+GOOD_OUTCOME = {"status": "completed", "error": "", "events": [], "ticks": 0, "warnings": []}
+
+
+@pytest.mark.parametrize(
+    ("meta", "outcome", "command", "reason"),
+    [
+        # siblings of the nested and oversized metadata in issue 32: values of the wrong type
+        # (each was a traceback: AttributeError, TypeError, ValueError)
+        (valid_meta(config=5), GOOD_OUTCOME, "estimate",
+         "its config must be a table of SimConfig; got int"),
+        (valid_meta(belt_speed_mps="x"), GOOD_OUTCOME, "export",
+         "raw/meta's belt_speed_mps must be a finite number; got 'x'"),
+        (valid_meta(exo_source=["a.urdf"]), GOOD_OUTCOME, "estimate",
+         "raw/meta's exo_source must be a string; got ['a.urdf']"),
+        (valid_meta(), 5, "scenario", "raw/outcome must be a table; got int"),
+        (valid_meta(), {**GOOD_OUTCOME, "events": [5]}, "compare",
+         "raw/outcome's events must be a list of tables, each with a number t; got [5]"),
+        (valid_meta(), {**GOOD_OUTCOME, "wall_time_s": None}, "compare",
+         "raw/outcome's wall_time_s must be a number; got None"),
+    ],
+)  # fmt: skip
+def test_recording_documents_of_the_wrong_type_are_refused_by_key(
+    tmp_path: Path, capsys, meta: dict, outcome: object, command: str, reason: str
+) -> None:
+    rrd = meta_rrd(tmp_path, json.dumps(meta), outcome_text=json.dumps(outcome))
+    argv = {
+        "estimate": ["estimate", str(rrd)],
+        "export": ["export", str(rrd), "--out", str(tmp_path / "x.csv")],
+        "scenario": ["scenario", "--from", str(rrd), "--out", str(tmp_path / "x.toml")],
+        "compare": ["compare", str(rrd), str(shutil.copy(rrd, tmp_path / "b.rrd")), "--out",
+                    str(tmp_path / "D")],
+    }[command]  # fmt: skip
+    code, err = run(argv, capsys)
+    assert (code, err) == (2, f"exo-ctrl {command}: error: cannot read recording {rrd}: {reason}\n")
+
+
+def test_a_recording_config_value_of_the_wrong_type_names_its_key(tmp_path: Path, capsys) -> None:
+    """Sibling: a table where the config has a number (scenario --from failed writing TOML)."""
+    config = {**valid_meta()["config"], "observer_gain_per_s": {"a": 1}}
+    rrd = meta_rrd(tmp_path, json.dumps(valid_meta(config=config)))
+    code, err = run(["scenario", "--from", str(rrd), "--out", str(tmp_path / "x.toml")], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl scenario: error: cannot read recording {rrd}: its config is invalid "
+        "(observer_gain_per_s must be a number; got {'a': 1})\n",
+    )
+
+
 def test_a_recording_naming_a_hostile_urdf_is_refused_and_a_named_one_announced(
     tmp_path: Path, capsys
 ) -> None:
