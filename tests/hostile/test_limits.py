@@ -200,6 +200,34 @@ def test_a_recording_naming_a_hostile_urdf_is_refused_and_a_named_one_announced(
     assert (code, err) == (2, f"exo-ctrl identify: error: {reason}\n")
 
 
+def test_a_recording_naming_a_patient_urdf_says_so_and_refuses_a_hostile_one(
+    tmp_path: Path, capsys
+) -> None:
+    """Sibling: the Kalman filter reads the patient URDF a recording names (it said nothing)."""
+    patient = tmp_path / "my_patient.urdf"
+    shutil.copy(default_urdf_path("patient"), patient)
+    rrd = tmp_path / "run.rrd"
+    argv = ["simulate", "--patient", str(patient), "--duration", "0.1", "--out", str(rrd)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert (code, err) == (
+        0,
+        f"exo-ctrl estimate: warning: {rrd}: read with the patient URDF it names, {patient} "
+        "(the Kalman filter's device model; --estimator momentum reads none)\n",
+    )
+    assert run(["estimate", str(rrd), "--estimator", "momentum"], capsys) == (0, "")
+    chained_urdf(tmp_path, 6000, name="my_patient.urdf")
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl estimate: error: cannot estimate from {rrd} with the kalman estimator: the "
+        f"device's patient model cannot be rebuilt (invalid model: {patient}: more than 1000 "
+        "links; a URDF may have at most 1000 (Pinocchio's parser crashes on about 6000 chained "
+        "joints)); --estimator momentum needs none\n",
+    )
+
+
 def test_csv_logs_beyond_the_memory_cap_are_refused_before_reading(tmp_path: Path, capsys) -> None:
     rows = tmp_path / "rows.csv"  # 1.8 million lines: about 1 GiB to read, 1.8 MB on disk
     rows.write_bytes(b"\n" * 1_800_000)
