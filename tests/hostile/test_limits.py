@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -294,3 +296,20 @@ def test_an_absurd_gait_period_is_refused_by_name(
         "overflow)\n",
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_corpus_script_writes_every_kind_small(tmp_path: Path) -> None:
+    """Item 6 of issue 32: the corpus is made by a script, nothing large stored."""
+    script = Path(__file__).with_name("corpus.py")
+    proc = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "c")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    made = [Path(line) for line in proc.stdout.splitlines()]
+    assert sorted(p.name for p in made) == sorted(p.name for p in (tmp_path / "c").iterdir())
+    assert len(made) == 9
+    assert max(p.stat().st_size for p in made) < 2_000_000
+    assert script.stat().st_size < 20_000
