@@ -315,6 +315,7 @@ class SimConfig:
         if self.session is not None:
             check_session(self)
         checks.check_plan_size(self)
+        checks.check_belt_size(self)
         chunk = min(self.chunk_ticks, max(self.n_ticks, 1))
         v.allocation(
             "chunk_ticks",

@@ -11,6 +11,7 @@ import json
 import shutil
 import subprocess
 import sys
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -27,7 +28,11 @@ from hostile_corpus import (
 )
 
 from exo_ctrl.cli.app import main
+from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import default_urdf_path
+from exo_ctrl.plant import ContactParams
+from exo_ctrl.sim import SimConfig, build
+from exo_ctrl.sim.config_checks import BELT_ROW_BYTES
 
 
 def run(argv: list[str], capsys) -> tuple[int, str]:
@@ -313,3 +318,39 @@ def test_the_corpus_script_writes_every_kind_small(tmp_path: Path) -> None:
     assert len(made) == 9
     assert max(p.stat().st_size for p in made) < 2_000_000
     assert script.stat().st_size < 20_000
+
+
+def test_a_long_run_on_the_belt_is_refused_before_its_speeds_are_planned(
+    tmp_path: Path, capsys, monkeypatch
+) -> None:
+    """Sibling of the period in issue 32: 1e7 s on the belt (74.5 GiB asked, a traceback)."""
+    monkeypatch.chdir(tmp_path)
+    code, err = run(["simulate", "--duration", "1e7", "--no-record"], capsys)  # paper: belt on
+    assert (code, err) == (
+        2,
+        "exo-ctrl simulate: error: --duration: run.duration_s: must be at most 8389 s at 1000 Hz "
+        "with the belt on so that the belt speed samples fit in the 1 GiB memory cap (at most "
+        "8,388,608 of 128 B each); got 10000000.0 (10,000,000,000 belt speed samples would "
+        "need 1.164 TiB; the belt's set speed is planned for every tick)\n",
+    )
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InvalidParameter):  # the library refuses it too, before any allocation
+        SimConfig(contact=ContactParams(enabled=True), duration_s=8389.0)
+    SimConfig(contact=ContactParams(enabled=True), duration_s=8388.0)
+    SimConfig(duration_s=1e7)  # free air: nothing is planned per tick
+
+
+def test_the_belt_speed_plan_takes_at_most_the_stated_bytes() -> None:
+    def peak(duration: float) -> int:
+        config = SimConfig(contact=ContactParams(enabled=True), duration_s=duration)
+        tracemalloc.start()
+        try:
+            base = tracemalloc.get_traced_memory()[0]
+            build(config)
+            return tracemalloc.get_traced_memory()[1] - base
+        finally:
+            tracemalloc.stop()
+
+    peak(0.5)  # compiled, warmed
+    per_tick = (peak(62.0) - peak(2.0)) / 60_000
+    assert 40 < per_tick <= BELT_ROW_BYTES < 3 * per_tick
