@@ -113,7 +113,7 @@ def output_problem(path: str | os.PathLike[str]) -> str | None:
 
     Nothing is created: the checks are ``stat`` and ``access`` calls.  A
     :class:`DefaultOutput` (or :class:`DerivedOutput`) that is a symbolic
-    link is refused.
+    link, a FIFO or a device is refused.
     """
     target = Path(path)
     if str(path) == "":
@@ -122,6 +122,11 @@ def output_problem(path: str | os.PathLike[str]) -> str | None:
         return (
             f"{path}, {path.how}, is a symbolic link to {os.readlink(path)}; a link is "
             "followed only when named"
+        )
+    if isinstance(path, DefaultOutput) and is_special(path) and not target.is_dir():
+        return (
+            f"{path}, {path.how}, is not a regular file (a FIFO or a device); only a path "
+            "you name is written to one"
         )
     if target.is_dir():
         return f"{target} is a directory"

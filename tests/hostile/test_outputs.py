@@ -309,3 +309,34 @@ def test_a_fifo_or_directory_as_input_is_refused_not_read(
     (inputs / "D.rrd").mkdir()
     code, err = run(argv, capsys)
     assert (code, err) == (2, f"exo-ctrl {argv[0]}: error: {message}\n")
+
+
+NOT_REGULAR = "is not a regular file (a FIFO or a device); only a path you name is written to one"
+
+
+@pytest.mark.parametrize(
+    ("argv", "fifo", "got", "how"),
+    [
+        # siblings of the FIFO --out in issue 32: a FIFO at a path the user did not name would
+        # have held the sweep 10 s after every run, then failed; now refused before the first
+        (
+            ["sweep", "--param", "step_length=0.3", "--duration", "0.05", "--out", "sw.parquet"],
+            "sw.csv",
+            "sw.parquet",
+            "named by the command",
+        ),
+        (["simulate", "--duration", "0.05"], "exo_run.rrd", "exo_run.rrd", "the default"),
+    ],
+)
+def test_a_fifo_at_a_path_the_user_did_not_name_is_refused_up_front(
+    inputs: Path, capsys, monkeypatch, argv: list[str], fifo: str, got: str, how: str
+) -> None:
+    monkeypatch.setattr("exo_ctrl.cli.simulate.simulate", _must_not_run)
+    monkeypatch.setattr("exo_ctrl.sweep.run.simulate", _must_not_run)
+    _mkfifo(inputs / fifo)
+    code, err = run(argv, capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl {argv[0]}: error: --out must be {OUT_ALLOWED}; got '{got}' "
+        f"({fifo}, {how}, {NOT_REGULAR})\n",
+    )
