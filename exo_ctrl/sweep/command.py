@@ -147,6 +147,12 @@ def check_sweep_outputs(out: str, names: Sequence[str] = ()) -> SweepPaths:
         problem = output_problem(path)
         if problem is not None:
             raise InvalidParameter("--out", out, OUTPUT_ALLOWED, problem)
+    if os.path.islink(paths.cache):  # generated URDFs go in there: never through a link
+        problem = (
+            f"{paths.cache}, named by the command, is a symbolic link to "
+            f"{os.readlink(paths.cache)}; a link is followed only when named"
+        )
+        raise InvalidParameter("--out", out, OUTPUT_ALLOWED, problem)
     return paths
 
 

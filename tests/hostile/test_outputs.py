@@ -163,6 +163,8 @@ NAMED_BY_COMMAND = (
          "sw.journal.jsonl", "--out", "sw.parquet"),
         (["sweep", "--param", "step_length=0.3", "--duration", "0.05", "--out", "sw.parquet"],
          "sw.report.txt", "--out", "sw.parquet"),
+        (["sweep", "--param", "step_length=0.3", "--duration", "0.05", "--out", "sw.parquet"],
+         "sw.urdf_cache", "--out", "sw.parquet"),
         # a cohort's files in a directory, and one URDF's default name in a directory
         (["urdf", "--kind", "patient", "--height", "1.7", "--mass", "70", "--cohort", "2",
           "--out", "D"], "D/patient_s0_001.urdf", "--out", "D/patient_s0_001.urdf"),
