@@ -354,3 +354,34 @@ def test_the_belt_speed_plan_takes_at_most_the_stated_bytes() -> None:
     peak(0.5)  # compiled, warmed
     per_tick = (peak(62.0) - peak(2.0)) / 60_000
     assert 40 < per_tick <= BELT_ROW_BYTES < 3 * per_tick
+
+
+@pytest.mark.parametrize(
+    ("text", "depth"),
+    [
+        ("x = " + "[" * 5000 + "]" * 5000 + "\n", 5000),  # arrays (a RecursionError)
+        ("x = " + "{a = " * 3000 + "1" + "}" * 3000 + "\n", 3000),  # inline tables
+        ('# [[[[ a comment\nx = "[[[[ a string"\n' + "y = " + "[" * 65 + "]" * 65, 65),
+    ],
+)
+def test_a_deeply_nested_scenario_file_is_refused_by_name(
+    tmp_path: Path, capsys, text: str, depth: int
+) -> None:
+    """Siblings of the 5000-deep session JSON in issue 32: a scenario file, a --set value."""
+    scenario = tmp_path / "deep.toml"
+    scenario.write_text(text)
+    code, err = run(["simulate", str(scenario), "--no-record"], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl simulate: error: scenario {scenario}: nested {depth} levels deep; at most 64 "
+        "are read\n",
+    )
+
+
+def test_a_deeply_nested_set_value_is_refused_by_name(capsys) -> None:
+    code, err = run(["simulate", "--set", "gait.period=" + "[" * 3000 + "]" * 3000], capsys)
+    assert (code, err) == (
+        2,
+        "exo-ctrl simulate: error: --set: gait.period: the value is nested 3000 levels deep; "
+        "at most 64 are read\n",
+    )
