@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import _validate as v
-from .._io import DefaultOutput, DerivedOutput
+from .._io import DefaultOutput, DerivedOutput, is_special, partial_path
 from ..exceptions import InvalidParameter
 from ..model import load_exo
 from ..plan import GaitParams
@@ -286,12 +286,17 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.scenario is not None:
         inputs["the scenario file"] = args.scenario
+    recorded = {} if args.no_record else {"out": "--out"}
+    args.partial_file = None  # where a regular file's recording is written first (claimed)
+    if not args.no_record and not is_special(args.out):
+        args.partial_file = DerivedOutput(partial_path(args.out))
+        recorded["partial_file"] = "--out"
     check_outputs(
         args,
         reads={k: str(p) for k, p in inputs.items() if p is not None and Path(p).is_file()},
         summary="--summary",
         plot_file="--plots",
-        **({} if args.no_record else {"out": "--out"}),
+        **recorded,
     )
     points = OperatingPoints() if args.plots is not None else None  # needs matplotlib
     warning = consistency_warning(config.motor)

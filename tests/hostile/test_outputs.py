@@ -342,3 +342,19 @@ def test_a_fifo_at_a_path_the_user_did_not_name_is_refused_up_front(
         f"exo-ctrl {argv[0]}: error: --out must be {OUT_ALLOWED}; got '{got}' "
         f"({fifo}, {how}, {NOT_REGULAR})\n",
     )
+
+
+def test_the_recordings_partial_file_never_replaces_an_input(inputs: Path, capsys) -> None:
+    """Sibling: the recorder claims NAME.partial.rrd and renames it over NAME.rrd; an input
+    of that name (here the exoskeleton's URDF) was emptied and moved away (exit 0)."""
+    urdf = inputs / "walk.partial.rrd"
+    urdf.write_text(exo_urdf_text())
+    argv = ["simulate", "--exo", "walk.partial.rrd", "--duration", "0.05", "--out", "walk.rrd"]
+    code, err = run(argv, capsys)
+    assert (code, err) == (
+        2,
+        "exo-ctrl simulate: error: --out must be a file other than --exo; got "
+        "'walk.partial.rrd' (one would replace the other)\n",
+    )
+    assert urdf.read_text() == exo_urdf_text()
+    assert not (inputs / "walk.rrd").exists()
