@@ -21,10 +21,13 @@ Every output the command line writes goes through two functions:
 Outputs never replace inputs: :func:`same_file_key` names a file by its
 device and inode (``os.stat``'s ``st_dev``, ``st_ino``), so a hard link or a
 symbolic link to an input counts as the input.  A path the user did not name
-(:class:`DefaultOutput`, e.g. ``exo_run.rrd``) is never followed through a
-symbolic link.  A recording is written to :func:`partial_path` beside its
-destination, locked there (:func:`claim_partial`) so that a second run
-writing the same path refuses at its start.
+(:class:`DefaultOutput`, e.g. ``exo_run.rrd``; :class:`DerivedOutput`, e.g.
+``DIR/compare.csv`` or a sweep's ``NAME.report.txt``) is never followed
+through a symbolic link: the check refuses it, and a link planted after the
+check is replaced by the rename, its target left alone.  A recording is
+written to :func:`partial_path` beside its destination, locked there
+(:func:`claim_partial`) so that a second run writing the same path refuses
+at its start.
 """
 
 from __future__ import annotations
@@ -46,11 +49,13 @@ __all__ = [
     "FIFO_OPEN_TIMEOUT_S",
     "OUTPUT_ALLOWED",
     "DefaultOutput",
+    "DerivedOutput",
     "atomic_write",
     "check_output",
     "claim_partial",
     "is_special",
     "new_file_mode",
+    "not_a_file",
     "open_special",
     "output_problem",
     "partial_in_use",
@@ -67,10 +72,25 @@ _FIFO_POLL_S = 0.05
 class DefaultOutput(str):
     """An output path the user did not name (an option's default such as ``exo_run.rrd``).
 
-    :func:`check_output` refuses it if it is a symbolic link: in a shared
-    directory someone else may have planted it, and only a path the user
-    named is written through a link.
+    :func:`check_output` (:func:`output_problem`) refuses it if it is a
+    symbolic link: in a shared directory someone else may have planted it,
+    and only a path the user named is written through a link.
+    :func:`atomic_write` replaces such a link itself, never its target.
     """
+
+    #: How the check's message describes the path.
+    how = "the default"
+
+
+class DerivedOutput(DefaultOutput):
+    """An output the command names inside or beside a path the user gave.
+
+    ``DIR/compare.csv`` for ``compare --out DIR``, ``NAME.report.txt`` for
+    ``sweep --out NAME.parquet``, a cohort's ``DIR/patient_s0_000.urdf``:
+    never followed through a symbolic link, as :class:`DefaultOutput`.
+    """
+
+    how = "named by the command"
 
 
 #: What an output path must be, in the words of :func:`check_output`'s message.
@@ -91,11 +111,23 @@ def is_special(path: str | os.PathLike[str]) -> bool:
 def output_problem(path: str | os.PathLike[str]) -> str | None:
     """Why ``path`` cannot be written as an output, or None if it can.
 
-    Nothing is created: the checks are ``stat`` and ``access`` calls.
+    Nothing is created: the checks are ``stat`` and ``access`` calls.  A
+    :class:`DefaultOutput` (or :class:`DerivedOutput`) that is a symbolic
+    link, a FIFO or a device is refused.
     """
     target = Path(path)
     if str(path) == "":
         return "the path is empty"
+    if isinstance(path, DefaultOutput) and os.path.islink(path):
+        return (
+            f"{path}, {path.how}, is a symbolic link to {os.readlink(path)}; a link is "
+            "followed only when named"
+        )
+    if isinstance(path, DefaultOutput) and is_special(path) and not target.is_dir():
+        return (
+            f"{path}, {path.how}, is not a regular file (a FIFO or a device); only a path "
+            "you name is written to one"
+        )
     if target.is_dir():
         return f"{target} is a directory"
     if is_special(target) and target.exists():
@@ -114,6 +146,19 @@ def output_problem(path: str | os.PathLike[str]) -> str | None:
     return None
 
 
+def not_a_file(path: str | os.PathLike[str]) -> str:
+    """Why an input ``path`` that is not a regular file cannot be read, in words.
+
+    An input is read only from a regular file: a FIFO or a device could
+    block or never end.
+    """
+    if not os.path.exists(path):
+        return "file not found"
+    if os.path.isdir(path):
+        return "a directory, not a file"
+    return "not a regular file (a FIFO or a device is not read: it may never end)"
+
+
 def check_output(path: str | os.PathLike[str], name: str) -> Path:
     """Check, before any work, that ``path`` can be written; returns it as a Path.
 
@@ -123,15 +168,11 @@ def check_output(path: str | os.PathLike[str], name: str) -> Path:
 
     Raises:
         InvalidParameter: the path is a directory, its directory is missing,
-            not a directory or not writable, or the file is read-only.
+            not a directory or not writable, the file is read-only, or a
+            path the user did not name is a symbolic link.
 
     """
     problem = output_problem(path)
-    if problem is None and isinstance(path, DefaultOutput) and os.path.islink(path):
-        problem = (
-            f"{path}, the default, is a symbolic link to {os.readlink(path)}; a link is "
-            f"followed only when named"
-        )
     if problem is None and os.path.islink(partial_path(path)):
         problem = f"{partial_path(path)} is a symbolic link; the recording is written there first"
     if problem is None and partial_in_use(path):
@@ -290,7 +331,9 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
     A new path or a regular file is written through a temporary file beside
     it that replaces it on success (module docstring); on any exception the
     temporary file is removed and ``path`` is left as it was.  A special file
-    (device, FIFO, symbolic link) is opened and written directly.  Text modes
+    (device, FIFO, symbolic link) is opened and written directly, except a
+    symbolic link at a path the user did not name (:class:`DefaultOutput`),
+    which the rename replaces (its target is never written).  Text modes
     write UTF-8, lines ended as the caller writes them.
 
     Args:
@@ -305,7 +348,8 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
     target = Path(path)
     text = "b" not in mode
     options = {"encoding": "utf-8", "newline": ""} if text else {}
-    if is_special(target):
+    unnamed_link = isinstance(path, DefaultOutput) and os.path.islink(path)
+    if is_special(target) and not unnamed_link:
         try:
             with os.fdopen(open_special(target), mode, **options) as handle:
                 yield handle
@@ -319,7 +363,7 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO]:
     try:
         with os.fdopen(fd, mode, **options) as handle:
             yield handle
-        os.chmod(tmp, new_file_mode(target))
+        os.chmod(tmp, 0o666 & ~_umask() if unnamed_link else new_file_mode(target))
         os.replace(tmp, target)
     except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):

@@ -134,7 +134,8 @@ def allocation(
     size = format_bytes(need)
     if size == cap:  # just over: rounding would hide it
         size = f"{need:,} B"
-    detail = f"{int(count):,} {what} would need {size}"
+    shown = f"{int(count):,}" if count < 1e15 else f"{float(count):.4g}"  # not 300 digits
+    detail = f"{shown} {what} would need {size}"
     raise InvalidParameter(
         name,
         value,
@@ -257,6 +258,30 @@ def json_depth(text: str) -> int:
 def json_depth_problem(text: str) -> str:
     """Why a JSON text is too deeply nested to parse ("" if it is not)."""
     depth = json_depth(text)
+    if depth <= MAX_JSON_DEPTH:
+        return ""
+    return f"nested {depth} levels deep; at most {MAX_JSON_DEPTH} are read"
+
+
+#: What a TOML text holds that is not nesting: strings of each kind and comments.
+_TOML_SKIP = re.compile(
+    r'"""(?:[^\\]|\\.)*?"""|\'\'\'.*?\'\'\'|"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'|#[^\n]*',
+    re.S,
+)
+
+
+def toml_depth(text: str) -> int:
+    """The deepest nesting of arrays and inline tables in a TOML text.
+
+    Strings and comments are skipped; a table header (``[gait]``) counts as
+    one level while it is open.  Python's TOML parser recurses per level.
+    """
+    return json_depth(_TOML_SKIP.sub("", text).replace('"', ""))
+
+
+def toml_depth_problem(text: str) -> str:
+    """Why a TOML text is too deeply nested to parse ("" if it is not)."""
+    depth = toml_depth(text)
     if depth <= MAX_JSON_DEPTH:
         return ""
     return f"nested {depth} levels deep; at most {MAX_JSON_DEPTH} are read"

@@ -70,7 +70,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     _tolerant_streams()
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)  # --help exits 0 here (SystemExit), bad usage 2
+    except OSError as exc:  # --help could not be printed (Parser.print_help)
+        if exc.errno not in _WRITE_ERRNOS:
+            raise
+        words = list(sys.argv[1:] if argv is None else argv)
+        return _stdout_failed(words[0] if words else "", exc)
     previous = _on_sigterm()
     try:
         code = _run(args)
@@ -107,8 +113,9 @@ def _stdout_failed(command: str, exc: OSError) -> int:
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
     reason = exc.strerror or str(exc)
+    prog = f"exo-ctrl {command}" if command and not command.startswith("-") else "exo-ctrl"
     with contextlib.suppress(OSError):
-        print(f"exo-ctrl {command}: error: cannot write standard output: {reason}", file=sys.stderr)
+        print(f"{prog}: error: cannot write standard output: {reason}", file=sys.stderr)
     return 1
 
 

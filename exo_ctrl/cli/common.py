@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from typing import Any
+import sys
+from typing import Any, TextIO
 
 from .._io import atomic_write, check_output, same_file_key
 from .._plugin import import_from_cwd
@@ -29,7 +30,17 @@ __all__ = [
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with exit code 2 and a one-line message on bad usage."""
+    """argparse with exit code 2 and a one-line message on bad usage.
+
+    ``--help`` that cannot be written (a closed pipe, a full device) raises
+    the OSError, which :func:`~exo_ctrl.cli.app.main` turns into exit 1.
+    """
+
+    def print_help(self, file: TextIO | None = None) -> None:
+        """Print the help, flushed; a failed write raises (argparse would drop it silently)."""
+        stream = sys.stdout if file is None else file
+        stream.write(self.format_help())
+        stream.flush()
 
     def error(self, message: str) -> None:  # type: ignore[override]
         """Print ``prog: error: message`` on one line and exit with code 2."""
@@ -97,12 +108,12 @@ def check_outputs(
             two options name one file, or an output names an input.
 
     """
-    inputs = {
+    named = {
         name: getattr(args, attribute)
         for attribute, name in INPUT_OPTIONS.items()
         if isinstance(getattr(args, attribute, None), (str, os.PathLike))
     }
-    inputs.update(reads or {})
+    inputs = {**(reads or {}), **named}  # an option the user typed names the file first
     taken = {
         same_file_key(path): name
         for name, path in inputs.items()

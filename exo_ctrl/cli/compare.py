@@ -27,6 +27,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from .._io import DerivedOutput
 from ..comparison import (
     CompareRow,
     CompareTable,
@@ -157,7 +158,7 @@ def _check_args(args: argparse.Namespace, check_files: bool = True) -> None:
     if not check_files:
         return
     for attribute, name in OUTPUT_FILES.items():
-        setattr(args, attribute, str(Path(args.out) / name))
+        setattr(args, attribute, DerivedOutput(Path(args.out) / name))  # never through a link
     reads = (
         dict(zip(["the scenario file"], args.inputs, strict=False))
         if args.controllers is not None

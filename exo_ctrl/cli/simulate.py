@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import _validate as v
-from .._io import DefaultOutput
+from .._io import DefaultOutput, DerivedOutput, is_special, partial_path
 from ..control import controller_name
 from ..exceptions import InvalidParameter
 from ..model import load_exo
@@ -281,16 +281,27 @@ def run(args: argparse.Namespace) -> int:
     args.no_record = args.no_record or not recording.enabled
     args.summary = args.summary if args.summary is not None else (recording.summary or None)
     scene_rate = args.scene_rate if args.scene_rate is not None else recording.scene_rate_hz
-    args.plot_file = None if args.plots is None else str(Path(args.plots) / "torque_speed.png")
-    inputs = {"the exoskeleton URDF": config.exo, "the patient URDF": config.patient}
+    plot_file = None if args.plots is None else Path(args.plots) / "torque_speed.png"
+    args.plot_file = None if plot_file is None else DerivedOutput(plot_file)  # never via a link
+    inputs = {  # an input option given names it instead (check_outputs)
+        "the exoskeleton URDF (urdf.exo)": config.exo,
+        "the patient URDF (urdf.patient)": config.patient,
+        "the device's exoskeleton URDF (belief.exo)": config.belief.exo,
+        "the device's patient URDF (belief.patient)": config.belief.patient,
+    }
     if args.scenario is not None:
         inputs["the scenario file"] = args.scenario
+    recorded = {} if args.no_record else {"out": "--out"}
+    args.partial_file = None  # where a regular file's recording is written first (claimed)
+    if not args.no_record and not is_special(args.out):
+        args.partial_file = DerivedOutput(partial_path(args.out))
+        recorded["partial_file"] = "--out"
     check_outputs(
         args,
         reads={k: str(p) for k, p in inputs.items() if p is not None and Path(p).is_file()},
         summary="--summary",
         plot_file="--plots",
-        **({} if args.no_record else {"out": "--out"}),
+        **recorded,
     )
     points = OperatingPoints() if args.plots is not None else None  # needs matplotlib
     warning = consistency_warning(config.motor)

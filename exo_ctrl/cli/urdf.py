@@ -8,7 +8,7 @@ import string
 from pathlib import Path
 
 from .. import _validate as v
-from .._io import check_output
+from .._io import DerivedOutput, check_output
 from ..exceptions import InvalidParameter
 from ..model import (
     DEFAULT_URDF_NAMES,
@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
     if args.cohort is not None or args.seed is not None:
         return _run_cohort(args)
     if args.out and Path(args.out).is_dir():  # a directory: the body's default file name in it
-        args.out = str(Path(args.out) / DEFAULT_URDF_NAMES[args.kind])
+        args.out = DerivedOutput(Path(args.out) / DEFAULT_URDF_NAMES[args.kind])
     check_outputs(args, out="--out")
     base = _base(args)
     names = [name.replace("-", "_") for name, _ in _OPTIONS]
@@ -184,11 +184,15 @@ def _pattern_problem(out: str) -> str:
     return ""
 
 
-def _cohort_paths(out: str, n: int, seed: int) -> list[Path]:
-    """The cohort's output files: in a directory, or from a pattern with ``{i}``."""
+def _cohort_paths(out: str, n: int, seed: int) -> list[str | Path]:
+    """The cohort's output files: in a directory, or from a pattern with ``{i}``.
+
+    The files a directory gets are names the user did not give
+    (:class:`~exo_ctrl._io.DerivedOutput`: never written through a link).
+    """
     if out and Path(out).is_dir():
         width = max(3, len(str(n - 1)))
-        return [Path(out) / f"patient_s{seed}_{i:0{width}d}.urdf" for i in range(n)]
+        return [DerivedOutput(Path(out) / f"patient_s{seed}_{i:0{width}d}.urdf") for i in range(n)]
     allowed = "an existing directory or a file pattern with {i} (e.g. cohort/p{i:02d}.urdf)"
     if "{i" not in out:
         raise InvalidParameter("--out", out, allowed, "--cohort writes one file per patient")

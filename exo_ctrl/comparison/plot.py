@@ -138,6 +138,6 @@ def write_compare_png(table: CompareTable, path: str | os.PathLike[str]) -> Path
     """
     fig = cycle_figure(table)
     target = Path(path)
-    with atomic_write(target, "wb") as handle:
+    with atomic_write(path, "wb") as handle:  # path, not target: its kind kept
         fig.savefig(handle, format="png", dpi=100)
     return target

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _validate as v
-from .._io import atomic_write
+from .._io import atomic_write, not_a_file
 from ..exceptions import InvalidLog
 from ..model import JOINT_NAMES
 from .series import _check_series
@@ -71,7 +71,7 @@ def read_csv_log(
     src = str(path)
     p = Path(path)
     if not p.is_file():
-        raise InvalidLog(src, "file not found")
+        raise InvalidLog(src, not_a_file(p))
     _check_size(src, p)
     try:
         return _read_rows(src, p)

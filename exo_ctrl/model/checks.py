@@ -52,6 +52,7 @@ def check_urdf_xml(src: str, xml: str) -> None:
         links.add(link.get("name"))
     children: dict[str, str] = {}
     reach: dict[str, float] = {}  # link → farthest child joint from its origin [m]
+    below: dict[str, list[str]] = {}  # link → its child links
     for joint in root.findall("joint"):
         jname = joint.get("name", "?")
         parent = joint.find("parent")
@@ -71,12 +72,49 @@ def check_urdf_xml(src: str, xml: str) -> None:
                 src, cname, f"is the child of two joints ({children[cname]!r} and {jname!r})"
             )
         children[cname] = jname
-    roots = [name for name in links if name not in children]
-    if len(links) > 1 and not roots:
-        raise InvalidModel(src, "", "no root link: the joints form a loop")
+        below.setdefault(pname, []).append(cname)
+    _check_tree(src, links, children, below)
     for link in root.findall("link"):
         _check_link_inertial(src, link)
         _check_com(src, link, reach.get(link.get("name", ""), 0.0))
+
+
+def _check_tree(
+    src: str, links: set[str | None], children: dict[str, str], below: dict[str, list[str]]
+) -> None:
+    """The joints make one tree: one root link, every other link reached from it.
+
+    Pinocchio's parser (urdfdom) reports a second root on several lines of
+    its own and builds a model from a root when the joints also form a loop
+    elsewhere; both are refused here by link name.
+    """
+    if len(links) <= 1:
+        return
+    roots = sorted(str(name) for name in links if name not in children)
+    if not roots:
+        raise InvalidModel(src, "", "no root link: the joints form a loop")
+    if len(roots) > 1:
+        shown = ", ".join(repr(r) for r in roots[:3]) + (", ..." if len(roots) > 3 else "")
+        raise InvalidModel(
+            src,
+            "",
+            f"{len(roots)} root links ({shown}); a URDF has one, every other link the child "
+            "of a joint (a joint missing?)",
+        )
+    seen, todo = {roots[0]}, [roots[0]]
+    while todo:
+        for child in below.get(todo.pop(), []):
+            if child not in seen:
+                seen.add(child)
+                todo.append(child)
+    cut = sorted(str(name) for name in links if name not in seen)
+    if cut:
+        raise InvalidModel(
+            src,
+            cut[0],
+            f"is not reached from the root link {roots[0]!r}: the joints form a loop "
+            f"({children[cut[0]]!r} makes it a child of a link below it)",
+        )
 
 
 #: How far a link's centre of mass may lie from its joint: this many times the

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .._io import not_a_file
 from ..exceptions import InvalidModel
 from .body_params import BodyParams
 from .checks import check_inertias, check_urdf_xml
@@ -231,7 +232,7 @@ def load_body(
     path = Path(source)
     src = str(path)
     if not path.is_file():
-        raise InvalidModel(src, "", "file not found")
+        raise InvalidModel(src, "", not_a_file(path))
     prescan_urdf(src, path)  # before any parser: Pinocchio's can crash the process
     xml = path.read_text(encoding="utf-8", errors="replace")
     check_urdf_xml(src, xml)
@@ -265,7 +266,11 @@ def load_body(
             raise InvalidModel(src, joint_map[ours], "must be a 1-DoF revolute joint")
         kind = model.joints[jid].shortname()  # JointModelRY, JointModelPY, ...Unaligned
         if kind.startswith(("JointModelP", "JointModelPrismatic")):
-            raise InvalidModel(src, joint_map[ours], f"must be a revolute joint; got {kind}")
+            raise InvalidModel(
+                src,
+                joint_map[ours],
+                f"must be a revolute joint (the drive turns it); got a prismatic joint ({kind})",
+            )
     check_inertias(src, model, joint_ids)
     if extra_frames:
         _add_anatomical_frames(model, joint_ids)

@@ -44,7 +44,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from .._io import atomic_write
+from .._io import DerivedOutput, atomic_write
 from .body_params import BodyParams, segment_inertia
 from .names import DEFAULT_URDF_NAMES, SIDES
 
@@ -291,13 +291,13 @@ def write_urdf(params: BodyParams, path: str | os.PathLike[str]) -> Path:
         The path written.
 
     """
-    target = Path(path)
-    if target.is_dir():
-        target = target / DEFAULT_URDF_NAMES[params.kind]
+    target: str | os.PathLike[str] = path
+    if Path(path).is_dir():  # a file name the user did not give: never through a link
+        target = DerivedOutput(Path(path) / DEFAULT_URDF_NAMES[params.kind])
     data = urdf_xml(params).encode("utf-8")
     with atomic_write(target, "wb") as handle:
         handle.write(data)
-    return target
+    return Path(target)
 
 
 def _pelvis_link(params: BodyParams) -> _Link:

@@ -116,8 +116,8 @@ def recorded_exo(
     except ExoCtrlError as exc:
         if exo is None:
             raise RecordingError(
-                f"cannot estimate from {path}: its exoskeleton {recorded_source} cannot be "
-                f"loaded ({exc}); give the model with --exo"
+                f"cannot read {path}: the exoskeleton URDF it names, {recorded_source}, cannot "
+                f"be loaded ({exc}); give the model with --exo"
             ) from None
         warning = (
             f"{path}: exo {str(exo)!r} cannot be checked against the recorded exoskeleton "
@@ -127,7 +127,8 @@ def recorded_exo(
     if exo is None:
         default = os.path.realpath(default_urdf_path("exo"))
         if recorded_source and os.path.realpath(recorded_source) != default:
-            return recorded, [f"{path}: estimated with the exoskeleton it names, {recorded_source}"]
+            said = f"read with the exoskeleton URDF it names, {recorded_source} (--exo: another)"
+            return recorded, [f"{path}: {said}"]
         return recorded, []
     used = load_exo(exo)
     difference = model_difference(used, recorded)

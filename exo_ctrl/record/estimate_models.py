@@ -86,8 +86,13 @@ def chosen_estimator(
 
 def recorded_kalman(
     path: os.PathLike[str] | str, config: SimConfig, exo: BodyModel
-) -> CuffForceKalman:
+) -> tuple[CuffForceKalman, list[str]]:
     """The Kalman filter of a recorded run, on the device models the run held (module docstring).
+
+    Returns:
+        The filter, and one line for each patient URDF the recording names
+        that was read to build it (a file named by a recording is never
+        read without saying so).
 
     Args:
         path: the recording (for messages).
@@ -108,13 +113,26 @@ def recorded_kalman(
             f"cannot estimate from {path} with the kalman estimator: the device's patient "
             f"model cannot be rebuilt ({exc}); --estimator momentum needs none"
         ) from None
-    return CuffForceKalman(
+    kalman = CuffForceKalman(
         exo,
         patient,
         config.dt,
         cuffs=config.belief.cuff_model_for(config.controller),
         sensors=config.sensors,
     )
+    return kalman, _named_patients(path, config)
+
+
+def _named_patients(path: os.PathLike[str] | str, config: SimConfig) -> list[str]:
+    """A line for each patient URDF file the recorded run names (not the default, not human)."""
+    named = [config.patient] if config.patient not in (None, "human") else []
+    if config.belief.patient not in ("truth", "nominal", "human", config.patient):
+        named.append(config.belief.patient)
+    return [
+        f"{path}: read with the patient URDF it names, {name} (the Kalman filter's device "
+        "model; --estimator momentum reads none)"
+        for name in named
+    ]
 
 
 def torque_rate_schedule(config: SimConfig) -> list[tuple[int, float | None]]:

@@ -27,6 +27,7 @@ import numpy as np
 from rerun.chunk import RrdReader
 
 from .. import _validate as v
+from .._io import not_a_file
 from ..estimation import EstimateErrorStats
 from ..exceptions import ExoCtrlError, RecordingError
 from ..model import load_body
@@ -36,6 +37,7 @@ from ..sim.load_stats import load_stats
 from ..sim.plain import from_plain
 from ..sim.summary import contact_stats, drive_limits
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
+from .meta_checks import meta_number, meta_text, outcome_fields
 from .stored import assemble, scalar_rows, where_stored
 
 __all__ = ["RecordingIntegrity", "read_recording", "read_recording_integrity"]
@@ -135,7 +137,7 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
     """
     p = Path(path)
     if not p.is_file():
-        raise RecordingError(f"cannot read recording {p}: file not found")
+        raise RecordingError(f"cannot read recording {p}: {not_a_file(p)}")
     chunks, cut = _read_chunks(p)
     note = f"; the file was cut at byte {cut} of {p.stat().st_size}" if cut is not None else ""
 
@@ -181,11 +183,11 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
         }
     fields = {f.name for f in dataclasses.fields(SimResult)} - set(NOT_IN_OUTCOME)
     plain = {
-        "belt_speed_mps": float(meta.get("belt_speed_mps", config.gait.belt_speed)),
-        "exo_source": str(meta.get("exo_source", "")),
-        "patient_source": str(meta.get("patient_source", "")),
+        "belt_speed_mps": meta_number(p, meta, "belt_speed_mps", config.gait.belt_speed),
+        "exo_source": meta_text(p, meta, "exo_source"),
+        "patient_source": meta_text(p, meta, "patient_source"),
     }
-    plain.update({key: value for key, value in outcome.items() if key in fields})
+    plain.update(outcome_fields(p, outcome, fields))
     # Every signal of the schema, in log order; one the file lacks is NaN.
     ordered = {name: signals.pop(name, None) for name in shapes}
     for name, shape in shapes.items():
@@ -203,8 +205,8 @@ def read_recording_integrity(path: str | os.PathLike[str]) -> tuple[SimResult, R
         cut_at_byte=cut,
         has_end_record="raw/outcome" in texts,
         ticks_recovered=n,
-        ticks_logged=int(logged) if isinstance(logged, (int, float)) else None,
-        ticks_planned=int(meta.get("n_ticks_planned", config.n_ticks)),
+        ticks_logged=logged if isinstance(logged, int) and not isinstance(logged, bool) else None,
+        ticks_planned=int(meta_number(p, meta, "n_ticks_planned", config.n_ticks)),
     )
     return result, integrity
 
@@ -347,13 +349,19 @@ def _session_sets_belt_speeds(data: dict[str, Any]) -> bool:
     )
 
 
-def _config_from_dict(path: Path, data: dict[str, Any]) -> SimConfig:
+def _config_from_dict(path: Path, data: Any) -> SimConfig:
+    """The recorded SimConfig; a value of the wrong type is refused by its key path."""
+    if not isinstance(data, dict):
+        raise RecordingError(
+            f"cannot read recording {path}: its config must be a table of SimConfig; "
+            f"got {type(data).__name__}"
+        )
     if data.get("speed_profile") is not None and _session_sets_belt_speeds(data):
         # SimConfig derives the speed profile from the session's belt speeds
         # and refuses one given beside them: the session rebuilds it.
         data = {key: value for key, value in data.items() if key != "speed_profile"}
     try:
-        return from_plain(SimConfig, data)
+        return from_plain(SimConfig, data, typed=True)
     except (ExoCtrlError, TypeError, ValueError) as exc:
         raise RecordingError(
             f"cannot read recording {path}: its config is invalid ({exc})"

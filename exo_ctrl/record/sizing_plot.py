@@ -155,7 +155,7 @@ def write_torque_speed_plot(
     fig.legend(handles, labels, loc="outside lower center", ncol=4, frameon=False)
     fig.suptitle(title or "drive torque against joint speed")
     target = Path(path)
-    with atomic_write(target, "wb") as handle:
+    with atomic_write(path, "wb") as handle:  # path, not target: its kind kept
         fig.savefig(handle, format="png", dpi=110)
     plt.close(fig)
     return target

@@ -321,7 +321,7 @@ class SimConfig:
         checks.check_pelvis(self)
         if self.session is not None:
             check_session(self)
-        checks.check_plan_size(self)
+        checks.check_plan_size(self)  # and the belt's set speeds (check_belt_size)
         chunk = min(self.chunk_ticks, max(self.n_ticks, 1))
         v.allocation(
             "chunk_ticks",

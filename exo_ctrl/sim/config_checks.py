@@ -149,7 +149,10 @@ def check_ramp_in(config: Any) -> None:
 
 
 def check_plan_size(config: Any) -> None:
-    """Refuse a plan beyond the memory cap, naming the period, a ramp or the duration."""
+    """Refuse a plan beyond the memory cap, naming the period, a ramp or the duration.
+
+    Then the belt's set speeds (:func:`check_belt_size`).
+    """
     rows = config.plan_rows
     most = v.max_items(PLAN_ROW_BYTES)
     rate = config.control_rate_hz
@@ -188,6 +191,36 @@ def check_plan_size(config: Any) -> None:
             )
         )
     v.allocation(name, value, rows, PLAN_ROW_BYTES, what="plan rows", limit=limit, note=note)
+    check_belt_size(config)
+
+
+#: Bytes a tick of the belt's planned set speed takes while it is built: the ramp's σ,
+#: σ̇, σ̈, the tick times and the speeds (measured peak 88 B a tick, 96 B with a speed
+#: profile; sim/setup.py) [bytes].
+BELT_ROW_BYTES = 128
+
+
+def check_belt_size(config: Any) -> None:
+    """With the belt on, its set speed is planned for every tick: refused beyond the memory cap.
+
+    Raises:
+        InvalidParameter: duration × control rate ticks of :data:`BELT_ROW_BYTES`
+            would need more than 1 GiB, naming ``duration`` and its largest value.
+
+    """
+    if not config.contact.enabled:
+        return
+    rate = config.control_rate_hz
+    most = v.max_items(BELT_ROW_BYTES)
+    v.allocation(
+        "duration",
+        config.duration_s,
+        config.n_ticks,
+        BELT_ROW_BYTES,
+        what="belt speed samples",
+        limit=f"at most {(most - 1) / rate:.4g} s at {rate:g} Hz with the belt on",
+        note="the belt's set speed is planned for every tick",
+    )
 
 
 def check_pelvis(config: Any) -> None:

@@ -100,16 +100,17 @@ def _type_ok(hint: Any, value: Any) -> bool:
     return True
 
 
-def coerce(hint: Any, value: Any, path: str = "", strict: bool = False) -> Any:
+def coerce(hint: Any, value: Any, path: str = "", strict: bool = False, typed: bool = False) -> Any:
     """``value`` from its plain form back to the type the annotation ``hint`` names.
 
-    With ``strict``, a value of a type ``hint`` cannot take is refused by its
-    key path ``path`` (:class:`~exo_ctrl.exceptions.InvalidParameter`).
+    With ``strict`` or ``typed``, a value of a type ``hint`` cannot take is
+    refused by its key path ``path`` (:class:`~exo_ctrl.exceptions.InvalidParameter`);
+    ``strict`` also refuses unknown keys in nested tables (:func:`from_plain`).
     """
-    if strict and value is not None and not _type_ok(hint, value):
+    if (strict or typed) and value is not None and not _type_ok(hint, value):
         raise InvalidParameter(path, value, _describe(hint))
     if is_dataclass_type(hint):
-        return from_plain(hint, value, path, strict) if isinstance(value, dict) else value
+        return from_plain(hint, value, path, strict, typed) if isinstance(value, dict) else value
     origin = typing.get_origin(hint)
     args = typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
@@ -117,21 +118,25 @@ def coerce(hint: Any, value: Any, path: str = "", strict: bool = False) -> Any:
             return None
         if isinstance(value, dict):
             classes = [a for a in args if is_dataclass_type(a)]
-            return from_plain(classes[0], value, path, strict) if len(classes) == 1 else value
+            if len(classes) == 1:
+                return from_plain(classes[0], value, path, strict, typed)
+            return value
         if isinstance(value, list):
             tuples = [a for a in args if a is tuple or typing.get_origin(a) is tuple]
-            return coerce(tuples[0], value, path, strict) if len(tuples) == 1 else tuple(value)
+            if len(tuples) == 1:
+                return coerce(tuples[0], value, path, strict, typed)
+            return tuple(value)
         if float in args and isinstance(value, int) and not isinstance(value, bool):
             return float(value)
         return value
     if isinstance(value, list):
         if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
             return tuple(
-                coerce(args[0], item, f"{path}[{i}]", strict) for i, item in enumerate(value)
+                coerce(args[0], item, f"{path}[{i}]", strict, typed) for i, item in enumerate(value)
             )
         if origin is tuple and args and len(args) == len(value):
             return tuple(
-                coerce(a, item, f"{path}[{i}]", strict)
+                coerce(a, item, f"{path}[{i}]", strict, typed)
                 for i, (a, item) in enumerate(zip(args, value, strict=True))
             )
         return tuple(value)
@@ -140,7 +145,9 @@ def coerce(hint: Any, value: Any, path: str = "", strict: bool = False) -> Any:
     return value
 
 
-def from_plain(cls: type, data: dict[str, Any], path: str = "", strict: bool = False) -> Any:
+def from_plain(
+    cls: type, data: dict[str, Any], path: str = "", strict: bool = False, typed: bool = False
+) -> Any:
     """Build a (nested) dataclass from its plain form.
 
     Args:
@@ -150,6 +157,8 @@ def from_plain(cls: type, data: dict[str, Any], path: str = "", strict: bool = F
         strict: refuse unknown keys and values of the wrong type by key path
             (:class:`~exo_ctrl.exceptions.InvalidParameter`); else ignore
             unknown keys and leave the types to the dataclass's checks.
+        typed: refuse values of the wrong type by key path, but ignore
+            unknown keys (a recording's config, written by another version).
 
     A field whose annotation cannot be resolved falls back to the dataclass of
     its default.
@@ -168,5 +177,6 @@ def from_plain(cls: type, data: dict[str, Any], path: str = "", strict: bool = F
         if name not in data:
             continue
         where = f"{path}.{name}" if path else name
-        kwargs[name] = coerce(hints.get(name, _default_type(f)), data[name], where, strict)
+        hint = hints.get(name, _default_type(f))
+        kwargs[name] = coerce(hint, data[name], where, strict, typed)
     return cls(**kwargs)

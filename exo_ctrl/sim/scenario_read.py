@@ -20,6 +20,7 @@ try:
 except ImportError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from .. import _validate as v
 from ..exceptions import ExoCtrlError, InvalidParameter, InvalidScenario
 from ..model import load_exo
 from ..plan import GaitParams
@@ -53,9 +54,13 @@ def parse_scenario(text: str, source: str) -> dict[str, Any]:
     """The document of a scenario file's text.
 
     Raises:
-        InvalidScenario: the text is not TOML (the parser's message, with its line).
+        InvalidScenario: the text is not TOML (the parser's message, with its line),
+            or nests arrays or inline tables deeper than the parser can recurse.
 
     """
+    deep = v.toml_depth_problem(text)
+    if deep:
+        raise InvalidScenario(source, "", deep)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -76,6 +81,9 @@ def apply_setting(doc: dict[str, Any], setting: str, source: str = "--set") -> N
     if not sep or len(keys) < 2 or not all(k.strip() for k in keys):
         raise InvalidScenario(source, setting, "expected section.key=value, e.g. gait.period=1.1")
     text = text.strip()
+    deep = v.toml_depth_problem(text)
+    if deep:
+        raise InvalidScenario(source, path.strip(), f"the value is {deep}")
     try:
         value = tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:

@@ -18,7 +18,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from .._io import OUTPUT_ALLOWED, output_problem
+from .._io import OUTPUT_ALLOWED, DerivedOutput, output_problem
 from .._plugin import import_from_cwd
 from ..exceptions import InvalidParameter, MissingDependency, SweepError
 from ..sim import SimConfig
@@ -144,10 +144,17 @@ def check_sweep_outputs(out: str, names: Sequence[str] = ()) -> SweepPaths:
     except InvalidParameter as exc:
         raise InvalidParameter("--out", out, exc.allowed) from None
     plots = [paths.plot(name) for name in names if name != "controller"]
-    for path in (paths.table, paths.csv, paths.journal, paths.report, *plots):
+    derived = [DerivedOutput(p) for p in (paths.csv, paths.journal, paths.report, *plots)]
+    for path in (paths.table, *derived):  # the files beside --out: never through a link
         problem = output_problem(path)
         if problem is not None:
             raise InvalidParameter("--out", out, OUTPUT_ALLOWED, problem)
+    if os.path.islink(paths.cache):  # generated URDFs go in there: never through a link
+        problem = (
+            f"{paths.cache}, named by the command, is a symbolic link to "
+            f"{os.readlink(paths.cache)}; a link is followed only when named"
+        )
+        raise InvalidParameter("--out", out, OUTPUT_ALLOWED, problem)
     return paths
 
 

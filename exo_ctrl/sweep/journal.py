@@ -15,6 +15,7 @@ are run again.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 from pathlib import Path
@@ -66,20 +67,25 @@ class Journal:
         """Open (or create, with the umask's mode) the journal at ``path``.
 
         Its directory is not created: it is the sweep's output directory.
+        The journal is a name the user did not give: it is never followed
+        through a symbolic link (``O_NOFOLLOW``).
 
         Raises:
-            OutputError: the file cannot be opened for appending.
+            OutputError: the file cannot be opened for appending, or is a
+                symbolic link.
 
         """
-        torn = False
+        flags = os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
         try:
-            if path.is_file() and path.stat().st_size:
-                with path.open("rb") as handle:
-                    handle.seek(-1, os.SEEK_END)
-                    torn = handle.read(1) != b"\n"
-            self._handle = path.open("a", encoding="utf-8")
+            fd = os.open(path, flags, 0o666)  # the umask applies
         except OSError as exc:
-            raise OutputError(path, exc.strerror or str(exc)) from None
+            reason = exc.strerror or str(exc)
+            if exc.errno == errno.ELOOP:
+                reason = "a symbolic link; a link is followed only when named"
+            raise OutputError(path, reason) from None
+        size = os.fstat(fd).st_size
+        torn = size > 0 and os.pread(fd, 1, size - 1) != b"\n"
+        self._handle = os.fdopen(fd, "a", encoding="utf-8")
         if torn:  # end a line torn by a kill, so the next entry starts clean
             self._handle.write("\n")
 

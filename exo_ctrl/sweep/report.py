@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .._io import atomic_write
+from .._io import DerivedOutput, atomic_write
 from ..exceptions import MissingDependency
 from ..model import CUFF_NAMES, JOINT_NAMES
 from .outputs import OUTPUT_COLUMNS, SweepPaths
@@ -76,7 +76,7 @@ def write_table(table: Any, paths: SweepPaths) -> None:
 
     with atomic_write(paths.table, "wb") as handle:
         pq.write_table(table, handle)
-    with atomic_write(paths.csv, "wb") as handle:
+    with atomic_write(DerivedOutput(paths.csv), "wb") as handle:
         pcsv.write_csv(table, handle)
 
 
@@ -239,7 +239,7 @@ def write_plots(table: Any, spec: SweepSpec, paths: SweepPaths) -> list[Path]:
             "colour: joint, marker: controller"
         )
         target = paths.plot(name)
-        with atomic_write(target, "wb") as handle:
+        with atomic_write(DerivedOutput(target), "wb") as handle:
             fig.savefig(handle, format="png", dpi=100)
         written.append(target)
     return written

@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from .._io import DerivedOutput
 from .._lifetime import die_with_parent
 from .._progress import Progress
 from ..control import controller_name
@@ -363,7 +364,7 @@ def run_sweep(
         name = getattr(interrupted, "signal_name", "")
         raise SweepInterrupted(table, state.done, state.total - state.done, name)
     if report:
-        write_report(table, spec, paths.report)
+        write_report(table, spec, DerivedOutput(paths.report))
     if plots:
         write_plots(table, spec, paths)
     return table

@@ -126,14 +126,18 @@ def csv_log(
     return path
 
 
-def meta_rrd(directory: Path, meta_text: str, name: str = "meta.rrd") -> Path:
-    """A recording holding only ``raw/meta`` with the given text (rerun's own file sink)."""
+def meta_rrd(
+    directory: Path, meta_text: str, name: str = "meta.rrd", outcome_text: str | None = None
+) -> Path:
+    """A recording holding only ``raw/meta`` (and ``raw/outcome``) with the given texts."""
     import rerun as rr
 
     path = directory / name
     rec = rr.RecordingStream("exo_ctrl_hostile")
     rec.save(str(path))
     rec.log("raw/meta", rr.TextDocument(meta_text), static=True)
+    if outcome_text is not None:
+        rec.log("raw/outcome", rr.TextDocument(outcome_text), static=True)
     rec.disconnect()
     return path
 
@@ -146,3 +150,38 @@ def valid_meta(**changes: object) -> dict:
     meta = {"format": RECORDING_FORMAT, "config": SimConfig().to_dict(), "signals": {"q": [4]}}
     meta.update(changes)
     return meta
+
+
+def write_all(directory: Path) -> dict[str, Path]:
+    """Write one file of each hostile kind into ``directory`` (for trying them by hand).
+
+    ``python tests/hostile/corpus.py DIR`` runs this; the tests make the same
+    files one at a time in their own temporary directories.  Returns name →
+    path, e.g. ``chain_6000.urdf`` (segfaulted Pinocchio 4.1's parser).
+    """
+    import json
+
+    directory.mkdir(parents=True, exist_ok=True)
+    made = {
+        "chain_6000.urdf": chained_urdf(directory, 6000, "chain_6000.urdf"),
+        "nested_40.urdf": nested_xml_urdf(directory, 40, "nested_40.urdf"),
+        "session_5000_deep.json": nested_json(directory, 5000, "session_5000_deep.json"),
+        "log_degrees.csv": csv_log(directory, "log_degrees.csv", scale_q=180 / math.pi),
+        "log_hours.csv": csv_log(directory, "log_hours.csv", dt=0.001 / 3600),
+        "log_gap.csv": csv_log(directory, "log_gap.csv", gap=(500, 1e6)),
+        "meta_5000_deep.rrd": meta_rrd(directory, "[" * 5000 + "]" * 5000, "meta_5000_deep.rrd"),
+        "meta_huge_signal.rrd": meta_rrd(
+            directory,
+            json.dumps(valid_meta(signals={"q": [4], "huge": [1_000_000, 3_000_000]})),
+            "meta_huge_signal.rrd",
+        ),
+        "meta_config_int.rrd": meta_rrd(
+            directory, json.dumps(valid_meta(config=5)), "meta_config_int.rrd"
+        ),
+    }
+    return made
+
+
+if __name__ == "__main__":
+    for made_path in write_all(Path(sys.argv[1] if len(sys.argv) > 1 else "hostile")).values():
+        print(made_path)

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -25,7 +28,11 @@ from hostile_corpus import (
 )
 
 from exo_ctrl.cli.app import main
+from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import default_urdf_path
+from exo_ctrl.plant import ContactParams
+from exo_ctrl.sim import SimConfig, build
+from exo_ctrl.sim.config_checks import BELT_ROW_BYTES
 
 
 def run(argv: list[str], capsys) -> tuple[int, str]:
@@ -125,6 +132,54 @@ def test_recording_metadata_is_checked_before_allocation(
     assert (code, err) == (2, f"exo-ctrl estimate: error: cannot read recording {rrd}: {reason}\n")
 
 
+GOOD_OUTCOME = {"status": "completed", "error": "", "events": [], "ticks": 0, "warnings": []}
+
+
+@pytest.mark.parametrize(
+    ("meta", "outcome", "command", "reason"),
+    [
+        # siblings of the nested and oversized metadata in issue 32: values of the wrong type
+        # (each was a traceback: AttributeError, TypeError, ValueError)
+        (valid_meta(config=5), GOOD_OUTCOME, "estimate",
+         "its config must be a table of SimConfig; got int"),
+        (valid_meta(belt_speed_mps="x"), GOOD_OUTCOME, "export",
+         "raw/meta's belt_speed_mps must be a finite number; got 'x'"),
+        (valid_meta(exo_source=["a.urdf"]), GOOD_OUTCOME, "estimate",
+         "raw/meta's exo_source must be a string; got ['a.urdf']"),
+        (valid_meta(), 5, "scenario", "raw/outcome must be a table; got int"),
+        (valid_meta(), {**GOOD_OUTCOME, "events": [5]}, "compare",
+         "raw/outcome's events must be a list of tables, each with a number t; got [5]"),
+        (valid_meta(), {**GOOD_OUTCOME, "wall_time_s": None}, "compare",
+         "raw/outcome's wall_time_s must be a number; got None"),
+    ],
+)  # fmt: skip
+def test_recording_documents_of_the_wrong_type_are_refused_by_key(
+    tmp_path: Path, capsys, meta: dict, outcome: object, command: str, reason: str
+) -> None:
+    rrd = meta_rrd(tmp_path, json.dumps(meta), outcome_text=json.dumps(outcome))
+    argv = {
+        "estimate": ["estimate", str(rrd)],
+        "export": ["export", str(rrd), "--out", str(tmp_path / "x.csv")],
+        "scenario": ["scenario", "--from", str(rrd), "--out", str(tmp_path / "x.toml")],
+        "compare": ["compare", str(rrd), str(shutil.copy(rrd, tmp_path / "b.rrd")), "--out",
+                    str(tmp_path / "D")],
+    }[command]  # fmt: skip
+    code, err = run(argv, capsys)
+    assert (code, err) == (2, f"exo-ctrl {command}: error: cannot read recording {rrd}: {reason}\n")
+
+
+def test_a_recording_config_value_of_the_wrong_type_names_its_key(tmp_path: Path, capsys) -> None:
+    """Sibling: a table where the config has a number (scenario --from failed writing TOML)."""
+    config = {**valid_meta()["config"], "observer_gain_per_s": {"a": 1}}
+    rrd = meta_rrd(tmp_path, json.dumps(valid_meta(config=config)))
+    code, err = run(["scenario", "--from", str(rrd), "--out", str(tmp_path / "x.toml")], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl scenario: error: cannot read recording {rrd}: its config is invalid "
+        "(observer_gain_per_s must be a number; got {'a': 1})\n",
+    )
+
+
 def test_a_recording_naming_a_hostile_urdf_is_refused_and_a_named_one_announced(
     tmp_path: Path, capsys
 ) -> None:
@@ -136,15 +191,47 @@ def test_a_recording_naming_a_hostile_urdf_is_refused_and_a_named_one_announced(
     code, err = run(["estimate", str(rrd)], capsys)
     assert code == 0
     assert err == (
-        f"exo-ctrl estimate: warning: {rrd}: estimated with the exoskeleton it names, {exo}\n"
+        f"exo-ctrl estimate: warning: {rrd}: read with the exoskeleton URDF it names, {exo} "
+        "(--exo: another)\n"
     )
     chained_urdf(tmp_path, 6000, name="my_exo.urdf")  # the file the recording names, replaced
+    reason = (
+        f"cannot read {rrd}: the exoskeleton URDF it names, {exo}, cannot be loaded (invalid "
+        f"model: {exo}: more than 1000 links; a URDF may have at most 1000 (Pinocchio's parser "
+        "crashes on about 6000 chained joints)); give the model with --exo"
+    )
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert (code, err) == (2, f"exo-ctrl estimate: error: {reason}\n")
+    # sibling: identify reads the recording's exoskeleton the same way
+    code, err = run(["identify", str(rrd), "--out", str(tmp_path / "p.urdf")], capsys)
+    assert (code, err) == (2, f"exo-ctrl identify: error: {reason}\n")
+
+
+def test_a_recording_naming_a_patient_urdf_says_so_and_refuses_a_hostile_one(
+    tmp_path: Path, capsys
+) -> None:
+    """Sibling: the Kalman filter reads the patient URDF a recording names (it said nothing)."""
+    patient = tmp_path / "my_patient.urdf"
+    shutil.copy(default_urdf_path("patient"), patient)
+    rrd = tmp_path / "run.rrd"
+    argv = ["simulate", "--patient", str(patient), "--duration", "0.1", "--out", str(rrd)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    code, err = run(["estimate", str(rrd)], capsys)
+    assert (code, err) == (
+        0,
+        f"exo-ctrl estimate: warning: {rrd}: read with the patient URDF it names, {patient} "
+        "(the Kalman filter's device model; --estimator momentum reads none)\n",
+    )
+    assert run(["estimate", str(rrd), "--estimator", "momentum"], capsys) == (0, "")
+    chained_urdf(tmp_path, 6000, name="my_patient.urdf")
     code, err = run(["estimate", str(rrd)], capsys)
     assert (code, err) == (
         2,
-        f"exo-ctrl estimate: error: cannot estimate from {rrd}: its exoskeleton {exo} cannot be "
-        f"loaded (invalid model: {exo}: more than 1000 links; a URDF may have at most 1000 "
-        "(Pinocchio's parser crashes on about 6000 chained joints)); give the model with --exo\n",
+        f"exo-ctrl estimate: error: cannot estimate from {rrd} with the kalman estimator: the "
+        f"device's patient model cannot be rebuilt (invalid model: {patient}: more than 1000 "
+        "links; a URDF may have at most 1000 (Pinocchio's parser crashes on about 6000 chained "
+        "joints)); --estimator momentum needs none\n",
     )
 
 
@@ -214,3 +301,87 @@ def test_an_absurd_gait_period_is_refused_by_name(
         "overflow)\n",
     )
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_corpus_script_writes_every_kind_small(tmp_path: Path) -> None:
+    """Item 6 of issue 32: the corpus is made by a script, nothing large stored."""
+    script = Path(__file__).with_name("corpus.py")
+    proc = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "c")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    made = [Path(line) for line in proc.stdout.splitlines()]
+    assert sorted(p.name for p in made) == sorted(p.name for p in (tmp_path / "c").iterdir())
+    assert len(made) == 9
+    assert max(p.stat().st_size for p in made) < 2_000_000
+    assert script.stat().st_size < 20_000
+
+
+def test_a_long_run_on_the_belt_is_refused_before_its_speeds_are_planned(
+    tmp_path: Path, capsys, monkeypatch
+) -> None:
+    """Sibling of the period in issue 32: 1e7 s on the belt (74.5 GiB asked, a traceback)."""
+    monkeypatch.chdir(tmp_path)
+    code, err = run(["simulate", "--duration", "1e7", "--no-record"], capsys)  # paper: belt on
+    assert (code, err) == (
+        2,
+        "exo-ctrl simulate: error: --duration: run.duration_s: must be at most 8389 s at 1000 Hz "
+        "with the belt on so that the belt speed samples fit in the 1 GiB memory cap (at most "
+        "8,388,608 of 128 B each); got 10000000.0 (10,000,000,000 belt speed samples would "
+        "need 1.164 TiB; the belt's set speed is planned for every tick)\n",
+    )
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InvalidParameter):  # the library refuses it too, before any allocation
+        SimConfig(contact=ContactParams(enabled=True), duration_s=8389.0)
+    SimConfig(contact=ContactParams(enabled=True), duration_s=8388.0)
+    SimConfig(duration_s=1e7)  # free air: nothing is planned per tick
+
+
+def test_the_belt_speed_plan_takes_at_most_the_stated_bytes() -> None:
+    def peak(duration: float) -> int:
+        config = SimConfig(contact=ContactParams(enabled=True), duration_s=duration)
+        tracemalloc.start()
+        try:
+            base = tracemalloc.get_traced_memory()[0]
+            build(config)
+            return tracemalloc.get_traced_memory()[1] - base
+        finally:
+            tracemalloc.stop()
+
+    peak(0.5)  # compiled, warmed
+    per_tick = (peak(62.0) - peak(2.0)) / 60_000
+    assert 40 < per_tick <= BELT_ROW_BYTES < 3 * per_tick
+
+
+@pytest.mark.parametrize(
+    ("text", "depth"),
+    [
+        ("x = " + "[" * 5000 + "]" * 5000 + "\n", 5000),  # arrays (a RecursionError)
+        ("x = " + "{a = " * 3000 + "1" + "}" * 3000 + "\n", 3000),  # inline tables
+        ('# [[[[ a comment\nx = "[[[[ a string"\n' + "y = " + "[" * 65 + "]" * 65, 65),
+    ],
+)
+def test_a_deeply_nested_scenario_file_is_refused_by_name(
+    tmp_path: Path, capsys, text: str, depth: int
+) -> None:
+    """Siblings of the 5000-deep session JSON in issue 32: a scenario file, a --set value."""
+    scenario = tmp_path / "deep.toml"
+    scenario.write_text(text)
+    code, err = run(["simulate", str(scenario), "--no-record"], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl simulate: error: scenario {scenario}: nested {depth} levels deep; at most 64 "
+        "are read\n",
+    )
+
+
+def test_a_deeply_nested_set_value_is_refused_by_name(capsys) -> None:
+    code, err = run(["simulate", "--set", "gait.period=" + "[" * 3000 + "]" * 3000], capsys)
+    assert (code, err) == (
+        2,
+        "exo-ctrl simulate: error: --set: gait.period: the value is nested 3000 levels deep; "
+        "at most 64 are read\n",
+    )

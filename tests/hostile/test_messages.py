@@ -38,6 +38,24 @@ def test_stdout_to_a_full_device_is_exit_1(tmp_path: Path) -> None:
     assert (tmp_path / "g.csv").is_file()  # the file itself was written whole
 
 
+@pytest.mark.parametrize(
+    ("argv", "prog"),
+    [(["simulate", "--help"], "exo-ctrl simulate"), (["--help"], "exo-ctrl")],
+)
+def test_help_to_a_full_device_is_exit_1_not_lost(
+    tmp_path: Path, argv: list[str], prog: str
+) -> None:
+    """Sibling: argparse dropped a failed help silently (exit 0, nothing printed)."""
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run(
+            [str(EXO_CTRL), *argv], cwd=tmp_path, stdout=full, stderr=subprocess.PIPE, text=True
+        )
+    assert (proc.returncode, proc.stderr) == (
+        1,
+        f"{prog}: error: cannot write standard output: No space left on device\n",
+    )
+
+
 def test_stdout_to_a_closed_pipe_is_exit_1(tmp_path: Path) -> None:
     proc = subprocess.Popen(
         [str(EXO_CTRL), "gait", "--csv", "g.csv"],

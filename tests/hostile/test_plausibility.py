@@ -20,6 +20,7 @@ from exo_ctrl.cli.app import main
 from exo_ctrl.model import default_urdf_path
 
 EXO = str(default_urdf_path("exo"))
+EXO_TEXT = default_urdf_path("exo").read_text()
 ACCEPT = "--accept-implausible reads it anyway"
 
 
@@ -113,7 +114,7 @@ SHANK_COM = '<origin xyz="0.0 0.0 -0.26" rpy="0.0 -0.0 0.0"/>\n      <mass value
             '<joint name="left_knee" type="revolute">',
             '<joint name="left_knee" type="prismatic">',
             "left_knee",
-            "must be a revolute joint; got JointModelPY",
+            "must be a revolute joint (the drive turns it); got a prismatic joint (JointModelPY)",
         ),
         (
             SHANK_COM,
@@ -179,4 +180,47 @@ def test_the_parsers_own_complaint_is_one_line(
         f"exo-ctrl simulate: error: invalid model: {urdf}: Pinocchio could not build a model "
         f"from it (The XML stream does not contain a valid URDF model.; the parser said: "
         f"{said})\n",
+    )
+
+
+LEFT_KNEE_JOINT = EXO_TEXT[
+    EXO_TEXT.index('<joint name="left_knee"') : EXO_TEXT.index(
+        "</joint>", EXO_TEXT.index('<joint name="left_knee"')
+    )
+    + len("</joint>")
+]
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "where", "reason"),
+    [
+        # listed in issue 32: a missing joint (urdfdom said it on several lines)
+        (
+            LEFT_KNEE_JOINT,
+            "",
+            "",
+            "2 root links ('left_shank', 'pelvis'); a URDF has one, every other link the child "
+            "of a joint (a joint missing?)",
+        ),
+        # sibling: a loop beside a root (Pinocchio built a model from the root and the
+        # message was "joint not found")
+        (
+            '<child link="left_shank"/>',
+            '<child link="pelvis"/>',
+            "'left_thigh' in ",
+            "is not reached from the root link 'left_shank': the joints form a loop "
+            "('left_hip' makes it a child of a link below it)",
+        ),
+    ],
+)
+def test_a_urdf_that_is_not_one_tree_is_refused_by_link(
+    tmp_path: Path, capfd, old: str, new: str, where: str, reason: str
+) -> None:
+    urdf = edited_urdf(tmp_path, "bad.urdf", old, new)
+    code = main(["simulate", "--exo", str(urdf), *SHORT_RUN])
+    out, err = capfd.readouterr()
+    assert (code, out, err) == (
+        2,
+        "",
+        f"exo-ctrl simulate: error: invalid model: {where}{urdf}: {reason}\n",
     )
