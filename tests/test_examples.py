@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import runpy
 import sys
 from pathlib import Path
@@ -47,11 +48,15 @@ def test_compare_mine_tabulates_pd_ct_and_impedance(monkeypatch: pytest.MonkeyPa
 
 
 def test_numba_pd_is_the_built_in_pd(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
-    example = load("numba_pd", monkeypatch)
+    # Imported as the module examples.numba_pd, as bench.py and a --controller path import it:
+    # numba's cache (cache=True) rebuilds a kernel's module by its name, which run_path's
+    # temporary module does not keep.
+    monkeypatch.syspath_prepend(str(EXAMPLES.parent))
+    example = vars(importlib.import_module("examples.numba_pd"))
     assert example["main"](duration_s=0.6) <= 1e-9  # [rad], the whole run
     assert example["pd_law"].signatures  # compiled, and called through the compiled code
     out = capsys.readouterr().out
-    assert out.startswith("example_numba_pd:NumbaPD completed largest difference ")
+    assert out.startswith("examples.numba_pd:NumbaPD completed largest difference ")
     # the numpy twin is the same law
     kp, kd = np.array([300.0, 280.0, 310.0, 290.0]), np.array([5.0, 4.0, 6.0, 3.0])
     plan, sensors = example["PlanRow"](), SimpleNamespace()

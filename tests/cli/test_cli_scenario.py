@@ -23,13 +23,13 @@ def _figures(path: Path) -> dict:
 
 
 def _close(a, b, rel: float) -> bool:
-    """Equal summaries, numbers within ``rel`` of each other (recursively)."""
+    """Equal summaries, numbers within ``rel`` of each other or of zero (recursively)."""
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(_close(a[k], b[k], rel) for k in a)
     if isinstance(a, list) and isinstance(b, list):
         return len(a) == len(b) and all(_close(x, y, rel) for x, y in zip(a, b, strict=True))
     if isinstance(a, float) and isinstance(b, float):
-        return math.isclose(a, b, rel_tol=rel, abs_tol=1e-300)
+        return math.isclose(a, b, rel_tol=rel, abs_tol=rel)
     return a == b
 
 
