@@ -10,7 +10,9 @@ function that writes into a buffer made once.  Both equal the built-in
 pd,numpy_pd,numba_pd`` (docs/controllers.md quotes it).
 
 The compiled function takes only plain arrays (numba's public API; no
-Python objects inside), and ``cache=True`` keeps it compiled between runs.
+Python objects inside).  It compiles on its first call, about a third of
+a second; ``cache=True`` would keep it compiled between processes where
+this module is imported by its name.
 Run it (a short run)::
 
     python examples/numba_pd.py
@@ -25,7 +27,7 @@ from exo_ctrl import SimConfig, simulate
 from exo_ctrl.control import Controller, PlanRow, SensorReadings
 
 
-@numba.njit(cache=True)
+@numba.njit
 def pd_law(kp, kd, q_plan, dq_plan, q, dq, out):  # pragma: no cover - compiled
     """The PD's voltages into ``out``, K_p (q* − q) + K_d (q̇* − q̇) per joint [V]; ``out``."""
     for j in range(4):

@@ -48,12 +48,7 @@ def test_compare_mine_tabulates_pd_ct_and_impedance(monkeypatch: pytest.MonkeyPa
 
 
 def test_numba_pd_is_the_built_in_pd(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
-    # Imported as the module examples.numba_pd, as bench.py and a --controller path import it:
-    # numba's cache (cache=True) rebuilds a kernel's module by its name, which run_path's
-    # temporary module does not keep; an entry another loading left (module '<dynamic>',
-    # which no process can import) is removed first, so the kernel compiles here.
-    for stale in (EXAMPLES / "__pycache__").glob("numba_pd.pd_law-*"):
-        stale.unlink(missing_ok=True)
+    # Imported as the module examples.numba_pd, as bench.py and a --controller path import it.
     monkeypatch.syspath_prepend(str(EXAMPLES.parent))
     example = vars(importlib.import_module("examples.numba_pd"))
     assert example["main"](duration_s=0.6) <= 1e-9  # [rad], the whole run
