@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import sys
+import textwrap
 from pathlib import Path
 
 # Under pytest-xdist (the suite's default, pyproject.toml) each worker keeps its
@@ -121,3 +122,24 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     others have nothing left to do.
     """
     items.sort(key=lambda item: item.get_closest_marker("heavy") is None)
+
+
+@pytest.fixture
+def user_module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """Write a user's module into ``tmp_path``: ``write(prefix, source)`` returns its name.
+
+    The name is unique to the test and importable (``tmp_path`` on ``sys.path``);
+    the module is dropped from ``sys.modules`` after the test.
+    """
+    names: list[str] = []
+
+    def write(prefix: str, source: str) -> str:
+        name = f"{prefix}_{tmp_path.name.replace('-', '_')}"
+        (tmp_path / f"{name}.py").write_text(textwrap.dedent(source))
+        monkeypatch.setattr(sys, "path", [str(tmp_path), *sys.path])
+        names.append(name)
+        return name
+
+    yield write
+    for name in names:
+        sys.modules.pop(name, None)

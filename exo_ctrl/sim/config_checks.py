@@ -59,15 +59,8 @@ def check_controller(config: Any, built_in: tuple[str, ...]) -> None:
     built-in controllers.
     """
     check_plugin(config.controller, built_in)
-    if not is_plugin(config.controller, built_in):
-        return
-    if config.mode != "tracking":
-        why = "a user's controller runs in tracking mode"
-        raise InvalidParameter("mode", config.mode, "tracking with a user's controller", why)
-    if config.session is not None:
-        raise InvalidParameter(
-            "session", "given", "unset with a user's controller", "a session switches modes"
-        )
+    if is_plugin(config.controller, built_in):
+        _tracking_only(config, "controller")
 
 
 def check_estimator(config: Any, built_in: tuple[str, ...]) -> None:
@@ -77,14 +70,18 @@ def check_estimator(config: Any, built_in: tuple[str, ...]) -> None:
     tracking mode without a session: the modes tune the built-in ones.
     """
     check_user_estimator(config.estimator, built_in)
-    if not is_plugin_estimator(config.estimator, built_in):
-        return
+    if is_plugin_estimator(config.estimator, built_in):
+        _tracking_only(config, "estimator")
+
+
+def _tracking_only(config: Any, kind: str) -> None:
+    """Refuse a user's ``kind`` (controller or estimator) outside tracking mode or in a session."""
     if config.mode != "tracking":
-        why = "a user's estimator runs in tracking mode"
-        raise InvalidParameter("mode", config.mode, "tracking with a user's estimator", why)
+        why = f"a user's {kind} runs in tracking mode"
+        raise InvalidParameter("mode", config.mode, f"tracking with a user's {kind}", why)
     if config.session is not None:
         raise InvalidParameter(
-            "session", "given", "unset with a user's estimator", "a session switches modes"
+            "session", "given", f"unset with a user's {kind}", "a session switches modes"
         )
 
 

@@ -6,8 +6,6 @@ and imported by its ``module:Class`` path, as a user's package would be.
 
 from __future__ import annotations
 
-import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -83,14 +81,10 @@ class Text(Controller):
 
 
 @pytest.fixture
-def plugins(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
+def plugins(user_module, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
     """A module of controllers importable by its name (returned), in a fresh directory."""
-    name = f"user_ctl_{tmp_path.name.replace('-', '_')}"
-    (tmp_path / f"{name}.py").write_text(textwrap.dedent(SOURCE))
-    monkeypatch.setattr(sys, "path", [str(tmp_path), *sys.path])
     monkeypatch.chdir(tmp_path)
-    yield name
-    sys.modules.pop(name, None)
+    return user_module("user_ctl", SOURCE)
 
 
 class NoCommand:

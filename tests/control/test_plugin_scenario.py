@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import csv
-import sys
-import textwrap
 from pathlib import Path
 
 import pytest
@@ -22,13 +20,9 @@ class PlainPD(Controller):
 
 
 @pytest.fixture
-def module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
-    name = f"scenario_ctl_{tmp_path.name.replace('-', '_')}"
-    (tmp_path / f"{name}.py").write_text(textwrap.dedent(SOURCE))
-    monkeypatch.setattr(sys, "path", [str(tmp_path), *sys.path])
+def module(user_module, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
     monkeypatch.chdir(tmp_path)
-    yield name
-    sys.modules.pop(name, None)
+    return user_module("scenario_ctl", SOURCE)
 
 
 def test_a_scenario_file_names_the_class(tmp_path: Path, module: str) -> None:

@@ -3,8 +3,6 @@ and as its base's object."""
 
 from __future__ import annotations
 
-import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -40,12 +38,8 @@ class ObjectPD(Controller):
 
 
 @pytest.fixture
-def module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
-    name = f"sweep_ctl_{tmp_path.name.replace('-', '_')}"
-    (tmp_path / f"{name}.py").write_text(textwrap.dedent(SOURCE))
-    monkeypatch.setattr(sys, "path", [str(tmp_path), *sys.path])
-    yield name
-    sys.modules.pop(name, None)
+def module(user_module) -> str:
+    return user_module("sweep_ctl", SOURCE)
 
 
 def test_a_path_is_swept_beside_the_built_in_pd(tmp_path: Path, module: str) -> None:
