@@ -196,6 +196,15 @@ class Peer:
         self.data.qpos[self.patient_q] = q[4:8]
         mujoco.mj_forward(self.model, self.data)
 
+    def at(self, q_all: np.ndarray, v_all: np.ndarray | None = None) -> np.ndarray:
+        """Both bodies at ``q_all`` (``v_all``) = [exo, patient]; their qpos indices (8,)."""
+        order = np.asarray(self.exo_q + self.patient_q)
+        self.data.qpos[order] = q_all
+        if v_all is not None:
+            self.data.qvel[order] = v_all
+        mujoco.mj_forward(self.model, self.data)
+        return order
+
 
 def run_peer(peer: Peer) -> tuple[float, np.ndarray]:
     """The plain Python PD loop over the plan: its wall time [s] and the joint angles (n, 4)."""
@@ -224,9 +233,7 @@ def mass_matrix_pair(setup: Setup, q_all: np.ndarray) -> tuple[np.ndarray, np.nd
     :func:`peer_model`, its rows in the same order.
     """
     peer = Peer(setup)
-    order = np.asarray(peer.exo_q + peer.patient_q)
-    peer.data.qpos[order] = q_all
-    mujoco.mj_forward(peer.model, peer.data)
+    order = peer.at(q_all)
     full = np.zeros((peer.model.nv, peer.model.nv))
     mujoco.mj_fullM(peer.model, peer.data, full)
     plant = setup.plant
@@ -244,10 +251,7 @@ def passive_pair(
     viscous damping b q̇; MuJoCo's ``qfrc_passive`` of :func:`peer_model`.
     """
     peer = Peer(setup)
-    order = np.asarray(peer.exo_q + peer.patient_q)
-    peer.data.qpos[order] = q_all
-    peer.data.qvel[order] = v_all
-    mujoco.mj_forward(peer.model, peer.data)
+    order = peer.at(q_all, v_all)
     plant = setup.plant
     cuffs = CuffSet(setup.exo, setup.patient, plant.cuff_params, plant.patient_offset_xz)
     cuffs.compute(q_all, v_all)
@@ -268,8 +272,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     config = SimConfig(controller="pd", duration_s=args.seconds, safety=False)
     peer = Peer(build(config))
-    wall = min(run_peer(peer)[0] for _ in range(args.repeat))
-    _, q = run_peer(peer)
+    wall, q = min((run_peer(peer) for _ in range(args.repeat)), key=lambda run: run[0])
     ours = simulate(config)
     n = min(len(q), len(ours.t))
     err_peer = math.sqrt(np.mean((q[:n] - peer.setup.plan.q[:n]) ** 2))
