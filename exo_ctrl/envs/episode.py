@@ -159,19 +159,28 @@ class Episode:
         Args:
             reason: why it ended, the last event's message.
 
+        An episode closed before the scenario's last tick (the supervisor's
+        stop, or the environment reset or closed mid-episode) ends with the
+        result's status ``"interrupted"`` and the reason in its ``error``, as
+        a run cut short does; one that ran its last tick, ``"completed"``.
         Safe to call more than once (later calls do nothing).
 
         """
         if self._closed:
             return
         self._closed = True
+        t = self.k * self._dt
+        if self.status in ("running", "stopped") and self.result.status == "completed":
+            # cut before the scenario's last tick: the result and its recording say so
+            self.result.status = "interrupted"
+            n = self.config.n_ticks
+            self.result.error = f"ended after {self.k} of {n} ticks (t = {t:.4f} s): {reason}"
         error: Exception | None = None
         try:
             self._flush()
         except Exception as exc:  # the observers still finish, then it propagates
             error = exc
         end_result(self.result, self.runner)
-        t = self.k * self._dt
         self.result.events.append({"t": t, "kind": "episode_end", "message": reason})
         for obs in self._started:
             try:

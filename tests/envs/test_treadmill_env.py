@@ -177,7 +177,8 @@ def test_a_torque_action_never_draws_more_than_the_drivers_current_limit(tmp_pat
     run_episode(env, seed=2, policy_seed=2)
     limit = env.episode.runner.setup.plant.motor_params.current_limit_A
     env.close()
-    current = read_recording(tmp_path / "episode_0000.rrd").signals["current"]
+    cut = tmp_path / "episode_0000.partial.rrd"  # the random torques end it in a safety stop
+    current = read_recording(cut).signals["current"]
     peak = float(np.abs(current).max())
     assert 0.5 * limit < peak <= limit * (1 + 1e-9)  # pushed to it, never beyond
 
@@ -305,8 +306,8 @@ def test_the_observation_is_what_the_device_measured(tmp_path: Path) -> None:
     for _ in range(19):
         obs, *_ = env.step(np.zeros(4))
         seen.append(obs)
-    env.close()
-    s = read_recording(tmp_path / "episode_0000.rrd").signals
+    env.close()  # 19 of 30 ticks: an episode cut short
+    s = read_recording(tmp_path / "episode_0000.partial.rrd").signals
     seen = np.array(seen)[:19]  # the 20th observation's tick was never acted on, nor logged
     names = list(OBSERVATION_NAMES)
     q = names.index("left_hip_q_rad")
@@ -333,3 +334,24 @@ def test_without_gymnasium_the_import_names_the_extra() -> None:
     assert run.stdout.strip() == (
         'MissingDependency | the Gymnasium environment needs gymnasium: pip install "exo-ctrl[gym]"'
     )
+
+
+def test_an_episode_cut_short_is_recorded_as_interrupted_and_a_whole_one_completed(
+    tmp_path: Path,
+) -> None:
+    env = TreadmillEnv(action="residual", duration_s=0.05, control_rate=200.0, record_dir=tmp_path)
+    env.reset(seed=1)
+    env.step(np.zeros(4))  # 1 of 10 steps (5 ticks of 1 ms), then the next episode starts
+    env.reset(seed=1)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(np.zeros(4))
+        done = terminated or truncated
+    env.close()
+    # a cut episode keeps the name of a run cut short (the recorder's rule)
+    assert not (tmp_path / "episode_0000.rrd").exists()
+    cut = read_recording(tmp_path / "episode_0000.partial.rrd")
+    whole = read_recording(tmp_path / "episode_0001.rrd")
+    assert cut.status == "interrupted" and len(cut.t) == 5
+    assert cut.error == "ended after 5 of 50 ticks (t = 0.0050 s): the next episode started"
+    assert whole.status == "completed" and not whole.error and len(whole.t) == 50
