@@ -50,7 +50,9 @@ complete, commented one from a preset and edit it:
   are refused with the file, the key path and what is allowed (exit 2).
 - Every recording and summary carries its complete scenario:
   `.venv/bin/exo-ctrl scenario --from RUN.rrd --out again.toml` writes it back, and
-  running that file reproduces the run's summary.
+  running that file reproduces the run's summary: bit for bit with PD and
+  CT, and with the QP to the last bits of proxsuite's solves, which vary
+  with where its buffers sit in memory (docs/performance.md).
 
 This page is generated from the code (`.venv/bin/python tools/make_docs.py`);
 each key's text is its dataclass's docstring.
