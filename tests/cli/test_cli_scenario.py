@@ -34,8 +34,9 @@ def _close(a, b, rel: float) -> bool:
 
 
 #: How far two runs of one QP scenario may differ: proxsuite's solves differ between runs in
-#: one process in their last bits (measured on spastic-qp: 4.4e-16 V in a command at tick 10,
-#: 3e-15 relative in the summary after 0.25 s); every other controller repeats bit for bit.
+#: one process in their last bits, the same problem after the same history solved 4.4e-16 N·m
+#: apart (`.venv/bin/python tools/qp_repeat.py`; 3e-15 relative in the summary after 0.25 s);
+#: every other controller repeats bit for bit.
 QP_RUN_TO_RUN = 1e-9
 
 
