@@ -5,12 +5,12 @@
 Runs the preset's scenario twice in this process, keeping every problem the
 controller gave proxsuite (the workspace record before each solve: the
 target, the rows, their bounds and the torque box) and the solution it got.
-Prints the first tick whose commanded voltages differ between the two runs,
-and the first solve whose problem was the same, bit for bit, in both runs
-(every earlier problem and solution too) while its solution was not: the
-solver's answer then depends on something outside the problem (proxsuite's
-dense solver, its vectorised build, computes in buffers it allocates
-itself, at other addresses in each run).
+Prints whether the commanded voltages are equal bit for bit; if not, the
+first tick where they differ and the first solve whose problem was the
+same, bit for bit, in both runs (every earlier problem and solution too)
+while its solution was not: the solver's answer then depends on something
+outside the problem (proxsuite's vectorised dense solver depends on the
+solver object; the runs share one, :mod:`exo_ctrl.control.qp.solver_pool`).
 """
 
 from __future__ import annotations

@@ -51,8 +51,8 @@ complete, commented one from a preset and edit it:
 - Every recording and summary carries its complete scenario:
   `.venv/bin/exo-ctrl scenario --from RUN.rrd --out again.toml` writes it back, and
   running that file reproduces the run's summary: bit for bit with PD and
-  CT, and with the QP to the last bits of proxsuite's solves, which vary
-  with where its buffers sit in memory (docs/performance.md).
+  CT; with the QP, bit for bit in the same process and to the last bits of
+  proxsuite's solves in another (docs/performance.md, "Repeating a run").
 
 This page is generated from the code (`.venv/bin/python tools/make_docs.py`);
 each key's text is its dataclass's docstring.

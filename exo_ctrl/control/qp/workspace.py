@@ -8,11 +8,12 @@ The problem, over x ∈ ℝⁿ with W = diag(w) > 0,
     \quad \text{s.t.} \quad l \le C x \le u, \quad x_{lo} \le x \le x_{hi},
 
 is held in one record (:func:`workspace_fields`) and handed to proxsuite's
-dense solver, built once.  Measured on these machines: a warm start can
-come back SOLVED far from the optimum (up to 0.84 on ~1 % of random feasible
-problems) or falsely infeasible, an infeasible problem runs to the iteration
-limit, NaN data runs for seconds, ``l > u`` comes back SOLVED.  Hence the workspace's
-stated behaviour:
+dense solver, one per problem shape and thread, reused from run to run
+(:mod:`.solver_pool`: so that a run repeats bit for bit).  Measured on these
+machines: a warm start can come back SOLVED far from the optimum (up to 0.84
+on ~1 % of random feasible problems) or falsely infeasible, an infeasible
+problem runs to the iteration limit, NaN data runs for seconds, ``l > u``
+comes back SOLVED.  Hence the workspace's stated behaviour:
 
 1. before solving, every entry must be finite and every lower bound at most
    its upper bound (else no solve);
@@ -37,6 +38,7 @@ import proxsuite
 
 from ..._jit import Status, kernel, record
 from ...exceptions import InvalidParameter
+from .solver_pool import shared_solver
 
 __all__ = ["ACTIVE_TOL", "FEASIBILITY_TOL", "TorqueQP", "workspace_fields"]
 
@@ -205,24 +207,28 @@ class TorqueQP:
         self._ordered = self.record["ordered"]
         self._feasible = self.record["feasible"]
         self._active = self.record["active"]
-        qp = proxsuite.proxqp.dense.QP(n, 0, n_in, True)
-        s = qp.settings
-        s.eps_abs = float(eps_abs)
-        s.eps_rel = 0.0
-        s.max_iter = int(max_iter)
-        s.max_iter_in = 200
-        s.check_duality_gap = True
-        # The slack weight (1e4) scales the duals, so an absolute gap of 1e-8
-        # stalled solves already at the optimum; the relative term follows
-        # the scale of the cost.
-        s.eps_duality_gap_abs = 1e-6
-        s.eps_duality_gap_rel = 1e-10
-        # The default 1e-4 reported feasible problems of this scale (bounds of
-        # ~100 N) as PRIMAL_INFEASIBLE (~0.1 % of random instances).
-        s.eps_primal_inf = 1e-10
-        s.verbose = False
-        s.initial_guess = _WARM
-        self._qp = qp
+        #: proxsuite's settings for this workspace, applied when it takes the solver.
+        self._settings = {
+            "eps_abs": float(eps_abs),
+            "eps_rel": 0.0,
+            "max_iter": int(max_iter),
+            "max_iter_in": 200,
+            "check_duality_gap": True,
+            # The slack weight (1e4) scales the duals, so an absolute gap of 1e-8
+            # stalled solves already at the optimum; the relative term follows
+            # the scale of the cost.
+            "eps_duality_gap_abs": 1e-6,
+            "eps_duality_gap_rel": 1e-10,
+            # The default 1e-4 reported feasible problems of this scale (bounds of
+            # ~100 N) as PRIMAL_INFEASIBLE (~0.1 % of random instances).
+            "eps_primal_inf": 1e-10,
+            "verbose": False,
+            "initial_guess": _WARM,
+        }
+        #: The solver, shared with the workspaces of this shape (:mod:`.solver_pool`).
+        self._shared = shared_solver(n, n_in)
+        self._qp = self._shared.qp
+        self._token = object()  # this workspace, to the shared solver (not a reference to it)
         self._ready = False
         self.status = "not_run"
         self.active = 0
@@ -275,6 +281,8 @@ class TorqueQP:
             self.status = "infeasible bounds (lower > upper or lo > hi)"
             return False
         qp = self._qp
+        if self._shared.take(self._token, self._settings):
+            self._ready = False  # another workspace used the solver: initialise it again
         first = ""
         if self._ready:
             self.update_and_solve()
