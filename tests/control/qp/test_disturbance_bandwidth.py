@@ -86,7 +86,7 @@ def _peak(bandwidth: float | None) -> tuple[float, int]:
             setup.device_motor,
             config.gains,
             cuff_force_limit_N=BOUND_N,
-            cuffs=config.belief.cuff_model_for("qp"),
+            cuffs=config.belief.cuff_model_of(config.cuffs),
             dt=config.dt,
             restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,
             disturbance_bandwidth_per_s=bandwidth,

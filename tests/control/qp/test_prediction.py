@@ -232,7 +232,7 @@ PREDICTION_TOL_N = 6.0
 #: The isotropic model on the split cuffs [N]: measured 73 N, asserted below
 #: 80 N and above 30 N — the model a device must not hold when the cuffs are
 #: split (the QP holds the published split cuffs by default,
-#: exo_ctrl.sim.belief.Belief.cuff_model_for).
+#: exo_ctrl.sim.belief.Belief.cuff_model_of).
 SPLIT_ISO_TOL_N = 80.0
 SPLIT_ISO_FLOOR_N = 30.0
 #: The same with the nominal patient model instead of the true one [N]:
