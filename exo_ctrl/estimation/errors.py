@@ -365,16 +365,28 @@ class EstimateErrorStats:
         cuff_force: np.ndarray,
         normal_est: np.ndarray,
         force_est: np.ndarray,
+        errors: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
-        """Add rows: q (n, 4) [rad], cuff_force and force_est (n, 4, 2), normal_est (n, 4) [N]."""
+        """Add rows: q (n, 4) [rad], cuff_force and force_est (n, 4, 2), normal_est (n, 4) [N].
+
+        ``errors``: (e⊥, e∥) arrays (n, 4) [N] to fill with each row's errors
+        of the normal and along components (the log's ``cuff_normal_est_error``
+        and ``cuff_along_est_error``; 0 in the first row, which has no truth).
+        """
         n = np.shape(q)[0]
         if n == 0:
             return
         # Truth paired with row i: the force of row i - 1 (the previous chunk's last).
-        start = max(self.skip - self.rows, 0 if self.rows else 1)
+        first = 0 if self.rows else 1
+        start = max(self.skip - self.rows, first)
         late = max(self.components_from - self.rows, start)
+        if errors is None:
+            errors = (np.zeros((n, 4)), np.zeros((n, 4)))
+        else:
+            errors[0][:first] = errors[1][:first] = 0.0
+        rec = self.record
+        _error_sums(rec, q, cuff_force, normal_est, force_est, first, start, late, *errors)
         if start < n:
-            _error_sums(self.record, q, cuff_force, normal_est, force_est, start, late)
             self._n += n - start
             self._n_late += max(n - late, 0)
         self._prev_force[:] = cuff_force[-1]
@@ -386,9 +398,12 @@ class EstimateErrorStats:
         cuff_force: np.ndarray,
         normal_est: np.ndarray,
         force_est: np.ndarray,
+        errors: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Load the compiled kernel for rows of these arrays' types (before a timed run)."""
-        preload(_error_sums, self.record, q, cuff_force, normal_est, force_est, 0, 0)
+        errors = errors if errors is not None else (normal_est, normal_est)
+        args = (q, cuff_force, normal_est, force_est, 0, 0, 0, *errors)
+        preload(_error_sums, self.record, *args)
 
     def result(self) -> EstimateErrors:
         """The errors so far (zeros before any compared row, relative NaN then)."""
@@ -422,8 +437,11 @@ class EstimateErrorStats:
 
 
 @kernel
-def _error_sums(state, q, force, normal_est, force_est, start, late):
+def _error_sums(state, q, force, normal_est, force_est, first, start, late, e_n, e_u):
     """Add rows start… to :class:`EstimateErrorStats`' sums (Σ e², max |e|, max |truth| …).
+
+    Rows first… get their errors e⊥ = f̂⊥ − n · f in ``e_n`` and
+    e∥ = u · f̂ − u · f in ``e_u`` (n, 4) [N].
 
     Also the whole force's Σ |f̂ − f|² and Σ |f|²; from row ``late`` on the
     normal component's Σ e⊥² and Σ (n · f)², and the along component's
@@ -435,7 +453,7 @@ def _error_sums(state, q, force, normal_est, force_est, start, late):
     ψ_s = ψ_s0 + s_h q_hip + s_k q_knee (:meth:`CuffGeometry.directions`).
     """
     st = state[0]
-    for r in range(start, q.shape[0]):
+    for r in range(first, q.shape[0]):
         for s in range(2):
             psi_t, psi_s = _cuff_directions(
                 st.sign_hip[s],
@@ -454,11 +472,14 @@ def _error_sums(state, q, force, normal_est, force_est, start, late):
                 sin, cos = math.sin(psi), math.cos(psi)
                 truth = -sin * fx + cos * fz
                 err = normal_est[r, c] - truth
-                st.sq_error_sum[c] += err * err
                 ex, ez = force_est[r, c, 0] - fx, force_est[r, c, 1] - fz
+                along, along_err = cos * fx + sin * fz, cos * ex + sin * ez
+                e_n[r, c], e_u[r, c] = err, along_err
+                if r < start:
+                    continue
+                st.sq_error_sum[c] += err * err
                 st.sq_vector_error_sum[c] += ex * ex + ez * ez
                 if r >= late:
-                    along, along_err = cos * fx + sin * fz, cos * ex + sin * ez
                     st.sq_true_sum[c] += truth * truth
                     st.sq_normal_late_sum[c] += err * err
                     st.sq_along_error_sum[c] += along_err * along_err

@@ -53,6 +53,13 @@ class RunOutcome(Protocol):
     timed_ticks: int
 
 
+def _estimate_rows(rows: dict[str, np.ndarray]) -> tuple[Any, ...]:
+    """The arguments of EstimateErrorStats.update from a chunk's rows (errors: None if absent)."""
+    names = ("cuff_normal_est_error", "cuff_along_est_error")
+    errors = tuple(rows[n] for n in names) if all(n in rows for n in names) else None
+    return rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"], errors
+
+
 def _margin(result: RunOutcome) -> dict[str, float] | None:
     """The QP's ``cuff_bound_margin_N`` per cuff, or None (another controller, a recording)."""
     margin = getattr(result, "cuff_bound_margin_N", None)
@@ -99,10 +106,8 @@ class RunStats:
 
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
-        if self.estimate is not None:
-            self.estimate.update(
-                rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"]
-            )
+        if self.estimate is not None:  # and the per-tick errors, into the rows
+            self.estimate.update(*_estimate_rows(rows))
         if self.contact is not None:
             self.contact.update(rows, self.ticks)
         if self.load is not None:
@@ -120,9 +125,7 @@ class RunStats:
     def preload(self, rows: dict[str, np.ndarray]) -> None:
         """Load the compiled kernels for rows of these arrays' types (before a timed run)."""
         if self.estimate is not None:
-            self.estimate.preload(
-                rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"]
-            )
+            self.estimate.preload(*_estimate_rows(rows))
         preload(_accumulate, *self._accumulate_args(rows))
 
     def _accumulate_args(self, rows: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
