@@ -19,7 +19,7 @@ import numpy as np
 
 from .._jit import shared_dtype
 
-__all__ = ["SIGNALS", "Signal", "log_dtype", "signal", "signal_shapes"]
+__all__ = ["FROM_STATISTICS", "SIGNALS", "Signal", "log_dtype", "signal", "signal_shapes"]
 
 
 @dataclass(frozen=True)
@@ -171,6 +171,11 @@ SIGNALS: list[Signal] = [
         "path mode: the plan row of the device's phase (free timing); -1 in other modes",
     ),
 ]
+
+
+#: The signals the run's statistics fill from each chunk when it is handed over
+#: (:class:`~exo_ctrl.estimation.errors.EstimateErrorStats`), not the tick.
+FROM_STATISTICS = ("cuff_normal_est_error", "cuff_along_est_error")
 
 
 def signal(name: str) -> Signal:
