@@ -19,6 +19,7 @@ from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from exo_ctrl.plant import CuffParams
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.cuffs import CuffSet
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
@@ -285,6 +286,7 @@ def test_horizon_prediction_matches_the_plant_with_the_command_held(
             ramp_in_s=0.0,
             cuff_fit="slack",
             cuffs=truth,
+            cuff_scatter=CuffScatter.exact(),  # the plant's cuffs are ``truth`` exactly
             belief=Belief(held),
         )
     )
