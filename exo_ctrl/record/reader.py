@@ -263,6 +263,7 @@ def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
         estimate = None
     limits = drive_limits(config, estimate.exo.effort_limit) if estimate is not None else None
     stats = RunStats(estimate, contact, limits=limits)
+    stats.fills_errors = False  # the recording holds the estimate's errors as logged
     stats.gait = gait_score_stats(config)  # the gait scores (exo_ctrl/sim/gait_score.py)
     if estimate is not None:  # the stance legs' load (exo_ctrl/sim/load_stats.py)
         stats.load = load_stats(config, estimate.exo)

@@ -53,10 +53,10 @@ class RunOutcome(Protocol):
     timed_ticks: int
 
 
-def _estimate_rows(rows: dict[str, np.ndarray]) -> tuple[Any, ...]:
+def _estimate_rows(rows: dict[str, np.ndarray], fill: bool) -> tuple[Any, ...]:
     """The arguments of EstimateErrorStats.update from a chunk's rows (errors: None if absent)."""
     names = ("cuff_normal_est_error", "cuff_along_est_error")
-    errors = tuple(rows[n] for n in names) if all(n in rows for n in names) else None
+    errors = tuple(rows[n] for n in names) if fill and all(n in rows for n in names) else None
     return rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"], errors
 
 
@@ -103,11 +103,14 @@ class RunStats:
         self._at_limit = np.zeros((3, 4))
         #: Peak magnitude of each cuff's estimated force [N] (:func:`peak_force_magnitudes`).
         self._peak_est = np.zeros(4)
+        #: Fill the rows' per-tick estimate errors (the log's; off for rows read
+        #: back from a recording, which hold them already).
+        self.fills_errors = True
 
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
         if self.estimate is not None:  # and the per-tick errors, into the rows
-            self.estimate.update(*_estimate_rows(rows))
+            self.estimate.update(*_estimate_rows(rows, self.fills_errors))
         if self.contact is not None:
             self.contact.update(rows, self.ticks)
         if self.load is not None:
@@ -125,7 +128,7 @@ class RunStats:
     def preload(self, rows: dict[str, np.ndarray]) -> None:
         """Load the compiled kernels for rows of these arrays' types (before a timed run)."""
         if self.estimate is not None:
-            self.estimate.preload(*_estimate_rows(rows))
+            self.estimate.preload(*_estimate_rows(rows, self.fills_errors))
         preload(_accumulate, *self._accumulate_args(rows))
 
     def _accumulate_args(self, rows: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
