@@ -172,7 +172,9 @@ class OfflineEstimate:
             lines.append(
                 "rms err, rel: the whole 2-D force against the RMS true force; normal/peak, "
                 "normal/rms: the normal component's RMS error against its peak, its RMS; "
-                "along/rms: the along-link component's against its RMS"
+                "along/rms: the along-link component's against its RMS (normal/rms, along/rms "
+                f"from t = {summary.get('cuff_force_estimate_components_from_s', 0.0):g} s: "
+                "after the ramp-in)"
             )
             if self.series.estimator == "kalman":
                 lines.append(
