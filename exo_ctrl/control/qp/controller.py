@@ -181,10 +181,8 @@ class QPController(ComputedTorqueController):
             (``sensors.cuff_force_est``); off, or without an estimate, the
             cuffs are taken as fitted (δ = δ̇ = d = 0).
         cuffs: the cuff model the controller believes in, normal and shear
-            stiffness and damping (default
-            :meth:`~exo_ctrl.plant.cuffs.CuffParams.isotropic`; a run gives
-            it the device's model, the published split cuffs by default:
-            ``Belief.cuff_model_of``).
+            stiffness and damping (default ``CuffParams.isotropic()``; a run
+            gives it the device's, the published cuffs: ``Belief.cuff_model_of``).
         dt: control period [s].
         horizon_ticks: horizon points of the prediction, in ticks.
         disturbance_bandwidth_per_s: bandwidth of the patient-torque estimate
