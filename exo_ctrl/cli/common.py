@@ -285,7 +285,7 @@ def estimate_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(
             "observed by the joint torque sensors: "
             + (", ".join(observed) or "none")
-            + "; every other component from the device's models"
+            + "; every other component from models or assumptions"
         )
     return lines
 

@@ -138,7 +138,7 @@ def test_the_default_sensor_set_observes_the_shanks_normal_force_only(default_ru
     text = format_summary(summary)
     assert (
         "observed by the joint torque sensors: left_shank normal, right_shank normal; "
-        "every other component from the device's models"
+        "every other component from models or assumptions"
     ) in text
     assert "cuff force estimate from t = 1.2 s, RMS error over RMS true, normal / along" in text
 
