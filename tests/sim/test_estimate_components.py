@@ -6,8 +6,9 @@
   from Pinocchio's frames (no code of exo_ctrl.estimation);
 - the same figures read back from the recording;
 - the goal with joint torque sensors alone on the default scenario (the
-  ``paper`` preset with CT): normal components within 5 % (shanks) and 10 %
-  (thighs) of their RMS — the user's numbers;
+  ``paper`` preset with CT), and for the patients of seeds 1–5: normal
+  components within 5 % (shanks) and 10 % (thighs) of their RMS — the user's
+  numbers (with the knee 2 cm off it does not hold: docs/performance.md);
 - which components the default sensor set observes
   (``cuff_force_estimate_components``);
 - the device's default cuff model is the published one, and the truth's are
@@ -25,6 +26,7 @@ import pytest
 from exo_ctrl.cli.common import format_summary
 from exo_ctrl.model import CUFF_NAMES, load_exo
 from exo_ctrl.plant import CuffParams
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.record import RerunRecorder, read_recording
 from exo_ctrl.scenario import preset
 from exo_ctrl.sim import SimConfig, build, simulate
@@ -119,6 +121,17 @@ def test_the_goal_with_joint_torque_sensors_alone_holds_on_the_default_scenario(
     print("\nnormal RMS error / RMS true after the ramp-in [%]:", shown)
     for cuff, rel in normal.items():
         assert rel < (SHANK_GOAL if cuff.endswith("shank") else THIGH_GOAL), (cuff, rel)
+
+
+@pytest.mark.parametrize("seed", range(1, 6))
+def test_the_goal_holds_for_other_patients_cuffs(seed: int) -> None:
+    """Seeds 1–5 (k_n × 0.84–1.08, k_u × 0.74–1.16): thighs 3.5–7.2 %, shanks 3.9–4.8 %."""
+    config = dataclasses.replace(
+        preset("paper").config, controller="ct", cuff_scatter=CuffScatter(seed=seed)
+    )
+    normal = simulate(config).summary()["cuff_force_estimate_normal_rms_error_over_rms"]
+    for cuff, rel in normal.items():
+        assert rel < (SHANK_GOAL if cuff.endswith("shank") else THIGH_GOAL), (seed, cuff, rel)
 
 
 def test_the_default_sensor_set_observes_the_shanks_normal_force_only(default_run) -> None:
