@@ -182,6 +182,7 @@ def format_summary(summary: dict[str, Any]) -> str:
         )
     cuffs = ", ".join(f"{c} {f:.1f}" for c, f in summary["peak_cuff_force_N"].items())
     lines.append(f"peak cuff force [N]: {cuffs}")
+    lines += estimate_lines(summary)
     lines.append(
         f"{'drive sizing':<12}{'rms τ [N·m]':>12}{'peak q̇ [rad/s]':>16}{'peak P [W]':>11}"
         f"{'rms I [A]':>10}{'at τ, I, U limit [% of ticks]':>31}"
@@ -252,6 +253,41 @@ def format_summary(summary: dict[str, Any]) -> str:
     if summary["safety_state"] != "normal":
         lines.append(f"safety supervisor ended in state {summary['safety_state']!r}")
     return "\n".join(lines)
+
+
+def estimate_lines(summary: dict[str, Any]) -> list[str]:
+    """The cuff-force estimate per component (the summary's ``…_over_rms`` keys), or none.
+
+    One line of each cuff's normal and along errors over their RMS true values
+    [%] ("—": a true component under 1 N RMS), one of where each component
+    comes from (``cuff_force_estimate_components``: observed, or from models).
+    """
+    normal = summary.get("cuff_force_estimate_normal_rms_error_over_rms")
+    along = summary.get("cuff_force_estimate_along_rms_error_over_rms")
+    if normal is None or along is None:
+        return []
+
+    def pct(x: float | None) -> str:
+        return "—" if x is None else f"{100 * x:.1f}"
+
+    start = summary.get("cuff_force_estimate_components_from_s")
+    since = "" if start is None else f" from t = {start:g} s"
+    cuffs = ", ".join(f"{c} {pct(normal[c])} / {pct(along[c])}" for c in normal)
+    lines = [f"cuff force estimate{since}, RMS error over RMS true, normal / along [%]: {cuffs}"]
+    components = summary.get("cuff_force_estimate_components") or {}
+    observed = [
+        f"{c} {part}"
+        for c, d in components.items()
+        for part, how in d.items()
+        if how.startswith("observed")
+    ]
+    if components:
+        lines.append(
+            "observed by the joint torque sensors: "
+            + (", ".join(observed) or "none")
+            + "; every other component from models or assumptions"
+        )
+    return lines
 
 
 def describe_belief(belief: dict[str, Any]) -> str:

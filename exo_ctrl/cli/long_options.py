@@ -80,8 +80,8 @@ class LongOption:
             boolean (:attr:`words`, true first); ``flag`` no text, sets
             :attr:`const`; ``pair`` ``A,B``; ``joints`` one number for every
             joint or four in joint order; ``session`` a session JSON file;
-            ``motor`` a drive preset's name; ``cuffs`` ``isotropic`` (unset)
-            or ``split`` (the published cuffs); ``compliance`` a stiffness
+            ``motor`` a drive preset's name; ``cuffs`` ``split`` (unset: the
+            published cuffs) or ``isotropic``; ``compliance`` a stiffness
             that also switches the joint spring on.
         choices: the values allowed, for a ``value`` of a closed set.
         words: a ``switch``'s words for true and false.
@@ -205,8 +205,9 @@ _FORM_NOTES = {
     "motor": "a preset: default (an energy-consistent brushless motor with the paper's "
     "winding, a 120:1 harmonic drive) or paper-printed (Table I as printed: not "
     "energy-consistent, warns; its own gains kp 100, kd 2 unless given)",
-    "cuffs": "isotropic (unset) or split (the published normal and shear stiffness of the "
-    "cuff-tissue interface, exo_ctrl/plant/cuffs.py)",
+    "cuffs": "split (unset: the published normal and shear stiffness of the cuff-tissue "
+    "interface, exo_ctrl/plant/cuffs.py, the run's cuffs section) or isotropic (the paper's "
+    "8 N/mm in every direction)",
     "compliance": "above 0 switches the joint spring on (joint_compliance.enabled)",
 }
 
@@ -265,7 +266,7 @@ def _shown(opt: LongOption) -> str:
     if opt.form == "motor":
         return "default"
     if opt.form == "cuffs":
-        return "isotropic" if value is None else "split"
+        return "split" if value is None else "isotropic"
     if opt.form == "compliance":
         return "0: a rigid drive"
     if opt.form == "joints" and isinstance(value, (list, tuple)) and len(set(value)) == 1:
@@ -378,7 +379,7 @@ def _read(opt: LongOption, value: Any) -> tuple[Any, list[tuple[str, Any]]]:
             extra = [("gains.kp", list(gains.kp)), ("gains.kd", list(gains.kd))]
         return _plain(motor_preset(value)), extra
     if opt.form == "cuffs":
-        return (_plain(CuffParams()) if value == "split" else None), []
+        return (_plain(CuffParams.isotropic()) if value == "isotropic" else None), []
     if opt.form == "compliance":
         return value, [("joint_compliance.enabled", value > 0)]
     raise ValueError(f"unknown form {opt.form!r}")  # the table is this module's own

@@ -23,13 +23,21 @@ cuff whose RMS true force (whole figure) or peak true normal force (normal
 figure) is below :data:`REL_FLOOR_N` (1 N, below the torque sensors' noise
 seen through the lever arms) gets NaN, written as ``null`` in JSON summaries.
 
-**Per component, over its RMS** (``cuff_force_estimate_normal_rms_error_over_rms``,
+**Per component, over its RMS, after the ramp-in**
+(``cuff_force_estimate_normal_rms_error_over_rms``,
 ``cuff_force_estimate_along_rms_error_N`` and
 ``cuff_force_estimate_along_rms_error_over_rms``): the normal component's
 RMS error over the RMS of the true normal component, and the along-link
 component's, f̂∥ = u(q) · f̂ against u(q) · f (u of
 :mod:`~exo_ctrl.estimation.cuff_geometry`), over the RMS true along
-component.  These say which half of a force an estimate gets right: the
+component,
+
+    e⊥ = f̂⊥ − n · f,   e∥ = u · f̂ − u · f,
+    relative = √(mean e²) / √(mean (n · f)²)  (and u · f for e∥),
+
+over the rows from ``cuff_force_estimate_components_from_s`` on (a live
+run: the end of the gait's ramp-in, at least the start-up; the walking at
+speed, not the ramp's small forces).  These say which half of a force an estimate gets right: the
 joint torques observe some components, models supply the others
 (``cuff_force_estimate_components``: :data:`OBSERVER_COMPONENTS` for the
 momentum observer, :data:`~exo_ctrl.estimation.kalman.COMPONENTS` for the
@@ -147,6 +155,13 @@ class EstimateErrors:
         along_rms_error_N: RMS of (u · f̂ − u · f), the along-link component [N],
             (4,), or None without the estimated forces.
         along_rms_true_N: RMS of u · f [N], (4,), or None.
+        normal_component_rms_error_N: RMS of the normal component's error over
+            the component rows [N], (4,), or None: the same rows as
+            ``rms_true_N`` and the along figures (from ``components_from_row``).
+        components_from_row: the first row (of the estimate) the component
+            figures cover.
+        components_from_s: the same as a time [s], or None where not known
+            (the summary's ``cuff_force_estimate_components_from_s``).
 
     """
 
@@ -161,6 +176,9 @@ class EstimateErrors:
     vector_rms_error_rel: np.ndarray | None = None
     along_rms_error_N: np.ndarray | None = None
     along_rms_true_N: np.ndarray | None = None
+    normal_component_rms_error_N: np.ndarray | None = None
+    components_from_row: int = 0
+    components_from_s: float | None = None
 
     def summary(self) -> dict[str, Any]:
         """The summary entries, keyed by cuff (NaN as None; module docstring).
@@ -169,7 +187,9 @@ class EstimateErrors:
         only with the estimated forces), ``…_normal_rms_error_N``,
         ``…_normal_rms_over_peak``, ``…_normal_rms_error_over_rms``,
         ``…_along_rms_error_N`` and ``…_along_rms_error_over_rms`` (with the
-        estimated forces), and ``…_unobservable`` (a list: "cuff: component").
+        estimated forces), ``…_components_from_s`` (where the component
+        figures start, when known) and ``…_unobservable`` (a list: "cuff:
+        component").
         """
 
         def keyed(x: np.ndarray) -> dict[str, float | None]:
@@ -185,12 +205,15 @@ class EstimateErrors:
         out["cuff_force_estimate_normal_rms_error_N"] = keyed(self.rms_error_N)
         out["cuff_force_estimate_normal_rms_over_peak"] = keyed(self.rms_error_rel)
         if self.rms_true_N is not None:
-            normal_rel = _relative(self.rms_error_N, self.rms_true_N)
+            late = self.normal_component_rms_error_N
+            normal_rel = _relative(self.rms_error_N if late is None else late, self.rms_true_N)
             out["cuff_force_estimate_normal_rms_error_over_rms"] = keyed(normal_rel)
         if self.along_rms_error_N is not None and self.along_rms_true_N is not None:
             out["cuff_force_estimate_along_rms_error_N"] = keyed(self.along_rms_error_N)
             along_rel = _relative(self.along_rms_error_N, self.along_rms_true_N)
             out["cuff_force_estimate_along_rms_error_over_rms"] = keyed(along_rel)
+        if self.components_from_s is not None:
+            out["cuff_force_estimate_components_from_s"] = self.components_from_s
         out["cuff_force_estimate_unobservable"] = [
             f"{c}: {what}" for c, x in UNOBSERVABLE.items() for what in x
         ]
@@ -205,6 +228,7 @@ def normal_component_errors(
     skip: int = 0,
     lag: int = 0,
     force_est: np.ndarray | None = None,
+    components_from: int | None = None,
 ) -> EstimateErrors:
     """Compare estimated normal components (and forces) with the true cuff forces.
 
@@ -225,6 +249,10 @@ def normal_component_errors(
         lag: rows by which the estimate trails the truth.
         force_est: estimated 2-D forces on the exoskeleton [N], (N, 4, 2), rows
             as ``normal_est``: gives the whole-force figures (module docstring).
+        components_from: the first estimate row of the per-component figures
+            (``rms_true_N``, ``normal_component_rms_error_N``, the along
+            figures; a live run's: the end of the ramp-in); None: as the others,
+            ``max(skip, lag)``.
 
     Raises:
         InvalidParameter: fewer than one row is left to compare.
@@ -237,17 +265,23 @@ def normal_component_errors(
     start = max(skip, lag)
     if n - start < 1 or force.shape[0] < n - lag or q.shape[0] < n:
         raise InvalidParameter("skip", skip, f"< {n - lag} rows with these series")
+    first = start if components_from is None else max(int(components_from), start)
+    if n - first < 1:
+        raise InvalidParameter("components_from", components_from, f"< {n} rows with these series")
     truth, along = cuff_components(q[start:n], force[start - lag : n - lag], exo)
     err = est[start:n] - truth
     rms = np.sqrt(np.mean(err**2, axis=0))
     peak = np.max(np.abs(truth), axis=0)
+    late = slice(first - start, None)  # the component rows, within the compared ones
     out = EstimateErrors(
         rms_error_N=rms,
         max_error_N=np.max(np.abs(err), axis=0),
         peak_true_N=peak,
         rms_error_rel=_relative(rms, peak),
         rows=int(err.shape[0]),
-        rms_true_N=np.sqrt(np.mean(truth**2, axis=0)),
+        rms_true_N=np.sqrt(np.mean(truth[late] ** 2, axis=0)),
+        normal_component_rms_error_N=np.sqrt(np.mean(err[late] ** 2, axis=0)),
+        components_from_row=first,
     )
     if force_est is not None:
         true_f = force[start - lag : n - lag]
@@ -256,8 +290,8 @@ def normal_component_errors(
         out.vector_rms_true_N = np.sqrt(np.mean(np.sum(true_f**2, axis=-1), axis=0))
         out.vector_rms_error_rel = _relative(out.vector_rms_error_N, out.vector_rms_true_N)
         _, along_est = cuff_components(q[start:n], np.asarray(force_est)[start:n], exo)
-        out.along_rms_error_N = np.sqrt(np.mean((along_est - along) ** 2, axis=0))
-        out.along_rms_true_N = np.sqrt(np.mean(along**2, axis=0))
+        out.along_rms_error_N = np.sqrt(np.mean((along_est - along)[late] ** 2, axis=0))
+        out.along_rms_true_N = np.sqrt(np.mean(along[late] ** 2, axis=0))
     return out
 
 
@@ -274,6 +308,7 @@ _STATS_FIELDS = [
     ("sq_true_sum", np.float64, (4,)),
     ("sq_along_error_sum", np.float64, (4,)),
     ("sq_along_true_sum", np.float64, (4,)),
+    ("sq_normal_late_sum", np.float64, (4,)),
 ]
 
 
@@ -293,6 +328,8 @@ class EstimateErrorStats:
         dt: control period [s].
         skip_s: start-up left out [s] (default 50 ms, five time constants of
             the default observer).
+        components_from_s: where the per-component figures start [s] (a
+            run's: the end of its ramp-in; None: ``skip_s``; never before it).
 
     Attributes:
         record: the geometry and the running sums, a one-element structured
@@ -301,9 +338,21 @@ class EstimateErrorStats:
 
     """
 
-    def __init__(self, exo: BodyModel | None, dt: float, skip_s: float = STARTUP_S) -> None:
+    def __init__(
+        self,
+        exo: BodyModel | None,
+        dt: float,
+        skip_s: float = STARTUP_S,
+        components_from_s: float | None = None,
+    ) -> None:
         self.exo = exo
         self.skip = round(v.non_negative("skip", skip_s, "s") / v.positive("dt", dt, "s"))
+        late = skip_s if components_from_s is None else components_from_s
+        late = v.non_negative("components_from", late, "s")
+        #: The first row of the per-component figures (never before :attr:`skip`).
+        self.components_from = max(round(late / dt), self.skip)
+        self._dt = dt
+        self._n_late = 0
         self.rows = 0
         self.record = record(_STATS_FIELDS)
         _geometry(exo).fill(self.record)
@@ -316,16 +365,30 @@ class EstimateErrorStats:
         cuff_force: np.ndarray,
         normal_est: np.ndarray,
         force_est: np.ndarray,
+        errors: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
-        """Add rows: q (n, 4) [rad], cuff_force and force_est (n, 4, 2), normal_est (n, 4) [N]."""
+        """Add rows: q (n, 4) [rad], cuff_force and force_est (n, 4, 2), normal_est (n, 4) [N].
+
+        ``errors``: (e⊥, e∥) arrays (n, 4) [N] to fill with each row's errors
+        of the normal and along components (the log's ``cuff_normal_est_error``
+        and ``cuff_along_est_error``; 0 in the first row, which has no truth).
+        """
         n = np.shape(q)[0]
         if n == 0:
             return
         # Truth paired with row i: the force of row i - 1 (the previous chunk's last).
-        start = max(self.skip - self.rows, 0 if self.rows else 1)
+        first = 0 if self.rows else 1
+        start = max(self.skip - self.rows, first)
+        late = max(self.components_from - self.rows, start)
+        if errors is None:
+            errors = (np.zeros((n, 4)), np.zeros((n, 4)))
+        else:
+            errors[0][:first] = errors[1][:first] = 0.0
+        rec = self.record
+        _error_sums(rec, q, cuff_force, normal_est, force_est, first, start, late, *errors)
         if start < n:
-            _error_sums(self.record, q, cuff_force, normal_est, force_est, start)
             self._n += n - start
+            self._n_late += max(n - late, 0)
         self._prev_force[:] = cuff_force[-1]
         self.rows += n
 
@@ -335,14 +398,18 @@ class EstimateErrorStats:
         cuff_force: np.ndarray,
         normal_est: np.ndarray,
         force_est: np.ndarray,
+        errors: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Load the compiled kernel for rows of these arrays' types (before a timed run)."""
-        preload(_error_sums, self.record, q, cuff_force, normal_est, force_est, 0)
+        errors = errors if errors is not None else (normal_est, normal_est)
+        args = (q, cuff_force, normal_est, force_est, 0, 0, 0, *errors)
+        preload(_error_sums, self.record, *args)
 
     def result(self) -> EstimateErrors:
         """The errors so far (zeros before any compared row, relative NaN then)."""
         sums = self.record[0]
         rows = max(self._n, 1)
+        late = max(self._n_late, 1)
         rms = np.sqrt(sums["sq_error_sum"] / rows)
         peak = sums["peak_true"]
         vector = np.sqrt(sums["sq_vector_error_sum"] / rows)
@@ -356,9 +423,12 @@ class EstimateErrorStats:
             vector_rms_error_N=vector,
             vector_rms_true_N=vector_true,
             vector_rms_error_rel=_relative(vector, vector_true),
-            rms_true_N=np.sqrt(sums["sq_true_sum"] / rows),
-            along_rms_error_N=np.sqrt(sums["sq_along_error_sum"] / rows),
-            along_rms_true_N=np.sqrt(sums["sq_along_true_sum"] / rows),
+            rms_true_N=np.sqrt(sums["sq_true_sum"] / late),
+            along_rms_error_N=np.sqrt(sums["sq_along_error_sum"] / late),
+            along_rms_true_N=np.sqrt(sums["sq_along_true_sum"] / late),
+            normal_component_rms_error_N=np.sqrt(sums["sq_normal_late_sum"] / late),
+            components_from_row=self.components_from,
+            components_from_s=self.components_from * self._dt,
         )
 
     def summary(self) -> dict[str, Any]:
@@ -367,12 +437,15 @@ class EstimateErrorStats:
 
 
 @kernel
-def _error_sums(state, q, force, normal_est, force_est, start):
+def _error_sums(state, q, force, normal_est, force_est, first, start, late, e_n, e_u):
     """Add rows start… to :class:`EstimateErrorStats`' sums (Σ e², max |e|, max |truth| …).
 
-    Also the whole force's Σ |f̂ − f|² and Σ |f|², the normal component's
-    Σ (n · f)², and the along component's Σ (u · f̂ − u · f)² and Σ (u · f)²
-    (u = (cos ψ, sin ψ)).
+    Rows first… get their errors e⊥ = f̂⊥ − n · f in ``e_n`` and
+    e∥ = u · f̂ − u · f in ``e_u`` (n, 4) [N].
+
+    Also the whole force's Σ |f̂ − f|² and Σ |f|²; from row ``late`` on the
+    normal component's Σ e⊥² and Σ (n · f)², and the along component's
+    Σ (u · f̂ − u · f)² and Σ (u · f)² (u = (cos ψ, sin ψ)).
 
     The truth of row i is the normal component n(q_i) · f_{i-1} of the
     previous row's force (``prev_force`` of the record for row 0), per cuff
@@ -380,7 +453,7 @@ def _error_sums(state, q, force, normal_est, force_est, start):
     ψ_s = ψ_s0 + s_h q_hip + s_k q_knee (:meth:`CuffGeometry.directions`).
     """
     st = state[0]
-    for r in range(start, q.shape[0]):
+    for r in range(first, q.shape[0]):
         for s in range(2):
             psi_t, psi_s = _cuff_directions(
                 st.sign_hip[s],
@@ -399,13 +472,18 @@ def _error_sums(state, q, force, normal_est, force_est, start):
                 sin, cos = math.sin(psi), math.cos(psi)
                 truth = -sin * fx + cos * fz
                 err = normal_est[r, c] - truth
-                st.sq_error_sum[c] += err * err
-                st.sq_true_sum[c] += truth * truth
                 ex, ez = force_est[r, c, 0] - fx, force_est[r, c, 1] - fz
-                st.sq_vector_error_sum[c] += ex * ex + ez * ez
                 along, along_err = cos * fx + sin * fz, cos * ex + sin * ez
-                st.sq_along_error_sum[c] += along_err * along_err
-                st.sq_along_true_sum[c] += along * along
+                e_n[r, c], e_u[r, c] = err, along_err
+                if r < start:
+                    continue
+                st.sq_error_sum[c] += err * err
+                st.sq_vector_error_sum[c] += ex * ex + ez * ez
+                if r >= late:
+                    st.sq_true_sum[c] += truth * truth
+                    st.sq_normal_late_sum[c] += err * err
+                    st.sq_along_error_sum[c] += along_err * along_err
+                    st.sq_along_true_sum[c] += along * along
                 st.sq_vector_true_sum[c] += fx * fx + fz * fz
                 st.max_error[c] = max(st.max_error[c], abs(err))
                 st.peak_true[c] = max(st.peak_true[c], abs(truth))

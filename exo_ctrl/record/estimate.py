@@ -51,9 +51,10 @@ from ..estimation import (
 )
 from ..estimation.errors import STARTUP_S
 from ..estimation.plausible import implausibility
-from ..exceptions import ExoCtrlError, InvalidLog, InvalidParameter, RecordingError
+from ..exceptions import InvalidLog, InvalidParameter, RecordingError
 from ..model import CUFF_NAMES, JOINT_NAMES, BodyModel, load_exo
 from ..plant import CuffParams
+from ..sim.run_models import components_from_s
 from .estimate_checks import (
     STARTUP_TIME_CONSTANTS,
     beyond_cuff_stretch,
@@ -61,7 +62,7 @@ from .estimate_checks import (
     startup_ticks,
     worse_than_none,
 )
-from .estimate_models import chosen_estimator, recorded_kalman, torque_rate_schedule
+from .estimate_models import chosen_estimator, recorded_kalman, torque_rate_schedule, true_exo
 from .format import TIME
 from .reader import RecordingIntegrity, read_recording_integrity
 
@@ -171,7 +172,9 @@ class OfflineEstimate:
             lines.append(
                 "rms err, rel: the whole 2-D force against the RMS true force; normal/peak, "
                 "normal/rms: the normal component's RMS error against its peak, its RMS; "
-                "along/rms: the along-link component's against its RMS"
+                "along/rms: the along-link component's against its RMS (normal/rms, along/rms "
+                f"from t = {summary.get('cuff_force_estimate_components_from_s', 0.0):g} s: "
+                "after the ramp-in)"
             )
             if self.series.estimator == "kalman":
                 lines.append(
@@ -410,11 +413,13 @@ def _from_recording(
                 s["q"],
                 truth,
                 series.normal,
-                _true_exo(result, body),
+                true_exo(result, body),
                 skip=skip,
                 lag=1,
                 force_est=series.force,
+                components_from=round(components_from_s(config) / config.dt),
             )
+            found.components_from_s = found.components_from_row * config.dt
             errors = found.summary()
             errors["cuff_force_estimate_components"] = estimate_components(estimator)
             if estimator == "kalman":  # every component estimated; these from the models
@@ -422,20 +427,6 @@ def _from_recording(
             notes += worse_than_none(path, found)
     notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)
     return OfflineEstimate(str(path), series, errors, log.integrity, notes, "" if errors else why)
-
-
-def _true_exo(result: Any, device_exo: BodyModel) -> BodyModel:
-    """The exoskeleton whose geometry the live error figures used: the truth's.
-
-    The device's model when the run gave the device none other (the same
-    file), or when the truth's URDF cannot be loaded here.
-    """
-    if result.config.belief.exo is None:
-        return device_exo
-    try:
-        return load_exo(result.exo_source or result.config.exo or None)
-    except ExoCtrlError:
-        return device_exo
 
 
 def plausible(

@@ -15,7 +15,7 @@ device models):
   exactly as :func:`~exo_ctrl.sim.setup.build` does it
   (:func:`~exo_ctrl.sim.belief.device_patient` with the fitted, coaxial true
   patient's leg lengths: the nominal de Leva model, the truth or the user's
-  URDF), the device's cuff model (``belief.cuff_model``), the run's sensor
+  URDF), the device's cuff model (``belief.cuff_model_of``), the run's sensor
   datasheet (noise and resolution) and its control period; and the
   filter's σ_d as the run's modes set it over time
   (:func:`torque_rate_schedule`: ``transparent`` and ``path`` raise it from
@@ -28,14 +28,15 @@ the momentum observer.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 from ..estimation import ESTIMATORS, CuffForceKalman, estimator_name
 from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
-from ..model import BodyModel, load_patient
+from ..model import BodyModel, load_exo, load_patient
 from ..sim.belief import device_patient
 from ..sim.config import SimConfig
 
-__all__ = ["chosen_estimator", "recorded_kalman", "torque_rate_schedule"]
+__all__ = ["chosen_estimator", "recorded_kalman", "torque_rate_schedule", "true_exo"]
 
 
 def chosen_estimator(
@@ -117,7 +118,7 @@ def recorded_kalman(
         exo,
         patient,
         config.dt,
-        cuffs=config.belief.cuff_model_for(config.controller),
+        cuffs=config.belief.cuff_model_of(config.cuffs),
         sensors=config.sensors,
     )
     return kalman, _named_patients(path, config)
@@ -151,3 +152,17 @@ def torque_rate_schedule(config: SimConfig) -> list[tuple[int, float | None]]:
         row = 0 if i == 0 else round(start / config.dt) + 1
         schedule.append((row, seg.mode_params(config.modes).torque_rate_for(seg.mode)))
     return schedule
+
+
+def true_exo(result: Any, device_exo: BodyModel) -> BodyModel:
+    """The exoskeleton whose geometry the live error figures used: the truth's.
+
+    The device's model when the run gave the device none other (the same
+    file), or when the truth's URDF cannot be loaded here.
+    """
+    if result.config.belief.exo is None:
+        return device_exo
+    try:
+        return load_exo(result.exo_source or result.config.exo or None)
+    except ExoCtrlError:
+        return device_exo

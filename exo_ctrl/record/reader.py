@@ -35,6 +35,7 @@ from ..sim import RunStats, SimConfig, SimResult
 from ..sim.gait_score import gait_score_stats
 from ..sim.load_stats import load_stats
 from ..sim.plain import from_plain
+from ..sim.run_models import components_from_s
 from ..sim.summary import contact_stats, drive_limits
 from .format import NOT_IN_OUTCOME, RECORDING_FORMAT, TICK, schema_shapes
 from .meta_checks import meta_number, meta_text, outcome_fields
@@ -256,11 +257,13 @@ def _run_stats(config: SimConfig, exo_source: str) -> RunStats:
     """Running statistics as simulate() keeps them, so summary() matches the live run."""
     contact = contact_stats(config)
     try:
-        estimate = EstimateErrorStats(load_body(exo_source, name="exoskeleton"), config.dt)
+        body = load_body(exo_source, name="exoskeleton")
+        estimate = EstimateErrorStats(body, config.dt, components_from_s=components_from_s(config))
     except (ExoCtrlError, TypeError):  # the model moved, or an older layout
         estimate = None
     limits = drive_limits(config, estimate.exo.effort_limit) if estimate is not None else None
     stats = RunStats(estimate, contact, limits=limits)
+    stats.fills_errors = False  # the recording holds the estimate's errors as logged
     stats.gait = gait_score_stats(config)  # the gait scores (exo_ctrl/sim/gait_score.py)
     if estimate is not None:  # the stance legs' load (exo_ctrl/sim/load_stats.py)
         stats.load = load_stats(config, estimate.exo)

@@ -13,13 +13,27 @@ applies, plus white noise,
 and the reading's joint-space torque at the encoders' angles, with the
 device's own leg geometry (its URDF, not the plant's),
 
-    τ_g = J_x(q_m)ᵀ F_m,x + J_z(q_m)ᵀ F_m,z,
+    τ_g = J_x(q_m)ᵀ F_m,x + J_z(q_m)ᵀ F_m,z   if F_m,z ≥ F_c, else 0,
 
 J the foot point's rows ∂p/∂(q_hip, q_knee) (the closed form of
 :mod:`exo_ctrl.plant.contact`), is a known external torque: the cuff-force
 estimators (:mod:`exo_ctrl.estimation`) are given τ_s + τ_g, the torque
 sensors' reading with it, as the torque acting on the legs besides the
 cuffs' (logged as ``tau_ground_meas``, so the offline estimate adds the same).
+
+**Contact threshold.**  A plate whose vertical reading is below
+F_c = c σ_F (c = ``contact_threshold_sd``, default 5) carries no foot: its
+reading is the cells' noise, and the device adds nothing (τ_g = 0; the
+reading itself is still logged and watched by the belt monitor).  Without
+it the swing foot's noise, σ_F through the foot's lever arm (about 0.5 m
+below the knee: 1 N·m per tick, five times the joint torque sensor's
+0.2 N·m), entered every estimate as a torque the cuffs had made: on the
+default scenario, whose feet skim the belt (peak ground force under 1 N),
+it was 1.7 points of the shank cuffs' 5.9–6.1 % normal error after the
+ramp-in (4.0–4.2 % with it; ``docs/performance.md``).  Five standard
+deviations: noise alone crosses it with a probability of 3·10⁻⁷ a reading
+(chosen); a foot loaded below F_c (10 N with the default cells) is missed,
+a torque of at most F_c times its lever arm, during touchdown and lift-off only.
 
 **The patient's feet** (``ContactParams.patient_feet``,
 :mod:`exo_ctrl.plant.patient_feet`): where the patient's shoes meet the belt
@@ -66,17 +80,23 @@ class FootLoadParams:
     Attributes:
         noise_std_N: σ_F, white noise on each force component, std [N].
         seed: seed of the noise generator (an integer >= 0).
+        contact_threshold_sd: c, the contact threshold F_c = c σ_F on the
+            vertical reading below which a plate adds no torque (module
+            docstring; default 5, chosen) [-].
 
     Raises:
-        InvalidParameter: a negative noise, a seed that is not an integer >= 0.
+        InvalidParameter: a negative noise or threshold, a seed that is not
+            an integer >= 0.
 
     """
 
     noise_std_N: float = 2.0
     seed: int = 2
+    contact_threshold_sd: float = 5.0
 
     def __post_init__(self) -> None:
         v.non_negative("foot load cell noise_std", self.noise_std_N, "N")
+        v.non_negative("foot load cell contact_threshold_sd", self.contact_threshold_sd)
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
             raise InvalidParameter("foot load cell seed", self.seed, "an integer >= 0")
         if self.seed < 0:
@@ -92,7 +112,8 @@ class FootLoadParams:
 #: (``l1``, ``l2`` [m], ``s_h``, ``s_k``, ``phi1_0``, ``phi2_0`` [rad]);
 #: ``force`` the reading (x, z) per foot [N] (rows: exoskeleton left, right,
 #: patient left, right; the patient's zero without their feet on the belt),
-#: ``tau`` τ_g [N·m] (4), ``tau_known`` τ_s + τ_g [N·m] (4), ``row``
+#: ``tau`` τ_g [N·m] (4), ``tau_known`` τ_s + τ_g [N·m] (4), ``threshold``
+#: F_c [N] (the contact threshold, module docstring), ``row``
 #: of the noise blocks, ``depleted``, ``noise`` (NOISE_BLOCK, 4) [N] and
 #: ``patient_noise`` (NOISE_BLOCK, 4) [N] (drawn with the patient's feet only).
 FOOT_LOAD_FIELDS = [
@@ -100,6 +121,7 @@ FOOT_LOAD_FIELDS = [
     ("force", np.float64, (4, 2)),
     ("tau", np.float64, (4,)),
     ("tau_known", np.float64, (4,)),
+    ("threshold", np.float64),
     ("row", np.int64),
     ("depleted", np.bool_),
     ("noise", np.float64, (NOISE_BLOCK, 4)),
@@ -126,6 +148,7 @@ class FootLoad:
         self.record = record(FOOT_LOAD_FIELDS)
         r = self.record[0]
         fill_legs(r, exo)
+        r["threshold"] = params.contact_threshold_sd * params.noise_std_N
         #: The foot plates' reading (x, z) per foot [N], (2, 2), and τ_g [N·m],
         #: (4,): views of the record.
         self.force = r["force"][:2]
@@ -174,6 +197,8 @@ class FootLoad:
 def read_foot_load(sensor: np.ndarray, contact: Any, q: np.ndarray, tau_s: np.ndarray) -> None:
     """F_m = F + n_F per foot, τ_g = Jᵀ F_m at the encoder angles ``q``, and τ_s + τ_g.
 
+    τ_g = 0 for a foot whose vertical reading is below ``threshold`` (F_c).
+
     ``contact``: the plant's contact record (:data:`~exo_ctrl.plant.contact.CONTACT_FIELDS`;
     ``ft``, ``fn`` of the last step).
     """
@@ -184,6 +209,8 @@ def read_foot_load(sensor: np.ndarray, contact: Any, q: np.ndarray, tau_s: np.nd
         fx = c.ft[leg] + s.noise[i, 2 * leg]
         fz = c.fn[leg] + s.noise[i, 2 * leg + 1]
         s.force[leg, 0], s.force[leg, 1] = fx, fz
+        if fz < s.threshold:  # no foot on the plate: its reading is noise
+            fx = fz = 0.0
         _, _, jx0, jx1, jz0, jz1 = foot_point(s, leg, q[2 * leg], q[2 * leg + 1])
         s.tau[2 * leg] = jx0 * fx + jz0 * fz
         s.tau[2 * leg + 1] = jx1 * fx + jz1 * fz

@@ -29,11 +29,13 @@ The drive model is the installed drive's datasheet (default: the nominal
 values of :attr:`~exo_ctrl.sim.config.SimConfig.motor`, a parameter set of
 its own, so that a true drive that differs from its datasheet, e.g. a
 winding warmer than 25 °C, can be studied by giving the device the nominal
-one).  The cuff model is the cuffs' nominal stiffness and damping as a
-bench measures them, isotropic (default :meth:`CuffParams.isotropic`: the
-paper's 8 N/mm, 100 N·s/m): the device cannot know how much softer the
-patient's soft tissue is in shear than across the link
-(:class:`~exo_ctrl.plant.cuffs.CuffParams`, the truth's split cuffs).
+one).  The cuff model is the published cuffs (default: the run's
+``SimConfig.cuffs``, by default :class:`~exo_ctrl.plant.cuffs.CuffParams`'
+published normal and shear stiffness, cited there): what a manufacturer
+builds its model from.  The patient's true cuffs scatter around them
+(:mod:`exo_ctrl.plant.cuff_scatter`), so the device's cuff model is honest,
+not exact; ``Belief(cuffs=...)`` gives it another (``CuffParams.isotropic()``,
+the isotropic 8 N/mm it held before).
 The treadmill's datasheet (belt and rollers' equivalent mass, the drive's
 force limit; what the supervisor's belt monitor predicts the belt with) is
 the installed treadmill's nominal values by default
@@ -98,9 +100,8 @@ class Belief:
         patient_sex: ``"female"`` or ``"male"``: which table.
         motor: the drive's datasheet the device holds (None: the nominal
             values of the run's drive, ``SimConfig.motor``).
-        cuffs: the cuff model the device holds (None:
-            :meth:`~exo_ctrl.plant.cuffs.CuffParams.isotropic`, the cuffs'
-            nominal 8 N/mm and 100 N·s/m in every direction).
+        cuffs: the cuff model the device holds (None: the published cuffs,
+            the run's ``SimConfig.cuffs``: :meth:`cuff_model_of`).
         belt: the treadmill's datasheet the device holds (None: the nominal
             values of the run's belt, ``SimConfig.contact.belt``).
         soles: the soles' contact law the device holds, (k [N/m^n], n [-])
@@ -158,25 +159,19 @@ class Belief:
                 raise InvalidParameter("belief sole exponent", self.soles[1], ">= 1")
             object.__setattr__(self, "soles", (k, n))
 
-    @property
-    def cuff_model(self) -> CuffParams:
-        """The cuffs the device believes in (``cuffs``, or the nominal isotropic cuffs)."""
-        return self.cuffs if self.cuffs is not None else CuffParams.isotropic()
+    def cuff_model_of(self, published: CuffParams) -> CuffParams:
+        """The cuffs the device believes in: ``cuffs``, or the published cuffs.
 
-    def cuff_model_for(self, controller: str) -> CuffParams:
-        """The cuffs the device believes in for a run of ``controller``.
+        Args:
+            published: the cuffs the run's true cuffs scatter around
+                (``SimConfig.cuffs``; default the published split cuffs,
+                :class:`~exo_ctrl.plant.cuffs.CuffParams`): a manufacturer's
+                model.  (The QP's bound needs the split model: the isotropic
+                one shares a hip's load between thigh and shank otherwise,
+                :mod:`exo_ctrl.control.qp.margin`'s e_cuffs.)
 
-        ``cuffs`` when given; else the QP's device holds the published split
-        cuffs (:class:`~exo_ctrl.plant.cuffs.CuffParams`' defaults, cited
-        there), because its bound is only as good as its cuff model (the
-        isotropic model shares a hip's load between thigh and shank otherwise,
-        :mod:`exo_ctrl.control.qp.margin`'s e_cuffs: 31–34 N on the default
-        gait), and every other controller the nominal isotropic cuffs
-        (:attr:`cuff_model`).
         """
-        if self.cuffs is None and controller == "qp":
-            return CuffParams()
-        return self.cuff_model
+        return self.cuffs if self.cuffs is not None else published
 
     def motor_model(self, installed: MotorParams) -> MotorParams:
         """The drive the device believes in: ``motor``, or the installed drive's datasheet.

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import functools
 import math
 import os
-import types
-import typing
-from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from .. import _validate as v
@@ -33,6 +30,7 @@ from ..plant import (
     MotorParams,
     PelvisParams,
 )
+from ..plant.cuff_scatter import CuffScatter
 from ..plant.patient_active import PATIENT_KINDS, ActiveParams
 from ..safety import SafetyLimits, stop_reaction_schedule
 from ..safety.stop_reaction import check_stop_reaction
@@ -104,11 +102,15 @@ class SimConfig:
         qp_tighten_bound: tighten the bound by the margin (False: at the bound).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
-        cuffs: the true cuffs: normal and shear stiffness and damping, strap
-            preload (:class:`~exo_ctrl.plant.cuffs.CuffParams`; default
-            split, shear softer; ``CuffParams.isotropic()`` the cuffs before
-            the split).  The device's models (the QP's, the estimator's) take
-            the normal stiffness and damping and assume isotropic cuffs.
+        cuffs: the published cuffs the patient's true cuffs scatter around:
+            normal and shear stiffness and damping, strap preload
+            (:class:`~exo_ctrl.plant.cuffs.CuffParams`; default split, shear
+            softer; ``CuffParams.isotropic()`` the cuffs before the split).
+            The device's models hold the published cuffs (``belief``).
+        cuff_scatter: how far the patient's true cuffs are from ``cuffs``
+            (:class:`~exo_ctrl.plant.cuff_scatter.CuffScatter`; default a
+            seeded 20 % spread, cited there; ``CuffScatter.exact()``: exactly
+            ``cuffs``).  The plant simulates :attr:`true_cuffs`.
         misalignment: the true patient's hip and knee axes offset from the
             exoskeleton's, (DX, DZ) [m] each (:mod:`exo_ctrl.plant.misalignment`;
             default coaxial).  Truth only: the device's models are aligned.
@@ -196,7 +198,7 @@ class SimConfig:
         belief: the models the controller, the estimator and the supervisor
             hold (:mod:`exo_ctrl.sim.belief`; default: the nominal patient
             from the paper's stature and mass, the exoskeleton URDF, the
-            drive's datasheet, the nominal isotropic cuffs;
+            drive's datasheet, the published split cuffs;
             ``Belief("truth")`` is the ideal comparison).
         faults: faults to inject (:mod:`exo_ctrl.sim.faults`; default none),
             each with its onset within the run.
@@ -220,6 +222,7 @@ class SimConfig:
     gains: PDGains = field(default_factory=PDGains)
     motor: MotorParams = field(default_factory=MotorParams)
     cuffs: CuffParams = field(default_factory=CuffParams)
+    cuff_scatter: CuffScatter = field(default_factory=CuffScatter)
     misalignment: Misalignment = field(default_factory=Misalignment)
     end_stops: EndStopParams = field(default_factory=EndStopParams)
     joint_compliance: CompliantJoint = field(default_factory=CompliantJoint)
@@ -260,7 +263,7 @@ class SimConfig:
     patient_active: ActiveParams = field(default_factory=ActiveParams)
 
     def __post_init__(self) -> None:
-        _check_parts(self)
+        checks.check_parts(self)
         for name in ("exo", "patient"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, (str, os.PathLike)):
@@ -331,6 +334,11 @@ class SimConfig:
             what="log chunk rows",
             limit="smaller",
         )
+
+    @property
+    def true_cuffs(self) -> CuffParams:
+        """The patient's true cuffs, the plant's: ``cuffs`` scattered by ``cuff_scatter``."""
+        return self.cuff_scatter.apply(self.cuffs)
 
     @property
     def pelvis_resolved(self) -> PelvisParams:
@@ -464,37 +472,3 @@ class SimConfig:
         """Plain-data form (JSON-able), for summaries and recordings (a user's controller named)."""
         names = controller_name(self.controller), estimator_name(self.estimator)
         return asdict(named_copy(self, controller=names[0], estimator=names[1]))
-
-
-def _check_parts(config: SimConfig) -> None:
-    """Refuse a part of the run that is not of its declared parameter class.
-
-    (A float given as ``gait`` would otherwise fail later with an AttributeError.)
-    """
-    for name, allowed, optional in _part_classes():
-        value = getattr(config, name)
-        if not (isinstance(value, allowed) or (optional and value is None)):
-            names = " or ".join(t.__name__ for t in allowed) + (" or None" if optional else "")
-            raise InvalidParameter(name, value, f"a {names}")
-
-
-@functools.cache
-def _part_classes() -> tuple[tuple[str, tuple[type, ...], bool], ...]:
-    """SimConfig's fields typed by parameter classes: (name, classes, None allowed).
-
-    Read from the annotations once (evaluating them took 0.4 ms, two thirds
-    of a SimConfig's construction).  ``speed_profile`` is left out: it also
-    takes its text, which ``check_sync`` checks; containers check their items.
-    """
-    hints = typing.get_type_hints(SimConfig)
-    parts = []
-    for f in fields(SimConfig):
-        hint = hints[f.name]
-        union = typing.get_origin(hint) in (typing.Union, types.UnionType)
-        if f.name == "speed_profile" or (typing.get_origin(hint) is not None and not union):
-            continue
-        members = typing.get_args(hint) if union else (hint,)
-        allowed = tuple(t for t in members if is_dataclass(t))
-        if allowed:
-            parts.append((f.name, allowed, type(None) in members))
-    return tuple(parts)

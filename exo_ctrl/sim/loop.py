@@ -24,6 +24,7 @@ from .gait_score import gait_score_stats
 from .interaction import interaction_stats
 from .load_stats import load_stats
 from .result import SimObserver, SimResult
+from .run_models import components_from_s
 from .schema import signal_shapes
 from .setup import Setup, build
 from .summary import RunStats, contact_stats, drive_limits
@@ -192,7 +193,7 @@ def new_result(setup: Setup, hist_n: int) -> SimResult:
         patient_source=setup.patient.source,
         warnings=list(setup.warnings),
         stats=RunStats(
-            EstimateErrorStats(setup.exo, config.dt),
+            EstimateErrorStats(setup.exo, config.dt, components_from_s=components_from_s(config)),
             contact_stats(config),
             interaction_stats(config, setup.controller, setup.plan, setup.exo),
             drive_limits(config, setup.exo.effort_limit),

@@ -97,6 +97,7 @@ ORDER: tuple[str, ...] = (
     "gains",
     "motor",
     "cuffs",
+    "cuff_scatter",
     "misalignment",
     "belief",
     "estimation",

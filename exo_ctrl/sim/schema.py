@@ -19,7 +19,7 @@ import numpy as np
 
 from .._jit import shared_dtype
 
-__all__ = ["SIGNALS", "Signal", "log_dtype", "signal", "signal_shapes"]
+__all__ = ["FROM_STATISTICS", "SIGNALS", "Signal", "log_dtype", "signal", "signal_shapes"]
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,22 @@ SIGNALS: list[Signal] = [
     ),
     Signal("cuff_normal_est", (4,), "N", "estimated cuff force normal to the link", "cuff"),
     Signal("cuff_force_est", (4, 2), "N", "estimated cuff force on the exoskeleton (x, z)", "cuff"),
+    # Filled from the chunk by the run's statistics (exo_ctrl.estimation.errors), not the tick:
+    # the estimate of row k against the true force of row k - 1 (0 in row 0).
+    Signal(
+        "cuff_normal_est_error",
+        (4,),
+        "N",
+        "estimate's error of the normal component, n · f̂ − n · f (n of the exo link)",
+        "cuff",
+    ),
+    Signal(
+        "cuff_along_est_error",
+        (4,),
+        "N",
+        "estimate's error of the along-link component, u · f̂ − u · f (u of the exo link)",
+        "cuff",
+    ),
     Signal("qp_active", (), "", "QP controller: active constraints"),
     Signal("qp_failures", (), "", "QP controller: fallbacks so far"),
     Signal(
@@ -155,6 +171,11 @@ SIGNALS: list[Signal] = [
         "path mode: the plan row of the device's phase (free timing); -1 in other modes",
     ),
 ]
+
+
+#: The signals the run's statistics fill from each chunk when it is handed over
+#: (:class:`~exo_ctrl.estimation.errors.EstimateErrorStats`), not the tick.
+FROM_STATISTICS = ("cuff_normal_est_error", "cuff_along_est_error")
 
 
 def signal(name: str) -> Signal:

@@ -139,7 +139,7 @@ def build(config: SimConfig) -> Setup:
         patient,
         dt=config.dt / config.plant_substeps,
         motors=motor,
-        cuffs=config.cuffs,
+        cuffs=config.true_cuffs,
         end_stops=config.end_stops,
         compliance=config.joint_compliance,
         contact=config.contact,

@@ -10,13 +10,13 @@ import numpy as np
 from .._jit import kernel, preload
 from ..control import controller_name
 from ..estimation import MODEL_DRIVEN, EstimateErrorStats
-from ..estimation.plugin import components_of, estimator_name
+from ..estimation.plugin import components_of
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
-from .belief import PAPER_PATIENT
 from .config import SimConfig
 from .gait_score import GaitScoreStats
 from .interaction import InteractionStats
 from .load_stats import LoadStats
+from .run_models import device_belief, true_cuffs
 
 __all__ = [
     "SAFETY_EVENT_KINDS",
@@ -53,9 +53,11 @@ class RunOutcome(Protocol):
     timed_ticks: int
 
 
-def _default_cuffs(controller: str) -> str:
-    """The default cuff model's name: the QP's published split cuffs, else isotropic."""
-    return "published" if controller == "qp" else "isotropic"
+def _estimate_rows(rows: dict[str, np.ndarray], fill: bool) -> tuple[Any, ...]:
+    """The arguments of EstimateErrorStats.update from a chunk's rows (errors: None if absent)."""
+    names = ("cuff_normal_est_error", "cuff_along_est_error")
+    errors = tuple(rows[n] for n in names) if fill and all(n in rows for n in names) else None
+    return rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"], errors
 
 
 def _margin(result: RunOutcome) -> dict[str, float] | None:
@@ -101,13 +103,14 @@ class RunStats:
         self._at_limit = np.zeros((3, 4))
         #: Peak magnitude of each cuff's estimated force [N] (:func:`peak_force_magnitudes`).
         self._peak_est = np.zeros(4)
+        #: Fill the rows' per-tick estimate errors (the log's; off for rows read
+        #: back from a recording, which hold them already).
+        self.fills_errors = True
 
     def update(self, rows: dict[str, np.ndarray]) -> None:
         """Add a chunk of rows (name → (n, ...) arrays, as in SIGNALS)."""
-        if self.estimate is not None:
-            self.estimate.update(
-                rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"]
-            )
+        if self.estimate is not None:  # and the per-tick errors, into the rows
+            self.estimate.update(*_estimate_rows(rows, self.fills_errors))
         if self.contact is not None:
             self.contact.update(rows, self.ticks)
         if self.load is not None:
@@ -125,9 +128,7 @@ class RunStats:
     def preload(self, rows: dict[str, np.ndarray]) -> None:
         """Load the compiled kernels for rows of these arrays' types (before a timed run)."""
         if self.estimate is not None:
-            self.estimate.preload(
-                rows["q"], rows["cuff_force"], rows["cuff_normal_est"], rows["cuff_force_est"]
-            )
+            self.estimate.preload(*_estimate_rows(rows, self.fills_errors))
         preload(_accumulate, *self._accumulate_args(rows))
 
     def _accumulate_args(self, rows: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
@@ -226,6 +227,7 @@ class RunStats:
             },
         }
         out["device_belief"] = device_belief(result.config)
+        out["true_cuffs"] = true_cuffs(result.config)
         if self.estimate is not None:
             out.update(self.estimate.summary())
             out["cuff_force_estimate_components"] = components_of(result.config.estimator)
@@ -449,37 +451,3 @@ def drive_limits(config: SimConfig, effort: np.ndarray) -> np.ndarray:
     effort = np.where(np.isfinite(effort) & (effort > 0.0), effort, np.inf)
     m = config.motor
     return np.array([effort, np.full(4, m.current_limit_A), np.full(4, m.supply_voltage_V)])
-
-
-def device_belief(config: SimConfig) -> dict[str, Any]:
-    """What the device held in a run (:mod:`exo_ctrl.sim.belief`), for its summary.
-
-    Keys: ``patient`` (``"truth"``: perfect knowledge, the ideal comparison;
-    ``"nominal"``; or the URDF path), ``patient_height_m``,
-    ``patient_mass_kg``, ``patient_sex`` (the nominal model's, None for the
-    others), ``exo`` (the URDF the device holds, None: the true one's file),
-    ``drive`` (``"datasheet"``: the installed drive's nominal values, or
-    ``"given"``), ``cuffs`` (``"isotropic"``, the nominal default;
-    ``"published"``, the QP's default split cuffs; or
-    ``"given"``), ``belt`` (the treadmill's datasheet: ``"datasheet"`` or
-    ``"given"``), ``soles`` (the soles' contact law: ``"datasheet"`` or
-    ``"given"``), ``estimator``, ``plan`` (``"synchronised"`` with the
-    measured belt, or ``"precomputed"``) and ``safety_cuff_force`` (``"estimate"``,
-    or ``"truth"``: the plant's forces, a sensor per cuff).
-    """
-    b = config.belief
-    nominal = b.patient == "nominal"
-    return {
-        "patient": b.patient,
-        "patient_height_m": (b.patient_height_m or PAPER_PATIENT["height_m"]) if nominal else None,
-        "patient_mass_kg": (b.patient_mass_kg or PAPER_PATIENT["mass_kg"]) if nominal else None,
-        "patient_sex": b.patient_sex if nominal else None,
-        "exo": b.exo,
-        "drive": "datasheet" if b.motor is None else "given",
-        "cuffs": "given" if b.cuffs is not None else _default_cuffs(config.controller),
-        "belt": "datasheet" if b.belt is None else "given",
-        "soles": "datasheet" if b.soles is None else "given",
-        "estimator": estimator_name(config.estimator),
-        "plan": "synchronised" if config.synced else "precomputed",
-        "safety_cuff_force": "estimate" if config.safety_use_estimate else "truth",
-    }

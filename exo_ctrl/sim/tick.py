@@ -111,7 +111,7 @@ class Runner:
                 setup.device_exo,
                 setup.device_patient,
                 config.dt,
-                cuffs=config.belief.cuff_model_for(config.controller),
+                cuffs=config.belief.cuff_model_of(config.cuffs),
                 sensors=config.sensors,
             )
         else:
@@ -178,7 +178,7 @@ class Runner:
                 if config.safety and setup.belt_speed is not None
                 else None,
                 stop_reaction=config.stop_reactions,
-                cuff_stiffness=config.belief.cuff_model.stiffness_N_per_m,
+                cuff_stiffness=config.belief.cuff_model_of(config.cuffs).stiffness_N_per_m,
                 current_sensor=config.current_sensor,
             )
         sup = self.supervisor

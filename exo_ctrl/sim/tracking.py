@@ -68,7 +68,7 @@ def tracking_controller(
             model_motor,
             config.gains,
             cuff_force_limit_N=config.cuff_force_limit_N,
-            cuffs=config.belief.cuff_model_for(config.controller),
+            cuffs=config.belief.cuff_model_of(config.cuffs),
             dt=config.dt,
             estimate_gain_per_s=gain,
             restored_bandwidth_per_s=config.qp_estimate_bandwidth_per_s,

@@ -127,9 +127,11 @@ def test_the_paper_preset_is_free_air_with_the_belt() -> None:
     assert _config("--contact", "on", "--duration", "3.6") == preset("paper").config
 
 
-def test_split_cuffs_set_the_belief_and_isotropic_unsets_it() -> None:
-    assert _config("--controller-cuffs", "split").belief.cuffs == CuffParams()
-    assert _config("--preset", "paper", "--controller-cuffs", "isotropic").belief.cuffs is None
+def test_isotropic_cuffs_set_the_belief_and_split_unsets_it() -> None:
+    """Split is the default (the published cuffs, issue 31); isotropic the old belief."""
+    assert _config("--controller-cuffs", "isotropic").belief.cuffs == CuffParams.isotropic()
+    assert _config("--preset", "paper", "--controller-cuffs", "split").belief.cuffs is None
+    assert _config("--preset", "paper").belief.cuffs is None
 
 
 @pytest.mark.parametrize(

@@ -41,6 +41,7 @@ from exo_ctrl.estimation import (
     normal_component_errors,
 )
 from exo_ctrl.model import CUFF_NAMES, BodyModel
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.sensing.sensors import SensorParams, Sensors
 from exo_ctrl.sim import SimConfig, build, start_on_plan
@@ -84,6 +85,7 @@ def run_closed_loop(
         controller="ct",
         patient=patient,
         cuffs=cuffs or CuffParams.isotropic(),
+        cuff_scatter=CuffScatter.exact(),  # the true cuffs are the given ones, unscattered
         belief=Belief("truth"),  # the figures of these tests: CT knowing its patient
     )
     setup = build(config)

@@ -21,6 +21,7 @@ from exo_ctrl.plant import CompliantJoint, ContactParams, PelvisParams
 from exo_ctrl.record import RECORDING_FORMAT, RerunRecorder, read_recording
 from exo_ctrl.record.format import dumps
 from exo_ctrl.record.omitted import FEATURES, left_out_signals
+from exo_ctrl.sensing import FootLoadParams
 from exo_ctrl.sim import SimConfig, SimResult, simulate
 from exo_ctrl.sim.schema import log_dtype, signal_shapes
 
@@ -28,7 +29,15 @@ CONTACT = ContactParams(enabled=True)
 #: Runs with every feature of the table off (the default) and runs with each on.
 OFF = SimConfig(duration_s=0.3)
 ON = {
-    "foot-belt contact": SimConfig(duration_s=0.6, controller="ct", contact=CONTACT, sync=False),
+    # The plates' torque with any upward reading: with the pelvis fixed the feet skim the belt,
+    # under the default contact threshold (sensing/foot_load.py), and it would stay 0.
+    "foot-belt contact": SimConfig(
+        duration_s=0.6,
+        controller="ct",
+        contact=CONTACT,
+        sync=False,
+        foot_load=FootLoadParams(contact_threshold_sd=0.0),
+    ),
     "the patient's feet": SimConfig(
         duration_s=0.6,
         controller="ct",

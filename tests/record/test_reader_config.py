@@ -37,6 +37,7 @@ from exo_ctrl.plant import (
     PelvisParams,
 )
 from exo_ctrl.plant.belt import BeltParams
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.patient import SpasticParams
 from exo_ctrl.plant.patient_active import ActiveParams
 from exo_ctrl.record import RerunRecorder, estimate_file, read_recording
@@ -67,6 +68,7 @@ FULL = SimConfig(
         shear_damping_N_s_per_m=60.0,
     ),
     misalignment=Misalignment(hip_xz=(0.005, -0.003)),
+    cuff_scatter=CuffScatter(spread_rel=0.1, seed=3),
     end_stops=EndStopParams(stiffness_Nm_per_rad=2000.0),
     joint_compliance=CompliantJoint(enabled=True),
     contact=ContactParams(
@@ -186,18 +188,19 @@ def test_full_config_recording_reads_back_the_same_run(tmp_path: Path, assert_sa
     assert back.summary() == result.summary()
 
 
-def test_split_cuffs_recording_reads_back_and_estimates(tmp_path: Path, capsys) -> None:
-    """``--controller-cuffs split``: the recorded device cuffs come back, and estimate uses them.
+def test_given_cuffs_recording_reads_back_and_estimates(tmp_path: Path, capsys) -> None:
+    """``--controller-cuffs isotropic``: the recorded device cuffs come back, estimate uses them.
 
     The offline Kalman filter, rebuilt on the recording's device models,
     must give the live estimate; PD does not read the cuff model, so a run
-    whose device holds the isotropic cuffs has the same readings and a
-    different estimate: the split cuffs were read back, not defaulted.
+    whose device holds the default (published split) cuffs has the same
+    readings and a different estimate: the given cuffs were read back, not
+    defaulted.
     """
-    args = ["--controller-cuffs", "split", "--duration", "0.6"]
+    args = ["--controller-cuffs", "isotropic", "--duration", "0.6"]
     config = sim_config(build_parser().parse_args(["simulate", *args]))
     cuffs = config.belief.cuffs
-    assert cuffs == CuffParams() and cuffs.shear_stiffness_N_per_m != cuffs.stiffness_N_per_m
+    assert cuffs == CuffParams.isotropic()
     path = tmp_path / "split.rrd"
     assert cli_main(["simulate", *args, "--out", str(path)]) == 0
     back = read_recording(path)
@@ -217,7 +220,7 @@ def test_split_cuffs_recording_reads_back_and_estimates(tmp_path: Path, capsys) 
     est = estimate_file(path)
     np.testing.assert_allclose(est.series.force, live.signals["cuff_force_est"], rtol=0, atol=1e-9)
 
-    isotropic = simulate(replace(config, belief=replace(config.belief, cuffs=None)))
-    np.testing.assert_array_equal(isotropic.signals["tau_sensor"], live.signals["tau_sensor"])
-    gap = np.max(np.abs(est.series.force - isotropic.signals["cuff_force_est"]))
-    assert gap > 1.0  # N: the isotropic cuff model's filter is another estimate
+    published = simulate(replace(config, belief=replace(config.belief, cuffs=None)))
+    np.testing.assert_array_equal(published.signals["tau_sensor"], live.signals["tau_sensor"])
+    gap = np.max(np.abs(est.series.force - published.signals["cuff_force_est"]))
+    assert gap > 1.0  # N: the published cuff model's filter is another estimate

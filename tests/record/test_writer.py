@@ -224,7 +224,7 @@ def test_not_enough_free_space_raises_at_start(tmp_path, monkeypatch):
 @pytest.mark.parametrize(
     ("config", "rate_hz"),
     [
-        (SimConfig(), 50.0),  # the default run: 35 series, BYTES_PER_TICK_ESTIMATE
+        (SimConfig(), 50.0),  # the default run: 37 series, BYTES_PER_TICK_ESTIMATE
         (SimConfig(), 1000.0),  # the scene at every tick
         (  # the belt with both bodies' feet on it, the pelvis on its guide: 55 series
             SimConfig(

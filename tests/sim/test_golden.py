@@ -16,6 +16,7 @@ import pytest
 
 from exo_ctrl.control import PDGains
 from exo_ctrl.plant import CuffParams, MotorParams
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
 
@@ -31,6 +32,7 @@ LEGACY = {
     "cuff_fit": "slack",
     "qp_estimate_bandwidth_per_s": 100.0,  # the estimator's own: the estimate as it is
     "cuffs": CuffParams.isotropic(),  # the cuffs before normal and shear were split
+    "cuff_scatter": CuffScatter.exact(),  # the true cuffs exactly those (issue 31 scattered them)
     # What the device held then: the true patient, the true cuff forces.
     "belief": Belief("truth", cuffs=CuffParams.isotropic()),
     "safety_use_estimate": False,

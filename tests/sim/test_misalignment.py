@@ -22,10 +22,12 @@ from exo_ctrl.estimation import ESTIMATORS, MODEL_DRIVEN
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import BodyModel, load_exo, load_patient
 from exo_ctrl.plant import CuffParams, Misalignment, misaligned_patient
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.sim import SimConfig, build, simulate, start_on_plan
 
 K_N, K_U = CuffParams().stiffness_N_per_m, CuffParams().shear_stiffness_N_per_m
 KNEE_2CM = Misalignment(knee_xz=(0.0, 0.02))
+EXACT = CuffScatter.exact()
 
 
 def rot(theta: float) -> np.ndarray:
@@ -55,7 +57,8 @@ def test_knee_offset_changes_the_thigh_and_moves_the_joint_not_the_cuffs() -> No
 
 def test_along_shank_force_of_a_knee_offset_is_the_hand_calculation() -> None:
     """Both shanks turned by β from the fit: Δp = (R(θ) - I) d_k, f = -k_n s_n n - k_u s_u u."""
-    setup = build(SimConfig(misalignment=KNEE_2CM, duration_s=0.1))
+    # The published cuffs exactly (K_N, K_U), not a patient's scattered ones.
+    setup = build(SimConfig(misalignment=KNEE_2CM, duration_s=0.1, cuff_scatter=EXACT))
     cuffs, leg = setup.plant.cuffs, setup.exo.legs["left"]
     cuffs.fit(np.zeros(8))
     d_k = np.array([0.0, 0.02])
@@ -114,7 +117,7 @@ def independent_settle(
 
 
 def test_settle_with_a_misaligned_knee_is_the_independent_equilibrium() -> None:
-    config = SimConfig(misalignment=KNEE_2CM, duration_s=0.1)
+    config = SimConfig(misalignment=KNEE_2CM, duration_s=0.1, cuff_scatter=EXACT)  # K_N, K_U
     setup = build(config)
     start_on_plan(setup)
     plant = setup.plant

@@ -9,22 +9,32 @@ from __future__ import annotations
 
 import numpy as np
 
+from exo_ctrl.estimation import EstimateErrorStats
 from exo_ctrl.record import RerunRecorder, read_recording
 from exo_ctrl.sim import schema, simulate
 from exo_ctrl.sim.config import SimConfig
 from exo_ctrl.sim.setup import build
+from exo_ctrl.sim.summary import RunStats
 from exo_ctrl.sim.tick import Runner
 
 
 def test_the_tick_writes_every_declared_signal() -> None:
-    """Log rows start as NaN; after ticks and the plan fill every field of every row is set."""
+    """Log rows start as NaN; after ticks and the plan fill every field of every row is set.
+
+    The estimate's per-tick errors are the run's statistics' (schema.FROM_STATISTICS): the
+    chunk's error statistics fill them when it is handed over, as simulate() does.
+    """
     for controller in ("pd", "qp"):
-        runner = Runner(build(SimConfig(controller=controller, duration_s=0.05)))
+        setup = build(SimConfig(controller=controller, duration_s=0.05))
+        runner = Runner(setup)
         for name in runner.log.dtype.names:
             runner.log[name] = np.nan
         for k in range(runner.chunk):
             runner.tick(k, k)
         runner.fill_plan(0, runner.chunk)
+        unset = [n for n in runner.log.dtype.names if not np.all(np.isfinite(runner.log[n]))]
+        assert set(unset) == set(schema.FROM_STATISTICS), (controller, unset)
+        RunStats(EstimateErrorStats(setup.exo, setup.config.dt)).update(runner.buf)
         unset = [n for n in runner.log.dtype.names if not np.all(np.isfinite(runner.log[n]))]
         assert not unset, (controller, unset)
         assert set(runner.log.dtype.names) == {s.name for s in schema.SIGNALS}

@@ -158,9 +158,9 @@ def test_cuff_force_at_t0_is_the_static_equilibrium(
         patient,
         q0,
         q0,
-        config.cuffs.stiffness_N_per_m,
+        config.true_cuffs.stiffness_N_per_m,
         patient_torque == "spastic",
-        config.cuffs.shear_stiffness_N_per_m,
+        config.true_cuffs.shear_stiffness_N_per_m,
     )
     force = plant.cuff_force.copy()
     print(patient_torque, "cuff forces at t = 0 [N]", np.round(np.linalg.norm(force, axis=1), 2))
@@ -189,7 +189,8 @@ def test_cuff_force_at_t0_is_the_static_equilibrium(
                 u = xz_frames(exo, q)[c] - data.oMi[exo.joint_ids[c]].translation[[0, 2]]
                 u /= np.linalg.norm(u)
                 n = np.array([-u[1], u[0]])
-                k_n, k_u = config.cuffs.stiffness_N_per_m, config.cuffs.shear_stiffness_N_per_m
+                true = config.true_cuffs  # the patient's (scattered) cuffs, the plant's
+                k_n, k_u = true.stiffness_N_per_m, true.shear_stiffness_N_per_m
                 moment = (force[c] @ n) * (force[c] @ u) * (1.0 / k_u - 1.0 / k_n)
                 tau = tau - jac[4] * moment
         acc = pin.aba(body.model, data, q, np.zeros(4), tau)
@@ -224,7 +225,7 @@ def test_cuff_force_has_no_spike_over_the_first_200_ms(
     n = round(WINDOW_S / config.dt)
     assert smoothstep(WINDOW_S / config.ramp_in)[0] < 0.04
     plan = build(config).plan
-    k_cuff = config.cuffs.stiffness_N_per_m
+    k_cuff = config.true_cuffs.stiffness_N_per_m
     f0 = independent_equilibrium(exo, patient, plan.q[0], plan.q[0], k_cuff)[1]
     moved = max(
         np.max(

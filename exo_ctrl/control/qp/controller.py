@@ -51,7 +51,7 @@ shared by the horizon points, costs ρ s_c² (ρ = :data:`SLACK_WEIGHT` = 1e4:
 cuff's prediction is held within ``F_max − m_c``, m_c what the device does
 not know: the horizon model's own error, the patient model's (the cohort's
 spreads), the cuff model's (0 with the published split cuffs, the QP's
-default model: :meth:`~exo_ctrl.sim.belief.Belief.cuff_model_for`) and the
+default model: :meth:`~exo_ctrl.sim.belief.Belief.cuff_model_of`) and the
 estimate's (three standard deviations from the Kalman filter's covariance,
 per tick, ``sensors.cuff_force_std``).  The static part is computed along
 the plan when the controller is built; a bound whose margin leaves less
@@ -181,9 +181,8 @@ class QPController(ComputedTorqueController):
             (``sensors.cuff_force_est``); off, or without an estimate, the
             cuffs are taken as fitted (δ = δ̇ = d = 0).
         cuffs: the cuff model the controller believes in, normal and shear
-            stiffness and damping (default
-            :meth:`~exo_ctrl.plant.cuffs.CuffParams.isotropic`, the device's
-            default: ``Belief.cuff_model``).
+            stiffness and damping (default ``CuffParams.isotropic()``; a run
+            gives it the device's, the published cuffs: ``Belief.cuff_model_of``).
         dt: control period [s].
         horizon_ticks: horizon points of the prediction, in ticks.
         disturbance_bandwidth_per_s: bandwidth of the patient-torque estimate

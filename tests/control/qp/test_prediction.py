@@ -19,6 +19,7 @@ from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from exo_ctrl.plant import CuffParams
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.cuffs import CuffSet
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
@@ -232,7 +233,7 @@ PREDICTION_TOL_N = 6.0
 #: The isotropic model on the split cuffs [N]: measured 73 N, asserted below
 #: 80 N and above 30 N — the model a device must not hold when the cuffs are
 #: split (the QP holds the published split cuffs by default,
-#: exo_ctrl.sim.belief.Belief.cuff_model_for).
+#: exo_ctrl.sim.belief.Belief.cuff_model_of).
 SPLIT_ISO_TOL_N = 80.0
 SPLIT_ISO_FLOOR_N = 30.0
 #: The same with the nominal patient model instead of the true one [N]:
@@ -285,6 +286,7 @@ def test_horizon_prediction_matches_the_plant_with_the_command_held(
             ramp_in_s=0.0,
             cuff_fit="slack",
             cuffs=truth,
+            cuff_scatter=CuffScatter.exact(),  # the plant's cuffs are ``truth`` exactly
             belief=Belief(held),
         )
     )
