@@ -67,9 +67,9 @@ def read_csv_log(
         (t (N,), q (N, 4), dq (N, 4) or None, tau (N, 4)).
 
     Raises:
-        InvalidLog: the file is missing or empty, a column is missing, a value
-            is not a finite number, fewer than 2 rows, or t is not strictly
-            increasing; the message names the line and column.
+        InvalidLog: the file is missing or empty, not CSV text, a column is
+            missing, a value is not a finite number, fewer than 2 rows, or t is
+            not strictly increasing; the message names the line and column.
 
     """
     src = str(path)
@@ -81,6 +81,8 @@ def read_csv_log(
         return _read_rows(src, p)
     except UnicodeDecodeError:
         raise InvalidLog(src, "not UTF-8 text: a CSV log is text") from None
+    except csv.Error as exc:  # a field longer than the csv module's limit, a NUL byte
+        raise InvalidLog(src, f"not a CSV log: {exc}") from None
 
 
 def _check_size(src: str, p: Path) -> None:

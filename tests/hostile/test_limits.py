@@ -280,6 +280,15 @@ def test_a_wide_csv_log_is_refused_by_its_width_before_reading(tmp_path: Path, c
         f"exo-ctrl estimate: error: invalid log {narrower}, line 2: 9 fields, the header has "
         "1000009\n",
     )
+    # sibling: one field past the csv module's limit was a traceback (_csv.Error)
+    long = tmp_path / "long.csv"
+    long.write_text(",".join(CSV_REQUIRED_COLUMNS) + ",x\n" + "0," * 9 + "a" * 200_000 + "\n")
+    code, err = run(["estimate", str(long)], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl estimate: error: invalid log {long}: not a CSV log: field larger than field "
+        "limit (131072)\n",
+    )
 
 
 @pytest.mark.parametrize(
