@@ -187,8 +187,9 @@ def _pattern_problem(out: str) -> str:
 def _cohort_paths(out: str, n: int, seed: int) -> list[str | Path]:
     """The cohort's output files: in a directory, or from a pattern with ``{i}``.
 
-    The files a directory gets are names the user did not give
-    (:class:`~exo_ctrl._io.DerivedOutput`: never written through a link).
+    Neither the names a directory gets nor the files a pattern expands to
+    were named by the user literally (:class:`~exo_ctrl._io.DerivedOutput`:
+    never written through a link).
     """
     if out and Path(out).is_dir():
         width = max(3, len(str(n - 1)))
@@ -200,10 +201,10 @@ def _cohort_paths(out: str, n: int, seed: int) -> list[str | Path]:
     if spec_problem:
         raise InvalidParameter("--out", out, allowed, spec_problem)
     try:
-        paths = [Path(out.format(i=i)) for i in range(n)]
+        paths = [DerivedOutput(out.format(i=i)) for i in range(n)]
     except (IndexError, KeyError, ValueError) as exc:
         raise InvalidParameter("--out", out, allowed, f"the pattern fails: {exc}") from None
-    if len(set(paths)) < n:
+    if len({Path(p) for p in paths}) < n:
         raise InvalidParameter("--out", out, allowed, "two patients would share a file")
     return paths
 

@@ -37,6 +37,10 @@ CSV_REQUIRED_COLUMNS = (
 #: Memory reading a CSV log takes per row [bytes] (the rows' Python numbers
 #: and lists, then the arrays): 170 MiB for 300,000 rows, measured.
 CSV_ROW_BYTES = 600
+#: Memory a field of the header or of the row being read takes as text, beside the line's
+#: characters [bytes] (a str and its place in the row's list): 76 B a field of 7 characters
+#: with them, measured on lines of 2 million fields.
+CSV_FIELD_BYTES = 72
 #: Optional joint-speed columns (all four or none).
 CSV_DQ_COLUMNS = tuple(f"{j}_dq" for j in JOINT_NAMES)
 
@@ -63,9 +67,9 @@ def read_csv_log(
         (t (N,), q (N, 4), dq (N, 4) or None, tau (N, 4)).
 
     Raises:
-        InvalidLog: the file is missing or empty, a column is missing, a value
-            is not a finite number, fewer than 2 rows, or t is not strictly
-            increasing; the message names the line and column.
+        InvalidLog: the file is missing or empty, not CSV text, a column is
+            missing, a value is not a finite number, fewer than 2 rows, or t is
+            not strictly increasing; the message names the line and column.
 
     """
     src = str(path)
@@ -77,15 +81,19 @@ def read_csv_log(
         return _read_rows(src, p)
     except UnicodeDecodeError:
         raise InvalidLog(src, "not UTF-8 text: a CSV log is text") from None
+    except csv.Error as exc:  # a field longer than the csv module's limit, a NUL byte
+        raise InvalidLog(src, f"not a CSV log: {exc}") from None
 
 
 def _check_size(src: str, p: Path) -> None:
     """Refuse a log whose reading would pass the 1 GiB memory cap, before reading it.
 
-    Reading holds about :data:`CSV_ROW_BYTES` per row whatever the row's
-    length (measured: 170 MiB for 300,000 rows), so the rows are counted
-    first (a scan of the file's bytes, nothing kept); a file over the cap
-    itself is refused by its size alone.
+    Reading keeps about :data:`CSV_ROW_BYTES` per row whatever the row's
+    length (measured: 170 MiB for 300,000 rows), and holds the header and
+    the row being read as text, :data:`CSV_FIELD_BYTES` a field and the
+    line's characters each: so the rows are counted and the widest and
+    longest line found first (a scan of the file's bytes, nothing kept); a
+    file over the cap itself is refused by its size alone.
     """
     cap = v.MAX_ALLOCATION_BYTES
     size = p.stat().st_size
@@ -94,10 +102,7 @@ def _check_size(src: str, p: Path) -> None:
             src,
             f"the file is {v.format_bytes(size)}; a CSV log is read up to {v.format_bytes(cap)}",
         )
-    rows = 0
-    with p.open("rb") as handle:
-        while block := handle.read(1 << 22):
-            rows += block.count(b"\n")
+    rows, widest, longest = _scan_lines(p)
     if rows * CSV_ROW_BYTES > cap:
         raise InvalidLog(
             src,
@@ -105,6 +110,48 @@ def _check_size(src: str, p: Path) -> None:
             f"({CSV_ROW_BYTES} B a row), beyond the {v.format_bytes(cap)} memory cap: at most "
             f"{cap // CSV_ROW_BYTES:,} rows",
         )
+    need = rows * CSV_ROW_BYTES + 2 * (widest * CSV_FIELD_BYTES + longest)
+    if need > cap:
+        raise InvalidLog(
+            src,
+            f"a line of {widest:,} fields would need about {v.format_bytes(need)} to read "
+            f"(the header and a row held as text, {CSV_FIELD_BYTES} B a field and the line's "
+            f"{v.format_bytes(longest)} each; {CSV_ROW_BYTES} B a row for {rows:,} rows), "
+            f"beyond the {v.format_bytes(cap)} memory cap",
+        )
+
+
+def _scan_lines(p: Path, block: int = 1 << 20) -> tuple[int, int, int]:
+    """(line ends, the most fields on one line, the longest line [B]) of the file ``p``.
+
+    Fields are counted as commas + 1 (a quoted comma counts too: an upper
+    bound); a last line without its newline counts for the widest and the
+    longest, not as a line end.
+    """
+    rows = widest = longest = 0
+    commas = length = 0  # the line not yet ended: its commas and bytes so far
+    with p.open("rb") as handle:
+        while data := handle.read(block):
+            raw = np.frombuffer(data, dtype=np.uint8)
+            ends = np.flatnonzero(raw == ord("\n"))
+            counted = np.cumsum(raw == ord(","), dtype=np.int64)
+            if ends.size:
+                before = np.concatenate(([-1], ends[:-1]))
+                fields = counted[ends] - np.concatenate(([0], counted[ends[:-1]]))
+                fields[0] += commas
+                sizes = ends - before
+                sizes[0] += length
+                rows += int(ends.size)
+                widest = max(widest, int(fields.max()) + 1)
+                longest = max(longest, int(sizes.max()))
+                commas = int(counted[-1] - counted[ends[-1]])
+                length = int(raw.size - ends[-1] - 1)
+            else:
+                commas += int(counted[-1])
+                length += int(raw.size)
+    if length:
+        widest, longest = max(widest, commas + 1), max(longest, length)
+    return rows, widest, longest
 
 
 def _read_rows(src: str, p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:

@@ -53,6 +53,7 @@ of a few hundred bytes per chunk (larger ``chunk_ticks`` shrink it).
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import queue
@@ -65,7 +66,7 @@ from typing import NoReturn
 import numpy as np
 import rerun as rr
 
-from .._io import is_special, output_problem
+from .._io import is_special
 from .._version import __version__
 from ..exceptions import InvalidParameter, OutputError, RecordingError
 from ..model import BodyModel, load_body, load_patient
@@ -85,7 +86,7 @@ from .omitted import left_out_signals
 from .outcome import log_outcome
 from .rrd_file import RrdFile, signals_held
 from .scene import Skeleton, log_scene_static, send_scene
-from .size import BYTES_PER_TICK_ESTIMATE, bytes_per_tick
+from .size import BYTES_PER_TICK_ESTIMATE, bytes_per_tick, check_writable
 from .viewer import find_viewer, spawn_viewer
 
 __all__ = [
@@ -123,7 +124,8 @@ class RerunRecorder:
         RecordingError: from :meth:`start` when the file cannot be created
             (missing or read-only directory, not enough free space).
         OutputError: from :meth:`start`, :meth:`chunk` or :meth:`finish`
-            when writing fails (disk full, device error).
+            when writing fails (disk full, device error, a FIFO that no
+            process opens for reading in time).
 
     """
 
@@ -177,7 +179,8 @@ class RerunRecorder:
         self._stride = max(1, round(config.control_rate_hz / self.scene_rate_hz))
         lay = layout()  # the log schema as it is now, less the features off in the run
         self._columns = SignalColumns(lay, left_out_signals(config, set(lay.shapes)))
-        self._check_writable(config.n_ticks)
+        per_tick = bytes_per_tick(len(self._columns.layout.series), self._stride)
+        check_writable(self.path, config.n_ticks, per_tick)
         self._failed = False
         self._pending_error = None
         self._next_tick = self._on_disk = 0
@@ -195,6 +198,8 @@ class RerunRecorder:
             file = RrdFile(self.path)
             self.written, self._publish = file.written, True
         except OSError as exc:
+            if exc.errno == errno.ETIMEDOUT:  # a FIFO nobody reads: a failed write (exit 1)
+                raise OutputError(self.path, exc.strerror or str(exc)) from None
             raise RecordingError(f"cannot write recording {self.path}: {exc.strerror}") from None
         rec = rr.RecordingStream(self.app_id)
         stream = rr.binary_stream(recording=rec)
@@ -423,23 +428,6 @@ class RerunRecorder:
                         reason += f" ({free} B free)"
             raise OutputError(self.path, f"{reason}; {held}") from None
         raise RecordingError(f"writing recording {self.path} failed: {exc}; {held}") from None
-
-    def _check_writable(self, n_ticks: int) -> None:
-        path = self.path
-        parent = path.parent
-        problem = output_problem(path)  # the check every output of the command line gets
-        if problem is not None:
-            raise RecordingError(f"cannot write recording {path}: {problem}")
-        if is_special(path):
-            return  # a device (/dev/null) or a FIFO: no free-space figure applies
-        with contextlib.suppress(OSError):
-            free = shutil.disk_usage(parent).free
-            need = n_ticks * bytes_per_tick(len(self._columns.layout.series), self._stride)
-            if free < need:
-                raise RecordingError(
-                    f"cannot write recording {path}: about {need / 1e6:.1f} MB needed for "
-                    f"{n_ticks} ticks, {free / 1e6:.1f} MB free"
-                )
 
     # ------------------------------------------------------------------ static
 

@@ -28,6 +28,7 @@ from hostile_corpus import (
 )
 
 from exo_ctrl.cli.app import main
+from exo_ctrl.estimation.csvlog import CSV_REQUIRED_COLUMNS
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import default_urdf_path
 from exo_ctrl.plant import ContactParams
@@ -255,6 +256,39 @@ def test_csv_logs_beyond_the_memory_cap_are_refused_before_reading(tmp_path: Pat
     )
     ok = csv_log(tmp_path, n=100)  # a plausible log below the cap still reads
     assert run(["estimate", str(ok)], capsys)[0] == 0
+
+
+def test_a_wide_csv_log_is_refused_by_its_width_before_reading(tmp_path: Path, capsys) -> None:
+    """Few rows, 8 million columns: the header alone would take about 600 MB as text."""
+    wide = tmp_path / "wide.csv"  # 16 MB on disk
+    header = ",".join(CSV_REQUIRED_COLUMNS).encode() + b",x" * 8_000_000 + b"\n"
+    wide.write_bytes(header + b"0,0,0,0,0,0,0,0,0\n0.001,0,0,0,0,0,0,0,0\n")
+    code, err = run(["estimate", str(wide)], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl estimate: error: invalid log {wide}: a line of 8,000,009 fields would need "
+        "about 1.103 GiB to read (the header and a row held as text, 72 B a field and the "
+        "line's 15.26 MiB each; 600 B a row for 3 rows), beyond the 1 GiB memory cap\n",
+    )
+    # sibling: a million columns passes the check and is read (its short row then refused)
+    narrower = tmp_path / "narrower.csv"
+    header = ",".join(CSV_REQUIRED_COLUMNS).encode() + b",x" * 1_000_000 + b"\n"
+    narrower.write_bytes(header + b"0,0,0,0,0,0,0,0,0\n")
+    code, err = run(["estimate", str(narrower)], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl estimate: error: invalid log {narrower}, line 2: 9 fields, the header has "
+        "1000009\n",
+    )
+    # sibling: one field past the csv module's limit was a traceback (_csv.Error)
+    long = tmp_path / "long.csv"
+    long.write_text(",".join(CSV_REQUIRED_COLUMNS) + ",x\n" + "0," * 9 + "a" * 200_000 + "\n")
+    code, err = run(["estimate", str(long)], capsys)
+    assert (code, err) == (
+        2,
+        f"exo-ctrl estimate: error: invalid log {long}: not a CSV log: field larger than field "
+        "limit (131072)\n",
+    )
 
 
 @pytest.mark.parametrize(

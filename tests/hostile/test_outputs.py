@@ -170,6 +170,9 @@ NAMED_BY_COMMAND = (
           "--out", "D"], "D/patient_s0_001.urdf", "--out", "D/patient_s0_001.urdf"),
         (["urdf", "--kind", "exo", "--out", "D"],
          "D/exoskeleton.urdf", "--out", "D/exoskeleton.urdf"),
+        # a cohort's pattern: each file it expands to was not named literally
+        (["urdf", "--kind", "patient", "--height", "1.7", "--mass", "70", "--cohort", "2",
+          "--out", "p_{i}.urdf"], "p_1.urdf", "--out", "p_1.urdf"),
     ],
 )  # fmt: skip
 def test_a_file_the_command_names_is_not_followed_through_a_link(
@@ -236,6 +239,8 @@ def _mkfifo(path: Path) -> Path:
     [
         (["gait", "--csv", "fifo"], "fifo"),  # a FIFO as the gait's table
         (["simulate", *["--duration", "0.05", "--no-record"], "--summary", "fifo"], "fifo"),
+        # the recording, opened before the run: the same line and exit code (was 2)
+        (["simulate", "--duration", "0.05", "--out", "fifo"], "fifo"),
     ],
 )
 def test_a_fifo_without_reader_fails_after_the_timeout_not_never(
