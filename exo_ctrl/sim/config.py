@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import functools
 import math
 import os
-import types
-import typing
-from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from .. import _validate as v
@@ -36,7 +33,13 @@ from ..plant import (
 from ..plant.patient_active import PATIENT_KINDS, ActiveParams
 from ..safety import SafetyLimits, stop_reaction_schedule
 from ..safety.stop_reaction import check_stop_reaction
-from ..sensing import BeltEncoderParams, CurrentSensorParams, FootLoadParams, SensorParams
+from ..sensing import (
+    BeltEncoderParams,
+    CuffSensorParams,
+    CurrentSensorParams,
+    FootLoadParams,
+    SensorParams,
+)
 from . import config_checks as checks
 from .belief import Belief
 from .config_checks import MAX_DURATION_S, MAX_PLANT_SUBSTEPS, PLAN_ROW_BYTES
@@ -152,6 +155,8 @@ class SimConfig:
             perfect readings.
         current_sensor: the drives' current sensors the supervisor reads
             (:mod:`exo_ctrl.sensing.current_sensor`).
+        cuff_sensors: force sensors in the cuffs, fused by the Kalman filter
+            (:mod:`exo_ctrl.sensing.cuff_load`; default mode ``"none"``).
         observer_gain_per_s: bandwidth K_O of the momentum observer [1/s].
         cuff_stiffness_ratio: the estimator's assumption on how the cuffs
             share load (:mod:`exo_ctrl.estimation.observer`).
@@ -236,6 +241,7 @@ class SimConfig:
     chunk_ticks: int = 2000
     sensors: SensorParams = field(default_factory=SensorParams)
     current_sensor: CurrentSensorParams = field(default_factory=CurrentSensorParams)
+    cuff_sensors: CuffSensorParams = field(default_factory=CuffSensorParams)
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
     estimator: str | Estimator = "kalman"
@@ -260,7 +266,7 @@ class SimConfig:
     patient_active: ActiveParams = field(default_factory=ActiveParams)
 
     def __post_init__(self) -> None:
-        _check_parts(self)
+        checks.check_parts(self)
         for name in ("exo", "patient"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, (str, os.PathLike)):
@@ -464,37 +470,3 @@ class SimConfig:
         """Plain-data form (JSON-able), for summaries and recordings (a user's controller named)."""
         names = controller_name(self.controller), estimator_name(self.estimator)
         return asdict(named_copy(self, controller=names[0], estimator=names[1]))
-
-
-def _check_parts(config: SimConfig) -> None:
-    """Refuse a part of the run that is not of its declared parameter class.
-
-    (A float given as ``gait`` would otherwise fail later with an AttributeError.)
-    """
-    for name, allowed, optional in _part_classes():
-        value = getattr(config, name)
-        if not (isinstance(value, allowed) or (optional and value is None)):
-            names = " or ".join(t.__name__ for t in allowed) + (" or None" if optional else "")
-            raise InvalidParameter(name, value, f"a {names}")
-
-
-@functools.cache
-def _part_classes() -> tuple[tuple[str, tuple[type, ...], bool], ...]:
-    """SimConfig's fields typed by parameter classes: (name, classes, None allowed).
-
-    Read from the annotations once (evaluating them took 0.4 ms, two thirds
-    of a SimConfig's construction).  ``speed_profile`` is left out: it also
-    takes its text, which ``check_sync`` checks; containers check their items.
-    """
-    hints = typing.get_type_hints(SimConfig)
-    parts = []
-    for f in fields(SimConfig):
-        hint = hints[f.name]
-        union = typing.get_origin(hint) in (typing.Union, types.UnionType)
-        if f.name == "speed_profile" or (typing.get_origin(hint) is not None and not union):
-            continue
-        members = typing.get_args(hint) if union else (hint,)
-        allowed = tuple(t for t in members if is_dataclass(t))
-        if allowed:
-            parts.append((f.name, allowed, type(None) in members))
-    return tuple(parts)
