@@ -185,14 +185,22 @@ def cuff_sensor_update(st, cr, meas, split):
 
 
 @kernel
-def add_model_error(st, cr):
+def add_model_error(st, cr, meas):
     """Add b to the outputs of :func:`~.kalman_step.kalman_outputs`: f_c + b_n n + b_u u.
 
     ``st``, ``cr``: the filter's and the device's cuff records (elements),
-    after the outputs (``cr.cs`` at the step's midpoint).  ``tau_ext`` stays
-    the model's J_eᵀ f.
+    after the outputs (``cr.cs`` at the step's midpoint); ``meas``: the
+    readings' record (its ``axes``).  ``tau_ext`` stays the model's J_eᵀ f.
+    σ_c (``cuff_force_std``) becomes √(σ_c² + max_a p_ca) over the measured
+    axes: b is independent of x, so the force's covariance is H P Hᵀ +
+    Σ_a p_ca a aᵀ, whose largest eigenvalue is at most the sum's.
     """
+    axes = meas[0].axes
     for c in range(4):
+        extra = 0.0
+        for a in range(axes):
+            extra = max(extra, st.model_error_var[c, a])
+        st.cuff_force_std[c] = math.sqrt(st.cuff_force_std[c] ** 2 + extra)
         cc, sc = cr.cs[c], cr.cs[8 + c]
         ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
         uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc

@@ -159,7 +159,7 @@ def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas, sp
                 return Status.NOT_FINITE.value
     kalman_outputs(state, cuffs, split)
     if cuff_meas is not None:
-        add_model_error(st, cr)
+        add_model_error(st, cr, cuff_meas)
     return Status.OK.value
 
 

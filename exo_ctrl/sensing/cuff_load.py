@@ -207,7 +207,8 @@ class CuffSensors:
         s["next_t"] = -math.inf
         self.readings["reading"] = math.nan
         self.readings["fresh"] = False
-        self.draw()
+        if self.params.on:  # a run without cuff sensors draws nothing
+            self.draw()
 
     def read(self, k: int, plant_cuffs: np.ndarray) -> np.ndarray:
         """Read at tick k the plant's cuffs (its cuff record); returns :attr:`reading`."""
