@@ -52,6 +52,14 @@ errors are slow, so the estimate carries them (about σ_b on each measured
 axis); the filter does not estimate them: a state per sensor axis would be
 observable only through the joint torques, which see two of four
 components per leg.
+
+**Limits.**  b is added to the outputs, not to the model's dynamics, so
+the joint torques never check it: a ``normal`` set leaves the shank's
+along force to the models (the hip torque's split is not revisited), and a
+sensor's offset passes into a component the torques already saw well
+(the knee torque's shank normal).  Putting b into the dynamics (a state
+per measured axis in the leg's model, J_eᵀ and −J_pᵀ of its force) is the
+next step.
 """
 
 from __future__ import annotations
