@@ -33,6 +33,7 @@ from ..plan import EXERCISES
 from ..plant import MOTOR_PRESETS, CuffParams, motor_preset
 from ..plant.patient_active import PATIENT_KINDS
 from ..safety import STOP_REACTIONS
+from ..sensing.cuff_load import CUFF_SENSOR_SETS
 from ..sim import SimConfig
 from ..sim.config import CUFF_FITS
 from ..sim.plain import field_types
@@ -168,6 +169,7 @@ LONG_OPTIONS: tuple[LongOption, ...] = (
     _o("--patient-mass", "belief.patient_mass_kg", _DEVICE),
     _o("--patient-sex", "belief.patient_sex", _DEVICE, choices=SEXES),
     _o("--estimator", "estimation.estimator", _DEVICE, choices=ESTIMATORS),
+    _o("--cuff-sensors", "cuff_sensors.mode", _DEVICE, choices=CUFF_SENSOR_SETS),
     _o("--patient-torque", "interaction.patient_torque", _MODES, choices=PATIENT_KINDS),
     _o("--mode", "interaction.mode", _MODES, choices=MODES),
     _o("--tunnel-width", "path.tunnel_width_m", _MODES),

@@ -67,6 +67,10 @@ patient model through the patient's posture: they are model-driven, right
 as far as the device's models are (a misaligned knee, a heavier patient
 than the nominal one, cuffs other than the model's make them wrong).
 
+**Instrumented cuffs** (``cuff_sensors``): their fresh readings are fused
+after the encoders, one scalar update per axis, with a model-error force per
+measured axis added to the outputs (:mod:`.kalman_cuff`).
+
 **Bad readings.**  A non-finite angle skips that leg's measurement update
 (the covariance grows, the prediction carries on); a non-finite torque
 reading is replaced by the leg's last finite one.  A state that becomes
@@ -88,8 +92,10 @@ from ..exceptions import ExoCtrlError
 from ..model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..plant.cuffs import CuffParams, CuffSet
 from ..plant.equilibrium import settle_patient
+from ..sensing.cuff_load import CuffSensors
 from ..sensing.readings import SensorReadings
 from ..sensing.sensors import SensorParams
+from .kalman_cuff import set_cuff_noise
 from .kalman_step import kalman_outputs, kalman_step
 
 __all__ = ["COMPONENTS", "ESTIMATORS", "MODEL_DRIVEN", "CuffForceKalman", "KalmanNoise"]
@@ -193,6 +199,12 @@ _FIELDS = [
     ("var_exo", np.float64),
     ("var_patient", np.float64),
     ("var_rate", np.float64),
+    # Cuff sensors (kalman_cuff): R of the normal and along axes [N²], σ_m² [N²/s],
+    # the cuff model's error b (normal, along) per cuff [N] and its variance [N²].
+    ("var_cuff", np.float64, (2,)),
+    ("var_model_rate", np.float64),
+    ("model_error", np.float64, (4, 2)),
+    ("model_error_var", np.float64, (4, 2)),
     # Joint indices of each leg in (q_e, q_p): exo hip, knee, patient hip, knee.
     ("joints", np.int64, (2, 4)),
     # State: angles, speeds (exo 4, patient 4), d (4), covariance per leg, held torque.
@@ -243,6 +255,8 @@ class CuffForceKalman:
             :class:`SensorParams`'s); the seed is not used.
         noise: process noise and initial uncertainty.
         torque_bias_Nm: a known torque-sensor bias to subtract [N·m], (4,) or scalar.
+        cuff_sensors: the cuffs' force sensors whose readings are fused
+            (:mod:`.kalman_cuff`; None or mode ``"none"``: none).
 
     Attributes:
         record: parameters, state, covariance and outputs (one-element structured array).
@@ -271,6 +285,7 @@ class CuffForceKalman:
         sensors: SensorParams | None = None,
         noise: KalmanNoise | None = None,
         torque_bias_Nm: np.ndarray | float = 0.0,
+        cuff_sensors: CuffSensors | None = None,
     ) -> None:
         for body in (exo, patient):
             body.require_legs_only("the estimator")
@@ -297,6 +312,12 @@ class CuffForceKalman:
         )
         rec["var_patient"] = self.noise.patient_torque_Nm**2
         rec["var_rate"] = self.noise.patient_torque_rate_Nm_per_sqrt_s**2
+        on = cuff_sensors is not None and cuff_sensors.params.on
+        cp = cuff_sensors.params if on else None
+        if cp is not None:
+            set_cuff_noise(rec, cp.noise_std_N, cp.offset_std_N, cp.drift_N_per_sqrt_s)
+        #: The cuff sensors' readings record, or None (their update not compiled in).
+        self.cuff_meas = cuff_sensors.readings if on else None
         rec["joints"][0] = [[0, 1, 4, 5], [2, 3, 6, 7]]
         self._model_e = pin.Model(exo.model)
         self._model_e.armature = np.zeros(self._model_e.nv)  # link side: no rotor inertia
@@ -394,6 +415,7 @@ class CuffForceKalman:
             q,
             tau,
             self.cuffs.split_switch,
+            self.cuff_meas,
         )
         if status:
             self._answer(status, q, tau)
@@ -414,6 +436,7 @@ class CuffForceKalman:
         q, dq, tau = sensors.q, sensors.dq, sensors.tau
         v.held_arrays((4,), q=q, dq=dq, tau=tau)
         rec, cuffs, split = self.record, self.cuffs.record, self.cuffs.split_switch
+        meas = self.cuff_meas
         force = self.force
         me, mp, de, dp = self._model_e, self._model_p, self._data_e, self._data_p
         qe, qp, ve, vp = self._q_e, self._q_p, self._v_e, self._v_p
@@ -424,7 +447,7 @@ class CuffForceKalman:
                 return self.step(q, dq, tau)
             status = kalman_step(
                 rec, cuffs, crba(me, de, qe), nle(me, de, qe, ve), crba(mp, dp, qp),
-                nle(mp, dp, qp, vp), q, tau, split,
+                nle(mp, dp, qp, vp), q, tau, split, meas,
             )  # fmt: skip
             if status:
                 self._answer(status, q, tau)

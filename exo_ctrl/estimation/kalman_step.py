@@ -12,6 +12,7 @@ import math
 
 from .._jit import Status, kernel
 from ..plant.cuffs import forces_of, isotropic_forces
+from .kalman_cuff import add_model_error, cuff_sensor_update
 
 __all__ = [
     "cuff_jacobian",
@@ -114,11 +115,13 @@ def cuff_jacobian(cuffs, jd):
 
 
 @kernel
-def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas, split):
+def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas, split, cuff_meas):
     """One prediction and update of both legs in place (module docstring), then the outputs.
 
     ``mass_*``, ``nle_*``: M and n of the exoskeleton's link model and of the
-    patient model at the last posterior; ``split``: as :func:`kalman_outputs`.
+    patient model at the last posterior; ``split``: as :func:`kalman_outputs`;
+    ``cuff_meas``: the cuff sensors' readings record, fused after the
+    encoders (:mod:`.kalman_cuff`), or None: no cuff sensors (not compiled in).
     Returns a :class:`Status` value: OK; WRONG_LENGTH (nothing done);
     NOT_FINITE when the state became non-finite (the caller restarts the filter).
     """
@@ -149,7 +152,14 @@ def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas, sp
     for i in range(8):
         if not (math.isfinite(st.q[i]) and math.isfinite(st.v[i])):
             return Status.NOT_FINITE.value
+    if cuff_meas is not None:
+        cuff_sensor_update(st, cr, cuff_meas, split)
+        for i in range(8):
+            if not (math.isfinite(st.q[i]) and math.isfinite(st.v[i])):
+                return Status.NOT_FINITE.value
     kalman_outputs(state, cuffs, split)
+    if cuff_meas is not None:
+        add_model_error(st, cr, cuff_meas)
     return Status.OK.value
 
 

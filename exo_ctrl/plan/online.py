@@ -84,7 +84,14 @@ from .loading import StanceSink, sink_phase
 from .phase_curves import cubic, hip_rise, lift, phase_rate, ramp_factor
 from .profile import SpeedProfile, profile_at
 
-__all__ = ["FILTER_S", "FREEZE_S", "MAX_PROFILE_POINTS", "ONLINE_FIELDS", "OnlineGait"]
+__all__ = [
+    "FILTER_S",
+    "FREEZE_S",
+    "MAX_PROFILE_POINTS",
+    "ONLINE_FIELDS",
+    "OnlineGait",
+    "write_plan",
+]
 
 #: Points of a speed profile the generator holds (its record's arrays).
 MAX_PROFILE_POINTS = 256
@@ -439,3 +446,13 @@ def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no 
         if status:
             return status
     return Status.OK.value
+
+
+@kernel
+def write_plan(log, row, generator):
+    """The synchronised plan's q*, q̇* (``generator``: its record, ``out``) into log row ``row``."""
+    r = log[row]
+    o = generator[0].out
+    for j in range(4):
+        r.q_des[j] = o[j]
+        r.dq_des[j] = o[4 + j]

@@ -93,7 +93,8 @@ def recorded_kalman(
     Returns:
         The filter, and one line for each patient URDF the recording names
         that was read to build it (a file named by a recording is never
-        read without saying so).
+        read without saying so), and one when the run fused cuff sensors
+        (their readings are not recorded: the offline filter runs without).
 
     Args:
         path: the recording (for messages).
@@ -121,7 +122,13 @@ def recorded_kalman(
         cuffs=config.belief.cuff_model_of(config.cuffs),
         sensors=config.sensors,
     )
-    return kalman, _named_patients(path, config)
+    notes = _named_patients(path, config)
+    if config.cuff_sensors.on:  # their readings are not logged
+        notes.append(
+            f"{path}: the run fused cuff sensors (cuff_sensors.mode = {config.cuff_sensors.mode}),"
+            " whose readings a recording does not hold: this estimate is the joint torques' alone"
+        )
+    return kalman, notes
 
 
 def _named_patients(path: os.PathLike[str] | str, config: SimConfig) -> list[str]:

@@ -4,6 +4,10 @@ from .belt_encoder import (
     BeltEncoder,
     BeltEncoderParams,
 )
+from .cuff_load import (
+    CuffSensorParams,
+    CuffSensors,
+)
 from .current_sensor import (
     CurrentSensor,
     CurrentSensorParams,
@@ -26,6 +30,8 @@ from .sensors import (
 __all__ = [
     "BeltEncoder",
     "BeltEncoderParams",
+    "CuffSensorParams",
+    "CuffSensors",
     "CurrentSensor",
     "CurrentSensorParams",
     "DeviceSensors",

@@ -34,7 +34,13 @@ from ..plant.cuff_scatter import CuffScatter
 from ..plant.patient_active import PATIENT_KINDS, ActiveParams
 from ..safety import SafetyLimits, stop_reaction_schedule
 from ..safety.stop_reaction import check_stop_reaction
-from ..sensing import BeltEncoderParams, CurrentSensorParams, FootLoadParams, SensorParams
+from ..sensing import (
+    BeltEncoderParams,
+    CuffSensorParams,
+    CurrentSensorParams,
+    FootLoadParams,
+    SensorParams,
+)
 from . import config_checks as checks
 from .belief import Belief
 from .config_checks import MAX_DURATION_S, MAX_PLANT_SUBSTEPS, PLAN_ROW_BYTES
@@ -154,6 +160,8 @@ class SimConfig:
             perfect readings.
         current_sensor: the drives' current sensors the supervisor reads
             (:mod:`exo_ctrl.sensing.current_sensor`).
+        cuff_sensors: force sensors in the cuffs, fused by the Kalman filter
+            (:mod:`exo_ctrl.sensing.cuff_load`; default mode ``"none"``).
         observer_gain_per_s: bandwidth K_O of the momentum observer [1/s].
         cuff_stiffness_ratio: the estimator's assumption on how the cuffs
             share load (:mod:`exo_ctrl.estimation.observer`).
@@ -239,6 +247,7 @@ class SimConfig:
     chunk_ticks: int = 2000
     sensors: SensorParams = field(default_factory=SensorParams)
     current_sensor: CurrentSensorParams = field(default_factory=CurrentSensorParams)
+    cuff_sensors: CuffSensorParams = field(default_factory=CuffSensorParams)
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
     estimator: str | Estimator = "kalman"

@@ -71,12 +71,18 @@ def check_controller(config: Any, built_in: tuple[str, ...]) -> None:
 def check_estimator(config: Any, built_in: tuple[str, ...]) -> None:
     """Refuse an estimator that is none of the allowed kinds, or a user's outside tracking.
 
+    Cuff sensors (``cuff_sensors``) need the Kalman filter, which fuses them.
+
     A user's estimator (:mod:`exo_ctrl.estimation.plugin`) runs in the
     tracking mode without a session: the modes tune the built-in ones.
     """
     check_user_estimator(config.estimator, built_in)
     if is_plugin_estimator(config.estimator, built_in):
         _tracking_only(config, "estimator")
+    mode = config.cuff_sensors.mode
+    if mode != "none" and config.estimator != "kalman":
+        why = "the cuff sensors' readings are fused by the Kalman filter"
+        raise InvalidParameter("cuff_sensors mode", mode, "none unless estimator is kalman", why)
 
 
 def _tracking_only(config: Any, kind: str) -> None:
@@ -301,7 +307,7 @@ def check_parts(config: Any) -> None:
 
 @functools.cache
 def _part_classes(cls: type) -> tuple[tuple[str, tuple[type, ...], bool], ...]:
-    """SimConfig's fields typed by parameter classes: (name, classes, None allowed).
+    """The fields of ``cls`` (SimConfig) typed by parameter classes: (name, classes, None allowed).
 
     Read from the annotations once (evaluating them took 0.4 ms, two thirds
     of a SimConfig's construction).  ``speed_profile`` is left out: it also

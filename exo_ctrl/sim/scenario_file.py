@@ -109,6 +109,7 @@ ORDER: tuple[str, ...] = (
     "current_sensor",
     "belt_encoder",
     "foot_load",
+    "cuff_sensors",
     "end_stops",
     "joint_compliance",
     "interaction",

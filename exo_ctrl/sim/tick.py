@@ -30,13 +30,14 @@ import numpy as np
 from .._jit import kernel, record
 from ..control.modes.path import PathController
 from ..estimation import CuffForceEstimator, CuffForceKalman, EstimatorDevice, PluginEstimator
-from ..plan.online import online_step
+from ..plan.online import online_step, write_plan
 from ..plant import PatientTorque
 from ..safety import SafetyLimits, SafetySupervisor
 from ..safety.belt_monitor import BeltMonitor
 from ..safety.cuff_load import CuffLoadMonitor, cuff_load_schedule
 from ..sensing import (
     BeltEncoder,
+    CuffSensors,
     CurrentSensor,
     DeviceSensors,
     FootLoad,
@@ -102,6 +103,8 @@ class Runner:
         self.log = np.zeros(self.chunk, dtype=log_dtype())
         self.buf = {name: self.log[name] for name in self.log.dtype.names}
         self.sensor_model = Sensors(config.sensors, config.dt)
+        #: The cuffs' force sensors (sensing/cuff_load.py; read only with a sensor set).
+        self.cuff_sensors = CuffSensors(config.cuff_sensors, config.dt)
         self.estimator: CuffForceEstimator | CuffForceKalman | PluginEstimator
         if setup.estimator is not None:  # a user's (estimation/plugin.py)
             device = EstimatorDevice(setup.device_exo, setup.device_patient, config.dt)
@@ -113,6 +116,7 @@ class Runner:
                 config.dt,
                 cuffs=config.belief.cuff_model_of(config.cuffs),
                 sensors=config.sensors,
+                cuff_sensors=self.cuff_sensors,
             )
         else:
             self.estimator = CuffForceEstimator(
@@ -154,7 +158,11 @@ class Runner:
         if bind is not None:  # a user's torque controller: the driver's current loop reads them
             bind(self.current_sensor.current)
         self._device_sensors = DeviceSensors(
-            self.sensor_model, self.current_sensor, plant.motors.mean_current_A
+            self.sensor_model,
+            self.current_sensor,
+            plant.motors.mean_current_A,
+            self.cuff_sensors,
+            plant.record["cuffs"],
         )
         self.supervisor: SafetySupervisor | None = None
         if config.safety or config.estop_at_s is not None:
@@ -392,16 +400,6 @@ class Runner:
         index = plan.rows(start, rows)
         self.buf["q_des"][:rows] = plan.q[index]
         self.buf["dq_des"][:rows] = plan.dq[index]
-
-
-@kernel
-def write_plan(log, row, generator):
-    """The synchronised plan's q*, q̇* (``generator``: its record, ``out``) into log row ``row``."""
-    r = log[row]
-    o = generator[0].out
-    for j in range(4):
-        r.q_des[j] = o[j]
-        r.dq_des[j] = o[4 + j]
 
 
 @kernel

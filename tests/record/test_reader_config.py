@@ -43,7 +43,13 @@ from exo_ctrl.plant.patient_active import ActiveParams
 from exo_ctrl.record import RerunRecorder, estimate_file, read_recording
 from exo_ctrl.record.reader import _config_from_dict
 from exo_ctrl.safety import SafetyLimits
-from exo_ctrl.sensing import BeltEncoderParams, CurrentSensorParams, FootLoadParams, SensorParams
+from exo_ctrl.sensing import (
+    BeltEncoderParams,
+    CuffSensorParams,
+    CurrentSensorParams,
+    FootLoadParams,
+    SensorParams,
+)
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
 from exo_ctrl.sim.faults import Fault
@@ -79,6 +85,7 @@ FULL = SimConfig(
     foot_load=FootLoadParams(noise_std_N=2.0, seed=3),
     sensors=SensorParams(torque_bias_Nm=(0.1, 0.0, -0.1, 0.0), seed=5),
     current_sensor=CurrentSensorParams(noise_std_A=0.02),
+    cuff_sensors=CuffSensorParams(mode="full", offset_std_N=0.5),
     safety_limits=SafetyLimits(cuff_force_N=(400.0, 350.0, 400.0, 350.0)),
     belief=Belief(
         patient_height_m=1.78,

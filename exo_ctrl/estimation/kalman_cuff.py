@@ -1,0 +1,219 @@
+r"""The Kalman filter's update with the instrumented cuffs' readings.
+
+With cuff force sensors (:mod:`exo_ctrl.sensing.cuff_load`) the filter of
+:mod:`.kalman` fuses, after the encoders' update of each tick, every fresh
+sample of every measured axis as a scalar measurement of its leg's state
+x = (q_e, q_p, v_e, v_p, d) ∈ ℝ¹⁰.  The measured component of cuff c on
+axis a (a the link's normal n, or its direction u) is
+
+    z = aᵀ f_c(q − ½ h v, v) + e,   e ~ N(0, R_a),
+
+the device's cuff force at the step's midpoint, as the filter's outputs
+(:func:`~exo_ctrl.estimation.kalman_step.kalman_outputs`) and the sensor's
+truth (the plant's force over its last step).  Linearised (J_c: rows c and
+4 + c of J_Δ, the prediction's; 𝒦_c aᵀ = k_a aᵀ and likewise 𝒞_c for the
+link-frame axes a ∈ {n, u}, k_n = ``k``, k_u = ``k_u``):
+
+    h = [−k_a aᵀ J_c,  (½ h k_a − c_a) aᵀ J_c,  0 0],
+
+(the ½ h k_a from the midpoint q − ½ h v), and the components are taken
+one after another (a sequential update, exact for independent noises).
+
+**The cuff model's error.**  The filter's cuffs are the device's model
+(isotropic 8 N/mm by default); the true cuffs are not.  With the two
+patient angles per leg as the only free positions, the model's four force
+components of a leg lie on a two-dimensional family, which the true forces
+leave: no state x reproduces them, and the update alone moved the estimate
+by under 2 % of the force on the default run (the filter trusts its model:
+σ_c ≈ 0.5 N).  So each measured axis carries a model-error force b_ca [N],
+a random walk of intensity σ_m (:data:`MODEL_ERROR_RATE_N_PER_SQRT_S`),
+added to the model's force in the outputs (f_c + b_n n + b_u u), with its
+own variance p_ca, decoupled from x (its cross-covariance with x is
+dropped, as a Schmidt filter drops a nuisance state's).  One scalar update
+takes both, with the same innovation:
+
+    ẑ = aᵀ f_c + h δx + b,   S = h P hᵀ + p + R_a,
+    x ← x + P hᵀ (z − ẑ) / S,   b ← b + p (z − ẑ) / S,
+    P ← P − P hᵀ h P / S,   p ← p − p² / S,
+
+δx the leg's change since the forces were evaluated (so ẑ follows the
+earlier components' corrections to first order), P kept symmetric by
+writing its upper triangle to both halves; between samples p grows by
+σ_m² h a tick and b is held.  An axis the set does not read keeps b = 0:
+its component is the model's (moved only through x).  A reading that is not finite
+(an axis the set does not read, a failed sensor) is skipped; a held
+sample (``fresh`` false) is not used again.
+
+R_a (``var_cuff``, :class:`~exo_ctrl.estimation.kalman.CuffForceKalman`)
+is the sensor's white noise plus what the filter does not model: the
+offset left after zeroing and the drift over a session, as if white,
+R = σ_e² + σ_b² + σ_w² T_R with T_R = :data:`DRIFT_HORIZON_S`.  Their
+errors are slow, so the estimate carries them (about σ_b on each measured
+axis); the filter does not estimate them: a state per sensor axis would be
+observable only through the joint torques, which see two of four
+components per leg.
+
+**Limits.**  b is added to the outputs, not to the model's dynamics, so
+the joint torques never check it: a ``normal`` set leaves the shank's
+along force to the models (the hip torque's split is not revisited), and a
+sensor's offset passes into a component the torques already saw well
+(the knee torque's shank normal).  Putting b into the dynamics (a state
+per measured axis in the leg's model, J_eᵀ and −J_pᵀ of its force) is the
+next step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import kernel
+from ..plant.cuffs import forces_of, isotropic_forces
+
+__all__ = [
+    "DRIFT_HORIZON_S",
+    "INITIAL_MODEL_ERROR_N",
+    "MODEL_ERROR_RATE_N_PER_SQRT_S",
+    "add_model_error",
+    "cuff_sensor_update",
+    "cuff_variance",
+    "set_cuff_noise",
+]
+
+#: T_R, the time over which R counts the sensor's drift [s] (chosen: a
+#: minute, the length of a session's bout between two zeroings).
+DRIFT_HORIZON_S = 60.0
+
+#: σ_m, the random walk's intensity of the cuff model's error b [N/√s]
+#: (chosen: on the default CT run with ``full`` sensors, by the worst
+#: cuff's full-vector error, the best of 10, 30 and 100 with the default
+#: offsets and of 30, 100, 300 and 1000 with the offsets at zero).
+MODEL_ERROR_RATE_N_PER_SQRT_S = 30.0
+
+#: The initial std of b [N] (chosen: twice the model's RMS error on the
+#: default gait without cuff sensors, some 15 N).
+INITIAL_MODEL_ERROR_N = 30.0
+
+
+def set_cuff_noise(
+    state: np.ndarray, noise_std_N: float, offset_std_N: float, drift_N_per_sqrt_s: float
+) -> None:
+    """Set R (:func:`cuff_variance`), σ_m² and the model error's start in the filter's record."""
+    state["var_cuff"] = cuff_variance(noise_std_N, offset_std_N, drift_N_per_sqrt_s)
+    state["var_model_rate"] = MODEL_ERROR_RATE_N_PER_SQRT_S**2
+    state["model_error"] = 0.0
+    state["model_error_var"] = INITIAL_MODEL_ERROR_N**2
+
+
+def cuff_variance(noise_std_N: float, offset_std_N: float, drift_N_per_sqrt_s: float) -> float:
+    """R = σ_e² + σ_b² + σ_w² T_R [N²] (module docstring)."""
+    return noise_std_N**2 + offset_std_N**2 + drift_N_per_sqrt_s**2 * DRIFT_HORIZON_S
+
+
+@kernel
+def cuff_sensor_update(st, cr, meas, split):
+    """The sequential scalar updates with the cuffs' fresh readings (module docstring).
+
+    ``st``: the filter's record (element); ``cr``: the device's cuff record
+    (element); ``meas``: the readings' record
+    (:data:`~exo_ctrl.sensing.cuff_load.CUFF_READING_FIELDS`); ``split``: the
+    device's cuffs' switch, as :func:`~exo_ctrl.estimation.kalman_step.kalman_outputs`.
+    Uses rows 0–3 of ``st.work``.
+    """
+    m = meas[0]
+    h = st.h
+    for c in range(4):
+        for a in range(m.axes):
+            st.model_error_var[c, a] += st.var_model_rate * h
+    if not m.fresh:
+        return
+    for i in range(8):
+        st.q_mid[i] = st.q[i] - 0.5 * h * st.v[i]
+    if split is None:
+        isotropic_forces(cr, st.q_mid[:], st.v[:])
+    else:
+        forces_of(cr, st.q_mid[:], st.v[:])
+    W = st.work
+    for i in range(10):
+        W[2, i] = 0.0
+        W[3, i] = 0.0
+    hrow, ph = W[0], W[1]
+    for c in range(4):
+        s = c // 2
+        joints = st.joints[s]
+        P = st.cov[s]
+        dx = W[2 + s]
+        cc, sc = cr.cs[c], cr.cs[8 + c]
+        ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
+        uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc
+        for a in range(m.axes):
+            z = m.reading[c, a]
+            if not math.isfinite(z):
+                continue
+            if a == 0:
+                ax, az, k, damp = -uz, ux, cr.k, cr.c
+            else:
+                ax, az, k, damp = ux, uz, cr.k_u, cr.c_u
+            for i in range(4):
+                g = joints[i]
+                jn = ax * st.jd[c, g] + az * st.jd[4 + c, g]
+                hrow[i] = -k * jn
+                hrow[4 + i] = (0.5 * h * k - damp) * jn
+            hrow[8] = 0.0
+            hrow[9] = 0.0
+            zhat = ax * cr.f[c] + az * cr.f[4 + c] + st.model_error[c, a]
+            for i in range(10):
+                zhat += hrow[i] * dx[i]
+            pb = st.model_error_var[c, a]
+            S = st.var_cuff[a] + pb
+            for i in range(10):
+                x = 0.0
+                for j in range(10):
+                    x += P[i, j] * hrow[j]
+                ph[i] = x
+                S += hrow[i] * x
+            y = (z - zhat) / S
+            st.model_error[c, a] += pb * y
+            st.model_error_var[c, a] = pb - pb * pb / S
+            for i in range(10):
+                d = ph[i] * y
+                dx[i] += d
+                if i < 4:
+                    st.q[joints[i]] += d
+                elif i < 8:
+                    st.v[joints[i - 4]] += d
+                else:
+                    st.d[2 * s + i - 8] += d
+            for i in range(10):
+                for j in range(i, 10):
+                    x = P[i, j] - ph[i] * ph[j] / S
+                    P[i, j] = x
+                    P[j, i] = x
+
+
+@kernel
+def add_model_error(st, cr, meas):
+    """Add b to the outputs of :func:`~.kalman_step.kalman_outputs`: f_c + b_n n + b_u u.
+
+    ``st``, ``cr``: the filter's and the device's cuff records (elements),
+    after the outputs (``cr.cs`` at the step's midpoint); ``meas``: the
+    readings' record (its ``axes``).  ``tau_ext`` stays the model's J_eᵀ f.
+    σ_c (``cuff_force_std``) becomes √(σ_c² + max_a p_ca) over the measured
+    axes: b is independent of x, so the force's covariance is H P Hᵀ +
+    Σ_a p_ca a aᵀ, whose largest eigenvalue is at most the sum's.
+    """
+    axes = meas[0].axes
+    for c in range(4):
+        extra = 0.0
+        for a in range(axes):
+            extra = max(extra, st.model_error_var[c, a])
+        st.cuff_force_std[c] = math.sqrt(st.cuff_force_std[c] ** 2 + extra)
+        cc, sc = cr.cs[c], cr.cs[8 + c]
+        ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
+        uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc
+        bn, bu = st.model_error[c, 0], st.model_error[c, 1]
+        st.cuff_force[c, 0] += -uz * bn + ux * bu
+        st.cuff_force[c, 1] += ux * bn + uz * bu
+        st.cuff_normal[c] += bn
+        st.cuff_along[c] += bu
