@@ -187,6 +187,13 @@ def non_negative(name: str, value: float, unit: str = "") -> float:
     return x
 
 
+def seed(name: str, value: object) -> int:
+    """Return ``value`` as an int if it is an integer >= 0 (a bool is not): a generator's seed."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InvalidParameter(name, value, "an integer >= 0")
+    return int(value)
+
+
 def in_open_interval(name: str, value: float, lo: float, hi: float, unit: str = "") -> float:
     """Return ``value`` if it is finite and lo < value < hi."""
     x = finite(name, value, unit)

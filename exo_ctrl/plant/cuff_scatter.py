@@ -82,11 +82,9 @@ class CuffScatter:
             raise InvalidParameter(
                 "cuff_scatter spread_rel", self.spread_rel, f"in [0, {MAX_SPREAD:g}]"
             )
-        seed = self.seed
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise InvalidParameter("cuff_scatter seed", seed, "an integer >= 0")
+        seed = v.seed("cuff_scatter seed", self.seed)
         object.__setattr__(self, "spread_rel", spread)
-        object.__setattr__(self, "seed", int(seed))
+        object.__setattr__(self, "seed", seed)
 
     @classmethod
     def exact(cls) -> CuffScatter:

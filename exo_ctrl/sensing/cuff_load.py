@@ -66,7 +66,6 @@ import numpy as np
 
 from .. import _validate as v
 from .._jit import kernel, record
-from ..exceptions import InvalidParameter
 
 __all__ = [
     "CUFF_READING_FIELDS",
@@ -118,10 +117,7 @@ class CuffSensorParams:
         v.within("cuff_sensors offset_std", self.offset_std_N, 0.0, 1e4, "N", _SANE)
         v.within("cuff_sensors drift", self.drift_N_per_sqrt_s, 0.0, 1e4, "N/√s", _SANE)
         v.within("cuff_sensors sample_rate", self.sample_rate_hz, 1.0, 1e5, "Hz", _SANE)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
-            raise InvalidParameter("cuff_sensors seed", self.seed, "an integer >= 0")
-        if self.seed < 0:
-            raise InvalidParameter("cuff_sensors seed", self.seed, "an integer >= 0")
+        v.seed("cuff_sensors seed", self.seed)
 
     @property
     def axes(self) -> int:

@@ -24,7 +24,6 @@ import numpy as np
 
 from .. import _validate as v
 from .._jit import Status, check, kernel, record
-from ..exceptions import InvalidParameter
 
 __all__ = ["CURRENT_SENSOR_FIELDS", "CurrentSensor", "CurrentSensorParams"]
 
@@ -56,10 +55,7 @@ class CurrentSensorParams:
         sane = "a sanity range: beyond it the monitors' arithmetic overflows"
         v.within("current sensor noise_std", self.noise_std_A, 0.0, 1e3, "A", sane)
         v.within("current sensor resolution", self.resolution_A, 0.0, 1e3, "A", sane)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
-            raise InvalidParameter("current sensor seed", self.seed, "an integer >= 0")
-        if self.seed < 0:
-            raise InvalidParameter("current sensor seed", self.seed, "an integer >= 0")
+        v.seed("current sensor seed", self.seed)
 
     @classmethod
     def ideal(cls) -> CurrentSensorParams:

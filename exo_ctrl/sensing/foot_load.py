@@ -63,7 +63,6 @@ import numpy as np
 
 from .. import _validate as v
 from .._jit import kernel, record
-from ..exceptions import InvalidParameter
 from ..model import BodyModel
 from ..model.leg_kernels import LEG_FIELDS, fill_legs, foot_point
 
@@ -97,10 +96,7 @@ class FootLoadParams:
     def __post_init__(self) -> None:
         v.non_negative("foot load cell noise_std", self.noise_std_N, "N")
         v.non_negative("foot load cell contact_threshold_sd", self.contact_threshold_sd)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
-            raise InvalidParameter("foot load cell seed", self.seed, "an integer >= 0")
-        if self.seed < 0:
-            raise InvalidParameter("foot load cell seed", self.seed, "an integer >= 0")
+        v.seed("foot load cell seed", self.seed)
 
     @classmethod
     def ideal(cls) -> FootLoadParams:

@@ -159,10 +159,7 @@ class SensorParams:
         if self.sample_rate_hz is not None:
             v.positive("sample_rate", self.sample_rate_hz, "Hz")
             v.within("sample_rate", self.sample_rate_hz, 0.01, 1e6, "Hz", _SANE)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)):
-            raise InvalidParameter("seed", self.seed, "an integer >= 0")
-        if self.seed < 0:
-            raise InvalidParameter("seed", self.seed, "an integer >= 0")
+        v.seed("seed", self.seed)
 
     @property
     def bias(self) -> np.ndarray:
