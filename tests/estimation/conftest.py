@@ -20,7 +20,7 @@ observer's own first-order filter, which separates the observer's lag
 (1/K_O) from its errors.
 
 The helpers are fixtures (``closed_loop``, ``true_tau_ext``, ``show``,
-``check_accuracy``) as test modules cannot import each other.
+``check_accuracy``, ``coupled_torques``) as test modules cannot import each other.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from exo_ctrl.estimation import (
     first_order_filter,
     normal_component_errors,
 )
-from exo_ctrl.model import CUFF_NAMES, BodyModel
+from exo_ctrl.model import CUFF_NAMES, FRICTION_SMOOTHING_RAD_S, BodyModel
 from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.sensing.sensors import SensorParams, Sensors
@@ -152,6 +152,31 @@ def compute_true_tau_ext(exo: BodyModel, q: np.ndarray, force: np.ndarray) -> np
     return out
 
 
+def exact_coupled_torques(exo: BodyModel, patient: BodyModel, q, dq, ddq) -> np.ndarray:
+    """τ_s of the rigidly coupled bodies along (q, q̇, q̈): both RNEAs, URDF damping and friction."""
+    ed, pd = exo.model.createData(), patient.model.createData()
+    tau = np.empty_like(q)
+    for i in range(q.shape[0]):
+        e = pin.rnea(
+            exo.model, ed, exo.to_model_q(q[i]), exo.to_model_q(dq[i]), exo.to_model_q(ddq[i])
+        )
+        p = pin.rnea(
+            patient.model,
+            pd,
+            patient.to_model_q(q[i]),
+            patient.to_model_q(dq[i]),
+            patient.to_model_q(ddq[i]),
+        )
+        tau[i] = (
+            e[exo.q_index]
+            + p[patient.q_index]
+            + exo.damping * dq[i]
+            + exo.friction * np.tanh(dq[i] / FRICTION_SMOOTHING_RAD_S)
+            + patient.damping * dq[i]
+        )
+    return tau
+
+
 def rel_errors(est: np.ndarray, truth: np.ndarray, peak: np.ndarray) -> np.ndarray:
     err = est[SKIP:] - truth[SKIP:]
     return np.sqrt(np.mean(err**2, axis=0)) / peak
@@ -213,3 +238,9 @@ def show() -> Callable[..., None]:
 def check_accuracy() -> Callable[[Run, str], tuple[np.ndarray, np.ndarray]]:
     """:func:`accuracy`: raw and filtered-truth relative RMS errors (printed)."""
     return accuracy
+
+
+@pytest.fixture
+def coupled_torques() -> Callable[..., np.ndarray]:
+    """:func:`exact_coupled_torques`: the torque sensors' exact reading along a motion."""
+    return exact_coupled_torques

@@ -25,8 +25,6 @@ from exo_ctrl.estimation.identification import (
 )
 from exo_ctrl.exceptions import InvalidLog, InvalidParameter
 from exo_ctrl.model import (
-    FRICTION_SMOOTHING_RAD_S,
-    BodyModel,
     load_exo,
     load_patient,
     nominal_patient,
@@ -63,31 +61,6 @@ def models(tmp_path_factory: pytest.TempPathFactory) -> dict:
     }
 
 
-def _exact_torques(exo: BodyModel, patient: BodyModel, q, dq, ddq) -> np.ndarray:
-    """τ_s of the rigidly coupled bodies: both RNEAs, the URDF damping and friction."""
-    ed, pd = exo.model.createData(), patient.model.createData()
-    tau = np.empty_like(q)
-    for i in range(q.shape[0]):
-        e = pin.rnea(
-            exo.model, ed, exo.to_model_q(q[i]), exo.to_model_q(dq[i]), exo.to_model_q(ddq[i])
-        )
-        p = pin.rnea(
-            patient.model,
-            pd,
-            patient.to_model_q(q[i]),
-            patient.to_model_q(dq[i]),
-            patient.to_model_q(ddq[i]),
-        )
-        tau[i] = (
-            e[exo.q_index]
-            + p[patient.q_index]
-            + exo.damping * dq[i]
-            + exo.friction * np.tanh(dq[i] / FRICTION_SMOOTHING_RAD_S)
-            + patient.damping * dq[i]
-        )
-    return tau
-
-
 def test_calibration_starts_and_ends_at_rest_and_is_c2(models: dict) -> None:
     exo = models["exo"]
     h = 1e-4
@@ -119,11 +92,11 @@ def test_calibration_refuses_short_runs_and_low_hips(models: dict) -> None:
         calibration_plan(models["exo"], np.linspace(0.0, 6.0, 601), 6.0, 0.6)
 
 
-def test_noise_free_base_parameters_recovered_to_1e_6(models: dict) -> None:
+def test_noise_free_base_parameters_recovered_to_1e_6(models: dict, coupled_torques) -> None:
     exo, truth = models["exo"], models["truth_model"]
     t = np.arange(0.0, 6.0, 0.01)
     plan = calibration_plan(exo, t, 6.0, 0.9)
-    tau = _exact_torques(exo, truth, plan.q, plan.dq, plan.ddq)
+    tau = coupled_torques(exo, truth, plan.q, plan.dq, plan.ddq)
     samples = CalibrationSamples(0.01, plan.q, plan.dq, plan.ddq, tau, cutoff_hz=None)
     found = identify_patient(samples, exo, models["prior_model"], models["prior"])
     true_base = found.base_of(truth)
@@ -140,7 +113,7 @@ def test_noise_free_base_parameters_recovered_to_1e_6(models: dict) -> None:
     assert found.patient.shank_mass == pytest.approx(models["truth"].shank_mass, rel=0.05)
 
 
-def test_base_map_reproduces_the_full_regressor(models: dict) -> None:
+def test_base_map_reproduces_the_full_regressor(models: dict, coupled_torques) -> None:
     """For random standard parameters π, W π = W_b (T π): the fit returns T π exactly."""
     exo, prior_model = models["exo"], models["prior_model"]
     t = np.arange(0.0, 6.0, 0.02)
@@ -156,7 +129,7 @@ def test_base_map_reproduces_the_full_regressor(models: dict) -> None:
             )
     model.damping[:] = pi[20]
     body = dataclasses.replace(prior_model, model=model)
-    tau = _exact_torques(exo, body, plan.q, plan.dq, plan.ddq)
+    tau = coupled_torques(exo, body, plan.q, plan.dq, plan.ddq)
     found = identify_patient(
         CalibrationSamples(0.02, plan.q, plan.dq, plan.ddq, tau, None),
         exo,
@@ -166,12 +139,12 @@ def test_base_map_reproduces_the_full_regressor(models: dict) -> None:
     np.testing.assert_allclose(found.estimate, found.base_map @ pi, rtol=1e-8, atol=1e-10)
 
 
-def test_filtering_of_exact_data_keeps_base_parameters(models: dict) -> None:
+def test_filtering_of_exact_data_keeps_base_parameters(models: dict, coupled_torques) -> None:
     """The logged path (resample, smooth, differentiate, parallel filter) on exact 1 kHz data."""
     exo, truth = models["exo"], models["truth_model"]
     t = np.arange(0.0, 6.0, 0.001)
     plan = calibration_plan(exo, t, 6.0, 0.9)
-    tau = _exact_torques(exo, truth, plan.q, plan.dq, plan.ddq)
+    tau = coupled_torques(exo, truth, plan.q, plan.dq, plan.ddq)
     found = identify_patient(
         calibration_samples(t, plan.q, tau), exo, models["prior_model"], models["prior"]
     )

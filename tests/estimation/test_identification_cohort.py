@@ -23,7 +23,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from exo_ctrl.estimation.identification import (
@@ -33,8 +32,6 @@ from exo_ctrl.estimation.identification import (
     identify_patient,
 )
 from exo_ctrl.model import (
-    FRICTION_SMOOTHING_RAD_S,
-    BodyModel,
     BodyParams,
     benchmark_cohort,
     fitted_exo,
@@ -139,30 +136,6 @@ def test_report_names_what_the_calibration_cannot_excite(identified: dict) -> No
         assert abs(d[other]) < 1e-6
 
 
-def _torques(exo: BodyModel, patient: BodyModel, q, dq, ddq) -> np.ndarray:
-    """τ_s of the rigidly coupled bodies along (q, q̇, q̈): both RNEAs, damping and friction."""
-    ed, pd = exo.model.createData(), patient.model.createData()
-    tau = np.empty_like(q)
-    for i in range(q.shape[0]):
-        e = pin.rnea(
-            exo.model, ed, exo.to_model_q(q[i]), exo.to_model_q(dq[i]), exo.to_model_q(ddq[i])
-        )
-        p = pin.rnea(
-            patient.model,
-            pd,
-            patient.to_model_q(q[i]),
-            patient.to_model_q(dq[i]),
-            patient.to_model_q(ddq[i]),
-        )
-        tau[i] = (
-            e[exo.q_index]
-            + p[patient.q_index]
-            + (exo.damping + patient.damping) * dq[i]
-            + exo.friction * np.tanh(dq[i] / FRICTION_SMOOTHING_RAD_S)
-        )
-    return tau
-
-
 def _twin(p: BodyParams, thigh_factor: float, shank_factor: float) -> BodyParams:
     """A patient with other segment masses and the same first moments and joint moments.
 
@@ -187,7 +160,7 @@ def _twin(p: BodyParams, thigh_factor: float, shank_factor: float) -> BodyParams
     )
 
 
-def test_masses_alone_cannot_be_excited() -> None:
+def test_masses_alone_cannot_be_excited(coupled_torques) -> None:
     """Patients 8-10 % apart in each mass read the same torques along any fixed-hip motion."""
     exo = load_exo(None)
     truth = BodyParams.patient_default()
@@ -198,13 +171,13 @@ def test_masses_alone_cannot_be_excited() -> None:
     q = plan.q + 0.2 * rng.standard_normal((1, 4))  # another posture, same speeds
     dq, ddq = plan.dq * 1.7, rng.standard_normal(plan.ddq.shape)  # and arbitrary accelerations
     for args in ((plan.q, plan.dq, plan.ddq), (q, dq, ddq)):
-        a = _torques(exo, body_model(truth), *args)
-        b = _torques(exo, body_model(twin), *args)
+        a = coupled_torques(exo, body_model(truth), *args)
+        b = coupled_torques(exo, body_model(twin), *args)
         np.testing.assert_allclose(b, a, atol=1e-9 * np.abs(a).max())
     prior = nominal_patient(0.52, 0.52, 1.75, 80.0, "male")
-    tau = _torques(exo, body_model(truth), plan.q, plan.dq, plan.ddq)
+    tau = coupled_torques(exo, body_model(truth), plan.q, plan.dq, plan.ddq)
     samples = CalibrationSamples(0.01, plan.q, plan.dq, plan.ddq, tau, cutoff_hz=None)
-    tau_twin = _torques(exo, body_model(twin), plan.q, plan.dq, plan.ddq)
+    tau_twin = coupled_torques(exo, body_model(twin), plan.q, plan.dq, plan.ddq)
     twin_samples = dataclasses.replace(samples, tau=tau_twin)
     one = identify_patient(samples, exo, body_model(prior), prior)
     other = identify_patient(twin_samples, exo, body_model(prior), prior)
