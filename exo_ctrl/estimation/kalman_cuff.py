@@ -68,7 +68,7 @@ import math
 
 import numpy as np
 
-from .._jit import kernel
+from .._jit import kernel, leaf
 from ..plant.cuffs import forces_of, isotropic_forces
 
 __all__ = [
@@ -76,6 +76,7 @@ __all__ = [
     "INITIAL_MODEL_ERROR_N",
     "MODEL_ERROR_RATE_N_PER_SQRT_S",
     "add_model_error",
+    "add_to_state",
     "cuff_sensor_update",
     "cuff_variance",
     "set_cuff_noise",
@@ -109,6 +110,22 @@ def set_cuff_noise(
 def cuff_variance(noise_std_N: float, offset_std_N: float, drift_N_per_sqrt_s: float) -> float:
     """R = σ_e² + σ_b² + σ_w² T_R [N²] (module docstring)."""
     return noise_std_N**2 + offset_std_N**2 + drift_N_per_sqrt_s**2 * DRIFT_HORIZON_S
+
+
+@leaf
+def add_to_state(st, s, i, dx):
+    """Add ``dx`` to component i of leg s's state (q_e, q_p: 0–3; v_e, v_p: 4–7; d: 8, 9).
+
+    Every update of the filter (the encoders', :func:`~.kalman_step.leg_update`, and the
+    cuff sensors' here) moves the state through it.
+    """
+    joints = st.joints[s]
+    if i < 4:
+        st.q[joints[i]] += dx
+    elif i < 8:
+        st.v[joints[i - 4]] += dx
+    else:
+        st.d[2 * s + i - 8] += dx
 
 
 @kernel
@@ -179,12 +196,7 @@ def cuff_sensor_update(st, cr, meas, split):
             for i in range(10):
                 d = ph[i] * y
                 dx[i] += d
-                if i < 4:
-                    st.q[joints[i]] += d
-                elif i < 8:
-                    st.v[joints[i - 4]] += d
-                else:
-                    st.d[2 * s + i - 8] += d
+                add_to_state(st, s, i, d)
             for i in range(10):
                 for j in range(i, 10):
                     x = P[i, j] - ph[i] * ph[j] / S

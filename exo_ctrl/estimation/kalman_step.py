@@ -12,7 +12,7 @@ import math
 
 from .._jit import Status, kernel
 from ..plant.cuffs import forces_of, isotropic_forces
-from .kalman_cuff import add_model_error, cuff_sensor_update
+from .kalman_cuff import add_model_error, add_to_state, cuff_sensor_update
 
 __all__ = [
     "cuff_jacobian",
@@ -296,13 +296,7 @@ def leg_update(st, s, q_meas):
         W[i, 0] = P[i, 0] * i00 + P[i, 1] * i01
         W[i, 1] = P[i, 0] * i01 + P[i, 1] * i11
     for i in range(10):
-        dx = W[i, 0] * y0 + W[i, 1] * y1
-        if i < 4:
-            st.q[joints[i]] += dx
-        elif i < 8:
-            st.v[joints[i - 4]] += dx
-        else:
-            st.d[2 * s + i - 8] += dx
+        add_to_state(st, s, i, W[i, 0] * y0 + W[i, 1] * y1)
     for j in range(10):  # rows 0 and 1 of P (H P), kept before P changes
         W[j, 2] = P[0, j]
         W[j, 3] = P[1, j]
