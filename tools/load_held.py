@@ -1,7 +1,7 @@
 """Does the QP's cuff-force bound hold?  A seeded, randomised campaign ("Load held", issue 31).
 
     .venv/bin/python tools/load_held.py [--points N] [--seed S] [--json PATH]
-        [--patients spastic,active]
+        [--patients spastic,active] [--cuff-sensors none|normal|full]
 
 Draws N points (default 200) from ``numpy.random.default_rng(S)`` (default
 seed 0; point i is the same whatever N > i), each
@@ -22,6 +22,10 @@ seed 0; point i is the same whatever N > i), each
 - a spastic or an active patient; the pelvis fixed (feet in free air, as
   the issue's cases), or supported at a body-weight support U(0.3, 0.5)
   (the belt and contact on: a supported pelvis needs them);
+- the patient's true cuffs, scattered around the published ones
+  (:class:`~exo_ctrl.plant.cuff_scatter.CuffScatter`, its default spread,
+  seeded per point), and the cuff sensors of ``--cuff-sensors`` (default
+  none; their noise seeded per point);
 
 and runs the QP (safety supervisor off, the default Kalman filter) for
 three gait periods (the ramp-in and two cycles).  A point the device
@@ -55,7 +59,9 @@ from exo_ctrl.model.anthropometry import SEXES, patient_from_anthropometry
 from exo_ctrl.model.cohort import BMI_RANGE, _factors, drawn_patient
 from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant import ContactParams, PelvisParams
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.misalignment import Misalignment
+from exo_ctrl.sensing.cuff_load import CUFF_SENSOR_SETS, CuffSensorParams
 from exo_ctrl.sim import SimConfig, simulate
 from exo_ctrl.sim.belief import Belief
 
@@ -112,13 +118,14 @@ def draw_points(
                 "patient_torque": patients[int(rng.integers(0, len(patients)))],
                 "pelvis": "supported" if supported else "fixed",
                 "bws": float(rng.uniform(*BWS)) if supported else 0.0,
+                "cuff_seed": int(rng.integers(0, 2**31)),
             }
         )
     return out
 
 
-def point_config(point: dict[str, Any], folder: Path) -> SimConfig:
-    """The point's run: its URDFs written into ``folder``."""
+def point_config(point: dict[str, Any], folder: Path, cuff_sensors: str = "none") -> SimConfig:
+    """The point's run: its URDFs written into ``folder``; ``cuff_sensors`` the sensor set."""
     nominal = patient_from_anthropometry(point["height_m"], point["mass_kg"], point["sex"])
     truth = drawn_patient(nominal, np.asarray(point["z"]), CohortSpread())
     exo = write_urdf(fitted_exo(truth), folder / f"exo_{point['index']:04d}.urdf")
@@ -148,6 +155,8 @@ def point_config(point: dict[str, Any], folder: Path) -> SimConfig:
         safety=False,
         pelvis=pelvis,
         duration_s=RUN_PERIODS * point["period_s"],
+        cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
+        cuff_sensors=CuffSensorParams(mode=cuff_sensors, seed=point["cuff_seed"]),
         belief=Belief(
             patient_height_m=point["height_m"],
             patient_mass_kg=point["mass_kg"],
@@ -156,11 +165,11 @@ def point_config(point: dict[str, Any], folder: Path) -> SimConfig:
     )
 
 
-def run_point(point: dict[str, Any], folder: Path) -> dict[str, Any]:
+def run_point(point: dict[str, Any], folder: Path, cuff_sensors: str = "none") -> dict[str, Any]:
     """Run one point: its true peak cuff force against its bound, or why it was refused."""
     out = dict(point)
     try:
-        result = simulate(point_config(point, folder))
+        result = simulate(point_config(point, folder, cuff_sensors))
     except CuffBoundTooTight as exc:
         out.update(outcome="refused", kind="bound", reason=str(exc))
         return out
@@ -187,14 +196,15 @@ def campaign(
     progress: bool = True,
     patients: tuple[str, ...] = PATIENT_TORQUES,
     pelvis: tuple[str, ...] = PELVIS,
+    cuff_sensors: str = "none",
 ) -> list[dict[str, Any]]:
-    """Run the first ``n`` points of ``seed``, one after the other."""
+    """Run the first ``n`` points of ``seed``, one after the other, with ``cuff_sensors``."""
     points = draw_points(n, seed, patients, pelvis)
     bar = Progress(n, "load held") if progress else None
     results = []
     with tempfile.TemporaryDirectory(prefix="load_held_") as tmp:
         for i, point in enumerate(points):
-            results.append(run_point(point, Path(tmp)))
+            results.append(run_point(point, Path(tmp), cuff_sensors))
             if bar is not None:
                 bar.update(i + 1)
     if bar is not None:
@@ -267,6 +277,12 @@ def main(argv: list[str] | None = None) -> int:
         default=",".join(PATIENT_TORQUES),
         help="patient torques to draw from, comma-separated (default spastic,active)",
     )
+    p.add_argument(
+        "--cuff-sensors",
+        default="none",
+        choices=CUFF_SENSOR_SETS,
+        help="the cuff sensors of every point (default none)",
+    )
     args = p.parse_args(argv)
     patients = tuple(args.patients.split(","))
     if not patients or any(x not in PATIENT_TORQUES for x in patients):
@@ -275,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.points < 1 or args.seed < 0:
         print("load_held: --points must be >= 1 and --seed >= 0", file=sys.stderr)
         return 2
-    results = campaign(args.points, args.seed, patients=patients)
+    results = campaign(args.points, args.seed, patients=patients, cuff_sensors=args.cuff_sensors)
     text, held = report(results)
     print(text)
     if args.json is not None:

@@ -42,7 +42,7 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter
 from .cuffs import CuffParams
 
-__all__ = ["DEFAULT_SPREAD", "MAX_SPREAD", "TRUNCATE_SD", "CuffScatter"]
+__all__ = ["DEFAULT_SPREAD", "MAX_SPREAD", "TRUNCATE_SD", "CuffScatter", "scaled_cuffs"]
 
 #: The default spread s, the inter-subject coefficient of variation of limb
 #: soft-tissue stiffness (module docstring: Isogai et al. 2022, 18 %; Le Sant
@@ -111,13 +111,32 @@ class CuffScatter:
         """
         if self.spread_rel == 0.0:
             return published
-        f_n, f_u = self.factors()
-        k_u = published.shear_stiffness_N_per_m
-        c_u = published.shear_damping_N_s_per_m
-        return dataclasses.replace(
-            published,
-            stiffness_N_per_m=f_n * published.stiffness_N_per_m,
-            damping_N_s_per_m=math.sqrt(f_n) * published.damping_N_s_per_m,
-            shear_stiffness_N_per_m=f_u * float(k_u),  # type: ignore[arg-type]
-            shear_damping_N_s_per_m=math.sqrt(f_u) * float(c_u),  # type: ignore[arg-type]
-        )
+        return scaled_cuffs(published, *self.factors())
+
+    def extremes(self, published: CuffParams) -> tuple[CuffParams, CuffParams]:
+        """The two most unequal true cuffs the spread allows, around ``published``.
+
+        (f_n, f_u) = (1 + 2s, 1 − 2s) and (1 − 2s, 1 + 2s), z at its
+        truncation: the largest and the smallest ratio k_n/k_u.  How a cuff
+        pair shares a load depends on that ratio only (a common factor scales
+        both cuffs alike), so these two bound every draw's share.
+        """
+        high = 1.0 + TRUNCATE_SD * self.spread_rel
+        low = 1.0 - TRUNCATE_SD * self.spread_rel
+        return scaled_cuffs(published, high, low), scaled_cuffs(published, low, high)
+
+
+def scaled_cuffs(published: CuffParams, f_n: float, f_u: float) -> CuffParams:
+    """``published`` with k_n, k_u times f_n, f_u and C_n, C_u times √f_n, √f_u [-].
+
+    The preload kept (module docstring).
+    """
+    k_u = published.shear_stiffness_N_per_m
+    c_u = published.shear_damping_N_s_per_m
+    return dataclasses.replace(
+        published,
+        stiffness_N_per_m=f_n * published.stiffness_N_per_m,
+        damping_N_s_per_m=math.sqrt(f_n) * published.damping_N_s_per_m,
+        shear_stiffness_N_per_m=f_u * float(k_u),  # type: ignore[arg-type]
+        shear_damping_N_s_per_m=math.sqrt(f_u) * float(c_u),  # type: ignore[arg-type]
+    )

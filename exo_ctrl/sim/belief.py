@@ -69,6 +69,7 @@ from ..model import (
 )
 from ..model.anthropometry import body_mass_from_legs, stature_from_legs
 from ..plant import BeltParams, ContactParams, CuffParams, MotorParams
+from ..plant.cuff_scatter import DEFAULT_SPREAD, MAX_SPREAD
 
 __all__ = [
     "PAPER_PATIENT",
@@ -107,11 +108,16 @@ class Belief:
         soles: the soles' contact law the device holds, (k [N/m^n], n [-])
             (None: the nominal values of the run's contact,
             ``SimConfig.contact``).
+        cuff_spread_rel: the spread s the device assumes for a patient's true
+            cuffs around its cuff model, for the QP's margin [-], in [0,
+            :data:`~exo_ctrl.plant.cuff_scatter.MAX_SPREAD`] (None: the
+            literature's, :data:`~exo_ctrl.plant.cuff_scatter.DEFAULT_SPREAD`,
+            cited there; 0: the device knows its patient's cuffs exactly).
 
     Raises:
         InvalidParameter: an unknown sex, a height or mass not > 0, a motor,
             cuffs or belt that are not parameter sets, soles that are not a
-            pair (k > 0, n ≥ 1).
+            pair (k > 0, n ≥ 1), a cuff spread outside [0, MAX_SPREAD].
 
     """
 
@@ -124,6 +130,7 @@ class Belief:
     cuffs: CuffParams | None = None
     belt: BeltParams | None = None
     soles: tuple[float, float] | None = None
+    cuff_spread_rel: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.patient, str) or not self.patient:
@@ -158,6 +165,17 @@ class Belief:
             if n < 1.0:
                 raise InvalidParameter("belief sole exponent", self.soles[1], ">= 1")
             object.__setattr__(self, "soles", (k, n))
+        if self.cuff_spread_rel is not None:
+            spread = v.finite("belief cuff_spread_rel", self.cuff_spread_rel)
+            if not 0.0 <= spread <= MAX_SPREAD:
+                raise InvalidParameter(
+                    "belief cuff_spread_rel", self.cuff_spread_rel, f"in [0, {MAX_SPREAD:g}]"
+                )
+            object.__setattr__(self, "cuff_spread_rel", spread)
+
+    def cuff_spread(self) -> float:
+        """s, the spread the device assumes for its patient's true cuffs [-]."""
+        return DEFAULT_SPREAD if self.cuff_spread_rel is None else self.cuff_spread_rel
 
     def cuff_model_of(self, published: CuffParams) -> CuffParams:
         """The cuffs the device believes in: ``cuffs``, or the published cuffs.

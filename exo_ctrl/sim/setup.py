@@ -19,6 +19,7 @@ from ..control import (
     feedforward_torque,
 )
 from ..control.modes import InteractionController, PathController
+from ..control.qp import QPController, departure_warning
 from ..estimation import ESTIMATORS, Estimator
 from ..estimation.plugin import users_estimator
 from ..exceptions import InvalidParameter
@@ -153,7 +154,7 @@ def build(config: SimConfig) -> Setup:
         if config.speed_profile is not None:  # σ(t) v(t) of the session's profile
             belt_speed = set_speeds(config, sigma[:2])
     user_estimator = users_estimator(config.estimator, ESTIMATORS)  # None: a built-in
-    controller = tracking_controller(
+    controller = tracking = tracking_controller(
         config, plan, model_exo, model_patient, model_motor, user_estimator
     )
     if config.session is not None:  # one controller per segment, switched bumplessly
@@ -199,16 +200,28 @@ def build(config: SimConfig) -> Setup:
         model_motor,
         belt_speed,
         online,
-        tuple(run_warnings(config, exo, fitted)),
+        tuple(run_warnings(config, exo, fitted, tracking)),
         user_estimator,
     )
 
 
-def run_warnings(config: SimConfig, exo: BodyModel, fitted: BodyModel) -> list[str]:
-    """The run's warnings (:attr:`Setup.warnings`): the fit, then the nominal patient's notes."""
+def run_warnings(
+    config: SimConfig, exo: BodyModel, fitted: BodyModel, controller: object = None
+) -> list[str]:
+    """The run's warnings (:attr:`Setup.warnings`).
+
+    The fit, then the nominal patient's notes, then, for the QP, a bound its
+    margin leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`).
+    """
     out = fit_warnings(exo, fitted)
     if config.belief.patient == "nominal":
         out += nominal_stature(config.belief, config.patient, fitted)[2]
+    if isinstance(controller, QPController):
+        departure = departure_warning(
+            controller.margin, controller.cuff_force_limit_N, config.cuff_sensors.mode
+        )
+        if departure is not None:
+            out.append(departure)
     return out
 
 

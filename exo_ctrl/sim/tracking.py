@@ -17,6 +17,7 @@ from ..control import (
 )
 from ..control.lift_off import LIFT_OFF_BLEND_S
 from ..control.plugin import is_plugin, load_controller
+from ..control.qp import CuffKnowledge
 from ..control.stance_load import StanceLoad
 from ..estimation import Estimator
 from ..model import BodyModel
@@ -77,6 +78,9 @@ def tracking_controller(
             gait=_gait_words(config),
             stance_load=stance_load_for(config, model_exo),
             lift_off_blend_s=lift_off_blend_for(config),
+            cuff_knowledge=CuffKnowledge(
+                config.cuffs, config.belief.cuff_spread(), config.cuff_sensors.mode
+            ),
         )
     return PDController(plan, config.gains)
 

@@ -17,7 +17,7 @@
 """
 
 from .controller import CONTROLLER_EPS_ABS, NO_BOUND, SLACK_WEIGHT, QPController
-from .margin import BoundMargin, bound_margin
+from .margin import BoundMargin, CuffKnowledge, bound_margin, departure_warning
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -35,9 +35,11 @@ __all__ = [
     "SLACK_WEIGHT",
     "BoundMargin",
     "CuffHorizonModel",
+    "CuffKnowledge",
     "CuffStateObserver",
     "QPController",
     "TorqueQP",
     "bound_margin",
+    "departure_warning",
     "polygon_rows",
 ]

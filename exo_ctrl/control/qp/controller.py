@@ -72,7 +72,8 @@ the :data:`SCREENED_ROWS` rows most nearly binding, widened by violated rows at 
 
 1. the solver failed twice (:class:`~exo_ctrl.control.qp.workspace.TorqueQP`:
    not SOLVED, or an answer that fails the independent check), or the
-   screened rows did not cover the bound after :data:`SCREEN_ROUNDS` solves:
+   screened rows did not cover the bound after :data:`SCREEN_ROUNDS` solves
+   and a last solve over every row (:attr:`QPController.full_rows`) failed:
    τ_cmd clipped into the torque box.  The drive limits are kept (they are
    physical); the cuff bound is given up for that tick;
 2. the torque box is empty for a joint: that joint gets zero torque, the
@@ -114,11 +115,12 @@ from ..base import PDGains
 from ..computed_torque import ComputedTorqueController
 from ..lift_off import LIFT_OFF_BLEND_S
 from ..stance_load import StanceLoad
-from .margin import ESTIMATE_SIGMAS, checked_margin
+from .fallback import QPFallbacks
+from .margin import ESTIMATE_SIGMAS, CuffKnowledge, checked_margin
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
-from .tick import front, load, qp_fields, tail, take, volts, widen_rows
+from .tick import front, load, load_all, qp_fields, tail, take, widen_rows
 from .torque_box import box_constants
 from .workspace import TorqueQP
 
@@ -163,7 +165,7 @@ NO_BOUND = 1e9
 CONTROLLER_EPS_ABS = 1e-7
 
 
-class QPController(ComputedTorqueController):
+class QPController(QPFallbacks, ComputedTorqueController):
     """CT+PD command made to respect the drive limits and a cuff-force bound (module docstring).
 
     Args:
@@ -206,6 +208,10 @@ class QPController(ComputedTorqueController):
             the pelvis fixed), as computed torque's.
         lift_off_blend_s: T_b of :mod:`exo_ctrl.control.lift_off` [s], as
             computed torque's (0: none).
+        cuff_knowledge: what the device knows of the patient's true cuffs,
+            for the margin's e_cuffs (default
+            :class:`~exo_ctrl.control.qp.margin.CuffKnowledge`: the
+            published cuffs, the literature's spread, no cuff sensors).
 
     Attributes:
         margin: the margin's static terms and working force (:class:`BoundMargin`).
@@ -230,7 +236,10 @@ class QPController(ComputedTorqueController):
             with −n_k.  Columns: the four τ, then the four slacks.
         cuff_upper: their upper bounds r − n_kᵀ b_c (and r + n_kᵀ b_c), (32 P,) [N].
         screened: which of :attr:`cuff_rows` each QP row holds, last solve.
-        qp: the proxsuite workspace.
+        qp: the proxsuite workspace of the screened rows.
+        full_rows: the workspace of every cuff row, for the ticks whose
+            screening did not converge (the same as :attr:`qp` when every
+            row is screened in).
 
     Raises:
         InvalidParameter: a bad limit, weight, iteration count or estimator, or no patient.
@@ -267,6 +276,7 @@ class QPController(ComputedTorqueController):
         gait: str = "",
         stance_load: StanceLoad | None = None,
         lift_off_blend_s: float = LIFT_OFF_BLEND_S,
+        cuff_knowledge: CuffKnowledge | None = None,
     ) -> None:
         if estimator not in DISTURBANCE_BANDWIDTH_PER_S:
             allowed = ", ".join(DISTURBANCE_BANDWIDTH_PER_S)
@@ -310,15 +320,15 @@ class QPController(ComputedTorqueController):
         # the horizon points, the bound softened to |n_kᵀ f_c(t_i)| ≤ r + s_c with
         # s_c ≥ 0 and the cost ρ s_c².  Rows: +N(Aτ + b) - E s ≤ r and -N(Aτ + b) - E s ≤ r,
         # all of them in cuff_rows; the screened ones in the QP.
-        self.qp = TorqueQP(
-            np.concatenate((weights, np.full(4, SLACK_WEIGHT))),
-            self._n_slots,
-            max_iter,
-            eps_abs=CONTROLLER_EPS_ABS,
-        )
-        self.qp.lower[:] = -NO_BOUND
-        self.qp.lo[4:] = 0.0
-        self.qp.hi[4:] = NO_BOUND
+        cost = np.concatenate((weights, np.full(4, SLACK_WEIGHT)))
+        self.qp = TorqueQP(cost, self._n_slots, max_iter, eps_abs=CONTROLLER_EPS_ABS)
+        self.full_rows = self.qp
+        if self._n_slots < self._n_rows:
+            self.full_rows = TorqueQP(cost, self._n_rows, max_iter, eps_abs=CONTROLLER_EPS_ABS)
+        for qp in (self.qp, self.full_rows):
+            qp.lower[:] = -NO_BOUND
+            qp.lo[4:] = 0.0
+            qp.hi[4:] = NO_BOUND
         rec = self.record
         for name, value in box_constants(motor, effort).items():
             rec[name] = value
@@ -331,6 +341,7 @@ class QPController(ComputedTorqueController):
             (estimator, disturbance_bandwidth_per_s),
             self.cuff_force_limit_N,
             gait if tighten else None,
+            cuff_knowledge,
         )
         rec["margin_static"] = self.margin.static_N
         rec["working"] = self.margin.working_N
@@ -457,43 +468,13 @@ class QPController(ComputedTorqueController):
             if self._violated[0] == 0:
                 break
         else:
-            why = f"the screened rows did not cover the bound after {SCREEN_ROUNDS} solves"
-            return self._fallback(omega, why)
+            qp = self.full_rows
+            load_all(rec, qp.record)
+            ok = qp.solve_in_place()
+            rec["solve_time_us"] += qp.solve_time_us
+            rec["screen_rounds"] = SCREEN_ROUNDS + 1
+            if not ok:
+                why = f"the screened rows did not cover the bound after {SCREEN_ROUNDS} solves"
+                return self._fallback(omega, f"{why}; every row: {qp.status}")
         take(rec, qp.record, omega)
-        return self._u
-
-    # ------------------------------------------------------------------ fallbacks
-
-    def _fail(self, why: str) -> None:
-        """Count a fallback tick, with ``why`` as its status."""
-        rec = self.record
-        rec["failures"] += 1
-        rec["active_constraints"] = 0
-        rec["solved"] = False
-        self._status_text = why
-
-    def _fallback(self, omega: np.ndarray, why: str) -> np.ndarray:
-        """The safe command of the module docstring, counted in :attr:`failures`."""
-        u_ct = self.record["u_ct"][0]
-        if not (np.isfinite(u_ct).all() and np.isfinite(omega).all()):
-            return self._zero_volts(f"non-finite reading or command ({why})")
-        lo, hi = self.torque_lo, self.torque_hi
-        empty = lo > hi
-        if empty.any():
-            np.clip(self.torque_cmd, np.minimum(lo, hi), hi, out=self.torque)
-            self.torque[empty] = 0.0
-            joints = ", ".join(str(j) for j in np.flatnonzero(empty))
-            self._fail(f"fallback: empty torque box at joint(s) {joints} ({why})")
-            volts(self.record, omega)
-            return np.clip(self._u, -self._u_max, self._u_max, out=self._u)
-        np.clip(self.torque_cmd, lo, hi, out=self.torque)
-        self._fail(f"fallback: τ_cmd clipped to the torque box ({why})")
-        volts(self.record, omega)
-        return self._u
-
-    def _zero_volts(self, why: str) -> np.ndarray:
-        self._fail(f"fallback: zero volts ({why})")
-        self.record["solve_time_us"] = 0.0
-        self._u.fill(0.0)
-        self.torque.fill(0.0)
         return self._u

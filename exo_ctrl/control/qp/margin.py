@@ -46,12 +46,28 @@ each term an absolute force [N]:
   eigenvalue of ``M_p^{-1} G_K`` (the leg's fastest cuff mode, the
   exoskeleton held; ω t₁ capped at π), and
   e_patient,c = max over t and corners of ``(1 − cos ω t₁) ‖D_c r‖``;
-- **the cuff model's error** e_cuffs,c: a true patient's cuffs are the
-  published split stiffness (:class:`~exo_ctrl.plant.cuffs.CuffParams`,
-  cited there); a device holding another model shares the nominal
-  patient's load s_n(t) = Y(t) π_nominal between its cuffs otherwise:
-  e_cuffs,c = max_t ‖(D_c^{model} − D_c^{published}) s_n‖ (0 when the
-  device holds the published cuffs);
+- **the cuff model's error** e_cuffs,c: the device holds a cuff model
+  (by default the published split stiffness,
+  :class:`~exo_ctrl.plant.cuffs.CuffParams`), a patient's true cuffs
+  scatter around the published ones (:mod:`~exo_ctrl.plant.cuff_scatter`:
+  factors f_n, f_u within 1 ± 2s).  How a leg's load s splits between its
+  two cuffs depends only on the ratio k_n/k_u (a common factor scales G_K
+  and W_K alike), so the two most unequal true cuffs the spread allows,
+  (1 + 2s, 1 − 2s) and (1 − 2s, 1 + 2s), bound every patient's split.  The
+  estimate sees the load the joint torques see (Jᵀ f = −s, for every
+  model: Jᵀ D = −I), so the model's error (D^{model} − D^{true}) s_n lies
+  in null(Jᵀ), where the torques never see it; the cuff sensors see some
+  of it (normal load cells: each cuff's normal component; 2-axis sensors:
+  all of it).  What is left is its part in the unobserved subspace,
+  U = I − H⁺H with H the rows the device measures (Jᵀ, and the sensors'
+  directions n_c or the identity), per leg:
+  e_cuffs,c = max over t and the two extremes of ‖(U (D^{model} − D^{true}) s_n)_c‖,
+  s_n(t) = Y(t) π_nominal the nominal patient's load along the plan.  With
+  the defaults (s = 0.20, no cuff sensors) about 39 N on the thighs and
+  35 N on the shanks on the default gait; 0 with 2-axis sensors, and with
+  normal load cells 0 too (only the thigh's along-link component is left
+  unobserved, which the hip's load does not load: the cuff sits on the
+  thigh's axis);
 - **the estimate's own uncertainty** e_est,c(t), per tick: with the
   Kalman filter (:mod:`exo_ctrl.estimation.kalman`) :data:`ESTIMATE_SIGMAS`
   times σ_c, the square root of the largest eigenvalue of cuff c's force
@@ -67,22 +83,28 @@ nominal patient's gravity load along the plan, shared the same way,
 F_work,c = max_t ‖D_c g(q*)‖.  A bound whose margin leaves less,
 ``F_max − (e_pred + e_patient,c + e_cuffs,c) < F_work,c``, cannot be held
 on that gait: :class:`~exo_ctrl.exceptions.CuffBoundTooTight` is raised
-before the run, naming the bound, the margin and the gait.
+before the run, naming the bound, the margin and the gait.  A bound that
+leaves more than the working force but less than the whole load the plan
+puts on a cuff, F_load,c = max_t ‖D_c s_n‖, is held by leaving the plan:
+:func:`departure_warning` says so before the run.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
-from ...exceptions import CuffBoundTooTight
+from ... import _validate as v
+from ...exceptions import CuffBoundTooTight, InvalidParameter
 from ...model import CUFF_NAMES, BodyModel, CohortSpread
 from ...model.cohort import TRUNCATION_Z
 from ...plan.kinematics import JointTrajectory
+from ...plant.cuff_scatter import DEFAULT_SPREAD, MAX_SPREAD, CuffScatter
 from ...plant.cuffs import CuffParams
 from ...plant.drive import MotorParams
 from .prediction import CuffHorizonModel
@@ -92,12 +114,17 @@ __all__ = [
     "MOMENTUM_ERROR_N",
     "PREDICTION_ERROR_N",
     "REFERENCE_PERIOD_S",
+    "SENSOR_SETS",
     "SETTLE_TICKS",
     "BoundMargin",
+    "CuffKnowledge",
     "bound_margin",
     "checked_margin",
+    "departure_warning",
+    "link_normals",
     "share_matrices",
     "step_factors",
+    "unobserved",
 ]
 
 #: e_pred, the horizon model's error given the true cuff state and patient [N]
@@ -116,6 +143,56 @@ REFERENCE_PERIOD_S = 1.2
 SETTLE_TICKS = 100
 #: Plan rows between the samples of the margin's scan [ticks].
 SCAN_STRIDE = 2
+#: The cuff sensor sets (:mod:`exo_ctrl.sensing.cuff_load`): none, a load cell
+#: per cuff measuring its normal force, a 2-axis sensor per cuff.
+SENSOR_SETS = ("none", "normal", "full")
+#: e_cuffs from which the departure warning names the cuff sensors [N].
+UNKNOWN_CUFFS_NOTED_N = 0.5
+#: Relative singular-value cut-off of the measured rows' pseudo-inverse [-].
+RANK_RCOND = 1e-9
+
+
+@dataclass(frozen=True)
+class CuffKnowledge:
+    """What the device knows of its patient's true cuffs, for e_cuffs (module docstring).
+
+    Attributes:
+        published: the cuffs the true ones scatter around (the published
+            split stiffness by default; ``SimConfig.cuffs``).
+        spread_rel: s, the spread the device assumes for a patient's cuffs
+            [-], in [0, MAX_SPREAD] (default: the literature's,
+            :data:`~exo_ctrl.plant.cuff_scatter.DEFAULT_SPREAD`; 0: the true
+            cuffs are ``published`` exactly).
+        sensors: the cuff sensors the device carries, one of :data:`SENSOR_SETS`.
+
+    Raises:
+        InvalidParameter: cuffs that are not a CuffParams, a spread outside
+            [0, MAX_SPREAD], an unknown sensor set.
+
+    """
+
+    published: CuffParams = field(default_factory=CuffParams)
+    spread_rel: float = DEFAULT_SPREAD
+    sensors: str = "none"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.published, CuffParams):
+            raise InvalidParameter("cuff knowledge published", self.published, "a CuffParams")
+        spread = v.finite("cuff knowledge spread_rel", self.spread_rel)
+        if not 0.0 <= spread <= MAX_SPREAD:
+            raise InvalidParameter(
+                "cuff knowledge spread_rel", self.spread_rel, f"in [0, {MAX_SPREAD:g}]"
+            )
+        v.one_of("cuff knowledge sensors", self.sensors, SENSOR_SETS)
+        object.__setattr__(self, "spread_rel", spread)
+
+    def true_cuffs(self) -> list[CuffParams]:
+        """The plausible true cuffs e_cuffs is taken over (none with 2-axis sensors)."""
+        if self.sensors == "full":
+            return []
+        if self.spread_rel == 0.0:
+            return [self.published]
+        return list(CuffScatter(spread_rel=self.spread_rel).extremes(self.published))
 
 
 @dataclass(frozen=True)
@@ -129,6 +206,7 @@ class BoundMargin:
         estimate_N: the estimate's term when it is fixed (the momentum
             observer's), else zeros (the filter's term is per tick).
         working_N: F_work,c.
+        load_N: F_load,c, the largest load the plan puts on the cuff.
 
     """
 
@@ -137,6 +215,7 @@ class BoundMargin:
     cuffs_N: np.ndarray
     estimate_N: np.ndarray
     working_N: np.ndarray
+    load_N: np.ndarray
 
     @property
     def static_N(self) -> np.ndarray:
@@ -173,6 +252,44 @@ def step_factors(model: CuffHorizonModel, split: bool, t1_s: float) -> np.ndarra
         omega2 = np.linalg.eigvals(np.linalg.solve(model.mass_patient[j, j], stiffness)).real.max()
         out[leg] = 1.0 - math.cos(min(math.sqrt(max(omega2, 0.0)) * t1_s, math.pi))
     return out
+
+
+def link_normals(model: CuffHorizonModel, q: np.ndarray) -> np.ndarray:
+    """n_c, the unit normal of each cuff's exoskeleton link at ``q``, (4, 2) (x, z).
+
+    u = R(θ_c) u₀, θ_c = S_c · q, n = u turned by +90° (as
+    :func:`~exo_ctrl.control.qp.split_cuffs.split_gains`).
+    """
+    m = model.record[0]
+    theta = m["select"][:4, :4] @ q
+    ct, st = np.cos(theta), np.sin(theta)
+    u0 = m["along0"]
+    ux = u0[:, 0] * ct - u0[:, 1] * st
+    uz = u0[:, 1] * ct + u0[:, 0] * st
+    return np.stack((-uz, ux), axis=1)
+
+
+def unobserved(jac: np.ndarray, normals: np.ndarray, sensors: str) -> np.ndarray:
+    """U = I − H⁺H, the projector onto the cuff forces a leg's device does not measure, (4, 4).
+
+    Args:
+        jac: the leg's cuff Jacobian J (4, 2): rows thigh x, z, shank x, z;
+            the joint torques measure Jᵀ f.
+        normals: the leg's two cuffs' link normals, (2, 2) (:func:`link_normals`).
+        sensors: one of :data:`SENSOR_SETS`: ``"normal"`` adds the rows
+            n_cᵀ f_c, ``"full"`` every component (U = 0).
+
+    """
+    if sensors == "full":
+        return np.zeros((4, 4))
+    rows = [jac.T]
+    if sensors == "normal":
+        cells = np.zeros((2, 4))
+        cells[0, 0:2] = normals[0]
+        cells[1, 2:4] = normals[1]
+        rows.append(cells)
+    h = np.vstack(rows)
+    return np.eye(4) - np.linalg.pinv(h, rcond=RANK_RCOND) @ h
 
 
 def _corner_parameters(patient: BodyModel, spread: CohortSpread) -> np.ndarray:
@@ -215,24 +332,26 @@ def bound_margin(
     plan: JointTrajectory,
     patient: BodyModel,
     model: CuffHorizonModel,
-    published: CuffHorizonModel | None,
+    truths: Sequence[CuffHorizonModel],
     disturbance_bandwidth_per_s: float,
     estimator: str,
     gait_period_s: float,
     spread: CohortSpread | None = None,
+    sensors: str = "none",
 ) -> BoundMargin:
-    """The static margin terms and the working force along ``plan`` (module docstring).
+    """The static margin terms, the working force and the load along ``plan`` (module docstring).
 
     Args:
         plan: the joint targets (q*, q̇*, q̈*).
         patient: the nominal patient the device holds.
         model: the QP's cuff model (the device's cuffs); re-linearised here.
-        published: the same with the published cuffs, or None when the
-            device holds them (then e_cuffs = 0).
+        truths: the same on the plausible true cuffs
+            (:meth:`CuffKnowledge.true_cuffs`); none: e_cuffs = 0.
         disturbance_bandwidth_per_s: ω_d of the patient-torque estimate [1/s].
         estimator: ``"kalman"`` (its term is per tick) or ``"momentum"``.
         gait_period_s: T [s], for the momentum observer's term.
         spread: the cohort's spreads (default :class:`CohortSpread`).
+        sensors: the cuff sensors the device carries (:data:`SENSOR_SETS`).
 
     """
     spread = spread or CohortSpread()
@@ -244,11 +363,12 @@ def bound_margin(
     step = h * SCAN_STRIDE
     lead = max(round(model.horizon_ticks[0] / SCAN_STRIDE), 1)
     a_lp = -math.expm1(-step * disturbance_bandwidth_per_s)
-    loads = np.empty((rows.shape[0], 4, params.shape[1]))
-    gravity = np.empty((rows.shape[0], 4))
-    shares = np.empty((rows.shape[0], 2, 4, 2))
-    shares_pub = np.empty_like(shares)
-    factors = np.empty((rows.shape[0], 2))
+    n = rows.shape[0]
+    loads = np.empty((n, 4, params.shape[1]))
+    gravity = np.empty((n, 4))
+    shares = np.empty((n, 2, 4, 2))
+    errors = np.zeros((n, len(truths), 2, 4))  # U (D_model − D_true) s_n per truth, leg
+    factors = np.empty((n, 2))
     t1 = model.horizon_s[0]
     for i, r in enumerate(rows):
         q, dq, ddq = plan.q[r], plan.dq[r], plan.ddq[r]
@@ -258,9 +378,17 @@ def bound_margin(
         model.linearise(q, dq)
         shares[i] = share_matrices(model, model.split)
         factors[i] = step_factors(model, model.split, t1)
-        if published is not None:
-            published.linearise(q, dq)
-            shares_pub[i] = share_matrices(published, True)
+        if truths:
+            normals = link_normals(model, q)
+            projector = [
+                unobserved(model.jac[leg], normals[2 * leg : 2 * leg + 2], sensors)
+                for leg in range(2)
+            ]
+        for k, truth in enumerate(truths):
+            truth.linearise(q, dq)
+            diff = shares[i] - share_matrices(truth, truth.split)
+            for leg in range(2):
+                errors[i, k, leg] = projector[leg] @ diff[leg] @ loads[i, 2 * leg : 2 * leg + 2, 0]
     delta = loads[:, :, 1:] - loads[:, :, :1]
     low = np.empty_like(delta)
     acc = delta[0].copy()
@@ -269,27 +397,27 @@ def bound_margin(
         low[i] = acc
     ahead = np.concatenate((delta[lead:], np.repeat(delta[-1:], lead, axis=0)))
     resid = ahead - low  # (rows, 4 joints, corners)
-    patient_n = np.zeros(4)
-    cuffs_n = np.zeros(4)
-    working = np.zeros(4)
+    patient_n, cuffs_n, working, load = np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4)
     for leg in range(2):
         j = slice(2 * leg, 2 * leg + 2)
         share = shares[:, leg]  # (rows, 4, 2)
         f_res = np.einsum("rij,rjk->rik", share, resid[:, j])  # (rows, 4 comps, corners)
         f_res *= factors[:, leg, None, None]
         f_grav = np.einsum("rij,rj->ri", share, gravity[:, j])
+        f_load = np.einsum("rij,rj->ri", share, loads[:, j, 0])
         for k in range(2):  # thigh, shank
             c = 2 * leg + k
             comp = slice(2 * k, 2 * k + 2)
             patient_n[c] = np.linalg.norm(f_res[:, comp], axis=1).max()
             working[c] = np.linalg.norm(f_grav[:, comp], axis=1).max()
-            if published is not None:
-                diff = np.einsum("rij,rj->ri", share - shares_pub[:, leg], loads[:, j, 0])
-                cuffs_n[c] = np.linalg.norm(diff[:, comp], axis=1).max()
+            load[c] = np.linalg.norm(f_load[:, comp], axis=1).max()
+            if truths:
+                cuffs_n[c] = np.linalg.norm(errors[:, :, leg, comp], axis=2).max()
     estimate = np.zeros(4)
     if estimator == "momentum":
         estimate[:] = MOMENTUM_ERROR_N * REFERENCE_PERIOD_S / gait_period_s
-    return BoundMargin(np.full(4, PREDICTION_ERROR_N), patient_n, cuffs_n, estimate, working)
+    prediction = np.full(4, PREDICTION_ERROR_N)
+    return BoundMargin(prediction, patient_n, cuffs_n, estimate, working, load)
 
 
 def checked_margin(
@@ -299,6 +427,7 @@ def checked_margin(
     estimate: tuple[str, float],
     limit_N: float,
     gait: str | None,
+    knowledge: CuffKnowledge | None = None,
 ) -> BoundMargin:
     """The QP's margin along ``plan``, the bound checked against it (module docstring).
 
@@ -310,6 +439,9 @@ def checked_margin(
         limit_N: F_max [N].
         gait: the gait in words for the refusal's message ("": the plan's
             period); None: no tightening (every term zero).
+        knowledge: what the device knows of the true cuffs (default
+            :class:`CuffKnowledge`: the published cuffs, the literature's
+            spread, no cuff sensors).
 
     Raises:
         CuffBoundTooTight: F_max − (static margin) below a cuff's working force.
@@ -317,18 +449,44 @@ def checked_margin(
     """
     if gait is None:
         zero = np.zeros(4)
-        return BoundMargin(zero, zero, zero, zero, zero)
-    exo, patient, motor, cuffs = device
+        return BoundMargin(zero, zero, zero, zero, zero, zero)
+    exo, patient, motor, _ = device
     estimator, bandwidth = estimate
-    published = None
-    if cuffs != CuffParams():
-        published = CuffHorizonModel(
-            exo, patient, motor, CuffParams(), model.dt, model.horizon_ticks
-        )
+    knowledge = knowledge or CuffKnowledge()
+    truths = [
+        CuffHorizonModel(exo, patient, motor, cuffs, model.dt, model.horizon_ticks)
+        for cuffs in knowledge.true_cuffs()
+    ]
     period = (plan.period_ticks or plan.q.shape[0]) * model.dt
-    margin = bound_margin(plan, patient, model, published, bandwidth, estimator, period)
+    margin = bound_margin(
+        plan, patient, model, truths, bandwidth, estimator, period, sensors=knowledge.sensors
+    )
     for c, name in enumerate(CUFF_NAMES):
         if limit_N - margin.static_N[c] < margin.working_N[c]:
             where = gait or f"a plan of period {period:g} s"
             raise CuffBoundTooTight(limit_N, margin.static_N[c], margin.working_N[c], name, where)
     return margin
+
+
+def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none") -> str | None:
+    """A sentence when the tightened bound leaves a cuff less than its load along the plan.
+
+    The QP then holds the bound by leaving the plan (module docstring,
+    "Working force"); None when every cuff's load fits.
+    """
+    room = limit_N - margin.static_N
+    short = np.flatnonzero(room < margin.load_N)
+    if short.size == 0:
+        return None
+    c = int(short[np.argmax((margin.load_N - room)[short])])
+    text = (
+        f"the QP will leave the plan to hold cuff_force_limit {limit_N:g} N: the gait loads "
+        f"the {CUFF_NAMES[c]} cuff with up to {margin.load_N[c]:.0f} N, and the margin "
+        f"{margin.static_N[c]:.1f} N leaves {room[c]:.1f} N"
+    )
+    if margin.cuffs_N[c] >= UNKNOWN_CUFFS_NOTED_N and sensors == "none":
+        text += (
+            f" ({margin.cuffs_N[c]:.1f} N of it for the patient's unknown cuff stiffness: "
+            "cuff sensors, --cuff-sensors normal, remove that part)"
+        )
+    return text

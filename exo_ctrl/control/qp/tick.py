@@ -27,7 +27,17 @@ from .screening import POLYGON_SIDES, bound_rows, clip_if_feasible, screen, wide
 from .torque_box import TORQUE_BOX_FIELDS, torque_box, voltage
 from .workspace import ACTIVE_TOL
 
-__all__ = ["front", "load", "qp_fields", "tail", "take", "tighten", "volts", "widen_rows"]
+__all__ = [
+    "front",
+    "load",
+    "load_all",
+    "qp_fields",
+    "tail",
+    "take",
+    "tighten",
+    "volts",
+    "widen_rows",
+]
 
 
 def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
@@ -200,6 +210,21 @@ def load(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no cover 
     screen(s.rows, s.upper, s.torque_cmd, s.torque, s.value, s.mark, s.slots, p.C, p.upper)
     s.solve_time_us = 0.0
     s.screen_rounds = 0.0
+
+
+@kernel
+def load_all(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Hand a workspace of every cuff row τ_cmd, the torque box and all the rows, unscreened."""
+    s, p = state[0], workspace[0]
+    n_in = s.rows.shape[0]
+    for j in range(4):
+        p.target[j] = s.torque_cmd[j]
+        p.lower[n_in + j] = s.torque_lo[j]
+        p.upper[n_in + j] = s.torque_hi[j]
+    for i in range(n_in):
+        for j in range(8):
+            p.C[i, j] = s.rows[i, j]
+        p.upper[i] = s.upper[i]
 
 
 @kernel

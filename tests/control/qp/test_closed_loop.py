@@ -2,7 +2,12 @@
 
 The default 2.4 s scenario through :func:`exo_ctrl.sim.loop.simulate`,
 default sensors (so the estimated cuff forces feed the QP), safety
-supervisor off; the real cuff forces are the plant's elastic cuffs'.  Each
+supervisor off; the real cuff forces are the plant's elastic cuffs',
+scattered around the published ones (the default
+:class:`~exo_ctrl.plant.cuff_scatter.CuffScatter`).  The runs whose bound
+binds carry normal load cells in the cuffs (``--cuff-sensors normal``):
+without them the margin covers the patient's unknown cuff stiffness (about
+40 N on the thighs), which the unsensed runs below measure.  Each
 configuration is simulated once per module.
 """
 
@@ -11,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from exo_ctrl.exceptions import CuffBoundTooTight
+from exo_ctrl.sensing.cuff_load import CuffSensorParams
 from exo_ctrl.sim import SimConfig, SimResult, simulate
 
 #: The QP may track worse than CT by at most this, per joint (brief: 5 %),
@@ -32,11 +39,21 @@ F_SPASTIC = 150.0
 BOUND_TOLERANCE = 0.05
 #: URDF effort of every joint [N·m].
 EFFORT = 150.0
+#: A load cell in each cuff measuring its normal force.
+LOAD_CELLS = CuffSensorParams(mode="normal")
+#: How much larger the margin is without the load cells, at least [N]: the
+#: patient's unknown cuff stiffness (e_cuffs, about 39 N on the thighs).
+UNSENSED_EXTRA_N = 20.0
 
 
 def _run(**kwargs) -> SimResult:
     # The default (split) cuffs; the QP's device holds the published split model.
     return simulate(SimConfig(safety=False, **kwargs))
+
+
+def _run_qp(**kwargs) -> SimResult:
+    """A QP run with load cells in the cuffs."""
+    return _run(controller="qp", cuff_sensors=LOAD_CELLS, **kwargs)
 
 
 @pytest.fixture(scope="module")
@@ -46,15 +63,15 @@ def ct_passive() -> SimResult:
 
 @pytest.fixture(scope="module")
 def qp_passive() -> SimResult:
-    # 150 N: above CT's true peak on the default split cuffs (126 N at the thighs)
-    # plus the margin (≈ 9.4 N), so no cuff bound binds.  At the default 120 N it
-    # binds: the QP departs from the plan to hold it (hips 4.9 mrad RMS).
-    return _run(controller="qp", cuff_force_limit_N=F_FREE)
+    # 150 N: above CT's true peak on the default cuffs (129 N at the thighs)
+    # plus the margin with load cells (≈ 12 N), so no cuff bound binds.  At the
+    # default 120 N it binds: the QP departs from the plan to hold it.
+    return _run_qp(cuff_force_limit_N=F_FREE)
 
 
 @pytest.fixture(scope="module")
 def qp_tight() -> SimResult:
-    return _run(controller="qp", cuff_force_limit_N=F_TIGHT)
+    return _run_qp(cuff_force_limit_N=F_TIGHT)
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +81,11 @@ def ct_spastic() -> SimResult:
 
 @pytest.fixture(scope="module")
 def qp_spastic() -> SimResult:
+    return _run_qp(cuff_force_limit_N=F_SPASTIC, patient_torque="spastic")
+
+
+@pytest.fixture(scope="module")
+def qp_spastic_unsensed() -> SimResult:
     return _run(controller="qp", cuff_force_limit_N=F_SPASTIC, patient_torque="spastic")
 
 
@@ -170,7 +192,7 @@ def test_closed_loop_tightened_qp_tracks_within_10_percent_of_ct(ct_passive, qp_
     assert qp <= (1.0 + TRACKING_TOLERANCE) * ct
 
 
-@pytest.mark.parametrize("run", ["qp_passive", "qp_tight", "qp_spastic"])
+@pytest.mark.parametrize("run", ["qp_passive", "qp_tight", "qp_spastic", "qp_spastic_unsensed"])
 def test_closed_loop_tightened_qp_commands_within_the_supply(request, run) -> None:
     result = request.getfixturevalue(run)
     assert np.abs(result.signals["voltage_cmd"]).max() <= SimConfig().motor.supply_voltage_V + 1e-9
@@ -190,3 +212,29 @@ def test_closed_loop_recorded_margin_peaks_at_the_summarys(request, run) -> None
 def test_closed_loop_ct_records_no_margin(ct_passive) -> None:
     assert not ct_passive.signals["cuff_bound_margin"].any()
     assert ct_passive.summary()["cuff_bound_margin_N"] is None
+
+
+def test_closed_loop_without_load_cells_the_bound_holds_with_a_wider_margin(
+    qp_spastic, qp_spastic_unsensed
+) -> None:
+    """No cuff sensors: the margin covers the unknown cuff stiffness, the bound still holds."""
+    peak = peak_force(qp_spastic_unsensed)
+    sensed = qp_spastic.summary()["cuff_bound_margin_N"]
+    unsensed = qp_spastic_unsensed.summary()["cuff_bound_margin_N"]
+    print(
+        f"\n{describe('qp spastic, no cuff sensors', qp_spastic_unsensed)}\n"
+        f"margin without cells {unsensed}\nwith {sensed}"
+    )
+    assert qp_spastic_unsensed.status == "completed"
+    assert peak.max() <= F_SPASTIC * (1.0 + BOUND_TOLERANCE)
+    for name in ("left_thigh", "right_thigh"):
+        assert unsensed[name] > sensed[name] + UNSENSED_EXTRA_N
+    # The run said before it started that the QP would leave the plan.
+    assert any("the QP will leave the plan" in w for w in qp_spastic_unsensed.warnings)
+    assert not any("--cuff-sensors normal" in w for w in qp_spastic.warnings)
+
+
+def test_closed_loop_a_tight_bound_without_load_cells_is_refused() -> None:
+    """F_TIGHT runs with load cells; without them its margin leaves less than the working force."""
+    with pytest.raises(CuffBoundTooTight):
+        _run(controller="qp", cuff_force_limit_N=F_TIGHT)

@@ -24,6 +24,7 @@ from scipy.optimize import LinearConstraint, linprog, minimize
 from exo_ctrl.control import ComputedTorqueController, SensorReadings
 from exo_ctrl.control.qp import (
     CuffHorizonModel,
+    CuffKnowledge,
     QPController,
 )
 from exo_ctrl.exceptions import InvalidParameter
@@ -426,8 +427,13 @@ def test_construction_checks_its_arguments(exo, patient, motor, plan) -> None:
 
 
 def test_runs_with_the_human_patient(exo, human, motor, plan, near_plan, octagon) -> None:
-    """example-robot-data's human (other link lengths, added cuff frames) is usable."""
-    ctrl = QPController(plan, exo, human, motor, cuff_force_limit_N=100.0)
+    """example-robot-data's human (other link lengths, added cuff frames) is usable.
+
+    With load cells in the cuffs: without them the margin for the patient's
+    unknown cuff stiffness leaves 100 N less than this patient's working force.
+    """
+    knowledge = CuffKnowledge(sensors="normal")
+    ctrl = QPController(plan, exo, human, motor, cuff_force_limit_N=100.0, cuff_knowledge=knowledge)
     rng = np.random.default_rng(8)
     radius = ctrl.record["radius"][0]  # (F_max − m_c) cos(π/8), tightened by the margin
     for k in range(0, 1200, 97):

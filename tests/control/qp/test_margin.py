@@ -6,38 +6,181 @@ user's bound (test_closed_loop.py, test_load_held.py); here the mechanism.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from exo_ctrl import cli
 from exo_ctrl.control.qp import QPController
-from exo_ctrl.control.qp.margin import PREDICTION_ERROR_N
+from exo_ctrl.control.qp.margin import (
+    PREDICTION_ERROR_N,
+    BoundMargin,
+    CuffKnowledge,
+    departure_warning,
+    link_normals,
+    share_matrices,
+    unobserved,
+)
+from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.estimation.kalman import CuffForceKalman
-from exo_ctrl.exceptions import CuffBoundTooTight
+from exo_ctrl.exceptions import CuffBoundTooTight, InvalidParameter
 from exo_ctrl.plant import CuffParams
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
 
 
+def _margin(exo, patient, motor, plan, cuffs=None, **knowledge) -> BoundMargin:
+    """The margin of a QP on the default gait with a 150 N bound."""
+    return QPController(
+        plan,
+        exo,
+        patient,
+        motor,
+        cuffs=cuffs or CuffParams(),
+        cuff_knowledge=CuffKnowledge(**knowledge),
+    ).margin
+
+
 def test_margin_terms_on_the_default_gait(exo, patient, motor, plan) -> None:
-    published = QPController(plan, exo, patient, motor, cuffs=CuffParams()).margin
-    isotropic = QPController(plan, exo, patient, motor, cuffs=CuffParams.isotropic()).margin
+    exact = _margin(exo, patient, motor, plan, spread_rel=0.0)
+    isotropic = _margin(exo, patient, motor, plan, CuffParams.isotropic(), spread_rel=0.0)
+    default = _margin(exo, patient, motor, plan)
     print(
-        f"\npublished cuffs: patient {published.patient_N.round(1)}, working "
-        f"{published.working_N.round(1)}; isotropic: cuffs {isotropic.cuffs_N.round(1)} N"
+        f"\nexact cuffs: patient {exact.patient_N.round(1)}, working "
+        f"{exact.working_N.round(1)}; isotropic model: cuffs {isotropic.cuffs_N.round(1)} N; "
+        f"scattered cuffs: {default.cuffs_N.round(1)} N"
     )
-    np.testing.assert_array_equal(published.prediction_N, PREDICTION_ERROR_N)
-    np.testing.assert_array_equal(published.cuffs_N, 0.0)  # the device holds the published cuffs
-    assert np.all(published.patient_N > 0.0) and np.all(published.working_N > 0.0)
-    # The isotropic model shares the hip's load otherwise than the published cuffs.
+    np.testing.assert_array_equal(exact.prediction_N, PREDICTION_ERROR_N)
+    # The device holds the true cuffs exactly: nothing to cover.
+    np.testing.assert_allclose(exact.cuffs_N, 0.0, atol=1e-9)
+    assert np.all(exact.patient_N > 0.0) and np.all(exact.working_N > 0.0)
+    # The isotropic model shares the hip's load otherwise than the true cuffs.
     assert np.all(isotropic.cuffs_N > 10.0)
-    total = published.prediction_N + published.patient_N + published.cuffs_N
-    np.testing.assert_allclose(published.static_N, total + published.estimate_N)
+    # The patient's cuffs scatter by 20 %: the split of a load is not known.
+    assert np.all(default.cuffs_N > 20.0)
+    np.testing.assert_allclose(default.patient_N, exact.patient_N)
+    total = exact.prediction_N + exact.patient_N + exact.cuffs_N
+    np.testing.assert_allclose(exact.static_N, total + exact.estimate_N)
+    # The whole load the plan puts on a cuff is above its gravity share.
+    assert np.all(default.load_N >= default.working_N)
+
+
+def _scaled(cuffs: CuffParams, f_n: float, f_u: float) -> CuffParams:
+    return dataclasses.replace(
+        cuffs,
+        stiffness_N_per_m=f_n * cuffs.stiffness_N_per_m,
+        shear_stiffness_N_per_m=f_u * cuffs.shear_stiffness_N_per_m,
+    )
+
+
+def test_every_cuff_model_carries_the_load_the_torques_see(exo, patient, motor, plan) -> None:
+    """Jᵀ D = −I for any stiffness; D depends on the ratio k_n/k_u only."""
+    k = 400
+    shares = {}
+    for f_n, f_u in ((1.0, 1.0), (1.4, 0.6), (0.6, 1.4), (2.0, 2.0)):
+        model = CuffHorizonModel(exo, patient, motor, _scaled(CuffParams(), f_n, f_u), 1e-3)
+        model.linearise(plan.q[k], plan.dq[k])
+        share = share_matrices(model, model.split)
+        for leg in range(2):
+            np.testing.assert_allclose(model.jac[leg].T @ share[leg], -np.eye(2), atol=1e-12)
+        shares[(f_n, f_u)] = share
+    np.testing.assert_allclose(shares[(2.0, 2.0)], shares[(1.0, 1.0)], rtol=1e-12)
+    assert np.abs(shares[(1.4, 0.6)] - shares[(0.6, 1.4)]).max() > 1e-3
+
+
+def test_normal_load_cells_leave_only_the_thighs_along_direction(exo, patient, motor, plan) -> None:
+    """U = I − H⁺H against the thigh's direction from Pinocchio's joint placements."""
+    model = CuffHorizonModel(exo, patient, motor, CuffParams(), 1e-3)
+    data = exo.model.createData()
+    for k in (0, 300, 700):
+        q = plan.q[k]
+        model.linearise(q, plan.dq[k])
+        normals = link_normals(model, q)
+        q_model = pin.neutral(exo.model)
+        q_model[exo.q_index] = q
+        pin.forwardKinematics(exo.model, data, q_model)
+        for leg, side in enumerate(("left", "right")):
+            hip = data.oMi[exo.model.getJointId(f"{side}_hip")].translation
+            knee = data.oMi[exo.model.getJointId(f"{side}_knee")].translation
+            along = (knee - hip)[[0, 2]] / np.linalg.norm((knee - hip)[[0, 2]])
+            jac, own = model.jac[leg], normals[2 * leg : 2 * leg + 2]
+            thigh_along = np.concatenate((along, np.zeros(2)))
+            cells = unobserved(jac, own, "normal")
+            np.testing.assert_allclose(cells, np.outer(thigh_along, thigh_along), atol=1e-9)
+            torques = unobserved(jac, own, "none")
+            np.testing.assert_allclose(jac.T @ torques, 0.0, atol=1e-9)
+            assert np.trace(torques) == pytest.approx(2.0)
+            np.testing.assert_array_equal(unobserved(jac, own, "full"), 0.0)
+
+
+def test_cuff_sensors_and_a_smaller_spread_shrink_the_cuff_term(exo, patient, motor, plan) -> None:
+    none = _margin(exo, patient, motor, plan)
+    normal = _margin(exo, patient, motor, plan, sensors="normal")
+    full = _margin(exo, patient, motor, plan, sensors="full")
+    narrow = _margin(exo, patient, motor, plan, spread_rel=0.1)
+    print(
+        f"\ne_cuffs none {none.cuffs_N.round(2)}, normal {normal.cuffs_N.round(2)}, "
+        f"spread 0.1 {narrow.cuffs_N.round(2)} N"
+    )
+    np.testing.assert_array_equal(full.cuffs_N, 0.0)
+    # The estimate's error from the cuffs' split has no thigh-along part.
+    np.testing.assert_allclose(normal.cuffs_N, 0.0, atol=1e-6)
+    assert np.all(narrow.cuffs_N < none.cuffs_N)
+    assert np.all(narrow.cuffs_N > 0.0)
+    np.testing.assert_allclose(normal.patient_N, none.patient_N)
+
+
+def test_departure_warning_names_the_load_and_the_cuff_sensors() -> None:
+    four = np.ones(4)
+    margin = BoundMargin(
+        5.5 * four,
+        four,
+        np.array([30.0, 1.0, 1.0, 1.0]),
+        0 * four,
+        40 * four,
+        np.array([110.0, 60.0, 60.0, 60.0]),
+    )
+    text = departure_warning(margin, 120.0, "none")
+    assert text == (
+        "the QP will leave the plan to hold cuff_force_limit 120 N: the gait loads the "
+        "left_thigh cuff with up to 110 N, and the margin 36.5 N leaves 83.5 N (30.0 N of "
+        "it for the patient's unknown cuff stiffness: cuff sensors, --cuff-sensors normal, "
+        "remove that part)"
+    )
+    assert departure_warning(margin, 120.0, "normal").endswith("leaves 83.5 N")
+    assert departure_warning(margin, 150.0, "none") is None
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"spread_rel": 0.5}, "cuff knowledge spread_rel must be in [0, 0.45]; got 0.5"),
+        (
+            {"sensors": "both"},
+            "cuff knowledge sensors must be one of none, normal, full; got 'both'",
+        ),
+        ({"published": 8000.0}, "cuff knowledge published must be a CuffParams; got 8000.0"),
+    ],
+)
+def test_cuff_knowledge_refuses_bad_values(kwargs, message) -> None:
+    with pytest.raises(InvalidParameter) as info:
+        CuffKnowledge(**kwargs)
+    assert str(info.value) == message
 
 
 def test_a_bound_the_margin_cannot_hold_is_refused(exo, patient, motor, plan) -> None:
     with pytest.raises(CuffBoundTooTight) as info:
-        QPController(plan, exo, patient, motor, cuffs=CuffParams(), cuff_force_limit_N=50.0)
+        QPController(
+            plan,
+            exo,
+            patient,
+            motor,
+            cuffs=CuffParams(),
+            cuff_force_limit_N=50.0,
+            cuff_knowledge=CuffKnowledge(spread_rel=0.0),
+        )
     err = info.value
     assert err.bound_N == 50.0 and err.margin_N > PREDICTION_ERROR_N
     assert err.bound_N - err.margin_N < err.working_N
