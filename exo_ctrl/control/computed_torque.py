@@ -124,7 +124,19 @@ class ComputedTorqueController(PDController):
 
 
 class Feedforward:
-    """τ_ff and U_ff of the module docstring, row by row, allocated once."""
+    """τ_ff [N·m] and U_ff [V] of the module docstring, row by row, allocated once.
+
+    Args:
+        exo: the exoskeleton model the controller believes in.
+        patient: the patient model (None: the exoskeleton alone).
+        motor: the drive model (its reflected rotor inertia and the voltage law).
+        stance_load: the stance legs' load (None: the pelvis fixed, no load).
+        lift_off_blend_s: T_b of :mod:`exo_ctrl.control.lift_off` [s] (0: none).
+
+    Raises:
+        InvalidParameter: a negative or non-finite ``lift_off_blend_s``.
+
+    """
 
     def __init__(
         self,

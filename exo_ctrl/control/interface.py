@@ -26,6 +26,11 @@ arguments when the run starts.  A run's summary and recording name the
 controller by that ``module:Class`` path
 (:func:`~exo_ctrl.control.plugin.controller_name`).
 
+The built-in PD and CT are classes on this interface
+(:class:`~exo_ctrl.control.builtin.PD`, :class:`~exo_ctrl.control.builtin.CT`,
+:mod:`exo_ctrl.control.builtin`): subclass them to change their command
+through ``super().command(...)``.
+
 Example (a joint PD in volts, equal to the built-in ``pd``)::
 
     class MyPD(Controller):

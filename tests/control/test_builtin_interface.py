@@ -4,12 +4,15 @@ Real runs, no mocks: ``SimConfig(controller=PD())`` runs the compiled tick
 ``"pd"`` runs and logs the same bits (likewise CT and ``"ct"``, and a PD's
 own gains against the configuration's); a subclass that overrides
 ``command`` and calls ``super().command(...)`` runs through the Python
-adapter and matches the built-in within 1e-9 rad; bad gains are refused
+adapter and matches the built-in within 1e-9 rad (on the synchronised
+plan too); bad gains are refused
 when the object is built, with the message naming the gain, the value and
 what is allowed.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -25,6 +28,7 @@ from exo_ctrl.control import (
     PluginController,
 )
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter
+from exo_ctrl.scenario import load_scenario
 from exo_ctrl.sim.setup import build
 
 #: A short run on the belt [s]: ramp-in and the first steps.
@@ -190,3 +194,21 @@ def test_pd_and_ct_are_controllers_with_voltage_commands() -> None:
         assert cls.command_kind == "voltage"
     # a PD object is a built-in: the interaction modes take it, as they take "pd"
     assert SimConfig(controller=PD(), mode="guidance").mode == "guidance"
+
+
+def test_a_ct_subclass_on_the_synchronised_plan_matches_the_built_in() -> None:
+    # the paper preset: the belt and the plan generated each tick (one row rewritten)
+    base = dataclasses.replace(load_scenario(preset="paper").config, duration_s=0.6)
+    assert base.synced
+    named = simulate(dataclasses.replace(base, controller="ct"))
+    mine = simulate(dataclasses.replace(base, controller=CountingCT()))
+    assert named.status == mine.status == "completed"
+    assert _max_difference(mine, named, "q") <= 1e-9  # [rad]
+    assert _max_difference(mine, named, "voltage_cmd") <= 1e-9  # [V]
+
+
+def test_a_pd_object_in_guidance_mode_equals_pd_bit_for_bit() -> None:
+    named = _run("pd", mode="guidance")
+    obj = _run(PD(), mode="guidance")
+    for name in SIGNALS:
+        assert np.array_equal(named.signals[name], obj.signals[name]), name
