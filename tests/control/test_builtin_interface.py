@@ -30,6 +30,7 @@ from exo_ctrl.control import (
 from exo_ctrl.exceptions import ExoCtrlError, InvalidParameter
 from exo_ctrl.scenario import load_scenario
 from exo_ctrl.sim.setup import build
+from exo_ctrl.sweep import SweepSpec, config_for
 
 #: A short run on the belt [s]: ramp-in and the first steps.
 DURATION_S = 0.5
@@ -212,3 +213,19 @@ def test_a_pd_object_in_guidance_mode_equals_pd_bit_for_bit() -> None:
     obj = _run(PD(), mode="guidance")
     for name in SIGNALS:
         assert np.array_equal(named.signals[name], obj.signals[name]), name
+
+
+@pytest.mark.parametrize(
+    ("param", "controller", "gains"),
+    [
+        ("kd=3", "pd", PDGains(kp=250.0, kd=3.0)),
+        ("controller=ct", "ct", PDGains(kp=250.0, kd=4.0)),
+    ],
+)
+def test_a_sweep_from_a_pd_object_starts_from_its_gains(tmp_path, param, controller, gains):
+    base = SimConfig(controller=PD(kp=250.0, kd=4.0))
+    (task,) = SweepSpec.parse([param], duration_s=0.4, base=base).tasks()
+    config = config_for(base, task.values, str(tmp_path))
+    assert (config.controller, config.gains) == (controller, gains)
+    assert task.run["controller"] == controller
+    assert task.run["gains"] == {"kp": gains.kp, "kd": gains.kd}
