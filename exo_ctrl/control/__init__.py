@@ -3,6 +3,8 @@
 - :mod:`~exo_ctrl.control.interface`: the public interface a user's
   controller implements (:class:`Controller`, given :class:`Device` once and
   a :class:`PlanRow` each tick; voltages or torques out).
+- :mod:`~exo_ctrl.control.builtin`: the built-in PD and CT as public
+  Controller classes (:class:`PD`, :class:`CT`; gains in, compiled law inside).
 - :mod:`~exo_ctrl.control.plugin`: a user's controller in the run (its name,
   its import from ``module:Class``, the tick's adapter).
 - :mod:`~exo_ctrl.control.current_loop`: the driver's current loop that
@@ -17,6 +19,7 @@
 
 from ..sensing.readings import SensorReadings
 from .base import COMMAND_FIELDS, PDGains, TickController
+from .builtin import CT, PD
 from .computed_torque import ComputedTorqueController, feedforward_torque
 from .current_loop import CURRENT_LOOP_BANDWIDTH_HZ, CurrentLoop
 from .interface import COMMAND_KINDS, Controller, Device, PlanRow
@@ -27,7 +30,9 @@ from .qp import QPController, TorqueQP
 __all__ = [
     "COMMAND_FIELDS",
     "COMMAND_KINDS",
+    "CT",
     "CURRENT_LOOP_BANDWIDTH_HZ",
+    "PD",
     "ComputedTorqueController",
     "Controller",
     "CurrentLoop",

@@ -42,7 +42,7 @@ from .lift_off import LIFT_OFF_BLEND_S, blend_lift_off
 from .pd import PDController
 from .stance_load import StanceLoad, stance_load_record, stance_load_torque
 
-__all__ = ["ComputedTorqueController", "feedforward_torque"]
+__all__ = ["ComputedTorqueController", "Feedforward", "feedforward_torque"]
 
 
 class ComputedTorqueController(PDController):
@@ -83,7 +83,7 @@ class ComputedTorqueController(PDController):
         super().__init__(plan, gains)
         # The feedforward depends on the plan only: tabulated once per plan row
         # (the ramps and one gait period for a periodic plan), looked up per tick.
-        self._ff = _Feedforward(exo, patient, motor, stance_load, lift_off_blend_s)
+        self._ff = Feedforward(exo, patient, motor, stance_load, lift_off_blend_s)
         self._torque_ff, self._u_ff = self._ff.tables(plan)
 
     def refresh_row(self, row: int = 0) -> None:
@@ -123,8 +123,20 @@ class ComputedTorqueController(PDController):
         return view
 
 
-class _Feedforward:
-    """τ_ff and U_ff of the module docstring, row by row, allocated once."""
+class Feedforward:
+    """τ_ff [N·m] and U_ff [V] of the module docstring, row by row, allocated once.
+
+    Args:
+        exo: the exoskeleton model the controller believes in.
+        patient: the patient model (None: the exoskeleton alone).
+        motor: the drive model (its reflected rotor inertia and the voltage law).
+        stance_load: the stance legs' load (None: the pelvis fixed, no load).
+        lift_off_blend_s: T_b of :mod:`exo_ctrl.control.lift_off` [s] (0: none).
+
+    Raises:
+        InvalidParameter: a negative or non-finite ``lift_off_blend_s``.
+
+    """
 
     def __init__(
         self,
@@ -203,7 +215,7 @@ def feedforward_torque(
 
     ``lift_off_blend_s``: T_b of :mod:`exo_ctrl.control.lift_off` [s] (0: none).
     """
-    return _Feedforward(exo, patient, motor, None, lift_off_blend_s).tables(plan, rows)[0]
+    return Feedforward(exo, patient, motor, None, lift_off_blend_s).tables(plan, rows)[0]
 
 
 @kernel

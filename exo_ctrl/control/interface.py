@@ -26,6 +26,11 @@ arguments when the run starts.  A run's summary and recording name the
 controller by that ``module:Class`` path
 (:func:`~exo_ctrl.control.plugin.controller_name`).
 
+The built-in PD and CT are classes on this interface
+(:class:`~exo_ctrl.control.builtin.PD`, :class:`~exo_ctrl.control.builtin.CT`,
+:mod:`exo_ctrl.control.builtin`): subclass them to change their command
+through ``super().command(...)``.
+
 Example (a joint PD in volts, equal to the built-in ``pd``)::
 
     class MyPD(Controller):
@@ -51,6 +56,7 @@ from ..model import BodyModel
 from ..plan.kinematics import JointTrajectory
 from ..plant.drive import MotorParams
 from ..sensing.readings import SensorReadings
+from .stance_load import StanceLoad
 
 __all__ = ["COMMAND_KINDS", "Controller", "Device", "PlanRow"]
 
@@ -77,6 +83,13 @@ class Device:
         motor: the drive's datasheet (``supply_voltage_V``,
             ``current_limit_A``, ``torque_per_amp_Nm_per_A``, ...).
         dt_s: the control period Δt [s].
+        stance_load: what the device knows of the weight its stance legs
+            carry with the pelvis on its guide (moving mass [kg], support
+            [N], gravity [m/s²]; :mod:`exo_ctrl.control.stance_load`); None:
+            the pelvis fixed, no load.
+        lift_off_blend_s: T_b, the time over which the built-in CT blends in
+            the swing leg's planned acceleration after lift-off [s]
+            (:mod:`exo_ctrl.control.lift_off`; 0 without the belt).
 
     """
 
@@ -85,6 +98,8 @@ class Device:
     plan: JointTrajectory
     motor: MotorParams
     dt_s: float
+    stance_load: StanceLoad | None = None
+    lift_off_blend_s: float = 0.0
 
 
 @dataclass

@@ -1,9 +1,12 @@
 """A user's controller in the run: its name, its import and the tick's adapter.
 
 A run's ``controller`` is a built-in name (``"pd"``, ``"ct"``, ``"qp"``,
-whose compiled controllers the run builds as before), a
+whose compiled controllers the run builds), a
 :class:`~exo_ctrl.control.interface.Controller` object, or the import path
-``"module:Class"`` of a Controller subclass built with no arguments.
+``"module:Class"`` of a Controller subclass built with no arguments.  An
+object of exactly :class:`~exo_ctrl.control.builtin.PD` or
+:class:`~exo_ctrl.control.builtin.CT` is not a user's: it runs, and is
+named, as its built-in name (:mod:`exo_ctrl.control.builtin`).
 :func:`check_controller` judges the value when the configuration is made
 (an object's type and command kind; a path's form only, so that a
 recording of a user's run can be read where the user's code is not
@@ -32,7 +35,8 @@ from .._plugin import is_path, load_plugin, plugin_name
 from ..exceptions import InvalidParameter, PluginError
 from ..plan.rows import plan_row
 from ..sensing.readings import SensorReadings
-from .base import COMMAND_FIELDS, CommandCounters
+from .base import COMMAND_FIELDS, CommandCounters, PDGains
+from .builtin import BUILT_IN_CLASSES, built_in, built_in_name
 from .current_loop import CurrentLoop
 from .interface import COMMAND_KINDS, Controller, Device, PlanRow
 
@@ -66,15 +70,17 @@ PLUGIN_FIELDS: list[tuple[Any, ...]] = [
 def controller_name(controller: str | Controller) -> str:
     """The name a summary and a recording give a run's controller.
 
-    A built-in name or an import path as given; an object: its class's
+    A built-in name or an import path as given; an object of exactly
+    :class:`~exo_ctrl.control.builtin.PD` or ``CT``: its built-in name
+    (``"pd"``, ``"ct"``); any other object: its class's
     ``module:QualifiedName``.
     """
-    return plugin_name(controller)
+    return built_in_name(controller) or plugin_name(controller)
 
 
 def is_plugin(controller: str | Controller, built_in: tuple[str, ...]) -> bool:
-    """Whether a run's ``controller`` is a user's (not one of the ``built_in`` names)."""
-    return not (isinstance(controller, str) and controller in built_in)
+    """Whether a run's ``controller`` is a user's: no ``built_in`` name, PD or CT object."""
+    return controller_name(controller) not in built_in
 
 
 def check_controller(controller: object, built_in: tuple[str, ...]) -> None:
@@ -107,8 +113,11 @@ def check_controller(controller: object, built_in: tuple[str, ...]) -> None:
     raise InvalidParameter("controller", controller, ALLOWED, detail)
 
 
-def load_controller(controller: str | Controller) -> Controller:
-    """The user's controller of a run: the object itself, or the path's class built.
+def load_controller(controller: str | Controller, gains: PDGains | None = None) -> Controller:
+    """The controller object of a run: the object itself, or the name's or the path's class built.
+
+    A built-in name with a class (:data:`~exo_ctrl.control.builtin.BUILT_IN_CLASSES`:
+    ``"pd"``, ``"ct"``) gives that class with ``gains`` (None: the defaults).
 
     Raises:
         InvalidParameter: the module cannot be imported, has no such class,
@@ -120,6 +129,8 @@ def load_controller(controller: str | Controller) -> Controller:
     """
     if isinstance(controller, Controller):
         return controller
+    if controller in BUILT_IN_CLASSES:
+        return built_in(controller, gains or PDGains())
     user = load_plugin(controller, Controller, "controller", ALLOWED)
     _check_kind(type(user))
     return user

@@ -126,8 +126,8 @@ class TreadmillEnv(gym.Env):
         if duration_s is not None:
             duration_s = v.positive("duration_s", duration_s, "s")
             config = dataclasses.replace(config, duration_s=duration_s)
-        if action == "residual" and config.controller not in CONTROLLERS:
-            name = controller_name(config.controller)
+        name = controller_name(config.controller)  # a PD or CT object: "pd", "ct"
+        if action == "residual" and name not in CONTROLLERS:
             raise InvalidParameter("the scenario's controller", name, RESIDUAL_ON)
         self.ticks_per_step = _ticks_per_step(control_rate, config.control_rate_hz)
         if reward_weights is None:

@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from .. import _validate as v
-from ..control import Controller, PDGains, controller_name
+from ..control import PD, Controller, PDGains, controller_name
 from ..control.modes import ModeParams, PathParams
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS, Estimator, estimator_name
@@ -480,4 +480,5 @@ class SimConfig:
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (JSON-able), for summaries and recordings (a user's controller named)."""
         names = controller_name(self.controller), estimator_name(self.estimator)
-        return asdict(named_copy(self, controller=names[0], estimator=names[1]))
+        gains = self.controller.gains if isinstance(self.controller, PD) else self.gains
+        return asdict(named_copy(self, controller=names[0], estimator=names[1], gains=gains))

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from .. import _validate as v
+from ..control import PD, PDGains
 from ..control.modes import MODES
 from ..control.plugin import check_controller as check_plugin
 from ..control.plugin import is_plugin
@@ -62,8 +63,18 @@ def check_controller(config: Any, built_in: tuple[str, ...]) -> None:
     A user's controller (:mod:`exo_ctrl.control.plugin`) runs in the tracking
     mode without a session: the modes and a session's segments build the
     built-in controllers.
+
+    A :class:`~exo_ctrl.control.PD` or ``CT`` object carries its gains:
+    ``gains`` is then left at its default.
     """
     check_plugin(config.controller, built_in)
+    if isinstance(config.controller, PD) and config.gains != PDGains():
+        raise InvalidParameter(
+            "gains",
+            config.gains,
+            "the default PDGains() with a PD or CT object",
+            f"the object carries its gains: {config.controller!r}",
+        )
     if is_plugin(config.controller, built_in):
         _tracking_only(config, "controller")
 

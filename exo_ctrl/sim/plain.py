@@ -35,11 +35,12 @@ def field_types(cls: type) -> dict[str, Any]:
         return {}
 
 
-def named_copy(obj: Any, **names: str) -> Any:
+def named_copy(obj: Any, **names: Any) -> Any:
     """A shallow copy of a frozen dataclass with fields set to names, its checks not run.
 
     For the plain form of a configuration holding a user's objects (a
-    controller, an estimator): each by its ``module:Class`` name.
+    controller, an estimator): each by its ``module:Class`` name (and
+    whatever else stands in for an object: a PD's gains).
     """
     plain = copy.copy(obj)
     for name, value in names.items():

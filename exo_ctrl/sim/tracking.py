@@ -8,15 +8,10 @@ leave a belt (the lift-off blend).
 
 from __future__ import annotations
 
-from ..control import (
-    ComputedTorqueController,
-    Device,
-    PDController,
-    PluginController,
-    QPController,
-)
+from ..control import Device, PDController, PluginController, QPController
+from ..control.builtin import compiled_type
 from ..control.lift_off import LIFT_OFF_BLEND_S
-from ..control.plugin import is_plugin, load_controller
+from ..control.plugin import load_controller
 from ..control.qp import CuffKnowledge
 from ..control.stance_load import StanceLoad
 from ..estimation import Estimator
@@ -24,7 +19,7 @@ from ..model import BodyModel
 from ..plan import JointTrajectory
 from ..plant import MotorParams
 from ..plant.pelvis import moving_mass_kg
-from .config import CONTROLLERS, SimConfig
+from .config import SimConfig
 
 __all__ = ["lift_off_blend_for", "stance_load_for", "tracking_controller"]
 
@@ -42,22 +37,13 @@ def tracking_controller(
     With a user's estimator the QP takes its estimate as the momentum
     observer's, a first-order lag at the class's ``bandwidth_per_s``.
 
-    A user's controller (:mod:`exo_ctrl.control.plugin`) is imported if given
-    by its path, and set up with what the device knows.
+    ``"pd"`` and ``"ct"`` are the classes :class:`~exo_ctrl.control.PD` and
+    :class:`~exo_ctrl.control.CT` with ``config.gains``; an object of exactly
+    one of these classes runs, with its own gains, the compiled tick
+    controller its name runs (:mod:`exo_ctrl.control.builtin`).  Any other
+    controller (:mod:`exo_ctrl.control.plugin`; a path is imported) is set
+    up with what the device knows and called through the Python adapter.
     """
-    if is_plugin(config.controller, CONTROLLERS):
-        device = Device(model_exo, model_patient, plan, model_motor, config.dt)
-        return PluginController(load_controller(config.controller), device)  # type: ignore[return-value]
-    if config.controller == "ct":
-        return ComputedTorqueController(
-            plan,
-            model_exo,
-            model_patient,
-            model_motor,
-            config.gains,
-            stance_load=stance_load_for(config, model_exo),
-            lift_off_blend_s=lift_off_blend_for(config),
-        )
     if config.controller == "qp":
         gain = config.observer_gain_per_s
         if user_estimator is not None:
@@ -82,7 +68,19 @@ def tracking_controller(
                 config.cuffs, config.belief.cuff_spread(), config.cuff_sensors.mode
             ),
         )
-    return PDController(plan, config.gains)
+    device = Device(
+        model_exo,
+        model_patient,
+        plan,
+        model_motor,
+        config.dt,
+        stance_load=stance_load_for(config, model_exo),
+        lift_off_blend_s=lift_off_blend_for(config),
+    )
+    controller = load_controller(config.controller, config.gains)
+    if compiled_type(controller):
+        return controller.compiled(device)  # type: ignore[attr-defined]
+    return PluginController(controller, device)  # type: ignore[return-value]
 
 
 def _gait_words(config: SimConfig) -> str:

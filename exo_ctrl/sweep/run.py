@@ -31,6 +31,7 @@ from .._io import DerivedOutput
 from .._lifetime import die_with_parent
 from .._progress import Progress
 from ..control import controller_name
+from ..control.builtin import built_in_name
 from ..exceptions import ExoCtrlError, InvalidParameter, SweepError
 from ..model import BodyParams, urdf_xml, write_urdf
 from ..sim import SimConfig, simulate
@@ -116,12 +117,18 @@ def config_for(base: SimConfig, values: dict[str, Any], cache_dir: str) -> SimCo
     """The :class:`SimConfig` of a run: ``base`` with ``values`` (:meth:`SweepSpec.resolve`).
 
     Generates the patient's (the exoskeleton's) URDF into ``cache_dir`` when
-    patient (exo) values differ from the default's.
+    patient (exo) values differ from the default's.  A base holding a
+    :class:`~exo_ctrl.control.PD` or ``CT`` object is its name with the
+    object's gains (so that a sweep of the gains, or of the controller,
+    starts from them).
 
     Raises:
         ExoCtrlError: a value or combination the library rejects.
 
     """
+    name = built_in_name(base.controller)
+    if name is not None:
+        base = dataclasses.replace(base, controller=name, gains=base.controller.gains)
     groups: dict[str, dict[str, Any]] = {
         "gait": {},
         "patient": {},
