@@ -56,18 +56,20 @@ each term an absolute force [N]:
   (1 + 2s, 1 − 2s) and (1 − 2s, 1 + 2s), bound every patient's split.  The
   estimate sees the load the joint torques see (Jᵀ f = −s, for every
   model: Jᵀ D = −I), so the model's error (D^{model} − D^{true}) s_n lies
-  in null(Jᵀ), where the torques never see it; the cuff sensors see some
-  of it (normal load cells: each cuff's normal component; 2-axis sensors:
-  all of it).  What is left is its part in the unobserved subspace,
-  U = I − H⁺H with H the rows the device measures (Jᵀ, and the sensors'
-  directions n_c or the identity), per leg:
+  in null(Jᵀ), where the torques never see it.  The cuff sensors see some of
+  it: the Kalman filter corrects each measured component by a model-error
+  force of its own, added to the estimate (:mod:`exo_ctrl.estimation.kalman_cuff`),
+  so a measured component loses the model's error and the others keep it.
+  What is left is U (D^{model} − D^{true}) s_n, per leg, U the projector
+  onto the components not measured (:func:`unobserved`: no sensors I;
+  normal load cells I − n_c n_cᵀ per cuff, the along-link components
+  left; 2-axis sensors 0), so
   e_cuffs,c = max over t and the two extremes of ‖(U (D^{model} − D^{true}) s_n)_c‖,
   s_n(t) = Y(t) π_nominal the nominal patient's load along the plan.  With
-  the defaults (s = 0.20, no cuff sensors) about 39 N on the thighs and
-  35 N on the shanks on the default gait; 0 with 2-axis sensors, and with
-  normal load cells 0 too (only the thigh's along-link component is left
-  unobserved, which the hip's load does not load: the cuff sits on the
-  thigh's axis);
+  the defaults (s = 0.20) on the default gait: no cuff sensors, about 39 N
+  on the thighs and 35 N on the shanks; normal load cells, 0 on the thighs
+  (the thigh cuff sits on the thigh's axis: the hip's load does not load it
+  along the thigh) and the shanks' along-link part; 2-axis sensors, 0;
 - **the estimate's own uncertainty** e_est,c(t), per tick: with the
   Kalman filter (:mod:`exo_ctrl.estimation.kalman`) :data:`ESTIMATE_SIGMAS`
   times σ_c, the square root of the largest eigenvalue of cuff c's force
@@ -148,8 +150,6 @@ SCAN_STRIDE = 2
 SENSOR_SETS = ("none", "normal", "full")
 #: e_cuffs from which the departure warning names the cuff sensors [N].
 UNKNOWN_CUFFS_NOTED_N = 0.5
-#: Relative singular-value cut-off of the measured rows' pseudo-inverse [-].
-RANK_RCOND = 1e-9
 
 
 @dataclass(frozen=True)
@@ -269,27 +269,24 @@ def link_normals(model: CuffHorizonModel, q: np.ndarray) -> np.ndarray:
     return np.stack((-uz, ux), axis=1)
 
 
-def unobserved(jac: np.ndarray, normals: np.ndarray, sensors: str) -> np.ndarray:
-    """U = I − H⁺H, the projector onto the cuff forces a leg's device does not measure, (4, 4).
+def unobserved(normals: np.ndarray, sensors: str) -> np.ndarray:
+    """U, the projector onto the cuff-force components a leg's sensors do not measure, (4, 4).
+
+    Rows and columns thigh x, z, shank x, z (module docstring, e_cuffs).
 
     Args:
-        jac: the leg's cuff Jacobian J (4, 2): rows thigh x, z, shank x, z;
-            the joint torques measure Jᵀ f.
-        normals: the leg's two cuffs' link normals, (2, 2) (:func:`link_normals`).
-        sensors: one of :data:`SENSOR_SETS`: ``"normal"`` adds the rows
-            n_cᵀ f_c, ``"full"`` every component (U = 0).
+        normals: the leg's two cuffs' link normals n_c, (2, 2) (:func:`link_normals`).
+        sensors: one of :data:`SENSOR_SETS`: ``"none"`` I, ``"normal"``
+            I − n_c n_cᵀ per cuff, ``"full"`` 0.
 
     """
     if sensors == "full":
         return np.zeros((4, 4))
-    rows = [jac.T]
+    out = np.eye(4)
     if sensors == "normal":
-        cells = np.zeros((2, 4))
-        cells[0, 0:2] = normals[0]
-        cells[1, 2:4] = normals[1]
-        rows.append(cells)
-    h = np.vstack(rows)
-    return np.eye(4) - np.linalg.pinv(h, rcond=RANK_RCOND) @ h
+        for k in range(2):
+            out[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] -= np.outer(normals[k], normals[k])
+    return out
 
 
 def _corner_parameters(patient: BodyModel, spread: CohortSpread) -> np.ndarray:
@@ -380,10 +377,7 @@ def bound_margin(
         factors[i] = step_factors(model, model.split, t1)
         if truths:
             normals = link_normals(model, q)
-            projector = [
-                unobserved(model.jac[leg], normals[2 * leg : 2 * leg + 2], sensors)
-                for leg in range(2)
-            ]
+            projector = [unobserved(normals[2 * leg : 2 * leg + 2], sensors) for leg in range(2)]
         for k, truth in enumerate(truths):
             truth.linearise(q, dq)
             diff = shares[i] - share_matrices(truth, truth.split)
@@ -486,7 +480,8 @@ def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none"
     )
     if margin.cuffs_N[c] >= UNKNOWN_CUFFS_NOTED_N and sensors == "none":
         text += (
-            f" ({margin.cuffs_N[c]:.1f} N of it for the patient's unknown cuff stiffness: "
-            "cuff sensors, --cuff-sensors normal, remove that part)"
+            f" ({margin.cuffs_N[c]:.1f} N of it for the patient's unknown cuff stiffness, "
+            "which cuff sensors measure: --cuff-sensors full removes it, normal its part "
+            "across the link)"
         )
     return text

@@ -90,8 +90,8 @@ def test_every_cuff_model_carries_the_load_the_torques_see(exo, patient, motor, 
     assert np.abs(shares[(1.4, 0.6)] - shares[(0.6, 1.4)]).max() > 1e-3
 
 
-def test_normal_load_cells_leave_only_the_thighs_along_direction(exo, patient, motor, plan) -> None:
-    """U = I − H⁺H against the thigh's direction from Pinocchio's joint placements."""
+def test_normal_load_cells_leave_the_along_link_components(exo, patient, motor, plan) -> None:
+    """U against the links' directions from Pinocchio's joint and cuff frames."""
     model = CuffHorizonModel(exo, patient, motor, CuffParams(), 1e-3)
     data = exo.model.createData()
     for k in (0, 300, 700):
@@ -100,19 +100,21 @@ def test_normal_load_cells_leave_only_the_thighs_along_direction(exo, patient, m
         normals = link_normals(model, q)
         q_model = pin.neutral(exo.model)
         q_model[exo.q_index] = q
-        pin.forwardKinematics(exo.model, data, q_model)
+        pin.framesForwardKinematics(exo.model, data, q_model)
         for leg, side in enumerate(("left", "right")):
-            hip = data.oMi[exo.model.getJointId(f"{side}_hip")].translation
-            knee = data.oMi[exo.model.getJointId(f"{side}_knee")].translation
-            along = (knee - hip)[[0, 2]] / np.linalg.norm((knee - hip)[[0, 2]])
-            jac, own = model.jac[leg], normals[2 * leg : 2 * leg + 2]
-            thigh_along = np.concatenate((along, np.zeros(2)))
-            cells = unobserved(jac, own, "normal")
-            np.testing.assert_allclose(cells, np.outer(thigh_along, thigh_along), atol=1e-9)
-            torques = unobserved(jac, own, "none")
-            np.testing.assert_allclose(jac.T @ torques, 0.0, atol=1e-9)
-            assert np.trace(torques) == pytest.approx(2.0)
-            np.testing.assert_array_equal(unobserved(jac, own, "full"), 0.0)
+
+            def at(frame: str) -> np.ndarray:
+                return data.oMf[exo.model.getFrameId(frame)].translation[[0, 2]]
+
+            thigh = at(f"{side}_knee") - at(f"{side}_hip")
+            shank = at(f"{side}_shank_cuff") - at(f"{side}_knee")
+            along = np.zeros((4, 4))
+            along[:2, :2] = np.outer(thigh, thigh) / thigh.dot(thigh)
+            along[2:, 2:] = np.outer(shank, shank) / shank.dot(shank)
+            own = normals[2 * leg : 2 * leg + 2]
+            np.testing.assert_allclose(unobserved(own, "normal"), along, atol=1e-9)
+            np.testing.assert_array_equal(unobserved(own, "none"), np.eye(4))
+            np.testing.assert_array_equal(unobserved(own, "full"), 0.0)
 
 
 def test_cuff_sensors_and_a_smaller_spread_shrink_the_cuff_term(exo, patient, motor, plan) -> None:
@@ -125,8 +127,11 @@ def test_cuff_sensors_and_a_smaller_spread_shrink_the_cuff_term(exo, patient, mo
         f"spread 0.1 {narrow.cuffs_N.round(2)} N"
     )
     np.testing.assert_array_equal(full.cuffs_N, 0.0)
-    # The estimate's error from the cuffs' split has no thigh-along part.
-    np.testing.assert_allclose(normal.cuffs_N, 0.0, atol=1e-6)
+    # The thigh cuff's split error lies across the thigh: the load cell measures it all.
+    np.testing.assert_allclose(normal.cuffs_N[[0, 2]], 0.0, atol=1e-6)
+    # The shank's lies mostly along the shank, which a load cell does not measure.
+    assert np.all(normal.cuffs_N[[1, 3]] <= none.cuffs_N[[1, 3]])
+    assert np.all(normal.cuffs_N[[1, 3]] > 0.5 * none.cuffs_N[[1, 3]])
     assert np.all(narrow.cuffs_N < none.cuffs_N)
     assert np.all(narrow.cuffs_N > 0.0)
     np.testing.assert_allclose(normal.patient_N, none.patient_N)
@@ -146,8 +151,8 @@ def test_departure_warning_names_the_load_and_the_cuff_sensors() -> None:
     assert text == (
         "the QP will leave the plan to hold cuff_force_limit 120 N: the gait loads the "
         "left_thigh cuff with up to 110 N, and the margin 36.5 N leaves 83.5 N (30.0 N of "
-        "it for the patient's unknown cuff stiffness: cuff sensors, --cuff-sensors normal, "
-        "remove that part)"
+        "it for the patient's unknown cuff stiffness, which cuff sensors measure: "
+        "--cuff-sensors full removes it, normal its part across the link)"
     )
     assert departure_warning(margin, 120.0, "normal").endswith("leaves 83.5 N")
     assert departure_warning(margin, 150.0, "none") is None
