@@ -69,7 +69,8 @@ than the nominal one, cuffs other than the model's make them wrong).
 
 **Instrumented cuffs** (``cuff_sensors``): their fresh readings are fused
 after the encoders, one scalar update per axis, with a model-error force per
-measured axis added to the outputs (:mod:`.kalman_cuff`).
+measured axis added to the outputs, once the sensors are tared at the start
+(:mod:`.kalman_cuff`).
 
 **Bad readings.**  A non-finite angle skips that leg's measurement update
 (the covariance grows, the prediction carries on); a non-finite torque
@@ -205,6 +206,13 @@ _FIELDS = [
     ("var_model_rate", np.float64),
     ("model_error", np.float64, (4, 2)),
     ("model_error_var", np.float64, (4, 2)),
+    # The tare (kalman_cuff): its window in the filter's steps (settle, end), steps taken,
+    # per axis the samples averaged and the offset estimate (their mean reading − model) [N].
+    ("tare_from", np.int64),
+    ("tare_to", np.int64),
+    ("steps", np.int64),
+    ("tare_n", np.int64, (4, 2)),
+    ("offset", np.float64, (4, 2)),
     # Joint indices of each leg in (q_e, q_p): exo hip, knee, patient hip, knee.
     ("joints", np.int64, (2, 4)),
     # State: angles, speeds (exo 4, patient 4), d (4), covariance per leg, held torque.
@@ -315,7 +323,7 @@ class CuffForceKalman:
         on = cuff_sensors is not None and cuff_sensors.params.on
         cp = cuff_sensors.params if on else None
         if cp is not None:
-            set_cuff_noise(rec, cp.noise_std_N, cp.offset_std_N, cp.drift_N_per_sqrt_s)
+            set_cuff_noise(rec, cp)
         #: The cuff sensors' readings record, or None (their update not compiled in).
         self.cuff_meas = cuff_sensors.readings if on else None
         rec["joints"][0] = [[0, 1, 4, 5], [2, 3, 6, 7]]
