@@ -207,10 +207,11 @@ _FIELDS = [
     ("model_error", np.float64, (4, 2)),
     ("model_error_var", np.float64, (4, 2)),
     # The tare (kalman_cuff): its window in the filter's steps (settle, end), steps taken,
-    # per axis the samples averaged and the offset estimate (their mean reading − model) [N].
+    # done, per axis the samples averaged and the offset estimate (mean reading − model) [N].
     ("tare_from", np.int64),
     ("tare_to", np.int64),
     ("steps", np.int64),
+    ("tared", np.bool_),
     ("tare_n", np.int64, (4, 2)),
     ("offset", np.float64, (4, 2)),
     # Joint indices of each leg in (q_e, q_p): exo hip, knee, patient hip, knee.

@@ -54,7 +54,8 @@ axis, each fresh sample less the model's component at the same point,
 
     ô_ca = mean(z − aᵀ f_c(q − ½ h v, v)),
 
-and from then on updates with z − ô_ca.  The filter there runs on the
+and from the first fresh sample after the window on updates with z − ô_ca
+(until then b stays 0 and σ_c is the joint torques' own).  The filter there runs on the
 encoders and the joint torques alone, so ô carries the standing estimate's
 error: the joint torques fix the shank's normal force, and the standing
 model the thigh's along force, to well under 0.1 N; the hip torque's split
@@ -136,6 +137,7 @@ def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
     state["tare_from"] = start
     state["tare_to"] = start + round(params.tare_s / h)
     state["steps"] = 0
+    state["tared"] = False
     state["tare_n"] = 0
     state["offset"] = 0.0
 
@@ -174,7 +176,9 @@ def cuff_sensor_update(st, cr, meas, split):
     m = meas[0]
     h = st.h
     st.steps += 1
-    taring = st.steps <= st.tare_to
+    if not st.tared and m.fresh and st.steps > st.tare_to:
+        st.tared = True  # the window closed: this sample is the first one fused
+    taring = not st.tared
     if not taring:
         for c in range(4):
             for a in range(m.axes):
@@ -257,6 +261,8 @@ def add_model_error(st, cr, meas):
     axes: b is independent of x, so the force's covariance is H P Hᵀ +
     Σ_a p_ca a aᵀ, whose largest eigenvalue is at most the sum's.
     """
+    if not st.tared:
+        return  # the tare: no update yet, b = 0, σ_c the joint torques' own
     axes = meas[0].axes
     for c in range(4):
         extra = 0.0
