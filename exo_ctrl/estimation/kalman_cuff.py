@@ -61,7 +61,8 @@ error: the joint torques fix the shank's normal force, and the standing
 model the thigh's along force, to well under 0.1 N; the hip torque's split
 between the thigh's normal and the shank's along force comes from the cuff
 model and is off by up to about 0.9 N on the default run.  A run that walks
-from its first tick (no ramp-in) tares on a moving model, less well.
+from its first tick (no ramp-in) tares on the moving model, whose error is
+of the same size (docs/performance.md).
 
 R_a (``var_cuff``, :class:`~exo_ctrl.estimation.kalman.CuffForceKalman`)
 is the sensor's white noise plus what the filter does not model: the
