@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from exo_ctrl.estimation import kalman_series
+from exo_ctrl.model import load_exo
 from exo_ctrl.record import RerunRecorder, estimate_file
 from exo_ctrl.record.estimate_models import CUFF_READINGS, recorded_kalman
 from exo_ctrl.sensing import CuffSensorParams
@@ -51,3 +53,15 @@ def test_without_the_readings_the_offline_filter_runs_on_the_torques_and_says_so
     assert kalman.cuff_meas is not None and readings is not None and notes == []
     plain = recorded_kalman("run.rrd", SimConfig(controller="ct"), exo, signals)
     assert plain[0].cuff_meas is None and plain[1:] == ([], None)
+
+
+def test_a_second_pass_of_the_same_filter_tares_again(tmp_path) -> None:
+    """kalman_series restarts the filter: the tare and the model-error forces start anew."""
+    config = SimConfig(controller="ct", duration_s=0.6, cuff_sensors=CuffSensorParams(mode="full"))
+    live = simulate(config).signals
+    kalman, _, readings = recorded_kalman("run.rrd", config, load_exo(None), live)
+    args = (np.arange(config.n_ticks) * config.dt, live["q_meas"], live["dq_meas"])
+    first = kalman_series(*args, live["tau_sensor"], kalman, cuff_readings=readings).force
+    second = kalman_series(*args, live["tau_sensor"], kalman, cuff_readings=readings).force
+    np.testing.assert_array_equal(first, second)
+    np.testing.assert_allclose(first, live["cuff_force_est"], rtol=0, atol=1e-9)
