@@ -69,7 +69,8 @@ than the nominal one, cuffs other than the model's make them wrong).
 
 **Instrumented cuffs** (``cuff_sensors``): their fresh readings are fused
 after the encoders, one scalar update per axis, with a model-error force per
-measured axis added to the outputs (:mod:`.kalman_cuff`).
+measured axis added to the outputs, once the sensors are tared at the start
+(:mod:`.kalman_cuff`).
 
 **Bad readings.**  A non-finite angle skips that leg's measurement update
 (the covariance grows, the prediction carries on); a non-finite torque
@@ -96,7 +97,7 @@ from ..sensing.cuff_load import CuffSensors
 from ..sensing.readings import SensorReadings
 from ..sensing.sensors import SensorParams
 from .kalman_cuff import set_cuff_noise
-from .kalman_step import kalman_outputs, kalman_step
+from .kalman_step import KALMAN_FIELDS, kalman_outputs, kalman_step
 
 __all__ = ["COMPONENTS", "ESTIMATORS", "MODEL_DRIVEN", "CuffForceKalman", "KalmanNoise"]
 
@@ -185,57 +186,6 @@ class KalmanNoise:
         v.positive("initial_torque", self.initial_torque_Nm, "N·m")
 
 
-#: The filter's record: parameters, state, covariance, work rows, outputs.
-_FIELDS = [
-    # Models' losses: damping [N·m·s/rad] and dry friction [N·m], exo then patient (8,).
-    ("damping", np.float64, (8,)),
-    ("friction", np.float64, (8,)),
-    ("friction_smoothing", np.float64),
-    ("torque_bias", np.float64, (4,)),
-    # Step h [s]; noise variances: encoder σ_q² [rad²], exo torque, patient torque [N²m²],
-    # random walk σ_d² [N²m²/s].
-    ("h", np.float64),
-    ("var_q", np.float64),
-    ("var_exo", np.float64),
-    ("var_patient", np.float64),
-    ("var_rate", np.float64),
-    # Cuff sensors (kalman_cuff): R of the normal and along axes [N²], σ_m² [N²/s],
-    # the cuff model's error b (normal, along) per cuff [N] and its variance [N²].
-    ("var_cuff", np.float64, (2,)),
-    ("var_model_rate", np.float64),
-    ("model_error", np.float64, (4, 2)),
-    ("model_error_var", np.float64, (4, 2)),
-    # Joint indices of each leg in (q_e, q_p): exo hip, knee, patient hip, knee.
-    ("joints", np.int64, (2, 4)),
-    # State: angles, speeds (exo 4, patient 4), d (4), covariance per leg, held torque.
-    ("q", np.float64, (8,)),
-    ("v", np.float64, (8,)),
-    ("d", np.float64, (4,)),
-    ("cov", np.float64, (2, 10, 10)),
-    ("tau_hold", np.float64, (4,)),
-    # Work: F and Q of the last prediction per leg, J_Δ (8 × 8), the step's midpoint.
-    ("F", np.float64, (2, 10, 10)),
-    ("Q", np.float64, (2, 10, 10)),
-    ("jd", np.float64, (8, 8)),
-    ("q_mid", np.float64, (8,)),
-    ("work", np.float64, (10, 10)),
-    # Per leg: M⁻¹, the cuffs' ∂τ/∂q and ∂τ/∂v − B (4 × 4), generalised forces, accelerations.
-    ("minv", np.float64, (4, 4)),
-    ("kq", np.float64, (4, 4)),
-    ("kv", np.float64, (4, 4)),
-    ("gen_force", np.float64, (4,)),
-    ("acc", np.float64, (4,)),
-    # Outputs (as the momentum observer's) and the along-link components [N].
-    ("tau_ext", np.float64, (4,)),
-    ("cuff_normal", np.float64, (4,)),
-    ("cuff_force", np.float64, (4, 2)),
-    ("cuff_along", np.float64, (4,)),
-    # σ_c of each cuff force's estimate, from the covariance (kalman_step.force_std) [N].
-    ("cuff_force_std", np.float64, (4,)),
-    ("skipped", np.int64),
-]
-
-
 class CuffForceKalman:
     """Live cuff-force estimate from the coupled model, one update per tick (module docstring).
 
@@ -256,7 +206,9 @@ class CuffForceKalman:
         noise: process noise and initial uncertainty.
         torque_bias_Nm: a known torque-sensor bias to subtract [N·m], (4,) or scalar.
         cuff_sensors: the cuffs' force sensors whose readings are fused
-            (:mod:`.kalman_cuff`; None or mode ``"none"``: none).
+            (:mod:`.kalman_cuff`; None or mode ``"none"``: none); the filter
+            reads their readings record (:attr:`cuff_meas`) at each step, as
+            the sensors' read or :func:`~.series.kalman_series` filled it.
 
     Attributes:
         record: parameters, state, covariance and outputs (one-element structured array).
@@ -295,7 +247,7 @@ class CuffForceKalman:
         bias = np.broadcast_to(np.asarray(torque_bias_Nm, dtype=float), (4,))
         for b in bias:
             v.finite("torque_bias", b, "N·m")
-        self.record = rec = record(_FIELDS)
+        self.record = rec = record(KALMAN_FIELDS)
         rec["damping"][0] = np.concatenate((exo.damping, patient.damping))
         rec["friction"][0] = np.concatenate((exo.friction, patient.friction))
         rec["friction_smoothing"] = FRICTION_SMOOTHING_RAD_S
@@ -313,9 +265,9 @@ class CuffForceKalman:
         rec["var_patient"] = self.noise.patient_torque_Nm**2
         rec["var_rate"] = self.noise.patient_torque_rate_Nm_per_sqrt_s**2
         on = cuff_sensors is not None and cuff_sensors.params.on
-        cp = cuff_sensors.params if on else None
-        if cp is not None:
-            set_cuff_noise(rec, cp.noise_std_N, cp.offset_std_N, cp.drift_N_per_sqrt_s)
+        self._cuff_params = cuff_sensors.params if on else None
+        if self._cuff_params is not None:
+            set_cuff_noise(rec, self._cuff_params)
         #: The cuff sensors' readings record, or None (their update not compiled in).
         self.cuff_meas = cuff_sensors.readings if on else None
         rec["joints"][0] = [[0, 1, 4, 5], [2, 3, 6, 7]]
@@ -346,8 +298,13 @@ class CuffForceKalman:
     # ------------------------------------------------------------------ public
 
     def reset(self) -> None:
-        """Restart the filter: the next update starts it at its readings (estimate zero now)."""
+        """Restart the filter: the next update starts it at its readings (estimate zero now).
+
+        With cuff sensors the tare and the model-error forces start again too.
+        """
         self._started = False
+        if self._cuff_params is not None:
+            set_cuff_noise(self.record, self._cuff_params)
         for name in ("tau_ext", "cuff_normal", "cuff_along", "cuff_force"):
             self.record[name] = 0.0
 

@@ -44,22 +44,40 @@ its component is the model's (moved only through x).  A reading that is not fini
 (an axis the set does not read, a failed sensor) is skipped; a held
 sample (``fresh`` false) is not used again.
 
+**The tare.**  A sensor's offset b_s (:mod:`exo_ctrl.sensing.cuff_load`)
+reads as force; the filter cannot tell them apart from the readings alone.
+So the device zeroes its sensors while it stands at the start, as a real
+one does with the cuffs strapped on: over the window of the filter's steps
+(t_s, t_s + T_t], t_s = :data:`TARE_SETTLE_S` (its start's transient) and
+T_t the sensors' ``tare_s``, it takes no update but averages, per measured
+axis, each fresh sample less the model's component at the same point,
+
+    ô_ca = mean(z − aᵀ f_c(q − ½ h v, v)),
+
+and from the first fresh sample after the window on updates with z − ô_ca
+(until then b stays 0 and σ_c is the joint torques' own).  The filter there runs on the
+encoders and the joint torques alone, so ô carries the standing estimate's
+error: the joint torques fix the shank's normal force, and the standing
+model the thigh's along force, to well under 0.1 N; the hip torque's split
+between the thigh's normal and the shank's along force comes from the cuff
+model and is off by up to about 0.9 N on the default run.  A run that walks
+from its first tick (no ramp-in) tares on the moving model, whose error is
+of the same size (docs/performance.md).
+
 R_a (``var_cuff``, :class:`~exo_ctrl.estimation.kalman.CuffForceKalman`)
 is the sensor's white noise plus what the filter does not model: the
-offset left after zeroing and the drift over a session, as if white,
-R = σ_e² + σ_b² + σ_w² T_R with T_R = :data:`DRIFT_HORIZON_S`.  Their
-errors are slow, so the estimate carries them (about σ_b on each measured
-axis); the filter does not estimate them: a state per sensor axis would be
-observable only through the joint torques, which see two of four
-components per leg.
+offset left after the tare and the drift over a session, as if white,
+R = σ_e² + σ_b² + σ_w² T_R with T_R = :data:`DRIFT_HORIZON_S` (σ_b, the
+offset's own spread, as a bound on the tare's residual).  Their errors are
+slow, so the estimate carries them.
 
 **Limits.**  b is added to the outputs, not to the model's dynamics, so
 the joint torques never check it: a ``normal`` set leaves the shank's
-along force to the models (the hip torque's split is not revisited), and a
-sensor's offset passes into a component the torques already saw well
-(the knee torque's shank normal).  Putting b into the dynamics (a state
-per measured axis in the leg's model, J_eᵀ and −J_pᵀ of its force) is the
-next step.
+along force to the models (the hip torque's split is not revisited), and
+the tare's residual passes into the estimate.  Putting b and the offsets
+into the dynamics (a state per measured axis in the leg's model, J_eᵀ and
+−J_pᵀ of its force) would let the changing posture of the gait separate
+them; the tare does without.
 """
 
 from __future__ import annotations
@@ -70,11 +88,13 @@ import numpy as np
 
 from .._jit import kernel, leaf
 from ..plant.cuffs import forces_of, isotropic_forces
+from ..sensing.cuff_load import CuffSensorParams
 
 __all__ = [
     "DRIFT_HORIZON_S",
     "INITIAL_MODEL_ERROR_N",
     "MODEL_ERROR_RATE_N_PER_SQRT_S",
+    "TARE_SETTLE_S",
     "add_model_error",
     "add_to_state",
     "cuff_sensor_update",
@@ -85,6 +105,11 @@ __all__ = [
 #: T_R, the time over which R counts the sensor's drift [s] (chosen: a
 #: minute, the length of a session's bout between two zeroings).
 DRIFT_HORIZON_S = 60.0
+
+#: The filter's settling after its start, before the tare's window opens [s]
+#: (chosen: the estimate's error on the default run falls from some 8 N over
+#: the first 10 ms to its standing level of about 0.8 N within 50 ms).
+TARE_SETTLE_S = 0.05
 
 #: σ_m, the random walk's intensity of the cuff model's error b [N/√s]
 #: (chosen: on the default CT run with ``full`` sensors, by the worst
@@ -97,14 +122,25 @@ MODEL_ERROR_RATE_N_PER_SQRT_S = 30.0
 INITIAL_MODEL_ERROR_N = 30.0
 
 
-def set_cuff_noise(
-    state: np.ndarray, noise_std_N: float, offset_std_N: float, drift_N_per_sqrt_s: float
-) -> None:
-    """Set R (:func:`cuff_variance`), σ_m² and the model error's start in the filter's record."""
-    state["var_cuff"] = cuff_variance(noise_std_N, offset_std_N, drift_N_per_sqrt_s)
+def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
+    """Set R (:func:`cuff_variance`), σ_m², the model error's start and the tare's window.
+
+    ``state``: the filter's record, its step h already set; ``params``: the cuff sensors.
+    """
+    h = float(state["h"][0])
+    state["var_cuff"] = cuff_variance(
+        params.noise_std_N, params.offset_std_N, params.drift_N_per_sqrt_s
+    )
     state["var_model_rate"] = MODEL_ERROR_RATE_N_PER_SQRT_S**2
     state["model_error"] = 0.0
     state["model_error_var"] = INITIAL_MODEL_ERROR_N**2
+    start = round(TARE_SETTLE_S / h) if params.tare_s > 0.0 else 0
+    state["tare_from"] = start
+    state["tare_to"] = start + round(params.tare_s / h)
+    state["steps"] = 0
+    state["tared"] = False
+    state["tare_n"] = 0
+    state["offset"] = 0.0
 
 
 def cuff_variance(noise_std_N: float, offset_std_N: float, drift_N_per_sqrt_s: float) -> float:
@@ -140,10 +176,15 @@ def cuff_sensor_update(st, cr, meas, split):
     """
     m = meas[0]
     h = st.h
-    for c in range(4):
-        for a in range(m.axes):
-            st.model_error_var[c, a] += st.var_model_rate * h
-    if not m.fresh:
+    st.steps += 1
+    if not st.tared and m.fresh and st.steps > st.tare_to:
+        st.tared = True  # the window closed: this sample is the first one fused
+    taring = not st.tared
+    if not taring:
+        for c in range(4):
+            for a in range(m.axes):
+                st.model_error_var[c, a] += st.var_model_rate * h
+    if not m.fresh or (taring and st.steps <= st.tare_from):
         return
     for i in range(8):
         st.q_mid[i] = st.q[i] - 0.5 * h * st.v[i]
@@ -172,6 +213,12 @@ def cuff_sensor_update(st, cr, meas, split):
                 ax, az, k, damp = -uz, ux, cr.k, cr.c
             else:
                 ax, az, k, damp = ux, uz, cr.k_u, cr.c_u
+            if taring:  # the running mean of reading − model, no update
+                n = st.tare_n[c, a] + 1
+                st.offset[c, a] += (z - ax * cr.f[c] - az * cr.f[4 + c] - st.offset[c, a]) / n
+                st.tare_n[c, a] = n
+                continue
+            z -= st.offset[c, a]
             for i in range(4):
                 g = joints[i]
                 jn = ax * st.jd[c, g] + az * st.jd[4 + c, g]
@@ -215,6 +262,8 @@ def add_model_error(st, cr, meas):
     axes: b is independent of x, so the force's covariance is H P Hᵀ +
     Σ_a p_ca a aᵀ, whose largest eigenvalue is at most the sum's.
     """
+    if not st.tared:
+        return  # the tare: no update yet, b = 0, σ_c the joint torques' own
     axes = meas[0].axes
     for c in range(4):
         extra = 0.0

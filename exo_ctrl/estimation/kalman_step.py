@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .._jit import Status, kernel
 from ..plant.cuffs import forces_of, isotropic_forces
 from .kalman_cuff import add_model_error, add_to_state, cuff_sensor_update
 
 __all__ = [
+    "KALMAN_FIELDS",
     "cuff_jacobian",
     "force_std",
     "kalman_outputs",
@@ -22,6 +25,66 @@ __all__ = [
     "leg_covariance",
     "leg_model",
     "leg_update",
+]
+
+
+#: The filter's record (:class:`~exo_ctrl.estimation.kalman.CuffForceKalman`'s):
+#: parameters, state, covariance, work rows, outputs.
+KALMAN_FIELDS = [
+    # Models' losses: damping [N·m·s/rad] and dry friction [N·m], exo then patient (8,).
+    ("damping", np.float64, (8,)),
+    ("friction", np.float64, (8,)),
+    ("friction_smoothing", np.float64),
+    ("torque_bias", np.float64, (4,)),
+    # Step h [s]; noise variances: encoder σ_q² [rad²], exo torque, patient torque [N²m²],
+    # random walk σ_d² [N²m²/s].
+    ("h", np.float64),
+    ("var_q", np.float64),
+    ("var_exo", np.float64),
+    ("var_patient", np.float64),
+    ("var_rate", np.float64),
+    # Cuff sensors (kalman_cuff): R of the normal and along axes [N²], σ_m² [N²/s],
+    # the cuff model's error b (normal, along) per cuff [N] and its variance [N²].
+    ("var_cuff", np.float64, (2,)),
+    ("var_model_rate", np.float64),
+    ("model_error", np.float64, (4, 2)),
+    ("model_error_var", np.float64, (4, 2)),
+    # The tare (kalman_cuff): its window in the filter's steps (settle, end), steps taken,
+    # done, per axis the samples averaged and the offset estimate (mean reading − model) [N].
+    ("tare_from", np.int64),
+    ("tare_to", np.int64),
+    ("steps", np.int64),
+    ("tared", np.bool_),
+    ("tare_n", np.int64, (4, 2)),
+    ("offset", np.float64, (4, 2)),
+    # Joint indices of each leg in (q_e, q_p): exo hip, knee, patient hip, knee.
+    ("joints", np.int64, (2, 4)),
+    # State: angles, speeds (exo 4, patient 4), d (4), covariance per leg, held torque.
+    ("q", np.float64, (8,)),
+    ("v", np.float64, (8,)),
+    ("d", np.float64, (4,)),
+    ("cov", np.float64, (2, 10, 10)),
+    ("tau_hold", np.float64, (4,)),
+    # Work: F and Q of the last prediction per leg, J_Δ (8 × 8), the step's midpoint.
+    ("F", np.float64, (2, 10, 10)),
+    ("Q", np.float64, (2, 10, 10)),
+    ("jd", np.float64, (8, 8)),
+    ("q_mid", np.float64, (8,)),
+    ("work", np.float64, (10, 10)),
+    # Per leg: M⁻¹, the cuffs' ∂τ/∂q and ∂τ/∂v − B (4 × 4), generalised forces, accelerations.
+    ("minv", np.float64, (4, 4)),
+    ("kq", np.float64, (4, 4)),
+    ("kv", np.float64, (4, 4)),
+    ("gen_force", np.float64, (4,)),
+    ("acc", np.float64, (4,)),
+    # Outputs (as the momentum observer's) and the along-link components [N].
+    ("tau_ext", np.float64, (4,)),
+    ("cuff_normal", np.float64, (4,)),
+    ("cuff_force", np.float64, (4, 2)),
+    ("cuff_along", np.float64, (4,)),
+    # σ_c of each cuff force's estimate, from the covariance (kalman_step.force_std) [N].
+    ("cuff_force_std", np.float64, (4,)),
+    ("skipped", np.int64),
 ]
 
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _validate as v
-from ..exceptions import InvalidLog
+from ..exceptions import InvalidLog, InvalidParameter
 from ..model import BodyModel
 from .kalman import CuffForceKalman
 from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
@@ -188,6 +188,7 @@ def kalman_series(
     tau_sensor: np.ndarray,
     kalman: CuffForceKalman,
     torque_rates: Sequence[tuple[int, float | None]] = (),
+    cuff_readings: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> EstimateSeries:
     """Run a fresh Kalman filter along a logged series of sensor readings.
 
@@ -209,10 +210,16 @@ def kalman_series(
         torque_rates: (row, σ_d) pairs: before stepping that row the filter's
             σ_d is set (:meth:`~CuffForceKalman.set_torque_rate`; None: its
             own), as the live run's modes set it.
+        cuff_readings: the cuff sensors' logged readings, (normal [N] (N, 4),
+            along [N] (N, 4), fresh (N,): nonzero on a new sample), put into
+            the filter's readings record (:attr:`~CuffForceKalman.cuff_meas`)
+            before each row's step, as the live sensors' read does; None: no
+            cuff sensors.  Needs a filter built with cuff sensors.
 
     Raises:
         InvalidLog: shapes differ, a value is not finite, t does not
             increase, t is not sampled every h, or the estimate is not finite.
+        InvalidParameter: cuff readings for a filter without cuff sensors.
 
     """
     t, q, dq, tau = _check_series(t, q, dq, tau_sensor)
@@ -227,9 +234,16 @@ def kalman_series(
     force = np.zeros((n, 4, 2))
     tau_ext = np.zeros((n, 4))
     rates = dict(torque_rates)
+    meas = kalman.cuff_meas
+    if cuff_readings is not None and meas is None:
+        raise InvalidParameter("cuff_readings", "given", "None for a filter without cuff sensors")
     for k in range(n):
         if k in rates:
             kalman.set_torque_rate(rates[k])
+        if cuff_readings is not None:
+            meas["reading"][0, :, 0] = cuff_readings[0][k]
+            meas["reading"][0, :, 1] = cuff_readings[1][k]
+            meas["fresh"] = cuff_readings[2][k] != 0.0
         kalman.step(q[k], dq[k], tau[k])
         normal[k] = kalman.normal
         force[k] = kalman.force

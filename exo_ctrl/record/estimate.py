@@ -377,10 +377,10 @@ def _from_recording(
     s, n, config = result.signals, result.t.size, result.config
     gain = config.observer_gain_per_s if gain_per_s is None else gain_per_s
     if estimator == "kalman":
-        kalman, said = recorded_kalman(path, config, body)
+        kalman, said, cuffs = recorded_kalman(path, config, body, s)
         notes += said
         rates = torque_rate_schedule(config)
-        series = kalman_series(log.t, log.q, log.dq, log.tau, kalman, rates)
+        series = kalman_series(log.t, log.q, log.dq, log.tau, kalman, rates, cuffs)
     else:
         series = estimate_series(
             log.t,

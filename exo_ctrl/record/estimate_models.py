@@ -16,7 +16,8 @@ device models):
   (:func:`~exo_ctrl.sim.belief.device_patient` with the fitted, coaxial true
   patient's leg lengths: the nominal de Leva model, the truth or the user's
   URDF), the device's cuff model (``belief.cuff_model_of``), the run's sensor
-  datasheet (noise and resolution) and its control period; and the
+  datasheet (noise and resolution), its cuff sensors with their logged
+  readings (the filter tares and fuses them as live) and its control period; and the
   filter's σ_d as the run's modes set it over time
   (:func:`torque_rate_schedule`: ``transparent`` and ``path`` raise it from
   their first tick, a session's switch from the tick after it).
@@ -30,13 +31,26 @@ from __future__ import annotations
 import os
 from typing import Any
 
+import numpy as np
+
 from ..estimation import ESTIMATORS, CuffForceKalman, estimator_name
 from ..exceptions import ExoCtrlError, InvalidParameter, RecordingError
 from ..model import BodyModel, load_exo, load_patient
+from ..sensing import CuffSensors
 from ..sim.belief import device_patient
 from ..sim.config import SimConfig
 
-__all__ = ["chosen_estimator", "recorded_kalman", "torque_rate_schedule", "true_exo"]
+__all__ = [
+    "CUFF_READINGS",
+    "chosen_estimator",
+    "recorded_kalman",
+    "torque_rate_schedule",
+    "true_exo",
+]
+
+#: The logged cuff sensors' readings the offline filter fuses, in
+#: :func:`~exo_ctrl.estimation.kalman_series`'s order.
+CUFF_READINGS = ("cuff_sensor_normal", "cuff_sensor_along", "cuff_sensor_fresh")
 
 
 def chosen_estimator(
@@ -86,21 +100,28 @@ def chosen_estimator(
 
 
 def recorded_kalman(
-    path: os.PathLike[str] | str, config: SimConfig, exo: BodyModel
-) -> tuple[CuffForceKalman, list[str]]:
+    path: os.PathLike[str] | str,
+    config: SimConfig,
+    exo: BodyModel,
+    signals: dict[str, np.ndarray] | None = None,
+) -> tuple[CuffForceKalman, list[str], tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
     """The Kalman filter of a recorded run, on the device models the run held (module docstring).
 
     Returns:
-        The filter, and one line for each patient URDF the recording names
+        The filter; one line for each patient URDF the recording names
         that was read to build it (a file named by a recording is never
         read without saying so), and one when the run fused cuff sensors
-        (their readings are not recorded: the offline filter runs without).
+        whose readings the recording does not hold (the offline filter then
+        runs without them); and the cuff sensors' readings to fuse
+        (:func:`~exo_ctrl.estimation.kalman_series`'s ``cuff_readings``), or None.
 
     Args:
         path: the recording (for messages).
         config: the recording's run.
         exo: the device's exoskeleton model (the recorded one, or the
             user's, checked by :func:`~.estimate_checks.recorded_exo`).
+        signals: the recording's signals (None: none; the cuff sensors'
+            readings ``cuff_sensor_normal``, ``…_along``, ``…_fresh`` are taken from them).
 
     Raises:
         RecordingError: the device's patient cannot be rebuilt (a patient
@@ -115,20 +136,25 @@ def recorded_kalman(
             f"cannot estimate from {path} with the kalman estimator: the device's patient "
             f"model cannot be rebuilt ({exc}); --estimator momentum needs none"
         ) from None
+    signals = signals if signals is not None else {}
+    readings = None
+    if config.cuff_sensors.on and all(name in signals for name in CUFF_READINGS):
+        readings = tuple(signals[name] for name in CUFF_READINGS)
     kalman = CuffForceKalman(
         exo,
         patient,
         config.dt,
         cuffs=config.belief.cuff_model_of(config.cuffs),
         sensors=config.sensors,
+        cuff_sensors=CuffSensors(config.cuff_sensors, config.dt) if readings else None,
     )
     notes = _named_patients(path, config)
-    if config.cuff_sensors.on:  # their readings are not logged
+    if config.cuff_sensors.on and readings is None:  # a recording made before they were logged
         notes.append(
             f"{path}: the run fused cuff sensors (cuff_sensors.mode = {config.cuff_sensors.mode}),"
-            " whose readings a recording does not hold: this estimate is the joint torques' alone"
+            " whose readings the recording does not hold: this estimate is the joint torques' alone"
         )
-    return kalman, notes
+    return kalman, notes, readings
 
 
 def _named_patients(path: os.PathLike[str] | str, config: SimConfig) -> list[str]:

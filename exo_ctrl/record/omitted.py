@@ -6,7 +6,8 @@ is off writes one constant into its signals at every tick (the tick's
 ``write_applied``, :mod:`exo_ctrl.sim.tick`: the contact's (with its belt),
 the patient's feet's and the pelvis's records are zero when off, the foot
 plates are read with the belt only, the patient's torque is zero without a
-patient torque model, the path mode's phase row is -1 in other modes).  Each
+patient torque model, the cuff sensors' readings are zero without them (the
+along axis without ``full``), the path mode's phase row is -1 in other modes).  Each
 such signal costs a recording as much as any other (an entity per series:
 its row ids, its two timelines and its list offsets, about 36 B per tick
 before compression, and rerun's work per entity and chunk), so the recorder
@@ -109,6 +110,16 @@ FEATURES: tuple[Feature, ...] = (
         "the QP controller (--controller pd or ct)",
         lambda c: c.controller != "qp",
         ("qp_active", "qp_failures", "cuff_bound_margin"),
+    ),
+    Feature(
+        "the cuffs' force sensors (--cuff-sensors none)",
+        lambda c: not c.cuff_sensors.on,
+        ("cuff_sensor_normal", "cuff_sensor_fresh"),
+    ),
+    Feature(
+        "the cuff sensors' along axis (--cuff-sensors none or normal)",
+        lambda c: c.cuff_sensors.mode != "full",
+        ("cuff_sensor_along",),
     ),
     Feature(
         "the path mode (no --mode path, no path segment)",

@@ -75,6 +75,22 @@ SIGNALS: list[Signal] = [
     Signal("q_meas", (4,), "rad", "encoder reading", "joint"),
     Signal("dq_meas", (4,), "rad/s", "joint speed reading (filtered encoder difference)", "joint"),
     Signal("tau_sensor", (4,), "N·m", "joint torque sensor reading", "joint"),
+    # The cuffs' force sensors (--cuff-sensors normal|full; zero otherwise), as the filter got them.
+    Signal(
+        "cuff_sensor_normal",
+        (4,),
+        "N",
+        "cuff sensor's reading of the normal component n · f (n of the exo link)",
+        "cuff",
+    ),
+    Signal(
+        "cuff_sensor_along",
+        (4,),
+        "N",
+        "cuff sensor's reading of the along-link component u · f (full sensors only)",
+        "cuff",
+    ),
+    Signal("cuff_sensor_fresh", (), "", "cuff sensors: 1 on a tick with a new sample, 0 held"),
     Signal(
         "tau_ext_est", (4,), "N·m", "external joint torque estimate (momentum observer)", "joint"
     ),

@@ -258,7 +258,7 @@ class Runner:
         )
         #: The log kernels' record arguments (after the log and the row).
         plant_rec, sensor_rec, est_rec, ctrl_rec, sup_rec = self._records
-        self._measured = (plant_rec, sensor_rec, est_rec)
+        self._measured = (plant_rec, sensor_rec, est_rec, self.cuff_sensors.readings)
         self._applied = (
             ctrl_rec,
             sup_rec,
@@ -403,17 +403,23 @@ class Runner:
 
 
 @kernel
-def write_measured(log, row, plant, readings, estimate):
+def write_measured(log, row, plant, readings, estimate, cuffs):
     """The state at t_k and what the device measured and estimated, into log row ``row``.
 
     ``plant``, ``readings``, ``estimate``: the records of the plant, the
     sensors and the estimator (fields ``q``, ``v`` (8: exo, patient);
-    ``q``, ``dq``, ``tau``; ``tau_ext``, ``cuff_normal``, ``cuff_force``).
+    ``q``, ``dq``, ``tau``; ``tau_ext``, ``cuff_normal``, ``cuff_force``);
+    ``cuffs``: the cuff sensors' readings record (an axis not read: 0).
     """
     r = log[row]
     p = plant[0]
     s = readings[0]
     e = estimate[0]
+    c = cuffs[0]
+    r.cuff_sensor_fresh = c.fresh
+    for j in range(4):
+        r.cuff_sensor_normal[j] = c.reading[j, 0] if c.axes > 0 else 0.0
+        r.cuff_sensor_along[j] = c.reading[j, 1] if c.axes > 1 else 0.0
     for j in range(4):
         r.q[j] = p.q[j]
         r.q_patient[j] = p.q[4 + j]

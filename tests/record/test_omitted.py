@@ -21,7 +21,7 @@ from exo_ctrl.plant import CompliantJoint, ContactParams, PelvisParams
 from exo_ctrl.record import RECORDING_FORMAT, RerunRecorder, read_recording
 from exo_ctrl.record.format import dumps
 from exo_ctrl.record.omitted import FEATURES, left_out_signals
-from exo_ctrl.sensing import FootLoadParams
+from exo_ctrl.sensing import CuffSensorParams, FootLoadParams
 from exo_ctrl.sim import SimConfig, SimResult, simulate
 from exo_ctrl.sim.schema import log_dtype, signal_shapes
 
@@ -57,6 +57,12 @@ ON = {
         duration_s=0.6, controller="qp", patient_torque="spastic", cuff_force_limit_N=150.0
     ),
     "the path mode": SimConfig(duration_s=2.5, mode="path", patient_torque="active"),
+    "the cuffs' force sensors": SimConfig(
+        duration_s=0.3, cuff_sensors=CuffSensorParams(mode="normal")
+    ),
+    "the cuff sensors' along axis": SimConfig(
+        duration_s=0.3, cuff_sensors=CuffSensorParams(mode="full")
+    ),
 }
 
 

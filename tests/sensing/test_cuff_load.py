@@ -135,6 +135,10 @@ def test_normal_set_reads_only_the_normal() -> None:
         ),
         ({"seed": -1}, "cuff_sensors seed must be an integer >= 0; got -1"),
         ({"seed": 1.5}, "cuff_sensors seed must be an integer >= 0; got 1.5"),
+        (
+            {"tare_s": -0.1},
+            "cuff_sensors tare must be in [0, 60] s; got -0.1 (a minute at most)",
+        ),
     ],
 )
 def test_bad_values_are_refused_with_the_exact_message(kwargs: dict, message: str) -> None:
