@@ -275,15 +275,14 @@ def estimate_lines(summary: dict[str, Any]) -> list[str]:
     cuffs = ", ".join(f"{c} {pct(normal[c])} / {pct(along[c])}" for c in normal)
     lines = [f"cuff force estimate{since}, RMS error over RMS true, normal / along [%]: {cuffs}"]
     components = summary.get("cuff_force_estimate_components") or {}
-    observed = [
-        f"{c} {part}"
-        for c, d in components.items()
-        for part, how in d.items()
-        if how.startswith("observed")
-    ]
+    sources = {
+        f"{c} {part}": how for c, d in components.items() for part, how in d.items()
+    }
+    observed = [name for name, how in sources.items() if how.startswith("observed")]
+    by_cuffs = any("cuff's" in how for how in sources.values())
     if components:
         lines.append(
-            "observed by the joint torque sensors: "
+            f"observed by the joint torque{' and cuff' if by_cuffs else ''} sensors: "
             + (", ".join(observed) or "none")
             + "; every other component from models or assumptions"
         )

@@ -42,7 +42,15 @@ from .identification import (
     identify_patient,
 )
 from .interface import Estimator, EstimatorDevice
-from .kalman import COMPONENTS, ESTIMATORS, MODEL_DRIVEN, CuffForceKalman, KalmanNoise
+from .kalman import (
+    COMPONENTS,
+    ESTIMATORS,
+    MODEL_DRIVEN,
+    CuffForceKalman,
+    KalmanNoise,
+    kalman_components,
+    model_driven,
+)
 from .observer import DEFAULT_GAIN_PER_S, CuffForceEstimator
 from .plugin import PluginEstimator, estimator_name
 from .series import EstimateSeries, estimate_series, first_order_filter, kalman_series
@@ -81,7 +89,9 @@ __all__ = [
     "estimator_name",
     "first_order_filter",
     "identify_patient",
+    "kalman_components",
     "kalman_series",
+    "model_driven",
     "normal_component_errors",
     "read_csv_log",
     "write_csv_log",

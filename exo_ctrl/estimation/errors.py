@@ -40,7 +40,7 @@ run: the end of the gait's ramp-in, at least the start-up; the walking at
 speed, not the ramp's small forces).  These say which half of a force an estimate gets right: the
 joint torques observe some components, models supply the others
 (``cuff_force_estimate_components``: :data:`OBSERVER_COMPONENTS` for the
-momentum observer, :data:`~exo_ctrl.estimation.kalman.COMPONENTS` for the
+momentum observer, :func:`~exo_ctrl.estimation.kalman.kalman_components` for the
 filter).
 
 ``cuff_force_estimate_unobservable`` lists, per cuff, the components the
@@ -64,7 +64,7 @@ from .._jit import kernel, preload, record
 from ..exceptions import InvalidParameter
 from ..model import CUFF_NAMES, BodyModel
 from .cuff_geometry import GEOMETRY_FIELDS, _cuff_directions, _geometry, cuff_components
-from .kalman import COMPONENTS
+from .kalman import kalman_components
 
 __all__ = [
     "OBSERVER_COMPONENTS",
@@ -119,14 +119,16 @@ OBSERVER_COMPONENTS: dict[str, dict[str, str]] = {
 }
 
 
-def estimate_components(estimator: str) -> dict[str, dict[str, str]]:
+def estimate_components(estimator: str, cuff_sensors: str = "none") -> dict[str, dict[str, str]]:
     """Per cuff and component, where ``estimator``'s estimate comes from (a copy).
 
-    ``"kalman"``: :data:`~exo_ctrl.estimation.kalman.COMPONENTS`; otherwise
-    the momentum observer's :data:`OBSERVER_COMPONENTS`.
+    ``"kalman"``: :func:`~exo_ctrl.estimation.kalman.kalman_components` with
+    the run's cuff sensors (``"none"``, ``"normal"``, ``"full"``); otherwise
+    the momentum observer's :data:`OBSERVER_COMPONENTS` (it fuses no cuff sensor).
     """
-    table = COMPONENTS if estimator == "kalman" else OBSERVER_COMPONENTS
-    return {cuff: dict(parts) for cuff, parts in table.items()}
+    if estimator == "kalman":
+        return kalman_components(cuff_sensors)
+    return {cuff: dict(parts) for cuff, parts in OBSERVER_COMPONENTS.items()}
 
 
 def _relative(rms: np.ndarray, peak: np.ndarray) -> np.ndarray:

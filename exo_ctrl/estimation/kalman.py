@@ -99,7 +99,16 @@ from ..sensing.sensors import SensorParams
 from .kalman_cuff import set_cuff_noise
 from .kalman_step import KALMAN_FIELDS, kalman_outputs, kalman_step
 
-__all__ = ["COMPONENTS", "ESTIMATORS", "MODEL_DRIVEN", "CuffForceKalman", "KalmanNoise"]
+__all__ = [
+    "COMPONENTS",
+    "CUFF_SENSOR_SOURCE",
+    "ESTIMATORS",
+    "MODEL_DRIVEN",
+    "CuffForceKalman",
+    "KalmanNoise",
+    "kalman_components",
+    "model_driven",
+]
 
 #: Floor of the encoder's std in the filter [rad].  Ideal sensors
 #: (``SensorParams.ideal()``) give σ_q = 0: the update then divides by
@@ -133,15 +142,46 @@ COMPONENTS: dict[str, dict[str, str]] = {
 }
 
 
+#: What measures a component a cuff sensor set adds (:mod:`exo_ctrl.sensing.cuff_load`).
+CUFF_SENSOR_SOURCE = {
+    "normal": "observed: the cuff's load cell",
+    "full": "observed: the cuff's 2-axis force sensor",
+}
+
+
+def kalman_components(cuff_sensors: str = "none") -> dict[str, dict[str, str]]:
+    """Per cuff and component, where the filter's estimate comes from (a copy).
+
+    :data:`COMPONENTS` (the joint torques alone), with each component a cuff
+    sensor measures (``"normal"``: the normal ones; ``"full"``: both) named
+    by that sensor (:data:`CUFF_SENSOR_SOURCE`): the filter corrects it by the
+    sensor's reading (:mod:`~exo_ctrl.estimation.kalman_cuff`); the others
+    keep the models' split.
+    """
+    out = {cuff: dict(parts) for cuff, parts in COMPONENTS.items()}
+    source = CUFF_SENSOR_SOURCE.get(cuff_sensors)
+    if source is not None:
+        measured = ("normal", "along") if cuff_sensors == "full" else ("normal",)
+        for parts in out.values():
+            for part in measured:
+                parts[part] = source
+    return out
+
+
+def model_driven(components: dict[str, dict[str, str]]) -> list[str]:
+    """The components that come from the device's models, one line each ("cuff: part: how")."""
+    return [
+        f"{cuff}: {part}: {how}"
+        for cuff, parts in components.items()
+        for part, how in parts.items()
+        if "model" in how
+    ]
+
+
 #: The components that come from the device's models rather than the joint
 #: torques, one line per component ("cuff: part: how"), as a summary lists
-#: them under ``cuff_force_estimate_unobservable``.
-MODEL_DRIVEN: list[str] = [
-    f"{cuff}: {part}: {how}"
-    for cuff, parts in COMPONENTS.items()
-    for part, how in parts.items()
-    if "model" in how
-]
+#: them under ``cuff_force_estimate_unobservable`` (no cuff sensors).
+MODEL_DRIVEN: list[str] = model_driven(COMPONENTS)
 
 
 @dataclass(frozen=True)

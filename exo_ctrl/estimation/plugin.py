@@ -116,14 +116,17 @@ def users_estimator(estimator: str | Estimator, built_in: tuple[str, ...]) -> Es
     return load_estimator(estimator)
 
 
-def components_of(estimator: str | Estimator) -> dict[str, dict[str, str]]:
+def components_of(
+    estimator: str | Estimator, cuff_sensors: str = "none"
+) -> dict[str, dict[str, str]]:
     """Per cuff and component, where a run's estimate comes from (the summary's table).
 
-    A built-in's :func:`~exo_ctrl.estimation.errors.estimate_components`; a
-    user's :func:`estimator_components`.
+    A built-in's :func:`~exo_ctrl.estimation.errors.estimate_components`
+    with the run's cuff sensors (``SimConfig.cuff_sensors.mode``); a user's
+    :func:`estimator_components`.
     """
     if isinstance(estimator, str) and estimator in ESTIMATORS:
-        return estimate_components(estimator)
+        return estimate_components(estimator, cuff_sensors)
     return estimator_components(estimator)
 
 

@@ -41,11 +41,11 @@ from .._io import atomic_write
 from ..estimation import (
     DEFAULT_GAIN_PER_S,
     ESTIMATORS,
-    MODEL_DRIVEN,
     EstimateSeries,
     estimate_components,
     estimate_series,
     kalman_series,
+    model_driven,
     normal_component_errors,
     read_csv_log,
 )
@@ -376,6 +376,7 @@ def _from_recording(
     result, body, notes = log.result, log.exo, list(log.notes)
     s, n, config = result.signals, result.t.size, result.config
     gain = config.observer_gain_per_s if gain_per_s is None else gain_per_s
+    cuffs = None  # the cuff sensors' readings the filter fuses, if any
     if estimator == "kalman":
         kalman, said, cuffs = recorded_kalman(path, config, body, s)
         notes += said
@@ -421,9 +422,11 @@ def _from_recording(
             )
             found.components_from_s = found.components_from_row * config.dt
             errors = found.summary()
-            errors["cuff_force_estimate_components"] = estimate_components(estimator)
+            fused = config.cuff_sensors.mode if cuffs is not None else "none"
+            components = estimate_components(estimator, fused)
+            errors["cuff_force_estimate_components"] = components
             if estimator == "kalman":  # every component estimated; these from the models
-                errors["cuff_force_estimate_unobservable"] = list(MODEL_DRIVEN)
+                errors["cuff_force_estimate_unobservable"] = model_driven(components)
             notes += worse_than_none(path, found)
     notes += beyond_cuff_stretch(path, _peaks(series), config.cuffs.stiffness_N_per_m, body)
     return OfflineEstimate(str(path), series, errors, log.integrity, notes, "" if errors else why)

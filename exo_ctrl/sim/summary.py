@@ -9,7 +9,7 @@ import numpy as np
 
 from .._jit import kernel, preload
 from ..control import controller_name
-from ..estimation import MODEL_DRIVEN, EstimateErrorStats
+from ..estimation import EstimateErrorStats, model_driven
 from ..estimation.plugin import components_of
 from ..model import CUFF_NAMES, JOINT_NAMES, SIDES
 from .config import SimConfig
@@ -230,11 +230,12 @@ class RunStats:
         out["true_cuffs"] = true_cuffs(result.config)
         if self.estimate is not None:
             out.update(self.estimate.summary())
-            out["cuff_force_estimate_components"] = components_of(result.config.estimator)
-            if result.config.estimator == "kalman":
-                # The filter estimates every component; these come from its models
-                # (a copy: the summary is the caller's to change).
-                out["cuff_force_estimate_unobservable"] = list(MODEL_DRIVEN)
+            config = result.config
+            components = components_of(config.estimator, config.cuff_sensors.mode)
+            out["cuff_force_estimate_components"] = components
+            if config.estimator == "kalman":
+                # The filter estimates every component; these come from its models.
+                out["cuff_force_estimate_unobservable"] = model_driven(components)
         if self.contact is not None:
             out.update(self.contact.summary())
         if self.load is not None:  # stance knee torque, the pelvis (exo_ctrl.sim.load_stats)

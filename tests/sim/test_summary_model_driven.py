@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import pytest
 
-from exo_ctrl.estimation import COMPONENTS, MODEL_DRIVEN
+from exo_ctrl.estimation import COMPONENTS, MODEL_DRIVEN, model_driven
 from exo_ctrl.estimation.errors import OBSERVER_COMPONENTS, UNOBSERVABLE
+from exo_ctrl.estimation.kalman import CUFF_SENSOR_SOURCE
 from exo_ctrl.model import CUFF_NAMES
+from exo_ctrl.sensing.cuff_load import CuffSensorParams
 from exo_ctrl.sim import SimConfig, SimResult, simulate
 
 #: The components a joint torque alone observes: each shank cuff's normal force.
@@ -80,3 +82,22 @@ def test_momentum_observer_names_its_assumptions() -> None:
         assert ("assumed 0" in along) == cuff.endswith("thigh")  # no lever arm: UNOBSERVABLE
         assert ("assumption κ" in along) == cuff.endswith("shank")
         assert (components[cuff]["normal"] == "observed: the knee torque") == cuff.endswith("shank")
+
+
+@pytest.mark.parametrize(
+    ("mode", "measured"), [("normal", {"normal"}), ("full", {"normal", "along"})]
+)
+def test_cuff_sensors_name_the_components_they_measure(mode, measured) -> None:
+    """A cuff sensor set's components are observed by it; the rest keep the torques' sources."""
+    config = SimConfig(duration_s=0.05, estimator="kalman", cuff_sensors=CuffSensorParams(mode))
+    summary = simulate(config).summary()
+    components = summary["cuff_force_estimate_components"]
+    source = CUFF_SENSOR_SOURCE[mode]
+    for cuff in CUFF_NAMES:
+        for part in ("normal", "along"):
+            expected = source if part in measured else COMPONENTS[cuff][part]
+            assert components[cuff][part] == expected, (cuff, part)
+    listed = summary["cuff_force_estimate_unobservable"]
+    assert all("model" in line for line in listed)
+    assert len(listed) == (4 if mode == "normal" else 0)  # the thighs' and shanks' along
+    assert listed == model_driven(components)
