@@ -17,7 +17,9 @@ G_K δ + G_C δ̇ = −Jᵀ f̂, filtered the same way with matrices,
 
 - δ̂ is s/K through a first-order filter of time constant C/K (12.5 ms
   with the defaults), discretised exactly (zero-order hold of s):
-  δ̂ ← δ̂ + a_δ (s/K − δ̂), a_δ = 1 − e^{−h K/C};
+  δ̂ ← δ̂ + a_δ (s/K − δ̂), a_δ = 1 − e^{−h K/C}, started at rest under
+  the first estimate (δ̂ = s/K: a run starts standing, the cuffs loaded
+  and still; δ̂ = 0 took a loaded start for a cuff deflecting at s/C);
 - δ̂̇ = (s − K δ̂)/C, and the patient's joint speed v̂_p = q̇ − δ̂̇;
 - d̂ from the patient's equation M_p v̇_p + h_p = G s + d: the residual
   M_p Δv̂_p/h + h_p − G s through a first-order filter,
@@ -127,6 +129,8 @@ def observe(
             # s = -G⁻¹ Jᵀ f̂
             s1 = -(g22 * r1 - g12 * r2) / dg
             s2 = -(g11 * r2 - g12 * r1) / dg
+            if o.first != 0.0:  # the first estimate: the cuffs at rest under it
+                delta[i0], delta[i0 + 1] = s1 / stiff, s2 / stiff
             delta[i0] += a_delta * (s1 / stiff - delta[i0])
             delta[i0 + 1] += a_delta * (s2 / stiff - delta[i0 + 1])
             dd1 = (s1 - stiff * delta[i0]) / damp_c

@@ -131,6 +131,8 @@ def filter_leg(
     ``o``: the observer's record (δ̂ ``delta`` updated in place, step ``dt``
     h [s]); ``m``: the cuff model's record at this tick (``gk``, ``gc``);
     (g1, g2) = g = −Jᵀ f̂ [N·m].  Returns δ̂̇ = G_C⁻¹ (g − G_K δ̂) [rad/s].
+    The first update (``o.first``) starts δ̂ at rest under the first
+    estimate, δ̂ = δ∞ (a run starts standing, the cuffs loaded and still).
     """
     i0 = 2 * leg
     k11, k12, k22 = m.gk[leg, 0, 0], m.gk[leg, 0, 1], m.gk[leg, 1, 1]
@@ -157,6 +159,8 @@ def filter_leg(
     inf2 = (k11 * g2 - k12 * g1) / dk
     delta = o.delta
     x1, x2 = delta[i0] - inf1, delta[i0 + 1] - inf2
+    if o.first != 0.0:  # the first estimate: the cuffs at rest under it, δ̂ = δ∞, δ̂̇ = 0
+        x1 = x2 = 0.0
     delta[i0] = inf1 + e11 * x1 + e12 * x2
     delta[i0 + 1] = inf2 + e21 * x1 + e22 * x2
     y1 = g1 - (k11 * delta[i0] + k12 * delta[i0 + 1])

@@ -103,3 +103,20 @@ def test_bad_horizon_and_observer_parameters_are_refused(exo, patient, motor) ->
         CuffStateObserver(8000.0, 100.0, 1e-3, -1.0)
     with pytest.raises(InvalidParameter, match="cuff damping"):
         CuffStateObserver(8000.0, 0.0)
+
+
+@pytest.mark.parametrize("cuffs", [CuffParams(), CuffParams.isotropic()], ids=["split", "iso"])
+def test_the_first_estimate_starts_the_cuffs_at_rest(exo, patient, motor, plan, cuffs) -> None:
+    """A run starts standing: the first f̂ = −𝒦 J δ₀ gives δ̂ = δ₀ and δ̂̇ = 0 at once."""
+    model = CuffHorizonModel(exo, patient, motor, cuffs)
+    obs = CuffStateObserver(cuffs.stiffness_N_per_m, cuffs.damping_N_s_per_m, 1e-3, 0.0)
+    model.linearise(plan.q[0], np.zeros(4))
+    delta0 = np.array([3e-3, -2e-3, 1e-3, 4e-3])  # [rad]
+    force = np.zeros((4, 2))
+    for leg in (0, 1):
+        j = slice(2 * leg, 2 * leg + 2)
+        stiff = model.wk[leg] if model.split else cuffs.stiffness_N_per_m * model.jac[leg]
+        force[2 * leg : 2 * leg + 2] = (-stiff @ delta0[j]).reshape(2, 2)
+    obs.update(model, force, np.zeros(4))
+    np.testing.assert_allclose(obs.delta, delta0, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(obs.ddelta, 0.0, atol=1e-9)
