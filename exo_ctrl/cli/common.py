@@ -275,9 +275,7 @@ def estimate_lines(summary: dict[str, Any]) -> list[str]:
     cuffs = ", ".join(f"{c} {pct(normal[c])} / {pct(along[c])}" for c in normal)
     lines = [f"cuff force estimate{since}, RMS error over RMS true, normal / along [%]: {cuffs}"]
     components = summary.get("cuff_force_estimate_components") or {}
-    sources = {
-        f"{c} {part}": how for c, d in components.items() for part, how in d.items()
-    }
+    sources = {f"{c} {part}": how for c, d in components.items() for part, how in d.items()}
     observed = [name for name, how in sources.items() if how.startswith("observed")]
     by_cuffs = any("cuff's" in how for how in sources.values())
     if components:

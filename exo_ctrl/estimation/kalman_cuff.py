@@ -46,8 +46,9 @@ sample (``fresh`` false) is not used again.
 
 **The tare.**  A sensor's offset b_s (:mod:`exo_ctrl.sensing.cuff_load`)
 reads as force; the filter cannot tell them apart from the readings alone.
-So the device zeroes its sensors while it stands at the start, as a real
-one does with the cuffs strapped on: over the window of the filter's steps
+On request (``tare_s`` > 0; off by default, :mod:`exo_ctrl.sensing.cuff_load`
+says why) the device zeroes its sensors while it stands at the start, with
+the cuffs strapped on: over the window of the filter's steps
 (t_s, t_s + T_t], t_s = :data:`TARE_SETTLE_S` (its start's transient) and
 T_t the sensors' ``tare_s``, it takes no update but averages, per measured
 axis, each fresh sample less the model's component at the same point,

@@ -53,10 +53,13 @@ exoskeleton link; one axis of it for ``normal``, two for ``full``:
   output rate is set by the user (the manual's ADC settings page, §6.4),
   so a real installation reads it slower than the joints to save bus time;
   the hold between samples is modelled.
-- ``tare_s`` = 0.3 s: chosen, the device's zeroing while it stands at the
-  start (done by the estimator, :mod:`exo_ctrl.estimation.kalman_cuff`);
-  the default 1.2 s ramp-in has grown to 15 % of the gait by the window's
-  end (0.35 s), and 150 samples at 500 Hz average the noise down to 0.02 N.
+- ``tare_s`` = 0 (off): the device's zeroing while it stands at the start
+  (done by the estimator, :mod:`exo_ctrl.estimation.kalman_cuff`; 0.3 s,
+  150 samples at 500 Hz, average the noise down to 0.02 N) takes the
+  standing model's error for an offset: with the patient's cuffs scattered
+  around the published ones it leaves up to 15 N on a measured component
+  of the default gait (:mod:`exo_ctrl.control.qp.margin`, e_cuffs) to
+  remove an offset of σ_b = 1 N, so it is off unless asked for.
 - ``seed`` = 3: a stream of its own (the joints' sensors use 0, the current
   sensors 1, the foot plates 2).
 """
@@ -103,7 +106,8 @@ class CuffSensorParams:
         tare_s: the device's zeroing at the start, while it stands [s]: the
             filter averages each axis's reading less its model's force over
             this window and subtracts the mean from later readings
-            (:mod:`exo_ctrl.estimation.kalman_cuff`); 0: no tare.
+            (:mod:`exo_ctrl.estimation.kalman_cuff`); 0: no tare (default,
+            module docstring).
 
     Raises:
         InvalidParameter: a mode not in :data:`CUFF_SENSOR_SETS`, a negative
@@ -118,7 +122,7 @@ class CuffSensorParams:
     drift_N_per_sqrt_s: float = 0.05
     sample_rate_hz: float = 500.0
     seed: int = 3
-    tare_s: float = 0.3
+    tare_s: float = 0.0
 
     def __post_init__(self) -> None:
         v.one_of("cuff_sensors mode", self.mode, CUFF_SENSOR_SETS)

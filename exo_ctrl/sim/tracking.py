@@ -65,7 +65,10 @@ def tracking_controller(
             stance_load=stance_load_for(config, model_exo),
             lift_off_blend_s=lift_off_blend_for(config),
             cuff_knowledge=CuffKnowledge(
-                config.cuffs, config.belief.cuff_spread(), config.cuff_sensors.mode
+                config.cuffs,
+                config.belief.cuff_spread(),
+                config.cuff_sensors.mode,
+                tare=config.cuff_sensors.on and config.cuff_sensors.tare_s > 0.0,
             ),
         )
     device = Device(

@@ -6,9 +6,12 @@ the ramp-in, RMS error over RMS true value, with the sensors' noise, offset
 (σ_b = 1 N, drawn per run) and drift on in every run, over three of the
 sensors' seeds.  The goals the issue states (issue 31): with ``full`` cuff
 sensors, the full vector within 5 % of its RMS; and sensors never worse
-than none on the normal components.  The device tares its sensors while it
-stands at the start (``tare_s``): without the tare the offsets (up to 3.3 N
-with the default seed) pass into the estimate.
+than none on the normal components.  Both hold here with the tare on
+(``tare_s`` = 0.3 s: the device zeroes its sensors while it stands at the
+start, on its standing model, which is right on this patient to under 1 N);
+without the tare (the default, as the tare takes a wrong standing model's
+error for an offset: exo_ctrl/sensing/cuff_load.py) the offsets (up to
+3.3 N with the default seed) pass into the estimate.
 """
 
 from __future__ import annotations
@@ -85,7 +88,7 @@ def test_without_the_tare_the_offset_passes_into_the_estimate() -> None:
 @pytest.mark.parametrize("seed", SEEDS)
 def test_the_tare_finds_the_drawn_offsets(seed: int) -> None:
     """After the tare's window the filter's offset is the drawn one, within the stated bounds."""
-    params = CuffSensorParams(mode="full", seed=seed)
+    params = CuffSensorParams(mode="full", seed=seed, tare_s=0.3)
     runner = Runner(build(SimConfig(controller="ct", cuff_sensors=params)))
     std = np.zeros((400, 4))
     for k in range(400):  # the filter's settling (50 ms) and the 0.3 s tare, at 1 kHz

@@ -21,10 +21,12 @@ from exo_ctrl.sensing import CuffSensorParams
 from exo_ctrl.sim import SimConfig, simulate
 
 
+@pytest.mark.parametrize("tare_s", [0.0, 0.3])
 @pytest.mark.parametrize("mode", ["normal", "full"])
-def test_the_offline_estimate_with_cuff_sensors_equals_the_live_one(tmp_path, mode) -> None:
-    """1 s: the filter's settling, the 0.3 s tare, then 0.65 s of fused samples."""
-    config = SimConfig(controller="ct", duration_s=1.0, cuff_sensors=CuffSensorParams(mode=mode))
+def test_the_offline_estimate_with_cuff_sensors_equals_the_live_one(tmp_path, mode, tare_s) -> None:
+    """1 s: the filter's settling, a 0.3 s tare or none, then the fused samples."""
+    sensors = CuffSensorParams(mode=mode, tare_s=tare_s)
+    config = SimConfig(controller="ct", duration_s=1.0, cuff_sensors=sensors)
     path = tmp_path / f"cuffs_{mode}.rrd"
     live = simulate(config, observers=[RerunRecorder(path)]).signals
     fresh = live["cuff_sensor_fresh"]
@@ -57,7 +59,8 @@ def test_without_the_readings_the_offline_filter_runs_on_the_torques_and_says_so
 
 def test_a_second_pass_of_the_same_filter_tares_again(tmp_path) -> None:
     """kalman_series restarts the filter: the tare and the model-error forces start anew."""
-    config = SimConfig(controller="ct", duration_s=0.6, cuff_sensors=CuffSensorParams(mode="full"))
+    sensors = CuffSensorParams(mode="full", tare_s=0.3)
+    config = SimConfig(controller="ct", duration_s=0.6, cuff_sensors=sensors)
     live = simulate(config).signals
     kalman, _, readings = recorded_kalman("run.rrd", config, load_exo(None), live)
     args = (np.arange(config.n_ticks) * config.dt, live["q_meas"], live["dq_meas"])

@@ -11,13 +11,16 @@
 - :mod:`~exo_ctrl.control.qp.screening`: the octagon rows, the clip test, the
   screening of rows for proxsuite.
 - :mod:`~exo_ctrl.control.qp.margin`: :func:`bound_margin`, what the
-  device does not know, by which each cuff's bound is tightened.
+  device does not know, by which each cuff's bound is tightened;
+  :mod:`~exo_ctrl.control.qp.cuff_knowledge`: :class:`CuffKnowledge`, what
+  it knows of the patient's true cuffs.
 - :mod:`~exo_ctrl.control.qp.workspace`: :class:`TorqueQP`, the persistent
   proxsuite workspace, its checks and its fallback.
 """
 
 from .controller import CONTROLLER_EPS_ABS, NO_BOUND, SLACK_WEIGHT, QPController
-from .margin import BoundMargin, CuffKnowledge, bound_margin, departure_warning
+from .cuff_knowledge import CuffKnowledge
+from .margin import BoundMargin, bound_margin, departure_warning
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows

@@ -115,8 +115,9 @@ from ..base import PDGains
 from ..computed_torque import ComputedTorqueController
 from ..lift_off import LIFT_OFF_BLEND_S
 from ..stance_load import StanceLoad
+from .cuff_knowledge import CuffKnowledge
 from .fallback import QPFallbacks
-from .margin import ESTIMATE_SIGMAS, CuffKnowledge, checked_margin
+from .margin import ESTIMATE_SIGMAS, checked_margin
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows

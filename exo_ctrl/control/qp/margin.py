@@ -63,8 +63,13 @@ each term an absolute force [N]:
   What is left is U (D^{model} − D^{true}) s_n, per leg, U the projector
   onto the components not measured (:func:`unobserved`: no sensors I;
   normal load cells I − n_c n_cᵀ per cuff, the along-link components
-  left; 2-axis sensors 0), so
-  e_cuffs,c = max over t and the two extremes of ‖(U (D^{model} − D^{true}) s_n)_c‖,
+  left; 2-axis sensors 0).  A device that tares its sensors at the
+  standing start (reading less model, :mod:`exo_ctrl.estimation.kalman_cuff`)
+  takes the standing model's error for an offset and keeps it on the
+  measured components, (I − U) (D^{model} − D^{true}) s_n(t₀), t₀ the plan's
+  first row, so
+  e_cuffs,c = max over t and the two extremes of
+  ‖(U (D^{model} − D^{true}) s_n(t) + (I − U) (D^{model} − D^{true}) s_n(t₀))_c‖,
   s_n(t) = Y(t) π_nominal the nominal patient's load along the plan.  With
   the defaults (s = 0.20) on the default gait: no cuff sensors, about 39 N
   on the thighs and 35 N on the shanks; normal load cells, 0 on the thighs
@@ -96,19 +101,18 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from ... import _validate as v
-from ...exceptions import CuffBoundTooTight, InvalidParameter
+from ...exceptions import CuffBoundTooTight
 from ...model import CUFF_NAMES, BodyModel, CohortSpread
 from ...model.cohort import TRUNCATION_Z
 from ...plan.kinematics import JointTrajectory
-from ...plant.cuff_scatter import DEFAULT_SPREAD, MAX_SPREAD, CuffScatter
 from ...plant.cuffs import CuffParams
 from ...plant.drive import MotorParams
+from .cuff_knowledge import CuffKnowledge, link_normals, unobserved
 from .prediction import CuffHorizonModel
 
 __all__ = [
@@ -116,17 +120,13 @@ __all__ = [
     "MOMENTUM_ERROR_N",
     "PREDICTION_ERROR_N",
     "REFERENCE_PERIOD_S",
-    "SENSOR_SETS",
     "SETTLE_TICKS",
     "BoundMargin",
-    "CuffKnowledge",
     "bound_margin",
     "checked_margin",
     "departure_warning",
-    "link_normals",
     "share_matrices",
     "step_factors",
-    "unobserved",
 ]
 
 #: e_pred, the horizon model's error given the true cuff state and patient [N]
@@ -145,54 +145,8 @@ REFERENCE_PERIOD_S = 1.2
 SETTLE_TICKS = 100
 #: Plan rows between the samples of the margin's scan [ticks].
 SCAN_STRIDE = 2
-#: The cuff sensor sets (:mod:`exo_ctrl.sensing.cuff_load`): none, a load cell
-#: per cuff measuring its normal force, a 2-axis sensor per cuff.
-SENSOR_SETS = ("none", "normal", "full")
 #: e_cuffs from which the departure warning names the cuff sensors [N].
 UNKNOWN_CUFFS_NOTED_N = 0.5
-
-
-@dataclass(frozen=True)
-class CuffKnowledge:
-    """What the device knows of its patient's true cuffs, for e_cuffs (module docstring).
-
-    Attributes:
-        published: the cuffs the true ones scatter around (the published
-            split stiffness by default; ``SimConfig.cuffs``).
-        spread_rel: s, the spread the device assumes for a patient's cuffs
-            [-], in [0, MAX_SPREAD] (default: the literature's,
-            :data:`~exo_ctrl.plant.cuff_scatter.DEFAULT_SPREAD`; 0: the true
-            cuffs are ``published`` exactly).
-        sensors: the cuff sensors the device carries, one of :data:`SENSOR_SETS`.
-
-    Raises:
-        InvalidParameter: cuffs that are not a CuffParams, a spread outside
-            [0, MAX_SPREAD], an unknown sensor set.
-
-    """
-
-    published: CuffParams = field(default_factory=CuffParams)
-    spread_rel: float = DEFAULT_SPREAD
-    sensors: str = "none"
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.published, CuffParams):
-            raise InvalidParameter("cuff knowledge published", self.published, "a CuffParams")
-        spread = v.finite("cuff knowledge spread_rel", self.spread_rel)
-        if not 0.0 <= spread <= MAX_SPREAD:
-            raise InvalidParameter(
-                "cuff knowledge spread_rel", self.spread_rel, f"in [0, {MAX_SPREAD:g}]"
-            )
-        v.one_of("cuff knowledge sensors", self.sensors, SENSOR_SETS)
-        object.__setattr__(self, "spread_rel", spread)
-
-    def true_cuffs(self) -> list[CuffParams]:
-        """The plausible true cuffs e_cuffs is taken over (none with 2-axis sensors)."""
-        if self.sensors == "full":
-            return []
-        if self.spread_rel == 0.0:
-            return [self.published]
-        return list(CuffScatter(spread_rel=self.spread_rel).extremes(self.published))
 
 
 @dataclass(frozen=True)
@@ -254,41 +208,6 @@ def step_factors(model: CuffHorizonModel, split: bool, t1_s: float) -> np.ndarra
     return out
 
 
-def link_normals(model: CuffHorizonModel, q: np.ndarray) -> np.ndarray:
-    """n_c, the unit normal of each cuff's exoskeleton link at ``q``, (4, 2) (x, z).
-
-    u = R(θ_c) u₀, θ_c = S_c · q, n = u turned by +90° (as
-    :func:`~exo_ctrl.control.qp.split_cuffs.split_gains`).
-    """
-    m = model.record[0]
-    theta = m["select"][:4, :4] @ q
-    ct, st = np.cos(theta), np.sin(theta)
-    u0 = m["along0"]
-    ux = u0[:, 0] * ct - u0[:, 1] * st
-    uz = u0[:, 1] * ct + u0[:, 0] * st
-    return np.stack((-uz, ux), axis=1)
-
-
-def unobserved(normals: np.ndarray, sensors: str) -> np.ndarray:
-    """U, the projector onto the cuff-force components a leg's sensors do not measure, (4, 4).
-
-    Rows and columns thigh x, z, shank x, z (module docstring, e_cuffs).
-
-    Args:
-        normals: the leg's two cuffs' link normals n_c, (2, 2) (:func:`link_normals`).
-        sensors: one of :data:`SENSOR_SETS`: ``"none"`` I, ``"normal"``
-            I − n_c n_cᵀ per cuff, ``"full"`` 0.
-
-    """
-    if sensors == "full":
-        return np.zeros((4, 4))
-    out = np.eye(4)
-    if sensors == "normal":
-        for k in range(2):
-            out[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] -= np.outer(normals[k], normals[k])
-    return out
-
-
 def _corner_parameters(patient: BodyModel, spread: CohortSpread) -> np.ndarray:
     """π of the nominal patient (column 0) and of the 64 corner patients, (10 n_bodies, 65)."""
     model = patient.model
@@ -335,6 +254,7 @@ def bound_margin(
     gait_period_s: float,
     spread: CohortSpread | None = None,
     sensors: str = "none",
+    tare: bool = False,
 ) -> BoundMargin:
     """The static margin terms, the working force and the load along ``plan`` (module docstring).
 
@@ -349,6 +269,9 @@ def bound_margin(
         gait_period_s: T [s], for the momentum observer's term.
         spread: the cohort's spreads (default :class:`CohortSpread`).
         sensors: the cuff sensors the device carries (:data:`SENSOR_SETS`).
+        tare: the device tares its cuff sensors at the standing start
+            (the plan's first row), which leaves the standing model's error
+            on the measured components (module docstring, e_cuffs).
 
     """
     spread = spread or CohortSpread()
@@ -365,6 +288,7 @@ def bound_margin(
     gravity = np.empty((n, 4))
     shares = np.empty((n, 2, 4, 2))
     errors = np.zeros((n, len(truths), 2, 4))  # U (D_model − D_true) s_n per truth, leg
+    bias = np.zeros((len(truths), 2, 4))  # the tare's, (I − U) (D_model − D_true) s_n(t₀)
     factors = np.empty((n, 2))
     t1 = model.horizon_s[0]
     for i, r in enumerate(rows):
@@ -382,7 +306,10 @@ def bound_margin(
             truth.linearise(q, dq)
             diff = shares[i] - share_matrices(truth, truth.split)
             for leg in range(2):
-                errors[i, k, leg] = projector[leg] @ diff[leg] @ loads[i, 2 * leg : 2 * leg + 2, 0]
+                split_error = diff[leg] @ loads[i, 2 * leg : 2 * leg + 2, 0]
+                if tare and i == 0:  # the standing start: the tare's bias on measured axes
+                    bias[k, leg] = split_error - projector[leg] @ split_error
+                errors[i, k, leg] = projector[leg] @ split_error + bias[k, leg]
     delta = loads[:, :, 1:] - loads[:, :, :1]
     low = np.empty_like(delta)
     acc = delta[0].copy()
@@ -453,7 +380,15 @@ def checked_margin(
     ]
     period = (plan.period_ticks or plan.q.shape[0]) * model.dt
     margin = bound_margin(
-        plan, patient, model, truths, bandwidth, estimator, period, sensors=knowledge.sensors
+        plan,
+        patient,
+        model,
+        truths,
+        bandwidth,
+        estimator,
+        period,
+        sensors=knowledge.sensors,
+        tare=knowledge.tare,
     )
     for c, name in enumerate(CUFF_NAMES):
         if limit_N - margin.static_N[c] < margin.working_N[c]:

@@ -14,19 +14,18 @@ import pytest
 
 from exo_ctrl import cli
 from exo_ctrl.control.qp import QPController
+from exo_ctrl.control.qp.cuff_knowledge import CuffKnowledge, link_normals, unobserved
 from exo_ctrl.control.qp.margin import (
     PREDICTION_ERROR_N,
     BoundMargin,
-    CuffKnowledge,
     departure_warning,
-    link_normals,
     share_matrices,
-    unobserved,
 )
 from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.estimation.kalman import CuffForceKalman
 from exo_ctrl.exceptions import CuffBoundTooTight, InvalidParameter
 from exo_ctrl.plant import CuffParams
+from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
 
@@ -233,3 +232,33 @@ def test_kalman_force_std_is_the_covariance_mapped_to_each_cuff() -> None:
     ctrl = setup.controller
     margin = ctrl.record["margin"][0]
     np.testing.assert_allclose(margin, ctrl.margin.static_N + 3.0 * rec["cuff_force_std"])
+
+
+def test_a_tare_keeps_the_standing_split_error_on_the_measured_components(
+    exo, patient, motor, plan
+) -> None:
+    """2-axis sensors tared at the standing start: e_cuffs is the standing split error.
+
+    Recomputed here: the nominal patient's load at the plan's first row from
+    Pinocchio's RNEA, shared by the device's model and by the scatter's two
+    extremes (CuffScatter.extremes), the largest difference per cuff.
+    """
+    tared = _margin(exo, patient, motor, plan, sensors="full", tare=True)
+    load = pin.rnea(patient.model, patient.model.createData(), plan.q[0], plan.dq[0], plan.ddq[0])
+    device = CuffHorizonModel(exo, patient, motor, CuffParams(), 1e-3)
+    device.linearise(plan.q[0], plan.dq[0])
+    expected = np.zeros(4)
+    for cuffs in CuffScatter().extremes(CuffParams()):
+        truth = CuffHorizonModel(exo, patient, motor, cuffs, 1e-3)
+        truth.linearise(plan.q[0], plan.dq[0])
+        diff = share_matrices(device, True) - share_matrices(truth, True)
+        for leg in range(2):
+            error = (diff[leg] @ load[2 * leg : 2 * leg + 2]).reshape(2, 2)
+            expected[2 * leg : 2 * leg + 2] = np.maximum(
+                expected[2 * leg : 2 * leg + 2], np.linalg.norm(error, axis=1)
+            )
+    print(f"\nthe tare's standing split error per cuff {tared.cuffs_N.round(2)} N")
+    np.testing.assert_allclose(tared.cuffs_N, expected, rtol=1e-9)
+    assert np.all(tared.cuffs_N > 1.0)
+    untared = _margin(exo, patient, motor, plan, sensors="full")
+    np.testing.assert_array_equal(untared.cuffs_N, 0.0)
