@@ -159,7 +159,10 @@ class MotorBank:
 
     @property
     def applied_voltage_V(self) -> NDArray[np.float64]:
-        """Voltage applied over the last step, ``clip(U_cmd, ±U_max)``, shape (n,) [V]."""
+        """Voltage applied over the last step, shape (n,) [V] (read-only view).
+
+        ``clip(U_cmd, ±U_max)``; in current mode the driver's mean voltage.
+        """
         return self._ro_u
 
     @property
