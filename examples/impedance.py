@@ -5,8 +5,8 @@
 K [N·m/rad] and D [N·m·s/rad] per joint; g(q) the gravity torques of the
 device's exoskeleton model and of its nominal patient (coaxial with the
 exoskeleton, so the patient's weight reaches the drives at the same joints),
-from Pinocchio.  The controller commands torques: the driver's current loop
-turns them into voltages, and the supply and current limits and the safety
+from Pinocchio.  The controller commands torques: the drivers' current loop
+follows them as currents, and the supply and current limits and the safety
 supervisor apply as to the built-in controllers.
 
 Run it (a short run; ``--controller examples.impedance:Impedance`` from the

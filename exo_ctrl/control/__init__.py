@@ -7,8 +7,8 @@
   Controller classes (:class:`PD`, :class:`CT`; gains in, compiled law inside).
 - :mod:`~exo_ctrl.control.plugin`: a user's controller in the run (its name,
   its import from ``module:Class``, the tick's adapter).
-- :mod:`~exo_ctrl.control.current_loop`: the driver's current loop that
-  turns torque commands into voltages.
+- :mod:`~exo_ctrl.control.current_loop`: torque commands into the drivers'
+  current references (their current loop: :mod:`exo_ctrl.plant.current_mode`).
 - :mod:`~exo_ctrl.control.base`: what the tick calls (:class:`TickController`),
   its record's common fields, the PD gains.
 - :mod:`~exo_ctrl.control.pd`: the paper's PD voltage law.
@@ -21,7 +21,6 @@ from ..sensing.readings import SensorReadings
 from .base import COMMAND_FIELDS, PDGains, TickController
 from .builtin import CT, PD
 from .computed_torque import ComputedTorqueController, feedforward_torque
-from .current_loop import CURRENT_LOOP_BANDWIDTH_HZ, CurrentLoop
 from .interface import COMMAND_KINDS, Controller, Device, PlanRow
 from .pd import PDController
 from .plugin import PluginController, controller_name
@@ -31,11 +30,9 @@ __all__ = [
     "COMMAND_FIELDS",
     "COMMAND_KINDS",
     "CT",
-    "CURRENT_LOOP_BANDWIDTH_HZ",
     "PD",
     "ComputedTorqueController",
     "Controller",
-    "CurrentLoop",
     "Device",
     "PDController",
     "PDGains",

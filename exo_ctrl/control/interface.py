@@ -9,8 +9,9 @@ and the estimator's cuff-force estimate.  It returns four numbers in
 in :attr:`Controller.command_kind`:
 
 - ``"voltage"``: drive voltages [V], applied as the built-in PD's are;
-- ``"torque"``: joint torques [N·m], turned into voltages by the driver's
-  current loop (:mod:`exo_ctrl.control.current_loop`).
+- ``"torque"``: joint torques [N·m], turned into current references
+  (:mod:`exo_ctrl.control.current_loop`) that the drivers' current loop
+  follows (:mod:`exo_ctrl.plant.current_mode`).
 
 Either way the command then meets what every controller meets: the supply
 voltage and the driver's current limit (the plant's drives), the safety

@@ -17,9 +17,11 @@ interface (:class:`~exo_ctrl.control.base.TickController`): it fills the
 plan's row, calls :meth:`~exo_ctrl.control.interface.Controller.command`
 with the time, the readings and the cuff-force estimate, checks what comes
 back (four finite numbers, else :class:`~exo_ctrl.exceptions.PluginError`
-naming the tick) and, for torque commands, runs the driver's current loop
-(:mod:`exo_ctrl.control.current_loop`).  The voltages then go the way every
-controller's go: the supervisor, the drives, the log.
+naming the tick) and, for torque commands, turns them into the drivers'
+current references (:mod:`exo_ctrl.control.current_loop`), written into the
+drives' current-mode inputs the run binds (:meth:`PluginController.bind_driver`);
+the command it passes on is then their feedforward voltage.  The voltages then
+go the way every controller's go: the supervisor, the drives, the log.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from ..plan.rows import plan_row
 from ..sensing.readings import SensorReadings
 from .base import COMMAND_FIELDS, CommandCounters, PDGains
 from .builtin import BUILT_IN_CLASSES, built_in, built_in_name
-from .current_loop import CurrentLoop
+from .current_loop import current_reference, reference_params
 from .interface import COMMAND_KINDS, Controller, Device, PlanRow
 
 __all__ = [
@@ -60,7 +62,7 @@ ALLOWED = (
 
 #: A user controller's part of its record (after :data:`~exo_ctrl.control.base.COMMAND_FIELDS`):
 #: its last command as returned (``command``: [V] or [N·m]) and, for torque
-#: commands, the current loop's references (``current_ref`` [A]; 0 for voltages).
+#: commands, the drivers' current references (``current_ref`` [A]; 0 for voltages).
 PLUGIN_FIELDS: list[tuple[Any, ...]] = [
     ("command", np.float64, (4,)),
     ("current_ref", np.float64, (4,)),
@@ -159,7 +161,8 @@ class PluginController(CommandCounters):
         name: the controller's ``module:Class`` (:func:`controller_name`).
         kind: ``"voltage"`` or ``"torque"``.
         record: :data:`~exo_ctrl.control.base.COMMAND_FIELDS` and :data:`PLUGIN_FIELDS`.
-        current_loop: the driver's current loop of a torque controller (None for voltages).
+        driver: the datasheet the drivers turn torques into currents with
+            (:func:`~exo_ctrl.control.current_loop.reference_params`; None for voltages).
 
     """
 
@@ -176,18 +179,22 @@ class PluginController(CommandCounters):
         self._row = PlanRow()
         self._rule = device.plan.row_rule
         self._no_estimate = np.zeros((4, 2))
-        self._current = np.zeros(4)
-        self.current_loop: CurrentLoop | None = None
+        self.driver: np.ndarray | None = None
+        self._i_ref, self._u_ff = np.zeros(4), np.zeros(4)
         if self.kind == "torque":
-            self.current_loop = CurrentLoop(device.motor, device.dt_s)
+            self.driver = reference_params(device.motor)
         user.setup(device)
 
-    def bind_currents(self, current_A: np.ndarray) -> None:
-        """Read the drives' current sensors from ``current_A``, (4,) [A], updated each tick."""
-        self._current = current_A
+    def bind_driver(self, current_ref_A: np.ndarray, u_ff_V: np.ndarray) -> None:
+        """Write the current references into the drives' ``current_ref_A``, (4,) [A].
+
+        And their feedforward voltages into ``u_ff_V``, (4,) [V]: the drives'
+        :attr:`~exo_ctrl.plant.motor.MotorBank.current_command`.
+        """
+        self._i_ref, self._u_ff = current_ref_A, u_ff_V
 
     def command(self, k: int, sensors: SensorReadings) -> np.ndarray:
-        """The voltages of tick k [V], (4,): the user's command (through the current loop).
+        """The voltages of tick k [V], (4,): the user's command, or its current references' U_ff.
 
         Raises:
             PluginError: the user's command is not four finite numbers.
@@ -203,12 +210,12 @@ class PluginController(CommandCounters):
         est = sensors.cuff_force_est
         out = self.user.command(t, row, sensors, self._no_estimate if est is None else est)
         self._accept(out, k, t)
-        loop = self.current_loop
-        if loop is None:
+        driver = self.driver
+        if driver is None:
             self._u[:] = self._command
         else:
-            self._u[:] = loop.voltages(self._command, sensors.dq, self._current)
-            self._current_ref[:] = loop.current_ref_A
+            current_reference(driver, self._command, sensors.dq, self._i_ref, self._u, self._u_ff)
+            self._current_ref[:] = self._i_ref
         return self._u
 
     def _accept(self, out: object, k: int, t: float) -> None:

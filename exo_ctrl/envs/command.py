@@ -9,8 +9,8 @@ current loop, the supervisor and the log as every controller's does.
   (:class:`~exo_ctrl.control.interface.Controller`, run through
   :class:`~exo_ctrl.control.plugin.PluginController` as a user's is) whose
   :meth:`command` returns the pending action: drive voltages [V], or joint
-  torques [N·m] that the driver's current loop turns into voltages
-  (:mod:`exo_ctrl.control.current_loop`).
+  torques [N·m] that become the drivers' current references
+  (:mod:`exo_ctrl.control.current_loop`, :mod:`exo_ctrl.plant.current_mode`).
 - ``"residual"``: :class:`ResidualController` wraps the run's built-in
   controller (PD, CT or QP) and adds the pending action [V] to its voltages.
 """

@@ -14,6 +14,7 @@ from .cuffs import (
     CuffParams,
     CuffSet,
 )
+from .current_mode import CURRENT_LOOP_BANDWIDTH_HZ
 from .drive import (
     MOTOR_PRESETS,
     MotorParams,
@@ -45,6 +46,7 @@ from .plant import (
 )
 
 __all__ = [
+    "CURRENT_LOOP_BANDWIDTH_HZ",
     "MAX_MISALIGNMENT_M",
     "MOTOR_PRESETS",
     "PATIENT_TORQUES",

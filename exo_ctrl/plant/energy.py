@@ -26,7 +26,11 @@ measures the energy the motor model creates (or destroys).  A step whose
 current meets the driver's limit is booked with the current held at ±I_max
 (the driver lowers the voltage to hold it): its copper loss is R I_max² h
 and the driver supplies what the winding takes, R I_max² h + k_b ω Ī h +
-Δ(½ L I²).  Energy flowing back to the supply (U Ī < 0, braking) is also
+Δ(½ L I²).  A step in the driver's current mode (:mod:`exo_ctrl.plant.current_mode`:
+I(t) = I* + d₀ e^{−ω_c t}, d₀ = I₀ − I*, the voltage shaped within the step)
+is booked the same way, the electrical energy being ∫U I dt, its copper
+loss R ∫I² dt by the formula above with I* for I∞ and ε_c = e^{−ω_c h},
+φ_c = (1 − ε_c)/(ω_c h) for ε, φ.  Energy flowing back to the supply (U Ī < 0, braking) is also
 counted as ``regenerated``.
 """
 
@@ -37,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from .._jit import kernel
+from .current_mode import CURRENT_MODE
 
 __all__ = ["book_drives", "book_step", "energy_fields", "energy_report"]
 
@@ -50,7 +55,7 @@ def energy_fields(n: int) -> list[tuple[Any, ...]]:
     ``e_mechanical`` (at the joint), and ``i_start`` the current at the
     reset [A]; the last step's, until it is booked: ``i_prev`` the current at
     its start [A], ``i_asym`` its asymptote I∞ [A], ``held`` (1.0: the driver
-    held the current at its limit).
+    held the current at its limit; 2.0: it followed a current reference).
     """
     rows = (
         "e_electrical", "e_regenerated", "e_copper", "e_gear", "e_mechanical", "i_start",
@@ -71,25 +76,29 @@ def book_step(
     i1: float,
     i_inf: float,
     mean: float,
-    held: bool,
+    held: float,
 ) -> None:
     """Book drive j's step (module docstring) into the drives' record ``m``.
 
     ``u`` the applied voltage [V], ``omega`` the held joint speed [rad/s],
     ``i0`` and ``i1`` the current at the step's start and end [A], ``i_inf``
-    its asymptote [A], ``mean`` Ī [A]; ``held``: the driver held the current
-    at its limit during the step.
+    its asymptote [A] (I* in current mode), ``mean`` Ī [A]; ``held``: 1.0 the
+    driver held the current at its limit during the step,
+    :data:`~exo_ctrl.plant.current_mode.CURRENT_MODE` it followed I*, 0.0 a
+    voltage step.
     """
     h = m.h
-    if held:
+    if held == 1.0:
         copper = m.res * mean * mean * h
-        electrical = copper + m.kb * omega * mean * h + 0.5 * m.ind * (i1 * i1 - i0 * i0)
     else:
         d0 = i0 - i_inf
-        phi, eps = m.phi, m.eps
+        phi, eps = (m.phi_c, m.eps_c) if held == CURRENT_MODE else (m.phi, m.eps)
         square = h * (i_inf * i_inf + 2.0 * i_inf * d0 * phi + d0 * d0 * phi * (1.0 + eps) * 0.5)
         copper = m.res * square
+    if held == 0.0:
         electrical = u * mean * h
+    else:  # the winding's take: copper, back-EMF and magnetic energy
+        electrical = copper + m.kb * omega * mean * h + 0.5 * m.ind * (i1 * i1 - i0 * i0)
     m.e_electrical[j] += electrical
     m.e_copper[j] += copper
     motor = m.kt * mean * omega * h
@@ -110,7 +119,7 @@ def book_drives(m: Any, omega_rad_s: np.ndarray) -> None:
     for j in range(m.current.shape[0]):
         book_step(
             m, j, m.u[j], omega_rad_s[j], m.i_prev[j], m.current[j], m.i_asym[j], m.mean[j],
-            m.held[j] != 0.0,
+            m.held[j],
         )  # fmt: skip
 
 

@@ -34,6 +34,10 @@ the step is ``τ = η^{s} i_G k_m Ī``.
 ``±I_max`` (the voltage the driver then actually applies is not modelled;
 ``applied_voltage_V`` is the clipped command).
 
+**Current mode.**  A drive handed a current reference instead of a voltage
+(:attr:`MotorBank.current_command`) follows it through the driver's current
+loop, stepped exactly too (:mod:`exo_ctrl.plant.current_mode`).
+
 The parameters, the gear factor ``η^{s}`` and the presets are in
 :mod:`exo_ctrl.plant.drive`.
 """
@@ -49,6 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._jit import kernel, record
 from .._validate import array, positive
 from ..exceptions import InvalidParameter
+from .current_mode import CURRENT_LOOP_BANDWIDTH_HZ, follow_reference
 from .drive import EFFICIENCY_SMOOTHING_RAD_S, OPEN_PHASE, MotorParams, gear_factor
 from .energy import book_drives, energy_fields, energy_report
 
@@ -122,7 +127,10 @@ class MotorBank:
         m["res"], m["ind"] = p.resistance_ohm, p.inductance_H
         m["lneta"], m["inv_w_eta"] = p.log_efficiency, 1.0 / EFFICIENCY_SMOOTHING_RAD_S
         m["gear"] = 1.0
-        m["eps"] = m["phi"] = m["d_unsat"] = math.nan
+        m["eps"] = m["phi"] = m["d_unsat"] = m["eps_c"] = m["phi_c"] = math.nan
+        self._omega_c = 2.0 * math.pi * CURRENT_LOOP_BANDWIDTH_HZ
+        m["wcl"] = p.inductance_H * self._omega_c
+        m["u_ff"] = math.nan
         r = self.record
         self._current, self._mean, self._u = r["current"][0], r["mean"][0], r["u"][0]
         self._torque, self._sat, self._damping = r["torque"][0], r["saturated"][0], r["damping"][0]
@@ -151,7 +159,10 @@ class MotorBank:
 
     @property
     def applied_voltage_V(self) -> NDArray[np.float64]:
-        """Voltage applied over the last step, ``clip(U_cmd, ±U_max)``, shape (n,) [V]."""
+        """Voltage applied over the last step, shape (n,) [V] (read-only view).
+
+        ``clip(U_cmd, ±U_max)``; in current mode the driver's mean voltage.
+        """
         return self._ro_u
 
     @property
@@ -183,6 +194,10 @@ class MotorBank:
         m["eps"] = em1 + 1.0  # e^{-x}
         m["phi"] = -em1 / x  # φ
         m["d_unsat"] = self._d_coef * (x + em1) / x  # D unsaturated; (x + em1)/x = 1 − φ
+        y = dt * self._omega_c
+        em1 = math.expm1(-y)
+        m["eps_c"] = em1 + 1.0  # e^{-ω_c h}
+        m["phi_c"] = -em1 / y  # φ_c
         self._dt = dt
 
     def step(self, voltage_cmd_V: ArrayLike, omega_rad_s: ArrayLike, dt_s: float) -> NDArray:
@@ -214,6 +229,18 @@ class MotorBank:
         omega_rad_s = array("omega_rad_s", omega_rad_s, self._shape)
         motor_step(self.record, voltage_cmd_V, omega_rad_s)
         return self._ro_torque
+
+    @property
+    def current_command(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The current mode's inputs ``(i_ref, u_ff)``, (n,) each, writable views [A], [V].
+
+        Write the current references I* into the first and, into the second,
+        the voltage handed to :meth:`step` with them: a drive whose voltage
+        command equals its ``u_ff`` follows I* (:mod:`exo_ctrl.plant.current_mode`);
+        NaN (after :meth:`reset`) never does.
+        """
+        r = self.record
+        return r["i_ref"][0], r["u_ff"][0]
 
     @property
     def damping_Nm_s_per_rad(self) -> NDArray[np.float64]:
@@ -255,6 +282,7 @@ class MotorBank:
         for name in ("e_electrical", "e_regenerated", "e_copper", "e_gear", "e_mechanical"):
             r[name][0] = 0.0
         self._u.fill(0.0)
+        r["u_ff"][0] = math.nan
         self._sat.fill(0.0)
         self._damping.fill(0.0)  # set by the next step
         np.multiply(self._mean, self._kt, out=self._torque)
@@ -317,9 +345,11 @@ def motor_fields(n: int) -> list[tuple]:
 
     Parameters: ``u_max`` U_max [V], ``kb`` i_G/k_E [V·s/rad], ``inv_r`` 1/R
     [1/Ω], ``i_max`` I_max [A], ``kt`` i_G k_m [N·m/A], ``lneta`` ln η,
-    ``inv_w_eta`` 1/ω_η [s/rad], and of the step
+    ``inv_w_eta`` 1/ω_η [s/rad], ``wcl`` L ω_c [V/A], and of the step
     length h: ``eps`` e^{-h/τ_e}, ``phi`` φ, ``d_unsat`` the unsaturated
-    back-EMF damping D [N·m·s/rad].  State per drive: ``current`` I(h) [A]
+    back-EMF damping D [N·m·s/rad], ``eps_c`` e^{-ω_c h}, ``phi_c`` φ_c
+    (:mod:`exo_ctrl.plant.current_mode`).  Current mode per drive: ``i_ref``
+    I* [A], ``u_ff`` the voltage command that selects it [V].  State per drive: ``current`` I(h) [A]
     at the end of the last step, ``mean`` Ī [A], ``u`` the applied voltage
     [V], ``torque`` η^s i_G k_m Ī at the joint [N·m], ``gear`` the gear
     factor η^s, ``saturated`` (1.0/0.0), ``damping`` D = −∂τ/∂ω of the
@@ -328,8 +358,12 @@ def motor_fields(n: int) -> list[tuple]:
     injection).
     And the energy books (:func:`exo_ctrl.plant.energy.energy_fields`).
     """
-    scalars = ("u_max", "kb", "inv_r", "i_max", "kt", "lneta", "inv_w_eta", "eps", "phi", "d_unsat")
-    rows = ("current", "mean", "u", "torque", "gear", "saturated", "damping", "fault")
+    scalars = (
+        "u_max", "kb", "inv_r", "i_max", "kt", "lneta", "inv_w_eta", "eps", "phi", "d_unsat",
+        "wcl", "eps_c", "phi_c",
+    )  # fmt: skip
+    rows = ("current", "mean", "u", "torque", "gear", "saturated", "damping", "fault", "i_ref")
+    rows += ("u_ff",)
     return (
         [(name, np.float64) for name in scalars]
         + [(name, np.float64, (n,)) for name in rows]
@@ -375,23 +409,32 @@ def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
                 m.gear[j] = 1.0
                 continue
             u = 0.0  # SHORTED: the winding is shorted, U = 0 whatever the command
-        i_inf = (u - kb * omega_rad_s[j]) * inv_r
-        i0 = current[j]
-        d0 = i0 - i_inf
-        mean = d0 * phi + i_inf
-        sat = abs(mean) > i_max
-        end = d0 * eps + i_inf
-        current[j] = min(max(end, -i_max), i_max)
-        mean = min(max(mean, -i_max), i_max)
-        m.i_prev[j] = i0
-        m.i_asym[j] = i_inf
-        m.held[j] = 1.0 if sat or abs(end) > i_max else 0.0
-        mean_out[j] = mean
-        u_out[j] = u
-        saturated[j] = 1.0 if sat else 0.0
+        lag = False
+        if fault == 0.0 and voltage_cmd_V[j] == m.u_ff[j]:  # current mode
+            lag, u_lag = follow_reference(m, j, omega_rad_s[j])
+            u = min(max(u_lag, -u_max), u_max)
+        if lag:  # the driver followed I*: no back-EMF damping
+            mean = mean_out[j]
+            emf_damped = False
+        else:
+            i_inf = (u - kb * omega_rad_s[j]) * inv_r
+            i0 = current[j]
+            d0 = i0 - i_inf
+            mean = d0 * phi + i_inf
+            sat = abs(mean) > i_max
+            end = d0 * eps + i_inf
+            current[j] = min(max(end, -i_max), i_max)
+            mean = min(max(mean, -i_max), i_max)
+            m.i_prev[j] = i0
+            m.i_asym[j] = i_inf
+            m.held[j] = 1.0 if sat or abs(end) > i_max else 0.0
+            mean_out[j] = mean
+            u_out[j] = u
+            saturated[j] = 1.0 if sat else 0.0
+            emf_damped = not sat
         if lneta == 0.0:
             torque[j] = mean * kt
-            damping[j] = 0.0 if sat else d_unsat
+            damping[j] = d_unsat if emf_damped else 0.0
             continue
         # η^s, s = sign(τ_m) tanh(ω/ω_η); D = −∂τ/∂ω = η^s D_emf + |τ| |ln η| sech²(ω/ω_η)/ω_η.
         th = math.tanh(omega_rad_s[j] * inv_w)
@@ -400,7 +443,8 @@ def step_drives(m: Any, voltage_cmd_V: NDArray, omega_rad_s: NDArray) -> None:
         m.gear[j] = g
         tau = mean * kt * g
         torque[j] = tau
-        damping[j] = (0.0 if sat else d_unsat * g) - abs(tau) * lneta * (1.0 - th * th) * inv_w
+        emf = d_unsat * g if emf_damped else 0.0
+        damping[j] = emf - abs(tau) * lneta * (1.0 - th * th) * inv_w
 
 
 @kernel

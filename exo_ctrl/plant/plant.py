@@ -322,7 +322,8 @@ class Plant:
         """Advance by one step h with the drive voltages and patient torques held.
 
         Args:
-            voltage_V: commanded drive voltages, (4,) [V].
+            voltage_V: commanded drive voltages, (4,) [V] (one equal to its
+                drive's ``u_ff`` selects current mode: ``motors.current_command``).
             patient_torque_Nm: patient joint torques, (4,) [N·m] (None: zero).
 
         Raises:

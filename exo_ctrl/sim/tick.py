@@ -32,8 +32,7 @@ from ..control.modes.path import PathController
 from ..estimation import CuffForceEstimator, CuffForceKalman, EstimatorDevice, PluginEstimator
 from ..plan.online import online_step, write_plan
 from ..plant import PatientTorque
-from ..safety import SafetyLimits, SafetySupervisor
-from ..safety.belt_monitor import BeltMonitor
+from ..safety import SafetySupervisor
 from ..safety.cuff_load import CuffLoadMonitor, cuff_load_schedule
 from ..sensing import (
     BeltEncoder,
@@ -48,6 +47,7 @@ from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
 from .schema import log_dtype
 from .setup import Setup, patient_torque_for, start_on_plan
+from .supervision import build_supervisor
 
 __all__ = [
     "UNTIMED_TICKS",
@@ -59,15 +59,6 @@ __all__ = [
 #: Ticks at the start of a run left out of its wall time: they load (or,
 #: after an install, compile) the compiled kernels.
 UNTIMED_TICKS = 3
-
-#: Limits that never trip: the supervisor then only serves the e-stop.
-_NO_LIMITS = SafetyLimits(
-    cuff_force_N=(1e12,) * 4,
-    position_lower_rad=(-1e12,) * 4,
-    position_upper_rad=(1e12,) * 4,
-    speed_limit_rad_s=(1e12,) * 4,
-    current_limit_A=1e12,
-)
 
 #: The record of an absent supervisor: state 0 (normal) throughout.
 _NO_SUPERVISOR = [("state", np.float64)]
@@ -154,9 +145,9 @@ class Runner:
         #: The drives' current sensors (the supervisor's current readings), read
         #: with the joints' sensors at the start of the tick (sensing/device.py).
         self.current_sensor = CurrentSensor(config.current_sensor)
-        bind = getattr(setup.controller, "bind_currents", None)
-        if bind is not None:  # a user's torque controller: the driver's current loop reads them
-            bind(self.current_sensor.current)
+        bind = getattr(setup.controller, "bind_driver", None)
+        if bind is not None:  # a user's torque controller: the drivers take its current references
+            bind(*plant.motors.current_command)
         self._device_sensors = DeviceSensors(
             self.sensor_model,
             self.current_sensor,
@@ -164,31 +155,7 @@ class Runner:
             self.cuff_sensors,
             plant.record["cuffs"],
         )
-        self.supervisor: SafetySupervisor | None = None
-        if config.safety or config.estop_at_s is not None:
-            limits = config.safety_limits if config.safety else _NO_LIMITS
-            self.supervisor = SafetySupervisor(
-                limits,
-                setup.device_exo,
-                setup.device_patient,
-                setup.device_motor,
-                config.dt,
-                estop_at_s=config.estop_at_s,
-                use_estimate=config.safety_use_estimate,
-                sensors=config.sensors,
-                compliant_drives=config.joint_compliance.enabled,
-                belt=BeltMonitor(
-                    self.belt_encoder,
-                    self.foot_load,
-                    self.belt_drive_force,
-                    config.belief.belt_model(config.contact.belt),
-                )
-                if config.safety and setup.belt_speed is not None
-                else None,
-                stop_reaction=config.stop_reactions,
-                cuff_stiffness=config.belief.cuff_model_of(config.cuffs).stiffness_N_per_m,
-                current_sensor=config.current_sensor,
-            )
+        self.supervisor: SafetySupervisor | None = build_supervisor(self, setup, bind is not None)
         sup = self.supervisor
         #: The supervisor's patient-load monitor (safety/cuff_load.py; None: off the whole
         #: run), run on its normal ticks; its warnings go to the supervisor's events.

@@ -5,8 +5,10 @@ Real models and runs, no mocks: a plain-Python PD written on
 a torque-commanding impedance controller (examples/impedance.py) stays
 within the driver's current and the supply's voltage; a controller that
 runs a joint into its limit is stopped by the supervisor as a built-in one
-is; the driver's current loop (exo_ctrl/control/current_loop.py) settles on
-its reference and does not wind up.
+is; the drivers follow a torque controller's current references through
+their current loop inside the plant's step (exo_ctrl/plant/current_mode.py),
+tick by tick as the closed form says, and the supervisor's drive model reads
+the voltage they apply.
 """
 
 from __future__ import annotations
@@ -19,12 +21,16 @@ import numpy as np
 import pytest
 
 from exo_ctrl import SimConfig, read_recording, simulate
-from exo_ctrl.control import Controller, CurrentLoop, PDGains
-from exo_ctrl.plant import MotorBank, MotorParams
+from exo_ctrl.control import Controller, PDGains
+from exo_ctrl.control.current_loop import current_reference, reference_params
+from exo_ctrl.plant import CURRENT_LOOP_BANDWIDTH_HZ, MotorParams
+from exo_ctrl.plant.drive import EFFICIENCY_SMOOTHING_RAD_S
 from exo_ctrl.record import RerunRecorder
 from exo_ctrl.safety import SafetyLimits
 from exo_ctrl.sim import drive_for
 from exo_ctrl.sim.setup import build
+from exo_ctrl.sim.supervision import ReportingDrives
+from exo_ctrl.sim.tick import Runner
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -127,9 +133,11 @@ def test_an_impedance_controller_stays_within_the_drives_limits() -> None:
     assert current.max() <= limit_A + 1e-9  # [A]: never above the driver's limit
     assert current.max() >= 0.99 * limit_A  # and the test reaches it
     assert np.abs(result.signals["voltage"]).max() <= supply_V + 1e-9  # [V]
-    assert np.abs(result.signals["voltage_cmd"]).max() <= supply_V + 1e-9  # the loop clips
-    rms = result.summary()["rms_tracking_error_rad"]
-    assert max(rms.values()) < 0.05  # it walks the gait
+    assert np.abs(result.signals["voltage_cmd"]).max() <= supply_V + 1e-9  # U_ff is clipped
+    summary = result.summary()
+    assert max(summary["rms_tracking_error_rad"].values()) < 0.05  # it walks the gait
+    assert summary["energy_balance_residual_rel"] <= 1e-12  # the books balance
+    assert summary["safety_state"] == "normal"  # the drive model agrees with the drivers
 
 
 def test_the_supervisor_stops_a_user_controller_as_it_stops_the_built_in() -> None:
@@ -158,43 +166,43 @@ def test_full_voltage_into_a_joint_limit_is_stopped() -> None:
     assert np.all(np.abs(result.signals["voltage"][k:]) < 24.0)  # from it, the stop's ramp
 
 
-def test_the_current_loop_settles_on_its_reference_and_does_not_wind_up() -> None:
-    """The PI of exo_ctrl/control/current_loop.py on the plant's exact drive step."""
-    dt = 1e-3  # [s]
-    motor = MotorParams()
-    loop = CurrentLoop(motor, dt)
-    assert loop.omega_c_rad_s == pytest.approx(0.5 / dt)  # capped at the tick
-    assert loop.kp_V_per_A == pytest.approx(motor.inductance_H * 500.0)
-    assert loop.ki_V_per_A_s == pytest.approx(motor.resistance_ohm * 500.0)
-    # a winding 20 % off the datasheet: the integral removes the error
-    true = MotorParams(resistance_ohm=motor.resistance_ohm * 1.2)
-    bank = MotorBank(4, true)
-    omega = np.array([0.0, 1.0, -1.0, 0.5])  # [rad/s]
-    torque = np.array([20.0, -30.0, 50.0, 0.0])  # [N·m]
-    for _ in range(200):
-        u = loop.voltages(torque, omega, bank.mean_current_A.copy())
-        bank.step(u, omega, dt)
-    np.testing.assert_allclose(bank.mean_current_A, loop.current_ref_A, atol=1e-6)
-    # an unreachable current (back-EMF at full speed): the voltage holds the supply,
-    # and the integral does not wind up while it does
-    loop.reset()
-    fast = np.full(4, 6.0)  # [rad/s]: 27.8 V of back-EMF
-    for _ in range(500):
-        u = loop.voltages(np.full(4, 100.0), fast, bank.mean_current_A.copy())
-        bank.step(u, fast, dt)
-    assert np.all(u == motor.supply_voltage_V)
-    slow = np.zeros(4)
-    for _ in range(10):  # the reference drops to 0 A: the current follows within ticks
-        u = loop.voltages(np.zeros(4), slow, bank.mean_current_A.copy())
-        bank.step(u, slow, dt)
-    assert np.abs(bank.mean_current_A).max() < 0.05 * motor.current_limit_A
-    assert math.isfinite(float(u.sum()))
+def test_the_drives_follow_the_current_references_tick_by_tick() -> None:
+    """Each tick's mean current against the lag's closed form from the tick's start."""
+    impedance = _example("impedance")
+    setup = build(SimConfig(controller=impedance.Impedance(), duration_s=0.3))
+    runner = Runner(setup)
+    assert isinstance(runner.supervisor, ReportingDrives)
+    bank, ref = setup.plant.motors, setup.controller.record["current_ref"][0]
+    x = 2.0 * math.pi * CURRENT_LOOP_BANDWIDTH_HZ * setup.config.dt
+    phi, eps = -math.expm1(-x) / x, math.exp(-x)
+    worst = moved = 0.0
+    low, high = np.full(4, np.inf), np.full(4, -np.inf)
+    for k in range(runner.chunk):
+        start = bank.current_A.copy()
+        runner.tick(k, k)
+        mean = ref + (start - ref) * phi
+        worst = max(worst, np.abs(bank.mean_current_A - mean).max())
+        assert np.abs(bank.current_A - (ref + (start - ref) * eps)).max() <= 1e-9
+        moved = max(moved, np.abs(ref - start).max())
+        low, high = np.minimum(low, ref), np.maximum(high, ref)
+    assert worst <= 1e-9  # [A]
+    assert moved > 0.1 and np.all(high - low > 0.5)  # [A]: the references do move
+    # the log's voltage is the drivers' applied one, not the command
+    volts = runner.log["voltage"]
+    assert np.abs(volts - runner.log["voltage_cmd"]).max() > 0.1  # [V]
 
 
 def test_the_driver_limits_a_torque_command_to_its_current() -> None:
     motor = drive_for(MotorParams(), build(SimConfig(duration_s=0.01)).exo)
-    loop = CurrentLoop(motor, 1e-3)
-    loop.voltages(np.array([1e4, -1e4, 0.0, 1.0]), np.zeros(4), np.zeros(4))
+    ref, u, u_ff = np.zeros(4), np.zeros(4), np.zeros(4)
+    omega = np.array([0.0, 0.0, 0.0, 2.0])  # [rad/s]
+    torque = np.array([1e4, -1e4, 0.0, 1.0])  # [N·m]
+    current_reference(reference_params(motor), torque, omega, ref, u, u_ff)
     limit = motor.current_limit_A
-    assert loop.current_ref_A[:2].tolist() == [limit, -limit]
-    assert loop.current_ref_A[3] == pytest.approx(1.0 / motor.torque_per_amp_Nm_per_A)
+    assert ref[:2].tolist() == [limit, -limit]
+    assert ref[2] == 0.0
+    gear = motor.gear_efficiency ** math.tanh(2.0 / EFFICIENCY_SMOOTHING_RAD_S)  # η^s, motoring
+    assert ref[3] == pytest.approx(1.0 / (motor.torque_per_amp_Nm_per_A * gear), rel=1e-12)
+    steady = motor.resistance_ohm * ref + motor.back_emf_V_per_rad_s * omega
+    np.testing.assert_allclose(u, np.clip(steady, -24.0, 24.0), rtol=1e-12)
+    np.testing.assert_array_equal(u, u_ff)  # the command selects the drivers' current mode

@@ -1,0 +1,103 @@
+"""The run's safety supervisor, built from its configuration; current-mode drives' reports.
+
+A drive in the driver's current mode (:mod:`exo_ctrl.plant.current_mode`:
+a user's torque controller) sets its own voltage within the plant's step,
+so the voltage the supervisor sent it (the current references' feedforward,
+:mod:`exo_ctrl.control.current_loop`) is not the voltage across the winding.
+The supervisor's drive model (:mod:`exo_ctrl.safety.plausibility`,
+:mod:`exo_ctrl.safety.still`) then takes the drivers' report of the voltage
+they applied over the last plant step (:class:`ReportingDrives`), as a
+servo driver reports it to its master.  A short (U = 0 whatever is sent) is
+then reported too, and is not seen by the drive model.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..safety import SafetyLimits, SafetySupervisor
+from ..safety.belt_monitor import BeltMonitor
+from ..sensing.readings import SensorReadings
+
+__all__ = ["ReportingDrives", "build_supervisor"]
+
+#: Limits that never trip: the supervisor then only serves the e-stop.
+NO_LIMITS = SafetyLimits(
+    cuff_force_N=(1e12,) * 4,
+    position_lower_rad=(-1e12,) * 4,
+    position_upper_rad=(1e12,) * 4,
+    speed_limit_rad_s=(1e12,) * 4,
+    current_limit_A=1e12,
+)
+
+
+class ReportingDrives(SafetySupervisor):
+    """A supervisor whose drive model takes the drives' report of their applied voltage.
+
+    Args:
+        applied_voltage_V: the drives' applied voltage over the last plant
+            step, (4,) [V], updated by the plant (its ``voltage``).
+        *args, **kwargs: :class:`~exo_ctrl.safety.SafetySupervisor`'s.
+
+    """
+
+    def __init__(self, *args: Any, applied_voltage_V: np.ndarray, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._report = applied_voltage_V
+        self._sent = self.plausibility_record["u_prev"][0]
+
+    def step(
+        self,
+        k: int,
+        t: float,
+        sensors: SensorReadings,
+        cuff_force: np.ndarray,
+        current_A: np.ndarray,
+        u_cmd: np.ndarray,
+        command_age_s: float = 0.0,
+    ) -> np.ndarray:
+        """:meth:`SafetySupervisor.step` with the drive model on the drives' report."""
+        np.copyto(self._sent, self._report)
+        return super().step(k, t, sensors, cuff_force, current_A, u_cmd, command_age_s)
+
+
+def build_supervisor(runner: Any, setup: Any, current_mode: bool) -> SafetySupervisor | None:
+    """The supervisor of a run (None: no safety and no e-stop).
+
+    Args:
+        runner: the tick's runner (its belt encoder, foot load and belt drive force).
+        setup: the run's :class:`~exo_ctrl.sim.setup.Setup`.
+        current_mode: the drives follow current references (:class:`ReportingDrives`).
+
+    """
+    config = setup.config
+    if not (config.safety or config.estop_at_s is not None):
+        return None
+    limits = config.safety_limits if config.safety else NO_LIMITS
+    extra = {"applied_voltage_V": setup.plant.record["voltage"][0]} if current_mode else {}
+    cls = ReportingDrives if current_mode else SafetySupervisor
+    return cls(
+        limits,
+        setup.device_exo,
+        setup.device_patient,
+        setup.device_motor,
+        config.dt,
+        estop_at_s=config.estop_at_s,
+        use_estimate=config.safety_use_estimate,
+        sensors=config.sensors,
+        compliant_drives=config.joint_compliance.enabled,
+        belt=BeltMonitor(
+            runner.belt_encoder,
+            runner.foot_load,
+            runner.belt_drive_force,
+            config.belief.belt_model(config.contact.belt),
+        )
+        if config.safety and setup.belt_speed is not None
+        else None,
+        stop_reaction=config.stop_reactions,
+        cuff_stiffness=config.belief.cuff_model_of(config.cuffs).stiffness_N_per_m,
+        current_sensor=config.current_sensor,
+        **extra,
+    )
