@@ -40,7 +40,10 @@ live cuff force estimate (``sensors.cuff_force_est``) through a lead–lag
 (:data:`RESTORED_BANDWIDTH_PER_S`: the momentum observer's 10 ms lag
 shortened to 5 ms; on the lag-free Kalman filter a 5 ms lead), with d̂
 filtered at the estimator's ω_d (:data:`DISTURBANCE_BANDWIDTH_PER_S`), by
-:class:`~exo_ctrl.control.qp.observer.CuffStateObserver`.  Without an
+:class:`~exo_ctrl.control.qp.observer.CuffStateObserver`.  That state carries
+the joint-space load of the estimate, split between a leg's cuffs by the
+model; with cuff sensors (``cuff_knowledge``) the estimate's measured split
+is held over the horizon on top (:func:`~exo_ctrl.control.qp.observer.add_residual`).  Without an
 estimate (or ``force_feedback=False``) the cuffs are taken as fitted
 (δ = δ̇ = d = 0).  The bound is an octagon inscribed in the circle
 (:mod:`~exo_ctrl.control.qp.screening`), SOFT: one slack s_c ≥ 0 per cuff,
@@ -334,6 +337,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
         for name, value in box_constants(motor, effort).items():
             rec[name] = value
         rec["force_feedback"] = bool(force_feedback)
+        rec["sensed"] = cuff_knowledge is not None and cuff_knowledge.sensors != "none"
         rec["limit"] = self.cuff_force_limit_N
         self.margin = checked_margin(
             plan,

@@ -60,7 +60,7 @@ from ...exceptions import InvalidParameter
 from .prediction import CuffHorizonModel
 from .split_cuffs import filter_leg
 
-__all__ = ["OBSERVER_FIELDS", "CuffStateObserver", "observe", "shorten_lag"]
+__all__ = ["OBSERVER_FIELDS", "CuffStateObserver", "add_residual", "observe", "shorten_lag"]
 
 #: The fields of a :class:`CuffStateObserver`'s record: K [N/m], C [N·s/m]
 #: (isotropic cuffs; split cuffs take the cuff model's G_K and G_C,
@@ -148,6 +148,34 @@ def observe(
         vp_prev[i0], vp_prev[i0 + 1] = vp1, vp2
     o.first = 0.0
     return True
+
+
+@kernel
+def add_residual(o: np.void, m: np.void, split: bool | None) -> None:  # pragma: no cover
+    """Hold over the horizon what the cuff state does not reproduce of the estimate: b += r.
+
+    r_c = f̃_c − f_c(δ̂, δ̂̇) per cuff and component, f the cuff model's force at
+    the observer's state (split: −W_K δ̂ − W_C δ̂̇; isotropic: −J (K δ̂ + C δ̂̇)),
+    which carries exactly the joint-space load the estimate does (Jᵀ r = 0):
+    r is the part of the estimate the joint torques do not see, the split
+    between a leg's cuffs that cuff sensors measured.  Added to every
+    horizon point of ``m.b`` (row 8 p + 2 c + i), after
+    :func:`~exo_ctrl.control.qp.prediction.predict`.
+    """
+    b, fast, delta, ddelta = m.b, o.fast, o.delta, o.ddelta
+    for leg in range(2):
+        i0 = 2 * leg
+        d0, d1, r0, r1 = delta[i0], delta[i0 + 1], ddelta[i0], ddelta[i0 + 1]
+        for rr in range(4):
+            if split is not None and m.split:
+                wk, wc = m.wk[leg, rr], m.wc[leg, rr]
+                model = -(wk[0] * d0 + wk[1] * d1 + wc[0] * r0 + wc[1] * r1)
+            else:
+                j0, j1 = m.jac[leg, rr, 0], m.jac[leg, rr, 1]
+                model = -(o.stiffness * (j0 * d0 + j1 * d1) + o.damping * (j0 * r0 + j1 * r1))
+            res = fast[i0 + rr // 2, rr % 2] - model
+            for row in range(leg * 4 + rr, b.shape[0], 8):
+                b[row] += res
 
 
 @kernel

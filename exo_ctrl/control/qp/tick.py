@@ -21,7 +21,7 @@ import numpy as np
 from ..._jit import Status, kernel
 from ..pd import pd_law
 from .margin import SETTLE_TICKS
-from .observer import observe
+from .observer import add_residual, observe
 from .prediction import gather, pair, predict
 from .screening import POLYGON_SIDES, bound_rows, clip_if_feasible, screen, widen
 from .torque_box import TORQUE_BOX_FIELDS, torque_box, voltage
@@ -49,7 +49,9 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
     ``u_ct``: the CT+PD voltage [V]; the last tick's figures ``solve_time_us``,
     ``screen_rounds``, ``solved`` (False: fell back), ``needs_solve`` (the
     clip test failed: proxsuite is needed), ``violated`` (rows the last
-    answer violates); ``force_feedback``; the torque box
+    answer violates); ``force_feedback``; ``sensed`` (the device carries cuff
+    sensors: the estimate's measured split is held over the horizon,
+    :func:`~exo_ctrl.control.qp.observer.add_residual`); the torque box
     (:data:`~exo_ctrl.control.qp.torque_box.TORQUE_BOX_FIELDS`); the answer
     ``torque`` [N·m] and ``slack`` [N]; ``fitted``: zeros, the cuff state
     taken without an estimate; the octagon's ``directions`` and ``radius``
@@ -71,6 +73,7 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
         ("needs_solve", np.bool_),
         ("violated", np.int64),
         ("force_feedback", np.bool_),
+        ("sensed", np.bool_),
         *TORQUE_BOX_FIELDS,
         ("torque", f8, (4,)),
         ("slack", f8, (4,)),
@@ -156,6 +159,8 @@ def tail(
     else:  # the cuffs taken as fitted: δ = δ̇ = d = 0
         delta = ddelta = dist = s.fitted
     predict(m, delta, ddelta, dist, split)
+    if observed and s.sensed:  # the measured split, held over the horizon
+        add_residual(observer[0], m, split)
     tighten(s, force_std)
     if not math.isfinite(bound_rows(s.directions, m.A, m.b, s.radius, s.rows, s.upper)):
         return Status.NOT_FINITE.value

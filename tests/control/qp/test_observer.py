@@ -7,7 +7,9 @@ import pytest
 
 from exo_ctrl.control.qp import (
     CuffHorizonModel,
+    CuffKnowledge,
     CuffStateObserver,
+    QPController,
 )
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.plant.cuffs import CuffParams, CuffSet
@@ -120,3 +122,37 @@ def test_the_first_estimate_starts_the_cuffs_at_rest(exo, patient, motor, plan, 
     obs.update(model, force, np.zeros(4))
     np.testing.assert_allclose(obs.delta, delta0, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(obs.ddelta, 0.0, atol=1e-9)
+
+
+def test_with_cuff_sensors_the_estimates_split_is_held_over_the_horizon(
+    exo, patient, motor, plan, on_plan
+) -> None:
+    """An estimate with a part the joint torques do not see (a leg's cuffs pulling against
+    each other): with cuff sensors the prediction carries it at every horizon point; without
+    them the prediction is the model's split of the joint-space load alone."""
+    k = 300
+    probe = CuffHorizonModel(exo, patient, motor, CuffParams())
+    probe.linearise(plan.q[k], plan.dq[k])
+    internal = np.zeros((4, 2))
+    for leg in (0, 1):
+        # null(Jᵀ) of the leg: the last two right-singular vectors of Jᵀ (2 × 4).
+        _, _, vt = np.linalg.svd(probe.jac[leg].T)
+        internal[2 * leg : 2 * leg + 2] = (30.0 * vt[2] + 12.0 * vt[3]).reshape(2, 2)
+        np.testing.assert_allclose(
+            probe.jac[leg].T @ internal[2 * leg : 2 * leg + 2].ravel(), 0.0, atol=1e-9
+        )
+    # A load the model itself would split so: its cuffs at rest at δ₀ (f = −W_K δ₀).
+    delta0 = np.array([4e-3, -2e-3, 3e-3, 1e-3])  # [rad]
+    load = np.concatenate([-probe.wk[leg] @ delta0[2 * leg : 2 * leg + 2] for leg in (0, 1)])
+    load = load.reshape(4, 2)
+    preds = {}
+    for sensors in ("none", "full"):
+        ctrl = QPController(
+            plan, exo, patient, motor, cuffs=CuffParams(), tighten=False,
+            cuff_knowledge=CuffKnowledge(sensors=sensors),
+        )  # fmt: skip
+        ctrl.command(k, on_plan(plan, k, load + internal))
+        preds[sensors] = ctrl.cuff_model.b.reshape(-1, 4, 2).copy()
+    held = preds["full"] - preds["none"]
+    # The model's split reproduces the load's joint-space part exactly: what is held is the rest.
+    np.testing.assert_allclose(held, np.broadcast_to(internal, held.shape), atol=1e-9)
