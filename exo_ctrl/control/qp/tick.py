@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..._jit import Status, kernel
+from ..._jit import Status, kernel, leaf
 from ..pd import pd_law
 from .margin import SETTLE_TICKS
 from .observer import add_residual, observe
@@ -203,15 +203,20 @@ def tighten(s: np.void, force_std: np.ndarray) -> None:  # pragma: no cover - co
         s.radius[c] = max(s.limit - margin, 0.0) * apothem
 
 
-@kernel
-def load(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Hand the QP τ_cmd, the torque box and the screened rows; reset the tick's solve figures."""
-    s, p = state[0], workspace[0]
-    n_in = s.slots.shape[0]
+@leaf
+def hand_command(s: np.void, p: np.void, n_in: int) -> None:  # pragma: no cover - compiled
+    """τ_cmd as the QP's target and the torque box as its bounds, after its ``n_in`` rows."""
     for j in range(4):
         p.target[j] = s.torque_cmd[j]
         p.lower[n_in + j] = s.torque_lo[j]
         p.upper[n_in + j] = s.torque_hi[j]
+
+
+@kernel
+def load(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Hand the QP τ_cmd, the torque box and the screened rows; reset the tick's solve figures."""
+    s, p = state[0], workspace[0]
+    hand_command(s, p, s.slots.shape[0])
     screen(s.rows, s.upper, s.torque_cmd, s.torque, s.value, s.mark, s.slots, p.C, p.upper)
     s.solve_time_us = 0.0
     s.screen_rounds = 0.0
@@ -222,10 +227,7 @@ def load_all(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no co
     """Hand a workspace of every cuff row τ_cmd, the torque box and all the rows, unscreened."""
     s, p = state[0], workspace[0]
     n_in = s.rows.shape[0]
-    for j in range(4):
-        p.target[j] = s.torque_cmd[j]
-        p.lower[n_in + j] = s.torque_lo[j]
-        p.upper[n_in + j] = s.torque_hi[j]
+    hand_command(s, p, n_in)
     for i in range(n_in):
         for j in range(8):
             p.C[i, j] = s.rows[i, j]
