@@ -214,9 +214,10 @@ class TorqueQP:
             "max_iter": int(max_iter),
             # proxsuite's inner iterations per outer one: a warm start that stalls in the
             # inner loop ran 200 × 100 of them (50 ms a tick) before failing over to a cold
-            # start; 20 gives up sooner (the default QP run 1.32 → 0.92 s, the spastic one
-            # 1.11 → 0.62 s for 3,600 ticks; no fallback either way).
-            "max_iter_in": 20,
+            # start.  50 gives up sooner: the default QP run 1.32 → 1.14 s and the spastic
+            # one 1.11 → 0.66 s for 3,600 ticks; no fallback over tools/load_held.py's 600
+            # runs (20: 0.92 and 0.62 s, but three runs fell back on one tick each).
+            "max_iter_in": 50,
             "check_duality_gap": True,
             # The slack weight (1e4) scales the duals, so an absolute gap of 1e-8
             # stalled solves already at the optimum; the relative term follows
