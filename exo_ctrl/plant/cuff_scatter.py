@@ -42,7 +42,14 @@ from .. import _validate as v
 from ..exceptions import InvalidParameter
 from .cuffs import CuffParams
 
-__all__ = ["DEFAULT_SPREAD", "MAX_SPREAD", "TRUNCATE_SD", "CuffScatter", "scaled_cuffs"]
+__all__ = [
+    "DEFAULT_SPREAD",
+    "MAX_SPREAD",
+    "TRUNCATE_SD",
+    "CuffScatter",
+    "checked_spread",
+    "scaled_cuffs",
+]
 
 #: The default spread s, the inter-subject coefficient of variation of limb
 #: soft-tissue stiffness (module docstring: Isogai et al. 2022, 18 %; Le Sant
@@ -77,11 +84,7 @@ class CuffScatter:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        spread = v.finite("cuff_scatter spread_rel", self.spread_rel)
-        if not 0.0 <= spread <= MAX_SPREAD:
-            raise InvalidParameter(
-                "cuff_scatter spread_rel", self.spread_rel, f"in [0, {MAX_SPREAD:g}]"
-            )
+        spread = checked_spread("cuff_scatter spread_rel", self.spread_rel)
         seed = v.seed("cuff_scatter seed", self.seed)
         object.__setattr__(self, "spread_rel", spread)
         object.__setattr__(self, "seed", seed)
@@ -140,3 +143,16 @@ def scaled_cuffs(published: CuffParams, f_n: float, f_u: float) -> CuffParams:
         shear_stiffness_N_per_m=f_u * float(k_u),  # type: ignore[arg-type]
         shear_damping_N_s_per_m=math.sqrt(f_u) * float(c_u),  # type: ignore[arg-type]
     )
+
+
+def checked_spread(name: str, value: object) -> float:
+    """``value`` as a spread s [-], a number in [0, :data:`MAX_SPREAD`].
+
+    Raises:
+        InvalidParameter: naming ``name``, for anything else.
+
+    """
+    spread = v.finite(name, value)
+    if not 0.0 <= spread <= MAX_SPREAD:
+        raise InvalidParameter(name, value, f"in [0, {MAX_SPREAD:g}]")
+    return spread

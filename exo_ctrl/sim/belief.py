@@ -69,7 +69,7 @@ from ..model import (
 )
 from ..model.anthropometry import body_mass_from_legs, stature_from_legs
 from ..plant import BeltParams, ContactParams, CuffParams, MotorParams
-from ..plant.cuff_scatter import DEFAULT_SPREAD, MAX_SPREAD
+from ..plant.cuff_scatter import DEFAULT_SPREAD, checked_spread
 
 __all__ = [
     "PAPER_PATIENT",
@@ -166,11 +166,7 @@ class Belief:
                 raise InvalidParameter("belief sole exponent", self.soles[1], ">= 1")
             object.__setattr__(self, "soles", (k, n))
         if self.cuff_spread_rel is not None:
-            spread = v.finite("belief cuff_spread_rel", self.cuff_spread_rel)
-            if not 0.0 <= spread <= MAX_SPREAD:
-                raise InvalidParameter(
-                    "belief cuff_spread_rel", self.cuff_spread_rel, f"in [0, {MAX_SPREAD:g}]"
-                )
+            spread = checked_spread("belief cuff_spread_rel", self.cuff_spread_rel)
             object.__setattr__(self, "cuff_spread_rel", spread)
 
     def cuff_spread(self) -> float:

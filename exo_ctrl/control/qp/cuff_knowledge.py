@@ -16,7 +16,7 @@ import numpy as np
 
 from ... import _validate as v
 from ...exceptions import InvalidParameter
-from ...plant.cuff_scatter import DEFAULT_SPREAD, MAX_SPREAD, CuffScatter
+from ...plant.cuff_scatter import DEFAULT_SPREAD, CuffScatter, checked_spread
 from ...plant.cuffs import CuffParams
 from .prediction import CuffHorizonModel
 
@@ -58,11 +58,7 @@ class CuffKnowledge:
             raise InvalidParameter("cuff knowledge tare", self.tare, "True or False")
         if not isinstance(self.published, CuffParams):
             raise InvalidParameter("cuff knowledge published", self.published, "a CuffParams")
-        spread = v.finite("cuff knowledge spread_rel", self.spread_rel)
-        if not 0.0 <= spread <= MAX_SPREAD:
-            raise InvalidParameter(
-                "cuff knowledge spread_rel", self.spread_rel, f"in [0, {MAX_SPREAD:g}]"
-            )
+        spread = checked_spread("cuff knowledge spread_rel", self.spread_rel)
         v.one_of("cuff knowledge sensors", self.sensors, SENSOR_SETS)
         object.__setattr__(self, "spread_rel", spread)
 
