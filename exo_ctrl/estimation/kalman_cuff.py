@@ -135,7 +135,7 @@ def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
     state["var_model_rate"] = MODEL_ERROR_RATE_N_PER_SQRT_S**2
     state["model_error"] = 0.0
     state["model_error_var"] = INITIAL_MODEL_ERROR_N**2
-    start = round(TARE_SETTLE_S / h) if params.tare_s > 0.0 else 0
+    start = round(TARE_SETTLE_S / h) if params.tared else 0
     state["tare_from"] = start
     state["tare_to"] = start + round(params.tare_s / h)
     state["steps"] = 0

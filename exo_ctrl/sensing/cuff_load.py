@@ -143,6 +143,11 @@ class CuffSensorParams:
         """Whether the run has cuff sensors."""
         return self.mode != "none"
 
+    @property
+    def tared(self) -> bool:
+        """Whether the run has cuff sensors and the device tares them (``tare_s`` > 0)."""
+        return self.on and self.tare_s > 0.0
+
 
 #: The sensors' record.  Parameters: ``dt`` Δt [s], ``period`` T_s [s],
 #: ``step`` σ_w √T_s [N], ``axes``; state: ``started``, ``t0`` the first

@@ -68,7 +68,7 @@ def tracking_controller(
                 config.cuffs,
                 config.belief.cuff_spread(),
                 config.cuff_sensors.mode,
-                tare=config.cuff_sensors.on and config.cuff_sensors.tare_s > 0.0,
+                tare=config.cuff_sensors.tared,
             ),
         )
     device = Device(
