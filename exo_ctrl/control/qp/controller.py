@@ -214,7 +214,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
             computed torque's (0: none).
         cuff_knowledge: what the device knows of the patient's true cuffs,
             for the margin's e_cuffs (default
-            :class:`~exo_ctrl.control.qp.margin.CuffKnowledge`: the
+            :class:`~exo_ctrl.control.qp.cuff_knowledge.CuffKnowledge`: the
             published cuffs, the literature's spread, no cuff sensors).
 
     Attributes:
