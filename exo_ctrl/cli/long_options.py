@@ -130,6 +130,8 @@ GAIT_OPTIONS: tuple[LongOption, ...] = (
     _o("--shape-coeff", "gait.shape_coeff", _GAIT, metavar="KV"),
     _o("--period", "gait.period", _GAIT, metavar="T"),
     _o("--duty-factor", "gait.duty_factor", _GAIT, metavar="B"),
+    _o("--landing-speed", "gait.landing_speed_mps", _GAIT, metavar="M/S"),
+    _o("--landing-depth", "gait.landing_depth_m", _GAIT, metavar="M"),
     _o("--exo", "urdf.exo", _GAIT, metavar="URDF"),
 )
 

@@ -45,6 +45,10 @@ walking is mostly the second harmonic of the cycle, one rise per step
 usual figure (measured against speed by Gard, Miff & Kuo 2004, Hum. Mov.
 Sci. 22:597-610).
 
+**Landing approach** (beyond the paper; ``landing_speed_mps`` v_a > 0): the
+swing foot crosses the belt line at v_a through touchdown instead of landing
+at zero speed (:mod:`exo_ctrl.plan.landing`); x is unchanged.
+
 Each cubic segment q(τ) = Σ k_i τ^i meets (q0, q1, q̇0, q̇1) at its ends; the
 paper writes the coefficients as the inverse of its 4×4 matrix applied to
 those values.  Here each segment is evaluated in local time u = τ - τ0 ∈ [0, d],
@@ -63,6 +67,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..exceptions import InvalidParameter, UnreachableFootTarget
+from .landing import approach, checked, press, swing_end
 from .loading import StanceSink, sink_samples
 
 __all__ = ["MIN_PERIOD_S", "FootTrajectory", "GaitParams", "GaitPlan"]
@@ -102,6 +107,13 @@ class GaitParams:
             fixed hip.  Below 2 (H_s - h_s), so that the lifted swing foot
             stays below the hip when the hip is lowest; whether the leg
             reaches the path is :meth:`GaitPlan.check_reach`'s question.
+        landing_speed_mps: v_a, the landing approach's constant downward speed
+            through touchdown [m/s], the foot moving with the belt along it
+            over the approach (:mod:`exo_ctrl.plan.landing`; beyond the
+            paper); 0: the paper's landing at zero speed, bit for bit.
+        landing_depth_m: a, how far above and below the belt line the
+            approach runs at v_a [m] (used with v_a > 0; capped by the
+            swing's and the stance's durations).
 
     Raises:
         InvalidParameter: a value that is not finite or outside its range.
@@ -115,6 +127,8 @@ class GaitParams:
     period: float = 1.2
     duty_factor: float = 0.5
     pelvis_excursion: float = 0.0
+    landing_speed_mps: float = 0.0
+    landing_depth_m: float = 0.001
 
     def __post_init__(self) -> None:
         for name, unit in (
@@ -174,6 +188,9 @@ class GaitParams:
                 "the lifted swing foot would rise to the hip when the hip is at its lowest, "
                 "H_s - e/2",
             )
+        speed, depth = checked(self.landing_speed_mps, self.landing_depth_m, self.lift_height)
+        object.__setattr__(self, "landing_speed_mps", speed)
+        object.__setattr__(self, "landing_depth_m", depth)
 
     @property
     def belt_speed(self) -> float:
@@ -244,7 +261,10 @@ class GaitPlan:
             p.lift_height,
         )
         # (segment start τ0, duration d, x0, x1, ẋ0, ẋ1, z0, z1) for A→B and D→A.
-        self._ab = _Cubic2(half_swing, 0.0, s / 2, vb, -vf, -(H - h), -H)
+        # the landing approach's last t_a of A -> B moves with the belt (exo_ctrl.plan.landing)
+        self._t_a = approach(p.landing_speed_mps, p.landing_depth_m, half_swing, p.stance_time)[0]
+        t_a = self._t_a
+        self._ab = _Cubic2(half_swing - t_a, 0.0, s / 2 + vf * t_a, vb, -vf, -(H - h), -H)
         self._da = _Cubic2(half_swing, -s / 2, 0.0, -vf, vb, -H, -(H - h))
 
     # ------------------------------------------------------------------ evaluation
@@ -340,6 +360,17 @@ class GaitPlan:
         pos[st, 1] = -H
         vel[st, 0] = -vf
         vel[st, 1] = 0.0
+        t_a = self._t_a
+        if t_a > 0.0:  # the landing approach (exo_ctrl.plan.landing): A -> B's end, the press
+            z, dz, ddz = swing_end(
+                tau[ab], self._half_swing, p.lift_height, t_a, p.landing_speed_mps
+            )
+            pos[ab, 1], vel[ab, 1], acc[ab, 1] = z - H, dz, ddz
+            late = ab & (tau >= self._half_swing - t_a)  # x with the belt
+            pos[late, 0] = s / 2 - vf * (tau[late] - self._half_swing)
+            vel[late, 0], acc[late, 0] = -vf, 0.0
+            z, dz, ddz = press(u, t_a, p.landing_speed_mps)
+            pos[st, 1], vel[st, 1], acc[st, 1] = z - H, dz, ddz
         return pos, vel, acc, st
 
     # ------------------------------------------------------------------ validation

@@ -64,6 +64,10 @@ slides (the precomputed ramp's stance feet slide up to 0.27 m/s).
 subtracts its planned sink Δs(τ) at the rate r, z = -H_s + σ (Z - ΔH - Δs),
 through the same chain rule.
 
+**Landing approach** (``landing_speed_mps`` > 0, :mod:`exo_ctrl.plan.landing`):
+the lift Z ends A → B with the constant-speed descent and the stance adds the
+press, both in phase at the reference gait's rate.
+
 **Inverse kinematics** is the closed form of
 :mod:`exo_ctrl.plan.kinematics`, in the same compiled kernel.
 """
@@ -80,6 +84,7 @@ from ..model import SIDES, BodyModel
 from ..model.leg_kernels import LEG_FIELDS, fill_legs
 from .adapt import SpeedAdaptation
 from .kinematics import JointTrajectory
+from .landing import phase_constants, press_phase, swing_end_phase
 from .loading import StanceSink, sink_phase
 from .phase_curves import cubic, hip_rise, lift, phase_rate, ramp_factor
 from .profile import SpeedProfile, profile_at
@@ -121,7 +126,9 @@ FREEZE_S = 0.02
 #: the loading sink's parameters (:meth:`~exo_ctrl.plan.loading.StanceSink.kernel_params`)
 #: and ``sink_on`` 1 when the stance feet are planned into the belt; ``lift``
 #: each leg's time since its lift-off while it swings, +inf in stance [s]
-#: (the plan's ``lift_off_s``).
+#: (the plan's ``lift_off_s``); ``land`` the landing approach's duration [-]
+#: and speed [m] in phase units (:func:`~exo_ctrl.plan.landing.phase_constants`;
+#: 0, 0 without one).
 ONLINE_FIELDS = [
     ("dt", np.float64),
     ("law", np.float64, (5,)),
@@ -141,6 +148,7 @@ ONLINE_FIELDS = [
     ("sink", np.float64, (5,)),
     ("sink_on", np.int64),
     ("lift", np.float64, (2,)),
+    ("land", np.float64, (2,)),
 ]
 
 
@@ -188,6 +196,9 @@ class OnlineGait:
         g["kv"], g["H"], g["h"] = gait.shape_coeff, gait.hip_height, gait.lift_height
         g["ramp_in"], g["filt"] = float(ramp_in_s), FILTER_S
         g["exc"] = gait.pelvis_excursion
+        g["land"] = phase_constants(
+            gait.landing_speed_mps, gait.landing_depth_m, gait.period, gait.duty_factor
+        )
         if sink is not None and gait.duty_factor > 0.5:
             g["sink"], g["sink_on"] = sink.kernel_params(), 1
         fill_legs(g, body)
@@ -274,7 +285,7 @@ def _target(g, tau: float, r: float) -> tuple[float, float]:  # pragma: no cover
     beta = g.law[4]
     if tau >= 0.5 * (1.0 + beta):
         return 0.0, g.vlead / g.kv
-    return 0.5 * g.vlead * beta / r, -g.vlead
+    return g.vlead * (0.5 * beta + g.land[0]) / r, -g.vlead  # the approach's start: L/2 + v_l t_a
 
 
 @leaf
@@ -306,7 +317,7 @@ def _swing(g, leg: int, tau: float, r: float, d: float, u: float):  # pragma: no
 def _advance(g, leg: int, tau: float, r: float, v: float, h: float) -> float:  # pragma: no cover
     """Move leg ``leg``'s x over ``h`` seconds of phase rate ``r`` from phase ``tau``; new τ."""
     beta = g.law[4]
-    t_b, t_d = 0.5 * (1.0 - beta), 0.5 * (1.0 + beta)
+    t_b, t_d = 0.5 * (1.0 - beta) - g.land[0], 0.5 * (1.0 + beta)  # x: the approach with the belt
     rem = h
     while rem > 0.0:
         end = t_b if tau < t_b else (t_d if tau < t_d else 1.0)
@@ -341,13 +352,19 @@ def _write_leg(g, leg, tau, r, dr, a_belt, t) -> int:  # pragma: no cover - comp
     half = 0.5 * (1.0 - beta)
     x, dx = g.x[leg], g.dx[leg]
     ddx = g.ddx[leg]  # swing: the acceleration of the cubic it followed, at its end
-    if half <= tau < 1.0 - half:
+    if half - g.land[0] <= tau < 1.0 - half:  # with the belt: stance and the landing approach
         ddx = -a_belt
+    if half <= tau < 1.0 - half:
         g.lift[leg] = math.inf
     else:  # the time since lift-off at τ_D = 1 − half, at the present rate
         g.lift[leg] = (tau - (1.0 - half) + (1.0 if tau < half else 0.0)) / r
     sig, dsig, ddsig = ramp_factor(t, g.ramp_in)
     zz, z1, z2 = lift(tau, half, g.h)
+    if g.land[0] > 0.0 and tau < 1.0 - half:  # the landing approach (exo_ctrl.plan.landing)
+        if tau < half:
+            zz, z1, z2 = swing_end_phase(tau, half, g.h, g.land[0], g.land[1])
+        else:
+            zz, z1, z2 = press_phase(tau - half, g.land[0], g.land[1])
     if g.exc > 0.0:  # relative to the moving hip: Z - ΔH
         h, h1, h2 = hip_rise(g.phase[0], g.exc)  # one hip: the left leg's phase (ΔH has period ½)
         zz, z1, z2 = zz - h, z1 - h1, z2 - h2
@@ -405,9 +422,9 @@ def online_start(state: np.ndarray, v0: float) -> int:  # pragma: no cover - com
     g.x[1], g.dx[1] = 0.0, -v0
     a_belt = dsig * v_ref + sig * a_ref
     g.a_set = a_belt
-    g.w = 0.5 * g.law[4] * (a_belt - v0 * dr / r) / r
+    g.w = (0.5 * g.law[4] + g.land[0]) * (a_belt - v0 * dr / r) / r
     g.seg[0], g.seg[1] = -1, -1
-    g.ddx[0] = _swing(g, 0, 0.0, r, 0.5 * (1.0 - g.law[4]) / r, 0.0)[2]
+    g.ddx[0] = _swing(g, 0, 0.0, r, (0.5 * (1.0 - g.law[4]) - g.land[0]) / r, 0.0)[2]
     _write_hip(g, 0.0, r, dr, 0.0)
     for leg in range(2):
         status = _write_leg(g, leg, g.phase[leg], r, dr, a_belt, 0.0)
@@ -434,8 +451,9 @@ def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no 
     g.vlead = g.vbar + (v_set - g.vset_bar)  # the filter's lag on the set speed, added back
     a_belt = dsig * v_ref + sig * a_ref
     g.a_set = a_belt
-    # dL/2/dt of the touchdown point L/2 = v_l β / (2 r), with v_l' the planned belt rate
-    g.w = 0.5 * g.law[4] * (a_belt - g.vlead * dr / r) / r
+    # d/dt of the touchdown point L/2 = v_l β / (2 r) (the landing approach's start,
+    # L/2 + v_l t_a, t_a = land[0] / r), with v_l' the planned belt rate
+    g.w = (0.5 * g.law[4] + g.land[0]) * (a_belt - g.vlead * dr / r) / r
     for leg in range(2):
         tau = _advance(g, leg, g.phase[leg], r_mid, g.vlead, g.dt)
         g.phase[leg] = 0.0 if tau >= 1.0 else tau
