@@ -128,7 +128,7 @@ class GaitParams:
     duty_factor: float = 0.5
     pelvis_excursion: float = 0.0
     landing_speed_mps: float = 0.0
-    landing_depth_m: float = 0.001
+    landing_depth_m: float = 0.0012
 
     def __post_init__(self) -> None:
         for name, unit in (

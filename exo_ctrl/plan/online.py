@@ -66,10 +66,9 @@ through the same chain rule.
 
 **Landing approach** (``landing_speed_mps`` > 0, :mod:`exo_ctrl.plan.landing`):
 the lift Z ends A → B with the constant-speed descent and the stance adds the
-press, both in phase at the reference gait's rate.
-
-**Inverse kinematics** is the closed form of
-:mod:`exo_ctrl.plan.kinematics`, in the same compiled kernel.
+press, both in phase at the reference gait's rate, relative to the belt's surface as
+the stance foot measures it (:mod:`exo_ctrl.plan.surface`).  **Inverse kinematics**:
+the closed form of :mod:`exo_ctrl.plan.kinematics`, in the same compiled kernel.
 """
 
 from __future__ import annotations
@@ -88,6 +87,7 @@ from .landing import phase_constants, press_phase, swing_end_phase
 from .loading import StanceSink, sink_phase
 from .phase_curves import cubic, hip_rise, lift, phase_rate, ramp_factor
 from .profile import SpeedProfile, profile_at
+from .surface import surface_offsets
 
 __all__ = [
     "FILTER_S",
@@ -107,6 +107,9 @@ FILTER_S = 0.02
 #: The last time of a swing segment in which its end point is no longer
 #: updated [s] (:func:`_swing`).
 FREEZE_S = 0.02
+
+#: No measurement (:meth:`OnlineGait.step`).
+_NONE4 = np.full(4, np.nan)
 
 #: Fields of the generator's record.  Parameters: ``dt`` [s], ``law`` (s_0,
 #: v_0, a, s_max, β) (:meth:`~exo_ctrl.plan.adapt.SpeedAdaptation.kernel_params`),
@@ -128,7 +131,8 @@ FREEZE_S = 0.02
 #: each leg's time since its lift-off while it swings, +inf in stance [s]
 #: (the plan's ``lift_off_s``); ``land`` the landing approach's duration [-]
 #: and speed [m] in phase units (:func:`~exo_ctrl.plan.landing.phase_constants`;
-#: 0, 0 without one).
+#: 0, 0 without one); ``eps`` each swing's surface offset ε [m] and ``surf`` the
+#: offset added to its z [m, m/s, m/s²], ``held`` 1 once it bears load (plan/surface.py).
 ONLINE_FIELDS = [
     ("dt", np.float64),
     ("law", np.float64, (5,)),
@@ -148,7 +152,9 @@ ONLINE_FIELDS = [
     ("sink", np.float64, (5,)),
     ("sink_on", np.int64),
     ("lift", np.float64, (2,)),
-    ("land", np.float64, (2,)),
+    *((name, np.float64, (2,)) for name in ("land", "eps")),
+    ("surf", np.float64, (2, 3)),
+    ("held", np.int64, (2,)),
 ]
 
 
@@ -238,16 +244,27 @@ class OnlineGait:
         status = online_start(self.record, belt_speed_mps)
         self._check(status, 0.0)
 
-    def step(self, k: int, belt_speed_mps: float) -> None:
+    def step(
+        self,
+        k: int,
+        belt_speed_mps: float,
+        q_meas: np.ndarray | None = None,
+        load_z_N: np.ndarray | None = None,
+    ) -> None:
         """Advance to tick ``k`` ≥ 1 with the measured belt speed [m/s]; row 0 gets its targets.
 
-        Tick 0 is the start (:meth:`start`): nothing to do.
+        Tick 0 is the start (:meth:`start`): nothing to do.  ``q_meas`` [rad] (4,) and
+        ``load_z_N`` [N] (2,): the encoders and the foot plates' vertical loads, for a
+        landing approach planned against the measured surface (:mod:`exo_ctrl.plan.surface`);
+        None: against the plan's.
 
         Raises:
             SimulationDiverged: a foot point out of the leg's reach.
 
         """
-        status = online_step(self.record, k, belt_speed_mps)
+        q = _NONE4 if q_meas is None else np.asarray(q_meas, dtype=float)
+        f = _NONE4[:2] if load_z_N is None else np.asarray(load_z_N, dtype=float)
+        status = online_step(self.record, k, belt_speed_mps, q, f)
         if status:
             self._check(status, k * float(self.record[0]["dt"]))
 
@@ -371,9 +388,9 @@ def _write_leg(g, leg, tau, r, dr, a_belt, t) -> int:  # pragma: no cover - comp
     if g.sink_on:  # into the belt by the load's sink: Z - ΔH - Δs
         s0, s1, s2 = sink_phase(g.sink, tau, g.phase[0], beta, r, g.exc)
         zz, z1, z2 = zz - s0, z1 - s1, z2 - s2
-    z = -g.H + sig * zz
-    dz = dsig * zz + sig * z1 * r
-    ddz = ddsig * zz + 2.0 * dsig * z1 * r + sig * (z2 * r * r + z1 * dr)
+    z = -g.H + sig * zz + g.surf[leg, 0]  # and the measured surface's offset (surface.py)
+    dz = dsig * zz + sig * z1 * r + g.surf[leg, 1]
+    ddz = ddsig * zz + 2.0 * dsig * z1 * r + sig * (z2 * r * r + z1 * dr) + g.surf[leg, 2]
     out = g.out
     out[16 + 2 * leg], out[17 + 2 * leg] = x, z
     out[20 + 2 * leg], out[21 + 2 * leg] = dx, dz
@@ -434,8 +451,14 @@ def online_start(state: np.ndarray, v0: float) -> int:  # pragma: no cover - com
 
 
 @kernel
-def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no cover - compiled
-    """Advance from tick k - 1 to k with the measured speed ``v_meas`` [m/s]; row 0's targets."""
+def online_step(
+    state: np.ndarray, k: int, v_meas: float, q_meas: np.ndarray, f_z: np.ndarray
+) -> int:  # pragma: no cover - compiled
+    """Advance from tick k - 1 to k with the measured speed ``v_meas`` [m/s]; row 0's targets.
+
+    ``q_meas`` [rad] (4,), ``f_z`` [N] (2,): the encoders and the plates' vertical loads
+    for the landing approach's surface (:mod:`exo_ctrl.plan.surface`; NaN: none).
+    """
     if k <= 0:
         return Status.OK.value
     g = state[0]
@@ -458,6 +481,7 @@ def online_step(state: np.ndarray, k: int, v_meas: float) -> int:  # pragma: no 
         tau = _advance(g, leg, g.phase[leg], r_mid, g.vlead, g.dt)
         g.phase[leg] = 0.0 if tau >= 1.0 else tau
     g.rate = r
+    surface_offsets(g, q_meas, f_z, r)
     _write_hip(g, g.phase[0], r, dr, t)
     for leg in range(2):
         status = _write_leg(g, leg, g.phase[leg], r, dr, a_belt, t)

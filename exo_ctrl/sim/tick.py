@@ -196,6 +196,8 @@ class Runner:
         )
         #: The online gait generator (synchronised plan; None: precomputed).
         self._online = setup.online
+        #: The foot plates' vertical loads [N] (a view: the last reading).
+        self._plate_load = self.foot_load.belt_force[:2, 1]
         self._refresh = getattr(setup.controller, "refresh_row", None) if setup.online else None
         #: The path mode's record, whose phase ``row`` the tick logs (``path_phase``);
         #: other controllers: a record whose row is -1.
@@ -248,7 +250,7 @@ class Runner:
         read, truth, estimate = self._stages[:3]
         readings = read(k, *truth)
         if self._belt_speed is not None:
-            self._belt_tick(k, row)
+            self._belt_tick(k, row, readings.q)
         if self.faults is not None:
             readings = self.faults.readings_at(k, readings)
         if self._est_in is not None:  # the feet's load, known from the foot plates
@@ -306,14 +308,14 @@ class Runner:
             supervise(0, 0.0, self.sensors, self._sup_force, self._current, u, 0.0)
         command(0, self.sensors)
 
-    def _belt_tick(self, k: int, row: int) -> None:
+    def _belt_tick(self, k: int, row: int, q_meas: np.ndarray) -> None:
         """Tick ``k``'s belt set speed and rate, its encoder and drive read; the plan's row."""
         self._belt_set[0] = self._belt_speed[k, 0]
         self._belt_rate[0] = self._belt_speed[k, 1]
         read_belt(self.belt_encoder.record, k, self._belt)
         self.belt_drive_force[0] = self._belt_motor[0]
         if self._online is not None:
-            self._plan_tick(k, row)
+            self._plan_tick(k, row, q_meas)
 
     def _device_stop(self, k: int) -> None:
         """The supervisor stopped at tick ``k``: the harness locks, the belt runs down.
@@ -344,14 +346,17 @@ class Runner:
                 tau_p = self.patient_model(plant.t, self._q_p, self._v_p, self._tau_p)
             plant.step(u, tau_p)
 
-    def _plan_tick(self, k: int, row: int) -> None:
+    def _plan_tick(self, k: int, row: int, q_meas: np.ndarray) -> None:
         """The synchronised plan's row for tick ``k`` from the belt encoder's reading, logged.
 
-        CT's feedforward row is recomputed from the new targets.
+        The encoders ``q_meas`` and the foot plates' last vertical loads place a
+        landing approach (:mod:`exo_ctrl.plan.surface`).  CT's feedforward row is
+        recomputed from the new targets.
         """
         gen = self._online
-        if online_step(gen.record, k, self.belt_encoder.speed[0]):
-            gen.step(k, float(self.belt_encoder.speed[0]))  # raises with the reason
+        load = self._plate_load
+        if online_step(gen.record, k, self.belt_encoder.speed[0], q_meas, load):
+            gen.step(k, float(self.belt_encoder.speed[0]), q_meas, load)  # raises with the reason
         write_plan(self.log, row, gen.record)
         if self._refresh is not None:
             self._refresh()

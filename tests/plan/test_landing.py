@@ -17,7 +17,15 @@ import pytest
 
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import load_exo
-from exo_ctrl.plan import GaitParams, GaitPlan, OnlineGait, SpeedAdaptation, StanceSink, plan_joints
+from exo_ctrl.plan import (
+    GaitParams,
+    GaitPlan,
+    OnlineGait,
+    SpeedAdaptation,
+    StanceSink,
+    inverse_kinematics,
+    plan_joints,
+)
 
 DT = 1e-3
 PAPER = GaitParams(hip_height=1.0, pelvis_excursion=0.05, duty_factor=0.6)
@@ -128,3 +136,33 @@ def test_bad_values_are_refused(kwargs: dict, message: str) -> None:
     with pytest.raises(InvalidParameter) as info:
         dataclasses.replace(GAIT, **kwargs)
     assert str(info.value).startswith(message)
+
+
+def _raised_stance_q(gen: OnlineGait, exo, leg: int, rise_m: float) -> np.ndarray:
+    """The plan's last joint angles with leg ``leg``'s foot ``rise_m`` higher [rad], (4,)."""
+    q = gen.plan.q[0].copy()
+    x, z = gen.plan.foot_pos[0, leg]
+    geo = exo.legs[("left", "right")[leg]]
+    phi1, phi2 = inverse_kinematics(x, z + rise_m, geo.thigh_length, geo.shank_length)
+    q[2 * leg : 2 * leg + 2] = geo.absolute_to_joint(phi1, phi2)
+    return q
+
+
+def test_the_approach_follows_the_stance_foots_measured_height(exo) -> None:
+    """The right foot stands 1 mm higher than planned: the left lands 1 mm higher; unloaded."""
+    rise, n = 0.001, 241  # to the left foot's planned touchdown at T_sw/2 = 0.24 s
+    plain = OnlineGait(SpeedAdaptation(GAIT), None, exo, DT, sink=SINK)
+    same = OnlineGait(SpeedAdaptation(GAIT), None, exo, DT, sink=SINK)
+    raised = OnlineGait(SpeedAdaptation(GAIT), None, exo, DT, sink=SINK)
+    light = np.zeros(2)  # the plates: no foot loaded
+    for k in range(1, n):
+        plain.step(k, GAIT.belt_speed)
+        same.step(k, GAIT.belt_speed, same.plan.q[0].copy(), light)
+        raised.step(k, GAIT.belt_speed, _raised_stance_q(raised, exo, 1, rise), light)
+        if k == 60:  # a quarter of A -> B: weight S(1/4) = 0.104
+            assert raised.plan.foot_pos[0, 0, 1] - plain.plan.foot_pos[0, 0, 1] < 0.11 * rise
+    for gen in (same, raised):
+        np.testing.assert_array_equal(gen.plan.foot_pos[0, 1], plain.plan.foot_pos[0, 1])
+    np.testing.assert_allclose(same.plan.foot_pos[0], plain.plan.foot_pos[0], rtol=0, atol=1e-12)
+    lift = raised.plan.foot_pos[0, 0, 1] - plain.plan.foot_pos[0, 0, 1]
+    assert lift == pytest.approx(rise, rel=0.01)
