@@ -3,26 +3,33 @@ r"""The landing approach planned against the belt's surface as the stance foot m
 A landing approach (:mod:`exo_ctrl.plan.landing`) meets the belt at v_a only
 if the foot is within a' of its planned height when it gets there.  Under
 body-weight support it is not: with computed torque at 30 % support the
-stance leg sinks 1–1.5 mm more than planned (the stance knee at its drive's
-150 N·m cap, the sole loaded beyond the planned W₀) and the hip comes down on
-the belt at 0.02–0.04 m/s faster than planned in the last tens of
-milliseconds before touchdown (docs/performance.md, "Touchdowns under load").
-The swing foot, planned relative to the hip, follows the hip down.
+stance leg is 0.5–2.5 mm shorter than planned at touchdown and shortening at
+0.02–0.05 m/s (its knee at the drive's 150 N·m cap for the last 40 ms), so
+the hip comes down on the belt faster than planned (docs/performance.md,
+"Touchdowns under load").  The swing foot, planned relative to the hip,
+follows the hip down.
 
-So in the synchronised plan the swing foot's approach is planned relative to
-the surface under the stance foot as measured: in the hip's frame the surface
-is at z_s = z_o + δ_o, z_o the stance (other) foot's height from the joint
-encoders (the device's leg geometry), δ_o = (F_z / k)^{1/n} its sink from its
-foot plate's vertical load F_z (:mod:`exo_ctrl.sensing.foot_load`, the last
-tick's reading) through the soles' contact law the device holds; the plan
-puts it at z_o* + δ_o* (the planned foot and, with a loading sink, its
-planned sink Δs + s₀; without one, 0 and the sink is not measured).  The
-surface's offset ε = (z_o − z_o*) + (δ_o − δ_o*), low-passed with time
-constant :data:`FILTER_S`, is added to the swing foot's z over A → B with the
-weight S(τ/τ_B) (S the quintic smoothstep: 0 at the top of the swing, 1 at
-touchdown), then held from touchdown and let go over the press's 4 t_a with
-1 − S.  The plan's ż has the weight's rate and the filtered ε's (the filter's
-(ε − ε̄) / (T_f + Δt)), its z̈ the weight's only.
+So in the synchronised plan the swing foot's approach is planned against the
+stance (other) foot's measured height: ε = z_o − z_o*, z_o that foot's height
+below the hip from the joint encoders (the device's leg geometry), z_o* the
+plan's (the last tick's row), low-passed with time constant
+:data:`FILTER_S`, is added to the swing foot's z over A → B with the weight
+S(τ/τ_B) (S the quintic smoothstep: 0 at the top of the swing, 1 at the
+planned touchdown).  It is followed on past the planned touchdown until the
+foot's own plate reads :data:`CONTACT_N` (a late foot keeps tracking a
+stance leg that is still giving way), then held and let go over the press's
+4 t_a with 1 − S.  The plan's ż has the weight's rate and the filtered ε's
+(the filter's (ε − ε̄) / (T_f + Δt)), its z̈ the weight's only.
+
+Measured (``exo-ctrl simulate --preset clinic-bws --set
+interaction.patient_torque=none --set pelvis.bws_fraction=0.3``, CT): without
+it the feet met the belt 10-30 ms early at 0.06-0.11 m/s; with it within a
+few milliseconds of the plan, at 0.03-0.04 m/s.  The sole's sink read from
+the foot plates' load (δ = (F_z/k)^{1/n} against the plan's) was tried as a
+further term and did not help (0.14 / 0.07 m/s at 30 / 50 % support against
+0.18 / 0.04 without it, both before the tracking past touchdown): the
+planned sink grows with the planned load while the measured one does not,
+and the term cancelled the encoders'.
 """
 
 from __future__ import annotations
