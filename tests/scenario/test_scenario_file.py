@@ -151,7 +151,8 @@ def _write(tmp_path: Path, text: str) -> Path:
         (
             "[gait]\nstep_lenght = 0.3\n",
             "gait.step_lenght: must be a key of GaitParams (step_length, "
-            "lift_height, hip_height, shape_coeff, period, duty_factor, pelvis_excursion); "
+            "lift_height, hip_height, shape_coeff, period, duty_factor, pelvis_excursion, "
+            "landing_speed_mps, landing_depth_m); "
             "got 0.3",
         ),
         ("[gait]\nperiod = 'slow'\n", "gait.period: must be a number; got 'slow'"),
