@@ -47,7 +47,8 @@ Sci. 22:597-610).
 
 **Landing approach** (beyond the paper; ``landing_speed_mps`` v_a > 0): the
 swing foot crosses the belt line at v_a through touchdown instead of landing
-at zero speed (:mod:`exo_ctrl.plan.landing`); x is unchanged.
+at zero speed, moving with the belt along it over the approach
+(:mod:`exo_ctrl.plan.landing`).
 
 Each cubic segment q(τ) = Σ k_i τ^i meets (q0, q1, q̇0, q̇1) at its ends; the
 paper writes the coefficients as the inverse of its 4×4 matrix applied to

@@ -24,8 +24,11 @@ t_a = min(a / v_a, d / 2, T_st / 8) and a' = v_a t_a (a' = a unless the swing
 or stance is too short for it; then the approach keeps its speed and gets
 shallower).  Position and speed are continuous everywhere (C¹), the
 acceleration jumps at u = d - t_a, at touchdown and at u = t_a, 4 t_a of the
-press, as the paper's jumps at B and D.  x is untouched: the foot moves with the
-belt from touchdown on as before.  v_a = 0 is the paper's path, bit for bit.
+press, as the paper's jumps at B and D.  Along the belt the foot moves with it
+from t_a before the planned touchdown, so that an early foot lands without
+slip: the swing's forward cubic ends at u = d - t_a at (s/2 + v_f t_a, -v_f),
+then x = s/2 - v_f (u - d) (C¹ there too).  v_a = 0 is the paper's path, bit
+for bit.
 
 In the online generator (:mod:`exo_ctrl.plan.online`) the same curves run in
 phase τ, with t_a and v_a taken at the reference gait's rate
