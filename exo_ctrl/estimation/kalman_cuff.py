@@ -118,13 +118,31 @@ TARE_SETTLE_S = 0.05
 #: offsets and of 30, 100, 300 and 1000 with the offsets at zero).
 MODEL_ERROR_RATE_N_PER_SQRT_S = 30.0
 
+#: The weight c_R of the offset and the drift in R (module docstring): 0, β carries them.
+SLOW_IN_R = 0.0
+
+#: σ_τ, the std of the joint torques' check of b per fresh sample [N·m] (module docstring).
+TORQUE_CHECK_NM = 0.5
+
+#: σ_r, the relative intensity of b's random walk [1/√s] (module docstring).
+MODEL_ERROR_REL_RATE_PER_SQRT_S = 0.6
+
+#: σ_0, the floor of b's random walk's intensity [N/√s] (module docstring).
+MODEL_ERROR_FLOOR_N_PER_SQRT_S = 0.05
+
+#: ρ, b's initial std relative to the model's force at the first fused sample [-].
+INITIAL_MODEL_ERROR_REL = 0.5
+
+#: T_b, b's correlation time [s] (module docstring).
+MODEL_ERROR_TIME_S = 1.0
+
 #: The initial std of b [N] (chosen: twice the model's RMS error on the
 #: default gait without cuff sensors, some 15 N).
-INITIAL_MODEL_ERROR_N = 30.0
+INITIAL_MODEL_ERROR_N = 0.2
 
 
 def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
-    """Set R (:func:`cuff_variance`), σ_m², the model error's start and the tare's window.
+    """Set R (:func:`cuff_variance`), σ_m², σ_w², the (b, β) start and the tare's window.
 
     ``state``: the filter's record, its step h already set; ``params``: the cuff sensors.
     """
@@ -132,9 +150,20 @@ def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
     state["var_cuff"] = cuff_variance(
         params.noise_std_N, params.offset_std_N, params.drift_N_per_sqrt_s
     )
-    state["var_model_rate"] = MODEL_ERROR_RATE_N_PER_SQRT_S**2
+    state["var_model_rate"] = MODEL_ERROR_REL_RATE_PER_SQRT_S**2
+    state["var_model_floor"] = MODEL_ERROR_FLOOR_N_PER_SQRT_S**2
+    state["var_model_start"] = INITIAL_MODEL_ERROR_REL**2
+    state["var_model_start_floor"] = INITIAL_MODEL_ERROR_N**2
+    state["model_decay"] = math.exp(-h / MODEL_ERROR_TIME_S)
+    state["var_bias_rate"] = params.drift_N_per_sqrt_s**2
+    state["var_torque_check"] = TORQUE_CHECK_NM**2
     state["model_error"] = 0.0
-    state["model_error_var"] = INITIAL_MODEL_ERROR_N**2
+    state["sensor_bias"] = 0.0
+    cov = np.zeros((8, 8))
+    for k in range(2):
+        for a in range(params.axes):
+            cov[4 + 2 * k + a, 4 + 2 * k + a] = params.offset_std_N**2
+    state["bias_cov"][0] = cov
     start = round(TARE_SETTLE_S / h) if params.tared else 0
     state["tare_from"] = start
     state["tare_to"] = start + round(params.tare_s / h)
@@ -145,8 +174,9 @@ def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
 
 
 def cuff_variance(noise_std_N: float, offset_std_N: float, drift_N_per_sqrt_s: float) -> float:
-    """R = σ_e² + σ_b² + σ_w² T_R [N²] (module docstring)."""
-    return noise_std_N**2 + offset_std_N**2 + drift_N_per_sqrt_s**2 * DRIFT_HORIZON_S
+    """R = σ_e² + c_R (σ_b² + σ_w² T_R) [N²] (module docstring)."""
+    slow = offset_std_N**2 + drift_N_per_sqrt_s**2 * DRIFT_HORIZON_S
+    return noise_std_N**2 + SLOW_IN_R * slow
 
 
 @leaf
@@ -165,6 +195,15 @@ def add_to_state(st, s, i, dx):
         st.d[2 * s + i - 8] += dx
 
 
+@leaf
+def add_to_bias(st, s, i, d):
+    """Add ``d`` to entry i of leg s's (b, β): i < 4 b of cuff 2 s + i // 2, axis i % 2; else β."""
+    if i < 4:
+        st.model_error[2 * s + i // 2, i % 2] += d
+    else:
+        st.sensor_bias[2 * s + (i - 4) // 2, i % 2] += d
+
+
 @kernel
 def cuff_sensor_update(st, cr, meas, split):
     """The sequential scalar updates with the cuffs' fresh readings (module docstring).
@@ -173,18 +212,35 @@ def cuff_sensor_update(st, cr, meas, split):
     (element); ``meas``: the readings' record
     (:data:`~exo_ctrl.sensing.cuff_load.CUFF_READING_FIELDS`); ``split``: the
     device's cuffs' switch, as :func:`~exo_ctrl.estimation.kalman_step.kalman_outputs`.
-    Uses rows 0–3 of ``st.work``.
+    Uses rows 0–5 of ``st.work``.
     """
     m = meas[0]
     h = st.h
     st.steps += 1
+    first = False
     if not st.tared and m.fresh and st.steps > st.tare_to:
         st.tared = True  # the window closed: this sample is the first one fused
+        first = True
     taring = not st.tared
     if not taring:
-        for c in range(4):
-            for a in range(m.axes):
-                st.model_error_var[c, a] += st.var_model_rate * h
+        decay = st.model_decay
+        for s in range(2):
+            B = st.bias_cov[s]
+            for k in range(2):
+                c = 2 * s + k
+                for a in range(m.axes):
+                    i = 2 * k + a
+                    f = st.cuff_normal[c] if a == 0 else st.cuff_along[c]
+                    f -= st.model_error[c, a]  # the model's own, at the last outputs
+                    st.model_error[c, a] *= decay
+                    for j in range(8):
+                        B[i, j] *= decay
+                        B[j, i] *= decay
+                    var = (st.var_model_rate * f * f + st.var_model_floor) * h
+                    if first:
+                        var += st.var_model_start * f * f + st.var_model_start_floor
+                    B[i, i] += var
+                    B[4 + i, 4 + i] += st.var_bias_rate * h
     if not m.fresh or (taring and st.steps <= st.tare_from):
         return
     for i in range(8):
@@ -197,11 +253,12 @@ def cuff_sensor_update(st, cr, meas, split):
     for i in range(10):
         W[2, i] = 0.0
         W[3, i] = 0.0
-    hrow, ph = W[0], W[1]
+    hrow, ph, pg = W[0], W[1], W[4]
     for c in range(4):
         s = c // 2
         joints = st.joints[s]
         P = st.cov[s]
+        B = st.bias_cov[s]
         dx = W[2 + s]
         cc, sc = cr.cs[c], cr.cs[8 + c]
         ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
@@ -227,11 +284,13 @@ def cuff_sensor_update(st, cr, meas, split):
                 hrow[4 + i] = (0.5 * h * k - damp) * jn
             hrow[8] = 0.0
             hrow[9] = 0.0
-            zhat = ax * cr.f[c] + az * cr.f[4 + c] + st.model_error[c, a]
+            zhat = ax * cr.f[c] + az * cr.f[4 + c] + st.model_error[c, a] + st.sensor_bias[c, a]
             for i in range(10):
                 zhat += hrow[i] * dx[i]
-            pb = st.model_error_var[c, a]
-            S = st.var_cuff[a] + pb
+            ib = 2 * (c - 2 * s) + a
+            for i in range(8):  # B g, g = e_b + e_β
+                pg[i] = B[i, ib] + B[i, 4 + ib]
+            S = st.var_cuff[a] + pg[ib] + pg[4 + ib]
             for i in range(10):
                 x = 0.0
                 for j in range(10):
@@ -239,8 +298,13 @@ def cuff_sensor_update(st, cr, meas, split):
                 ph[i] = x
                 S += hrow[i] * x
             y = (z - zhat) / S
-            st.model_error[c, a] += pb * y
-            st.model_error_var[c, a] = pb - pb * pb / S
+            for i in range(8):
+                add_to_bias(st, s, i, pg[i] * y)
+            for i in range(8):
+                for j in range(i, 8):
+                    x = B[i, j] - pg[i] * pg[j] / S
+                    B[i, j] = x
+                    B[j, i] = x
             for i in range(10):
                 d = ph[i] * y
                 dx[i] += d
@@ -250,6 +314,50 @@ def cuff_sensor_update(st, cr, meas, split):
                     x = P[i, j] - ph[i] * ph[j] / S
                     P[i, j] = x
                     P[j, i] = x
+    if not taring:
+        torque_check(st, cr, m.axes)
+
+
+@kernel
+def torque_check(st, cr, axes):
+    """The joint torques' check of b: 0 = G_j b + ε per exoskeleton joint j (module docstring).
+
+    ``cr.cs`` and ``st.jd`` as :func:`cuff_sensor_update` left them.  Uses rows 4, 5 of ``st.work``.
+    """
+    pg, gr = st.work[4], st.work[5]
+    for s in range(2):
+        joints = st.joints[s]
+        B = st.bias_cov[s]
+        for j in range(2):
+            g = joints[j]
+            for i in range(8):
+                gr[i] = 0.0
+            y = 0.0
+            for k in range(2):
+                c = 2 * s + k
+                cc, sc = cr.cs[c], cr.cs[8 + c]
+                ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
+                uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc
+                for a in range(axes):
+                    ax, az = (-uz, ux) if a == 0 else (ux, uz)
+                    x = ax * st.jd[c, g] + az * st.jd[4 + c, g]
+                    gr[2 * k + a] = x
+                    y -= x * st.model_error[c, a]
+            S = st.var_torque_check
+            for i in range(8):
+                x = 0.0
+                for n in range(8):
+                    x += B[i, n] * gr[n]
+                pg[i] = x
+                S += gr[i] * x
+            y /= S
+            for i in range(8):
+                add_to_bias(st, s, i, pg[i] * y)
+            for i in range(8):
+                for n in range(i, 8):
+                    x = B[i, n] - pg[i] * pg[n] / S
+                    B[i, n] = x
+                    B[n, i] = x
 
 
 @kernel
@@ -259,18 +367,22 @@ def add_model_error(st, cr, meas):
     ``st``, ``cr``: the filter's and the device's cuff records (elements),
     after the outputs (``cr.cs`` at the step's midpoint); ``meas``: the
     readings' record (its ``axes``).  ``tau_ext`` stays the model's J_eᵀ f.
-    σ_c (``cuff_force_std``) becomes √(σ_c² + max_a p_ca) over the measured
-    axes: b is independent of x, so the force's covariance is H P Hᵀ +
-    Σ_a p_ca a aᵀ, whose largest eigenvalue is at most the sum's.
+    σ_c (``cuff_force_std``) becomes √(σ_c² + λ_c), λ_c the largest
+    eigenvalue of cuff c's 2 × 2 block of b's covariance (in the link's
+    frame; b is independent of x, so the force's covariance is the sum of
+    H P Hᵀ and that block turned into x, z, whose largest eigenvalue is at
+    most the sum of theirs).
     """
     if not st.tared:
         return  # the tare: no update yet, b = 0, σ_c the joint torques' own
-    axes = meas[0].axes
     for c in range(4):
-        extra = 0.0
-        for a in range(axes):
-            extra = max(extra, st.model_error_var[c, a])
-        st.cuff_force_std[c] = math.sqrt(st.cuff_force_std[c] ** 2 + extra)
+        s = c // 2
+        i = 2 * (c - 2 * s)
+        B = st.bias_cov[s]
+        mid = 0.5 * (B[i, i] + B[i + 1, i + 1])
+        half = 0.5 * (B[i, i] - B[i + 1, i + 1])
+        extra = mid + math.sqrt(half * half + B[i, i + 1] ** 2)
+        st.cuff_force_std[c] = math.sqrt(st.cuff_force_std[c] ** 2 + max(extra, 0.0))
         cc, sc = cr.cs[c], cr.cs[8 + c]
         ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
         uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc

@@ -47,8 +47,17 @@ KALMAN_FIELDS = [
     # the cuff model's error b (normal, along) per cuff [N] and its variance [N²].
     ("var_cuff", np.float64, (2,)),
     ("var_model_rate", np.float64),
+    ("var_model_floor", np.float64),
+    ("var_model_start", np.float64),
+    ("var_model_start_floor", np.float64),
+    ("model_decay", np.float64),
     ("model_error", np.float64, (4, 2)),
-    ("model_error_var", np.float64, (4, 2)),
+    # The sensors' biases β (normal, along) per cuff [N], their walk's σ_w² [N²/s], the joint
+    # torques' check's variance [N²m²] and per leg the covariance of (b, β) (kalman_cuff).
+    ("sensor_bias", np.float64, (4, 2)),
+    ("var_bias_rate", np.float64),
+    ("var_torque_check", np.float64),
+    ("bias_cov", np.float64, (2, 8, 8)),
     # The tare (kalman_cuff): its window in the filter's steps (settle, end), steps taken,
     # done, per axis the samples averaged and the offset estimate (mean reading − model) [N].
     ("tare_from", np.int64),
