@@ -333,17 +333,21 @@ def torque_check(st, cr, axes):
             for i in range(8):
                 gr[i] = 0.0
             y = 0.0
+            S = st.var_torque_check
             for k in range(2):
                 c = 2 * s + k
                 cc, sc = cr.cs[c], cr.cs[8 + c]
                 ux = cr.along0[c, 0] * cc - cr.along0[c, 1] * sc
                 uz = cr.along0[c, 1] * cc + cr.along0[c, 0] * sc
-                for a in range(axes):
+                for a in range(2):
                     ax, az = (-uz, ux) if a == 0 else (ux, uz)
                     x = ax * st.jd[c, g] + az * st.jd[4 + c, g]
-                    gr[2 * k + a] = x
-                    y -= x * st.model_error[c, a]
-            S = st.var_torque_check
+                    if a < axes:
+                        gr[2 * k + a] = x
+                        y -= x * st.model_error[c, a]
+                    else:  # an axis not read: its model error, which b does not carry, as noise
+                        f = ax * cr.f[c] + az * cr.f[4 + c]
+                        S += x * x * (st.var_model_start * f * f + st.var_model_start_floor)
             for i in range(8):
                 x = 0.0
                 for n in range(8):
