@@ -136,6 +136,10 @@ INITIAL_MODEL_ERROR_REL = 0.5
 #: T_b, b's correlation time [s] (module docstring).
 MODEL_ERROR_TIME_S = 1.0
 
+#: The largest std of the unread axes' model error a joint may see and still check b, as a
+#: fraction of σ_τ [-] (module docstring).
+CHECK_BLIND = 0.1
+
 #: The initial std of b [N] (chosen: twice the model's RMS error on the
 #: default gait without cuff sensors, some 15 N).
 INITIAL_MODEL_ERROR_N = 0.2
@@ -157,6 +161,7 @@ def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
     state["model_decay"] = math.exp(-h / MODEL_ERROR_TIME_S)
     state["var_bias_rate"] = params.drift_N_per_sqrt_s**2
     state["var_torque_check"] = TORQUE_CHECK_NM**2
+    state["var_check_blind"] = (CHECK_BLIND * TORQUE_CHECK_NM) ** 2
     state["model_error"] = 0.0
     state["sensor_bias"] = 0.0
     cov = np.zeros((8, 8))
@@ -333,7 +338,7 @@ def torque_check(st, cr, axes):
             for i in range(8):
                 gr[i] = 0.0
             y = 0.0
-            S = st.var_torque_check
+            unread = 0.0  # the variance of the unread axes' model error the joint sees
             for k in range(2):
                 c = 2 * s + k
                 cc, sc = cr.cs[c], cr.cs[8 + c]
@@ -345,9 +350,12 @@ def torque_check(st, cr, axes):
                     if a < axes:
                         gr[2 * k + a] = x
                         y -= x * st.model_error[c, a]
-                    else:  # an axis not read: its model error, which b does not carry, as noise
+                    else:
                         f = ax * cr.f[c] + az * cr.f[4 + c]
-                        S += x * x * (st.var_model_start * f * f + st.var_model_start_floor)
+                        unread += x * x * (st.var_model_start * f * f + st.var_model_start_floor)
+            if unread > st.var_check_blind:
+                continue  # the joint sees an unread axis's model error, which b does not carry
+            S = st.var_torque_check
             for i in range(8):
                 x = 0.0
                 for n in range(8):
