@@ -122,7 +122,7 @@ MODEL_ERROR_RATE_N_PER_SQRT_S = 30.0
 SLOW_IN_R = 0.0
 
 #: σ_τ, the std of the joint torques' check of b per fresh sample [N·m] (module docstring).
-TORQUE_CHECK_NM = 0.5
+TORQUE_CHECK_NM = 0.3
 
 #: σ_r, the relative intensity of b's random walk [1/√s] (module docstring).
 MODEL_ERROR_REL_RATE_PER_SQRT_S = 0.6
@@ -134,7 +134,10 @@ MODEL_ERROR_FLOOR_N_PER_SQRT_S = 0.05
 INITIAL_MODEL_ERROR_REL = 0.5
 
 #: T_b, b's correlation time [s] (module docstring).
-MODEL_ERROR_TIME_S = 1.0
+MODEL_ERROR_TIME_S = 10.0
+
+#: ε_τ, the std of the joint torques' check relative to the model's cuff torque at the joint [-].
+TORQUE_CHECK_REL = 0.04
 
 #: The largest std of the unread axes' model error a joint may see and still check b, as a
 #: fraction of σ_τ [-] (module docstring).
@@ -161,6 +164,7 @@ def set_cuff_noise(state: np.ndarray, params: CuffSensorParams) -> None:
     state["model_decay"] = math.exp(-h / MODEL_ERROR_TIME_S)
     state["var_bias_rate"] = params.drift_N_per_sqrt_s**2
     state["var_torque_check"] = TORQUE_CHECK_NM**2
+    state["var_check_rel"] = TORQUE_CHECK_REL**2
     state["var_check_blind"] = (CHECK_BLIND * TORQUE_CHECK_NM) ** 2
     state["model_error"] = 0.0
     state["sensor_bias"] = 0.0
@@ -329,15 +333,20 @@ def torque_check(st, cr, axes):
 
     ``cr.cs`` and ``st.jd`` as :func:`cuff_sensor_update` left them.  Uses rows 4, 5 of ``st.work``.
     """
-    pg, gr = st.work[4], st.work[5]
+    pg, gr, hx = st.work[4], st.work[5], st.work[6]
+    h = st.h
     for s in range(2):
         joints = st.joints[s]
         B = st.bias_cov[s]
+        P = st.cov[s]
         for j in range(2):
             g = joints[j]
             for i in range(8):
                 gr[i] = 0.0
+            for i in range(10):
+                hx[i] = 0.0
             y = 0.0
+            seen = 0.0  # the model's cuff torque at the joint
             unread = 0.0  # the variance of the unread axes' model error the joint sees
             for k in range(2):
                 c = 2 * s + k
@@ -347,15 +356,26 @@ def torque_check(st, cr, axes):
                 for a in range(2):
                     ax, az = (-uz, ux) if a == 0 else (ux, uz)
                     x = ax * st.jd[c, g] + az * st.jd[4 + c, g]
+                    k_a, c_a = (cr.k, cr.c) if a == 0 else (cr.k_u, cr.c_u)
+                    for i in range(4):  # the joint's view of the model's force, on x
+                        jn = ax * st.jd[c, joints[i]] + az * st.jd[4 + c, joints[i]]
+                        hx[i] -= x * k_a * jn
+                        hx[4 + i] += x * (0.5 * h * k_a - c_a) * jn
+                    f = ax * cr.f[c] + az * cr.f[4 + c]
+                    seen += x * f
                     if a < axes:
                         gr[2 * k + a] = x
                         y -= x * st.model_error[c, a]
                     else:
-                        f = ax * cr.f[c] + az * cr.f[4 + c]
                         unread += x * x * (st.var_model_start * f * f + st.var_model_start_floor)
             if unread > st.var_check_blind:
                 continue  # the joint sees an unread axis's model error, which b does not carry
-            S = st.var_torque_check
+            S = st.var_torque_check + st.var_check_rel * seen * seen
+            for i in range(8):  # x's uncertainty of that view: hxᵀ P hx (d's entries are 0)
+                x = 0.0
+                for n in range(8):
+                    x += P[i, n] * hx[n]
+                S += hx[i] * x
             for i in range(8):
                 x = 0.0
                 for n in range(8):

@@ -57,6 +57,7 @@ KALMAN_FIELDS = [
     ("sensor_bias", np.float64, (4, 2)),
     ("var_bias_rate", np.float64),
     ("var_torque_check", np.float64),
+    ("var_check_rel", np.float64),
     ("var_check_blind", np.float64),
     ("bias_cov", np.float64, (2, 8, 8)),
     # The tare (kalman_cuff): its window in the filter's steps (settle, end), steps taken,
