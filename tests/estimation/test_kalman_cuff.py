@@ -41,17 +41,9 @@ GOAL = 0.05
 #: The sensors' seeds the goals are held on (3: the default).
 SEEDS = (3, 0, 1)
 
-#: The ``normal`` set's errors without the tare before the bias states (commit db1df3e), per
-#: seed: the full vector's and the normal component's, per cuff (CUFF_NAMES order) [-].
-NORMAL_BEFORE = {
-    3: ([0.0390, 0.0321, 0.0094, 0.0693], [0.0389, 0.0272, 0.0093, 0.1063]),
-    0: ([0.0053, 0.0348, 0.0094, 0.0501], [0.0053, 0.0340, 0.0084, 0.0700]),
-    1: ([0.0077, 0.0310, 0.0170, 0.0337], [0.0076, 0.0232, 0.0163, 0.0325]),
-}
-
-#: What "not worse" allows of a cuff's relative error against NORMAL_BEFORE [-] (0.2 %: the
-#: thighs, where β cannot be told from b, moved by up to 0.05 % either way).
-NORMAL_SLACK = 0.002
+#: The goal on the normal components with the joint torque sensors alone (thighs 10 %, shanks
+#: 5 %, issue 31), which load cells without the tare must keep, per cuff (CUFF_NAMES) [-].
+NORMAL_GOAL = np.array([0.10, 0.05, 0.10, 0.05])
 
 #: The bound on the estimated bias's error per measured axis at the run's end [N], ``full``,
 #: no tare: σ_b, the offset's own spread (0.9 N measured, a thigh's normal: the hip's split).
@@ -127,13 +119,14 @@ def test_sensors_are_never_worse_than_none_on_the_normal_components(
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_normal_cells_without_the_tare_are_no_worse_than_before_the_bias_states(seed: int) -> None:
-    full, normal = _errors("normal", seed)
-    before_full, before_normal = (np.array(x) for x in NORMAL_BEFORE[seed])
-    assert np.all(full <= before_full + NORMAL_SLACK), np.round(100 * (full - before_full), 2)
-    worse = normal - before_normal
-    assert np.all(worse <= NORMAL_SLACK), np.round(100 * worse, 2)
-    assert np.max(normal) < np.max(before_normal)  # the knee's check: the shanks' normal gain
+def test_normal_cells_without_the_tare_hold_the_normal_goal_and_beat_the_torques_on_the_shanks(
+    seed: int,
+) -> None:
+    """The knee's check finds the shank cells' offsets; the thighs' stays (module docstring)."""
+    _, normal = _errors("normal", seed)
+    assert np.all(normal < NORMAL_GOAL), f"normal components {np.round(100 * normal, 2)} %"
+    _, none = _errors("none")
+    assert np.all(normal[[1, 3]] < none[[1, 3]])
 
 
 @pytest.mark.parametrize("seed", SEEDS)
