@@ -14,7 +14,7 @@ directory, and removed again if the command fails), and matplotlib must be
 installed.
 A progress line per run on stderr.  Exit 0; 1 when a compared run did not
 complete (the table is written all the same); 2 bad input (runs whose
-configurations differ beyond the controller, without ``--allow-different``);
+configurations differ beyond the controller and its gains, without ``--allow-different``);
 130 Ctrl-C.
 """
 
@@ -116,7 +116,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--allow-different",
         action="store_true",
-        help="compare runs whose configurations differ in more than the controller "
+        help="compare runs whose configurations differ in more than the controller and its gains "
         "(default: refused, naming the differing keys)",
     )
     p.set_defaults(func=run)

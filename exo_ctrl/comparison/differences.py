@@ -13,10 +13,11 @@ from typing import Any
 
 from ..exceptions import InvalidParameter
 
-__all__ = ["COMPARED", "check_same", "config_differences", "flatten"]
+__all__ = ["COMPARED", "check_same", "config_differences", "flatten", "is_compared"]
 
-#: The keys a comparison compares: runs may differ there without ``allow_different``.
-COMPARED = ("controller",)
+#: The keys a comparison compares: runs may differ there (and under them) without
+#: ``allow_different``.  A controller's gains are part of it (``PD(kp=200)`` against ``"pd"``).
+COMPARED = ("controller", "gains")
 
 #: Most differing keys an error message names (then "and N more").
 _NAMED = 12
@@ -57,6 +58,11 @@ def config_differences(configs: Sequence[dict[str, Any]]) -> dict[str, list[Any]
     return out
 
 
+def is_compared(key: str) -> bool:
+    """Whether a dotted configuration key is one of :data:`COMPARED` or lies under one."""
+    return any(key == c or key.startswith(c + ".") for c in COMPARED)
+
+
 def check_same(
     differences: dict[str, list[Any]], labels: Sequence[str], allow_different: bool
 ) -> None:
@@ -71,7 +77,7 @@ def check_same(
         InvalidParameter: ``runs``, naming each differing key with its values per run.
 
     """
-    beyond = [k for k in differences if k not in COMPARED]
+    beyond = [k for k in differences if not is_compared(k)]
     if allow_different or not beyond:
         return
     shown = []
@@ -82,7 +88,7 @@ def check_same(
     raise InvalidParameter(
         "runs",
         list(labels),
-        f"of one configuration but the {', '.join(COMPARED)} "
+        "of one configuration but the controller and its gains "
         "(--allow-different, or allow_different=True, compares them anyway)",
         f"they differ in {len(beyond)} key{'s' if len(beyond) > 1 else ''}: "
         + "; ".join(shown)

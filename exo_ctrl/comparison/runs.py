@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from .. import _validate as v
@@ -53,36 +53,55 @@ def _base_config(scenario: Any) -> SimConfig:
     )
 
 
-def controller_list(controllers: Any) -> tuple[str | Controller, ...]:
-    """The controllers to compare: a sequence or ``"pd,ct,qp"``, each once, at least one.
+def controller_list(controllers: Any) -> tuple[tuple[str, str | Controller], ...]:
+    """The controllers to compare, each with its row's label, at least one.
 
-    Each is a built-in name, a user's ``module:Class`` path or a
-    :class:`~exo_ctrl.control.Controller` object (in a sequence); two with one
-    name (:func:`~exo_ctrl.control.controller_name`) are one twice.
+    ``controllers`` is ``"pd,ct,qp"``, a sequence, or a mapping label →
+    controller.  Each controller is a built-in name, a user's ``module:Class``
+    path or a :class:`~exo_ctrl.control.Controller` object (in a sequence
+    or a mapping).  In a string or a sequence a controller's label is its
+    name (:func:`~exo_ctrl.control.controller_name`), so two with one name
+    (``PD(kp=200)`` and ``"pd"``) are one twice; a mapping labels them
+    itself (``{"soft": PD(kp=200), "stiff": PD(kp=600)}``).
 
     Raises:
-        InvalidParameter: ``controllers`` empty, naming an unknown controller or one twice.
+        InvalidParameter: ``controllers`` empty, naming an unknown controller
+            or one twice, or a label that is not non-empty text.
 
     """
     allowed = f"one or more of {', '.join(CONTROLLERS)}, each once"
-    if isinstance(controllers, str):
-        names = tuple(c.strip() for c in controllers.split(","))
+    if isinstance(controllers, Mapping):
+        pairs = tuple(controllers.items())
+        for label, _ in pairs:
+            if not isinstance(label, str) or not label.strip():
+                raise InvalidParameter(
+                    "controllers",
+                    controllers,
+                    "a mapping of labels (non-empty text) to controllers",
+                    f"label {label!r}",
+                )
     else:
-        try:
-            names = tuple(controllers)
-        except TypeError:
-            raise InvalidParameter("controllers", controllers, allowed) from None
-    labels = [controller_name(c) if isinstance(c, (str, Controller)) else c for c in names]
-    if not names or len(set(map(repr, labels))) != len(labels):
+        if isinstance(controllers, str):
+            chosen = tuple(c.strip() for c in controllers.split(","))
+        else:
+            try:
+                chosen = tuple(controllers)
+            except TypeError:
+                raise InvalidParameter("controllers", controllers, allowed) from None
+        pairs = tuple(
+            (controller_name(c) if isinstance(c, (str, Controller)) else repr(c), c) for c in chosen
+        )
+    labels = [label for label, _ in pairs]
+    if not pairs or len(set(labels)) != len(labels):
         raise InvalidParameter("controllers", controllers, allowed)
-    for name in names:
+    for _, controller in pairs:
         try:
-            check_controller(name, CONTROLLERS)
+            check_controller(controller, CONTROLLERS)
         except InvalidParameter:
             raise InvalidParameter(
-                "controllers", controllers, allowed, f"{name!r} is not one"
+                "controllers", controllers, allowed, f"{controller!r} is not one"
             ) from None
-    return names
+    return pairs
 
 
 def run_config(
@@ -119,7 +138,7 @@ def run_config(
 
 def compare(
     scenario: Any,
-    controllers: str | Sequence[str | Controller] = CONTROLLERS,
+    controllers: str | Sequence[str | Controller] | Mapping[str, str | Controller] = CONTROLLERS,
     *,
     cycles: float | None = None,
     duration_s: float | None = None,
@@ -137,7 +156,9 @@ def compare(
         controllers: the controllers, in the table's order (``("pd", "ct")``
             or ``"pd,ct"``; a user's as ``"module:Class"`` or a
             :class:`~exo_ctrl.control.Controller` object); each row is
-            labelled by its controller's name.
+            labelled by its controller's name, or by its key in a mapping
+            label → controller (two tunings of one controller:
+            ``{"soft": PD(kp=200), "stiff": PD(kp=600)}``).
         cycles: gait cycles at full speed (:func:`run_config`); None: the scenario's duration.
         duration_s: the whole run [s]; None: the scenario's.
         allow_different: compare runs whose configurations differ beyond
@@ -161,9 +182,9 @@ def compare(
 
     """
     chosen = controller_list(controllers)
-    names = [controller_name(c) for c in chosen]
+    names = [label for label, _ in chosen]
     base = run_config(scenario, cycles, duration_s)
-    configs = [dataclasses.replace(base, controller=c) for c in chosen]
+    configs = [dataclasses.replace(base, controller=c) for _, c in chosen]
     differences = config_differences([c.to_dict() for c in configs])
     check_same(differences, names, v.flag("allow_different", allow_different))
     rows: list[CompareRow] = []

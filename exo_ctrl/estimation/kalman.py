@@ -69,8 +69,10 @@ than the nominal one, cuffs other than the model's make them wrong).
 
 **Instrumented cuffs** (``cuff_sensors``): their fresh readings are fused
 after the encoders, one scalar update per axis, with a model-error force per
-measured axis added to the outputs, once the sensors are tared at the start
-(:mod:`.kalman_cuff`).
+measured axis added to the outputs and a bias per measured axis (the
+sensor's offset and drift) told from it by the joint torques
+(:mod:`.kalman_cuff`, :mod:`.kalman_check`); the sensors may be tared at the
+start on request.
 
 **Bad readings.**  A non-finite angle skips that leg's measurement update
 (the covariance grows, the prediction carries on); a non-finite torque
@@ -340,7 +342,7 @@ class CuffForceKalman:
     def reset(self) -> None:
         """Restart the filter: the next update starts it at its readings (estimate zero now).
 
-        With cuff sensors the tare and the model-error forces start again too.
+        With cuff sensors the tare, the model-error forces and the biases start again too.
         """
         self._started = False
         if self._cuff_params is not None:

@@ -43,12 +43,24 @@ KALMAN_FIELDS = [
     ("var_exo", np.float64),
     ("var_patient", np.float64),
     ("var_rate", np.float64),
-    # Cuff sensors (kalman_cuff): R of the normal and along axes [N²], σ_m² [N²/s],
-    # the cuff model's error b (normal, along) per cuff [N] and its variance [N²].
+    # Cuff sensors (kalman_cuff): R = σ_e² of the normal and along axes [N²]; b's walk σ_r²
+    # [1/s] and σ_0² [N²/s], its start ρ² [-] and σ_00² [N²], its decay e^(−h/T_b) per step;
+    # the cuff model's error b and the sensors' biases β (normal, along) per cuff [N], β's
+    # walk σ_w² [N²/s]; the joint torques' check (kalman_check): σ_τ² [N²m²], ε_τ² [-] and
+    # (κ σ_τ)² [N²m²]; per leg the covariance B of (b, β) (thigh n, u, shank n, u; b then β).
     ("var_cuff", np.float64, (2,)),
     ("var_model_rate", np.float64),
+    ("var_model_floor", np.float64),
+    ("var_model_start", np.float64),
+    ("var_model_start_floor", np.float64),
+    ("model_decay", np.float64),
     ("model_error", np.float64, (4, 2)),
-    ("model_error_var", np.float64, (4, 2)),
+    ("sensor_bias", np.float64, (4, 2)),
+    ("var_bias_rate", np.float64),
+    ("var_torque_check", np.float64),
+    ("var_check_rel", np.float64),
+    ("var_check_blind", np.float64),
+    ("bias_cov", np.float64, (2, 8, 8)),
     # The tare (kalman_cuff): its window in the filter's steps (settle, end), steps taken,
     # done, per axis the samples averaged and the offset estimate (mean reading − model) [N].
     ("tare_from", np.int64),
@@ -222,7 +234,7 @@ def kalman_step(state, cuffs, mass_e, nle_e, mass_p, nle_p, q_meas, tau_meas, sp
                 return Status.NOT_FINITE.value
     kalman_outputs(state, cuffs, split)
     if cuff_meas is not None:
-        add_model_error(st, cr, cuff_meas)
+        add_model_error(st, cr)
     return Status.OK.value
 
 

@@ -59,7 +59,10 @@ exoskeleton link; one axis of it for ``normal``, two for ``full``:
   standing model's error for an offset: with the patient's cuffs scattered
   around the published ones it leaves up to 15 N on a measured component
   of the default gait (:mod:`exo_ctrl.control.qp.margin`, e_cuffs) to
-  remove an offset of σ_b = 1 N, so it is off unless asked for.
+  remove an offset of σ_b = 1 N, so it is off unless asked for.  Without
+  it the estimator carries each axis's bias (offset and drift, from these
+  σ_b and σ_w) as a state of its own and finds it over the gait
+  (:mod:`exo_ctrl.estimation.kalman_cuff`).
 - ``seed`` = 3: a stream of its own (the joints' sensors use 0, the current
   sensors 1, the foot plates 2).
 """

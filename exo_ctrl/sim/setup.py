@@ -19,7 +19,7 @@ from ..control import (
     feedforward_torque,
 )
 from ..control.modes import InteractionController, PathController
-from ..control.qp import QPController, departure_warning
+from ..control.qp import QPController, contact_warning, departure_warning
 from ..estimation import ESTIMATORS, Estimator
 from ..estimation.plugin import users_estimator
 from ..exceptions import InvalidParameter
@@ -211,7 +211,9 @@ def run_warnings(
     """The run's warnings (:attr:`Setup.warnings`).
 
     The fit, then the nominal patient's notes, then, for the QP, a bound its
-    margin leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`).
+    margin leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`)
+    and a bound not promised with the pelvis supported
+    (:func:`~exo_ctrl.control.qp.contact_warning`).
     """
     out = fit_warnings(exo, fitted)
     if config.belief.patient == "nominal":
@@ -222,6 +224,8 @@ def run_warnings(
         )
         if departure is not None:
             out.append(departure)
+        if config.pelvis.supported:
+            out.append(contact_warning(controller.cuff_force_limit_N))
     return out
 
 

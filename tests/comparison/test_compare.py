@@ -25,6 +25,7 @@ from exo_ctrl.comparison import (
     trace_from_history,
     write_compare_png,
 )
+from exo_ctrl.control import PD
 from exo_ctrl.model import CUFF_NAMES, JOINT_NAMES
 from exo_ctrl.scenario import preset_text
 
@@ -248,3 +249,38 @@ def test_bad_input_is_refused_by_name() -> None:
 def test_the_row_label_must_exist(table) -> None:
     with pytest.raises(InvalidParameter, match=r"^label must be one of \['pd', 'ct', 'qp'\]"):
         table["lqr"]
+
+
+def test_two_tunings_of_one_controller_are_compared_by_their_labels() -> None:
+    """A mapping labels its rows; each row is the run of its own gains, the stiffer the closer."""
+    config = dataclasses.replace(BASE, duration_s=0.8)
+    tunings = {"soft": PD(kp=150.0), "stiff": PD(kp=600.0)}
+    table = exo_ctrl.compare(config, controllers=tunings)
+    assert table.labels == ["soft", "stiff"]
+    for label, controller in tunings.items():
+        alone = simulate(dataclasses.replace(config, controller=controller)).summary()
+        assert without_clock(table[label].summary) == without_clock(alone)
+        assert table[label].controller == "pd"
+    assert set(table.differences) == {"gains.kp.0", "gains.kp.1", "gains.kp.2", "gains.kp.3"}
+    soft, stiff = (table[k].figures["rms_tracking_error_rad"] for k in tunings)
+    # PD's steady error under one load goes as 1/k_p: four times the gain, a smaller error.
+    assert all(stiff[j] < soft[j] for j in JOINT_NAMES)
+
+
+def test_one_controller_twice_or_a_bad_label_is_refused() -> None:
+    with pytest.raises(InvalidParameter, match=r"^controllers must be one or more of pd, ct, qp"):
+        exo_ctrl.compare(BASE, controllers=(PD(kp=200.0), "pd"))
+    with pytest.raises(
+        InvalidParameter,
+        match=r"mapping of labels \(non-empty text\) to controllers; got \{3: 'pd'\} \(label 3\)$",
+    ):
+        exo_ctrl.compare(BASE, controllers={3: "pd"})
+    with pytest.raises(InvalidParameter, match=r"to controllers; got \{' ': 'pd'\} \(label ' '\)$"):
+        exo_ctrl.compare(BASE, controllers={" ": "pd"})
+    with pytest.raises(InvalidParameter, match=r"'lqr' is not one"):
+        exo_ctrl.compare(BASE, controllers={"mine": "lqr"})
+    other = {"a": "pd", "b": PD(kp=200.0)}
+    with pytest.raises(InvalidParameter, match=r"they differ in 1 key: gait.period"):
+        exo_ctrl.comparison.check_same(
+            {"gains.kp.0": [300.0, 200.0], "gait.period": [1.2, 1.0]}, list(other), False
+        )

@@ -60,7 +60,7 @@ def test_recordings_that_differ_are_refused_naming_the_keys(recorded) -> None:
     with pytest.raises(InvalidParameter) as caught:
         compare_recordings(paths)
     assert str(caught.value) == (
-        "runs must be of one configuration but the controller (--allow-different, or "
+        "runs must be of one configuration but the controller and its gains (--allow-different, or "
         "allow_different=True, compares them anyway); got ['pd', 'other'] (they differ in 2 "
         "keys: duration_s (pd: 1.5, other: 0.5); gait.step_length (pd: 0.35, other: 0.3))"
     )

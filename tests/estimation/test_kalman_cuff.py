@@ -6,18 +6,22 @@ the ramp-in, RMS error over RMS true value, with the sensors' noise, offset
 (σ_b = 1 N, drawn per run) and drift on in every run, over three of the
 sensors' seeds.  The goals the issue states (issue 31): with ``full`` cuff
 sensors, the full vector within 5 % of its RMS; and sensors never worse
-than none on the normal components.  Both hold here with the tare on
-(``tare_s`` = 0.3 s: the device zeroes its sensors while it stands at the
-start, on its standing model, which is right on this patient to under 1 N);
-without the tare (the default, as the tare takes a wrong standing model's
-error for an offset: exo_ctrl/sensing/cuff_load.py) the offsets (up to
-3.3 N with the default seed) pass into the estimate.
+than none on the normal components.  ``full`` meets both without the tare
+(the default): the filter estimates each sensor's bias (offset and drift)
+as a state of its own, told from the cuff model's error by the joint
+torques' check (exo_ctrl/estimation/kalman_check.py) over the gait's
+changing posture, and by the model's force where no joint torque sees the
+component.  ``normal`` load cells leave the thighs' normal offset in the
+estimate (the hip sees the shank's along force too, which they do not
+read): they hold the goal on the normal components with the tare, and
+without it are no worse than before the bias states.
 """
 
 from __future__ import annotations
 
 from functools import cache
 from typing import Any
+from unittest import mock
 
 import numba
 import numpy as np
@@ -37,6 +41,21 @@ GOAL = 0.05
 #: The sensors' seeds the goals are held on (3: the default).
 SEEDS = (3, 0, 1)
 
+#: The goal on the normal components with the joint torque sensors alone (thighs 10 %, shanks
+#: 5 %, issue 31), which load cells without the tare must keep, per cuff (CUFF_NAMES) [-].
+NORMAL_GOAL = np.array([0.10, 0.05, 0.10, 0.05])
+
+#: The bound on the estimated bias's error per measured axis at the run's end [N], ``full``,
+#: no tare: σ_b, the offset's own spread (0.9 N measured, a thigh's normal: the hip's split).
+BIAS_BOUND_N = 1.0
+
+#: The bound on the bias's RMS error over the eight axes [N]: half σ_b.
+BIAS_RMS_BOUND_N = 0.5
+
+#: The bound on the bias's error on the shanks' normal axes [N]: the knee torque sees that
+#: component alone (0.35 N measured).
+BIAS_KNEE_BOUND_N = 0.5
+
 #: The bound on the tare's error per measured axis [N]: the device's model of the
 #: standing forces (the hip torque's split between the thigh's normal and the
 #: shank's along force comes from the cuff model; 0.9 N measured).
@@ -47,42 +66,84 @@ TARE_BOUND_N = 1.0
 TARE_OBSERVED_BOUND_N = 0.1
 
 
-#: A bound on σ_c over the tare and the first fused samples [N] (2.0 N measured): below the 30 N
-#: prior of the model-error force, which the tare keeps out of σ_c.
+#: A bound on σ_c over the tare and the first fused samples [N] (2.0 N measured): the
+#: model-error force's prior, set at the first fused sample, is gone after it.
 SIGMA_BOUND_N = 5.0
 
 
+class _Kept(Runner):
+    """The run's Runner, kept for the test to read its filter's and sensors' records."""
+
+    last: Runner | None = None
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        _Kept.last = self
+
+
 @cache
-def _errors(mode: str, seed: int = 3, tare_s: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
-    """Per cuff, the full vector's and the normal's RMS error over RMS, after the ramp-in."""
+def _run(mode: str, seed: int = 3, tare_s: float = 0.0) -> tuple[dict, np.ndarray, np.ndarray]:
+    """The run's summary, and at its end the filter's record and the sensors' (the truth)."""
     params = CuffSensorParams(mode=mode, seed=seed, tare_s=tare_s)
-    summary = simulate(SimConfig(controller="ct", cuff_sensors=params)).summary()
+    with mock.patch("exo_ctrl.sim.loop.Runner", _Kept):
+        summary = simulate(SimConfig(controller="ct", cuff_sensors=params)).summary()
+    runner = _Kept.last
+    return summary, runner.estimator.record.copy(), runner.cuff_sensors.record.copy()
+
+
+def _errors(mode: str, seed: int = 3, tare_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Per cuff, the full vector's and the normal's RMS error over RMS, after the ramp-in."""
+    summary = _run(mode, seed, tare_s)[0]
     full = np.array(list(summary["cuff_force_estimate_rms_error_rel"].values()))
     normal = np.array(list(summary["cuff_force_estimate_normal_rms_error_over_rms"].values()))
-    print(f"\n{mode} seed {seed} tare {tare_s} s: full vector {np.round(100 * full, 1)} %, "
-          f"normal {np.round(100 * normal, 1)} %")  # fmt: skip
+    print(f"\n{mode} seed {seed} tare {tare_s} s: full vector {np.round(100 * full, 2)} %, "
+          f"normal {np.round(100 * normal, 2)} %")  # fmt: skip
     return full, normal
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_full_sensors_hold_the_full_vector_within_5_percent(seed: int) -> None:
+def test_full_sensors_hold_the_full_vector_within_5_percent_without_the_tare(seed: int) -> None:
     full, _ = _errors("full", seed)
     assert np.all(full < GOAL), f"full-vector error {np.round(100 * full, 2)} % over the 5 % goal"
     assert np.all(full < _errors("none")[0])  # and below the joint torques' alone
 
 
-@pytest.mark.parametrize("mode", ["normal", "full"])
+@pytest.mark.parametrize(("mode", "tare_s"), [("normal", 0.3), ("full", 0.0), ("full", 0.3)])
 @pytest.mark.parametrize("seed", SEEDS)
-def test_sensors_are_never_worse_than_none_on_the_normal_components(mode: str, seed: int) -> None:
-    _, normal = _errors(mode, seed)
+def test_sensors_are_never_worse_than_none_on_the_normal_components(
+    mode: str, tare_s: float, seed: int
+) -> None:
+    _, normal = _errors(mode, seed, tare_s)
     _, none = _errors("none")
     assert np.all(normal <= none), f"normal {np.round(100 * normal, 2)} % against none's"
 
 
-def test_without_the_tare_the_offset_passes_into_the_estimate() -> None:
-    """The default seed's offsets (3.3 N on the left thigh) put a cuff over the 5 %."""
-    full, _ = _errors("full", 3, tare_s=0.0)
-    assert np.max(full) > GOAL
+@pytest.mark.parametrize("seed", SEEDS)
+def test_normal_cells_without_the_tare_hold_the_normal_goal_and_beat_the_torques_on_the_shanks(
+    seed: int,
+) -> None:
+    """The knee's check finds the shank cells' offsets; the thighs' stays (module docstring)."""
+    _, normal = _errors("normal", seed)
+    assert np.all(normal < NORMAL_GOAL), f"normal components {np.round(100 * normal, 2)} %"
+    _, none = _errors("none")
+    assert np.all(normal[[1, 3]] < none[[1, 3]])
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_estimated_bias_converges_to_the_sensors_offset(seed: int) -> None:
+    """``full``, no tare: at the run's end β is each sensor's offset plus drift, within bounds.
+
+    The filter never reads the truth: it is the sensors' record, read here after the run.
+    """
+    _, rec, truth = _run("full", seed)
+    true = truth["offset"][0] + truth["drift"][0]
+    error = rec["sensor_bias"][0] - true
+    print(f"\nseed {seed}: bias [N] {np.round(rec['sensor_bias'][0], 2).tolist()}, "
+          f"true {np.round(true, 2).tolist()}, error {np.round(error, 2).tolist()}")  # fmt: skip
+    assert np.all(np.abs(error) < BIAS_BOUND_N)
+    assert np.all(np.abs(error[[1, 3], 0]) < BIAS_KNEE_BOUND_N)  # the shanks' normal
+    # over the eight axes, within half the offset's own spread (0.40 N measured, seed 1)
+    assert np.sqrt(np.mean(error**2)) < BIAS_RMS_BOUND_N
 
 
 @pytest.mark.parametrize("seed", SEEDS)

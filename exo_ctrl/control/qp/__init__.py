@@ -20,7 +20,7 @@
 
 from .controller import CONTROLLER_EPS_ABS, NO_BOUND, SLACK_WEIGHT, QPController
 from .cuff_knowledge import CuffKnowledge
-from .margin import BoundMargin, bound_margin, departure_warning
+from .margin import BoundMargin, bound_margin, contact_warning, departure_warning
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -43,6 +43,7 @@ __all__ = [
     "QPController",
     "TorqueQP",
     "bound_margin",
+    "contact_warning",
     "departure_warning",
     "polygon_rows",
 ]

@@ -94,6 +94,13 @@ before the run, naming the bound, the margin and the gait.  A bound that
 leaves more than the working force but less than the whole load the plan
 puts on a cuff, F_load,c = max_t ‖D_c s_n‖, is held by leaving the plan:
 :func:`departure_warning` says so before the run.
+
+**Ground contact.**  The horizon's model holds the two bodies and their
+cuffs, not the belt: with the pelvis supported, the feet's loads and a
+foot striking the belt lie outside it, and a QP that leaves the plan under
+the body's weight can let a foot strike.  The margin does not cover that
+(the campaign of ``tools/load_held.py``, docs/performance.md), and
+:func:`contact_warning` says so before such a run.
 """
 
 from __future__ import annotations
@@ -124,6 +131,7 @@ __all__ = [
     "BoundMargin",
     "bound_margin",
     "checked_margin",
+    "contact_warning",
     "departure_warning",
     "share_matrices",
     "step_factors",
@@ -420,3 +428,12 @@ def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none"
             "across the link)"
         )
     return text
+
+
+def contact_warning(limit_N: float) -> str:
+    """The sentence a run with the pelvis supported and the QP gets (module docstring)."""
+    return (
+        f"cuff_force_limit {limit_N:g} N is not promised with the pelvis supported: the QP's "
+        "horizon holds no ground contact, and where it leaves the plan under the body's weight "
+        "a foot can strike the belt (docs/performance.md, the QP's cuff-force bound)"
+    )

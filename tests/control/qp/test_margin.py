@@ -18,13 +18,14 @@ from exo_ctrl.control.qp.cuff_knowledge import CuffKnowledge, link_normals, unob
 from exo_ctrl.control.qp.margin import (
     PREDICTION_ERROR_N,
     BoundMargin,
+    contact_warning,
     departure_warning,
     share_matrices,
 )
 from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.estimation.kalman import CuffForceKalman
 from exo_ctrl.exceptions import CuffBoundTooTight, InvalidParameter
-from exo_ctrl.plant import CuffParams
+from exo_ctrl.plant import ContactParams, CuffParams, PelvisParams
 from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
@@ -155,6 +156,27 @@ def test_departure_warning_names_the_load_and_the_cuff_sensors() -> None:
     )
     assert departure_warning(margin, 120.0, "normal").endswith("leaves 83.5 N")
     assert departure_warning(margin, 150.0, "none") is None
+
+
+def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not() -> None:
+    """The horizon holds no ground contact: a supported pelvis's run says so, a fixed one not."""
+    supported = SimConfig(
+        controller="qp",
+        cuff_force_limit_N=150.0,
+        contact=ContactParams(enabled=True),
+        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
+    )
+    text = (
+        "cuff_force_limit 150 N is not promised with the pelvis supported: the QP's horizon "
+        "holds no ground contact, and where it leaves the plan under the body's weight a foot "
+        "can strike the belt (docs/performance.md, the QP's cuff-force bound)"
+    )
+    assert contact_warning(150.0) == text
+    assert text in build(supported).warnings
+    fixed = dataclasses.replace(supported, pelvis=PelvisParams())
+    assert not any("not promised" in w for w in build(fixed).warnings)
+    ct = dataclasses.replace(supported, controller="ct")
+    assert not any("not promised" in w for w in build(ct).warnings)
 
 
 @pytest.mark.parametrize(
