@@ -249,10 +249,10 @@ class Runner:
         """
         read, truth, estimate = self._stages[:3]
         readings = read(k, *truth)
-        if self._belt_speed is not None:
-            self._belt_tick(k, row, readings.q)
         if self.faults is not None:
             readings = self.faults.readings_at(k, readings)
+        if self._belt_speed is not None:  # the plan's landing places on the device's encoders
+            self._belt_tick(k, row, readings.q)
         if self._est_in is not None:  # the feet's load, known from the foot plates
             self.foot_load.read(self._contact_rec, readings.q, readings.tau)
         estimate()  # on this tick's readings (or the faulted device's, with the feet's load)
