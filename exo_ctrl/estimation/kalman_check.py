@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from .._jit import kernel, leaf
 
-__all__ = ["add_to_bias", "torque_check"]
+__all__ = ["add_to_bias", "bias_update", "torque_check"]
 
 
 @leaf
@@ -39,6 +39,18 @@ def add_to_bias(st, s, i, d):
         st.model_error[2 * s + i // 2, i % 2] += d
     else:
         st.sensor_bias[2 * s + (i - 4) // 2, i % 2] += d
+
+
+@leaf
+def bias_update(st, s, B, pg, y, S):
+    """Leg s's (b, β) += B g y and B -= B g gᵀ B / S, ``pg`` = B g (a scalar update's gain)."""
+    for i in range(8):
+        add_to_bias(st, s, i, pg[i] * y)
+    for i in range(8):
+        for n in range(i, 8):
+            x = B[i, n] - pg[i] * pg[n] / S
+            B[i, n] = x
+            B[n, i] = x
 
 
 @kernel
@@ -99,11 +111,4 @@ def torque_check(st, cr, axes):
                     x += B[i, n] * gr[n]
                 pg[i] = x
                 S += gr[i] * x
-            y /= S
-            for i in range(8):
-                add_to_bias(st, s, i, pg[i] * y)
-            for i in range(8):
-                for n in range(i, 8):
-                    x = B[i, n] - pg[i] * pg[n] / S
-                    B[i, n] = x
-                    B[n, i] = x
+            bias_update(st, s, B, pg, y / S, S)

@@ -130,7 +130,7 @@ import numpy as np
 from .._jit import kernel, leaf
 from ..plant.cuffs import forces_of, isotropic_forces
 from ..sensing.cuff_load import CuffSensorParams
-from .kalman_check import add_to_bias, torque_check
+from .kalman_check import bias_update, torque_check
 
 __all__ = [
     "INITIAL_MODEL_ERROR_N",
@@ -326,13 +326,7 @@ def cuff_sensor_update(st, cr, meas, split):
                 ph[i] = x
                 S += hrow[i] * x
             y = (z - zhat) / S
-            for i in range(8):
-                add_to_bias(st, s, i, pg[i] * y)
-            for i in range(8):
-                for j in range(i, 8):
-                    x = B[i, j] - pg[i] * pg[j] / S
-                    B[i, j] = x
-                    B[j, i] = x
+            bias_update(st, s, B, pg, y, S)
             for i in range(10):
                 d = ph[i] * y
                 dx[i] += d
