@@ -210,7 +210,9 @@ def run_warnings(
 ) -> list[str]:
     """The run's warnings (:attr:`Setup.warnings`).
 
-    The fit, then the nominal patient's notes, then, for the QP, a bound its
+    The fit, then the nominal patient's notes, then a landing approach on a
+    precomputed plan (:mod:`exo_ctrl.plan.surface` needs the synchronised one),
+    then, for the QP, a bound its
     margin leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`)
     and a bound not promised with the pelvis supported
     (:func:`~exo_ctrl.control.qp.contact_warning`).
@@ -218,6 +220,13 @@ def run_warnings(
     out = fit_warnings(exo, fitted)
     if config.belief.patient == "nominal":
         out += nominal_stature(config.belief, config.patient, fitted)[2]
+    if config.gait.landing_speed_mps > 0.0 and not config.synced:
+        out.append(
+            f"the landing approach (landing_speed_mps {config.gait.landing_speed_mps:g}) runs on "
+            "a precomputed plan here, which cannot place it on the stance foot's measured "
+            "height: touchdowns under body-weight support can be harder than on the paper's "
+            "path (docs/performance.md, touchdowns under load)"
+        )
     if isinstance(controller, QPController):
         departure = departure_warning(
             controller.margin, controller.cuff_force_limit_N, config.cuff_sensors.mode

@@ -15,6 +15,7 @@ import pytest
 
 from exo_ctrl import simulate
 from exo_ctrl.scenario.load import load_scenario
+from exo_ctrl.sim import build
 
 BOUND_MPS = 0.05  # issue 31: touchdown, vertical and along the belt
 SLIP_RMS_MPS = 0.02  # issue 31: slip RMS in stance
@@ -49,3 +50,22 @@ def test_half_support_lands_near_the_bound() -> None:
     assert down < 0.06  # measured 0.053: over the issue's 0.05
     assert along < BOUND_MPS
     assert slip < SLIP_RMS_MPS
+
+
+@pytest.mark.parametrize(
+    ("overrides", "warned"),
+    [([], False), (["run.controller=qp"], True), (["treadmill.sync=false"], True)],
+)
+def test_an_approach_on_a_precomputed_plan_is_warned_before_the_run(
+    overrides: list[str], warned: bool
+) -> None:
+    """The stance foot's measured height places the approach only on the synchronised plan."""
+    config = load_scenario(preset="clinic-bws", overrides=overrides).config
+    assert config.synced is not warned
+    text = (
+        "the landing approach (landing_speed_mps 0.025) runs on a precomputed plan here, which "
+        "cannot place it on the stance foot's measured height: touchdowns under body-weight "
+        "support can be harder than on the paper's path (docs/performance.md, touchdowns "
+        "under load)"
+    )
+    assert (text in build(config).warnings) is warned
