@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from .._jit import kernel, leaf
 
-__all__ = ["add_to_bias", "bias_update", "torque_check"]
+__all__ = ["add_to_bias", "bias_update", "downdate", "gain", "torque_check"]
 
 
 @leaf
@@ -42,15 +42,33 @@ def add_to_bias(st, s, i, d):
 
 
 @leaf
+def gain(M, v, out, n, S):
+    """Write M v into ``out`` (first n entries); return S + vᵀ M v, added in index order."""
+    for i in range(n):
+        x = 0.0
+        for j in range(n):
+            x += M[i, j] * v[j]
+        out[i] = x
+        S += v[i] * x
+    return S
+
+
+@leaf
+def downdate(M, g, S, n):
+    """M ← M − g gᵀ / S over the first n rows and columns, kept symmetric (a scalar update)."""
+    for i in range(n):
+        for j in range(i, n):
+            x = M[i, j] - g[i] * g[j] / S
+            M[i, j] = x
+            M[j, i] = x
+
+
+@leaf
 def bias_update(st, s, B, pg, y, S):
     """Leg s's (b, β) += B g y and B -= B g gᵀ B / S, ``pg`` = B g (a scalar update's gain)."""
     for i in range(8):
         add_to_bias(st, s, i, pg[i] * y)
-    for i in range(8):
-        for n in range(i, 8):
-            x = B[i, n] - pg[i] * pg[n] / S
-            B[i, n] = x
-            B[n, i] = x
+    downdate(B, pg, S, 8)
 
 
 @kernel
@@ -100,15 +118,6 @@ def torque_check(st, cr, axes):
             if unread > st.var_check_blind:
                 continue  # the joint sees an unread axis's model error, which b does not carry
             S = st.var_torque_check + st.var_check_rel * seen * seen
-            for i in range(8):  # x's uncertainty of that view: hxᵀ P hx (d's entries are 0)
-                x = 0.0
-                for n in range(8):
-                    x += P[i, n] * hx[n]
-                S += hx[i] * x
-            for i in range(8):
-                x = 0.0
-                for n in range(8):
-                    x += B[i, n] * gr[n]
-                pg[i] = x
-                S += gr[i] * x
+            S = gain(P, hx, pg, 8, S)  # x's uncertainty of that view: hxᵀ P hx (d's are 0)
+            S = gain(B, gr, pg, 8, S)  # and pg = B g for the update
             bias_update(st, s, B, pg, y / S, S)

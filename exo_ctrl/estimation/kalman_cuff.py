@@ -130,7 +130,7 @@ import numpy as np
 from .._jit import kernel, leaf
 from ..plant.cuffs import forces_of, isotropic_forces
 from ..sensing.cuff_load import CuffSensorParams
-from .kalman_check import bias_update, torque_check
+from .kalman_check import bias_update, downdate, gain, torque_check
 
 __all__ = [
     "INITIAL_MODEL_ERROR_N",
@@ -319,23 +319,14 @@ def cuff_sensor_update(st, cr, meas, split):
             for i in range(8):  # B g, g = e_b + e_β
                 pg[i] = B[i, ib] + B[i, 4 + ib]
             S = st.var_cuff[a] + pg[ib] + pg[4 + ib]
-            for i in range(10):
-                x = 0.0
-                for j in range(10):
-                    x += P[i, j] * hrow[j]
-                ph[i] = x
-                S += hrow[i] * x
+            S = gain(P, hrow, ph, 10, S)
             y = (z - zhat) / S
             bias_update(st, s, B, pg, y, S)
             for i in range(10):
                 d = ph[i] * y
                 dx[i] += d
                 add_to_state(st, s, i, d)
-            for i in range(10):
-                for j in range(i, 10):
-                    x = P[i, j] - ph[i] * ph[j] / S
-                    P[i, j] = x
-                    P[j, i] = x
+            downdate(P, ph, S, 10)
     if not taring:
         torque_check(st, cr, m.axes)
 
