@@ -13,20 +13,33 @@ The rule (docs/index.md, "How these pages are tested"):
   number must be within the tolerance the text between the two blocks states ("within 1 %")
   or within half a unit of its last digit.
 - :data:`NOT_RUN` lists what cannot run here, with the reason; everything else must exit 0.
+- ``.venv/bin/exo-ctrl`` commands run in a child forked from the test's process, which calls
+  the console script's entry point (``exo_ctrl.cli:main``, ``[project.scripts]``) with the words
+  the shell would pass, in the page's directory, with the page's environment, its stdout and
+  stderr captured apart and its exit code the child's: the command as written, without a new
+  interpreter's start-up (about 1.5 s a command: importing, numba's registries, the cached
+  kernels).  The console script itself runs in the CLI tests (tests/cli/).  Every other command
+  runs in a shell.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
 import shlex
 import subprocess
 import sys
+import tempfile
+import time
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+
+from exo_ctrl.cli import main as exo_ctrl_main
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -37,6 +50,10 @@ SHORTENED = frozenset({"simulate", "sweep", "compare"})
 #: Runs that need whole cycles, run as written: the calibration exercise (identify fits all
 #: of it), assist-as-needed and path control (they need a gait period after the ramp-in).
 FULL_RUNS = frozenset({"calibration", "aan", "path"})
+#: The console script, run in a forked child (module docstring).
+CONSOLE_SCRIPT = ".venv/bin/exo-ctrl"
+#: The longest a command may take [s].
+TIMEOUT_S = 900
 TOLERANCE = re.compile(r"within (\d+(?:\.\d+)?) ?%")
 NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?![\w.])")
 #: What is not run, and why: (pattern on a command, reason).
@@ -154,6 +171,52 @@ def workdir(tmp: Path) -> Path:
     return tmp
 
 
+def run_forked(words: list[str], cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
+    """``words`` (``.venv/bin/exo-ctrl …``) run in a forked child (module docstring)."""
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:  # the child: never returns into the test
+            code = 1
+            try:
+                os.chdir(cwd)
+                os.environ.clear()
+                os.environ.update(env)
+                stdin = os.open(os.devnull, os.O_RDONLY)
+                for fd, target in ((stdin, 0), (out.fileno(), 1), (err.fileno(), 2)):
+                    os.dup2(fd, target)
+                sys.stdin = open(0, closefd=False)  # noqa: SIM115
+                sys.stdout = open(1, "w", encoding="utf-8", closefd=False)  # noqa: SIM115
+                sys.stderr = open(2, "w", encoding="utf-8", closefd=False)  # noqa: SIM115
+                sys.argv = list(words)
+                code = exo_ctrl_main(words[1:])
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else 1
+            except BaseException:
+                traceback.print_exc()
+            finally:
+                for stream in (sys.stdout, sys.stderr):
+                    with contextlib.suppress(OSError, ValueError):
+                        stream.flush()
+                os._exit(code)
+        deadline = time.monotonic() + TIMEOUT_S
+        while True:
+            done, status = os.waitpid(pid, os.WNOHANG)
+            if done:
+                break
+            if time.monotonic() > deadline:
+                os.kill(pid, 9)
+                os.waitpid(pid, 0)
+                raise AssertionError(f"{shlex.join(words)} ran over {TIMEOUT_S} s")
+            time.sleep(0.01)
+        texts = []
+        for f in (out, err):
+            f.seek(0)
+            texts.append(f.read().decode("utf-8", errors="replace"))
+    return subprocess.CompletedProcess(words, os.waitstatus_to_exitcode(status), *texts)
+
+
 def run_command(command: str, cwd: Path, env: dict[str, str], shorten: bool) -> tuple[str, list]:
     """Run one line (an ``&&`` chain part by part); its output and the parts not run."""
     output, skipped = [], []
@@ -165,15 +228,18 @@ def run_command(command: str, cwd: Path, env: dict[str, str], shorten: bool) -> 
         words = shlex.split(part)
         if shorten:
             words = short_form(words)
-        done = subprocess.run(
-            shlex.join(words),
-            shell=True,
-            cwd=cwd,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=900,
-        )
+        if words[0] == CONSOLE_SCRIPT:
+            done = run_forked(words, cwd, env)
+        else:
+            done = subprocess.run(
+                shlex.join(words),
+                shell=True,
+                cwd=cwd,
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=TIMEOUT_S,
+            )
         assert done.returncode == 0, (
             f"{shlex.join(words)} exited {done.returncode}:\n{done.stdout[-2000:]}"
             f"\n{done.stderr[-2000:]}"
@@ -272,3 +338,30 @@ def test_blocks_quotes_and_tolerances_are_read():
         ("bash", [".venv/bin/exo-ctrl gait --csv g.csv"], "wrote 1\n", 0.02),
         ("python", [], None, None),
     ]
+
+
+@pytest.mark.parametrize(
+    "words",
+    [
+        "simulate --duration -1 --no-record",
+        "gait --help",
+        "urdf --kind exo --out e.urdf",
+        "simulate --controller nope",
+    ],
+)
+def test_a_forked_command_is_the_console_script(words, tmp_path):
+    """Exit code, stdout, stderr and the file written: the same forked as from the shell."""
+    runs = []
+    for how in ("forked", "shell"):
+        (tmp_path / how).mkdir()
+        cwd = workdir(tmp_path / how)
+        command = [CONSOLE_SCRIPT, *words.split()]
+        env = {**os.environ, "EXO_CTRL_WARMUP": "0"}
+        if how == "forked":
+            done = run_forked(command, cwd, env)
+        else:
+            done = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True)
+        written = (cwd / "e.urdf").read_text() if (cwd / "e.urdf").exists() else None
+        runs.append((done.returncode, done.stdout, done.stderr, written))
+    assert runs[0] == runs[1]
+    assert runs[0][0] == (2 if "-1" in words or "nope" in words else 0)
