@@ -43,6 +43,7 @@ from ..control.plugin import controller_name
 from ..exceptions import InvalidParameter
 from ..model import BodyParams
 from ..plan.gait import MIN_PERIOD_S
+from ..plan.landing import MAX_LANDING_DEPTH_M, MAX_LANDING_SPEED_MPS
 from ..sim import CONTROLLERS, SimConfig
 
 __all__ = [
@@ -139,6 +140,25 @@ PARAMETERS: dict[str, ParamInfo] = {
         _p("shape_coeff", "gait", "shape_coeff", "", 0.0, 10.0, "k_v = v_f / v_b", lo_open=True),
         _p("period", "gait", "period", "s", MIN_PERIOD_S, 10.0, "gait cycle T_s"),
         _p("duty_factor", "gait", "duty_factor", "", 0.5, 1.0, "stance fraction β", hi_open=True),
+        _p(
+            "landing_speed",
+            "gait",
+            "landing_speed_mps",
+            "m/s",
+            0.0,
+            MAX_LANDING_SPEED_MPS,
+            "landing approach v_a (0: the paper's landing)",
+        ),
+        _p(
+            "landing_depth",
+            "gait",
+            "landing_depth_m",
+            "m",
+            0.0,
+            MAX_LANDING_DEPTH_M,
+            "landing approach's depth a",
+            lo_open=True,
+        ),
         _p("patient_thigh_mass", "patient", "thigh_mass", "kg", 7.0, 14.0, "Table I range"),
         _p("patient_shank_mass", "patient", "shank_mass", "kg", 3.0, 6.0, "with the foot"),
         _p("patient_thigh_length", "patient", "thigh_length", "m", 0.39, 0.65, "hip to knee"),

@@ -29,7 +29,8 @@ def test_parse_lists_and_ranges():
         (
             "stride=0.3",
             "sweep parameter must be one of step_length, lift_height, hip_height, "
-            "pelvis_excursion, shape_coeff, period, duty_factor, patient_thigh_mass, "
+            "pelvis_excursion, shape_coeff, period, duty_factor, landing_speed, landing_depth, "
+            "patient_thigh_mass, "
             "patient_shank_mass, patient_thigh_length, "
             "patient_shank_length, exo_thigh_length, exo_shank_length, exo_thigh_mass, "
             "exo_shank_mass, exo_thigh_cuff, exo_shank_cuff, cuff_stiffness, cuff_damping, "
@@ -70,6 +71,8 @@ def test_parse_lists_and_ranges():
         ("kp=0", "kp must be in (0, 1000] V/rad; got 0.0"),
         ("kp=100,1e4", "kp must be in (0, 1000] V/rad; got 10000.0"),
         ("kd=-1", "kd must be in [0, 20] V·s/rad; got -1.0"),
+        ("landing_speed=0.6", "landing_speed must be in [0, 0.5] m/s; got 0.6"),
+        ("landing_depth=0", "landing_depth must be in (0, 0.01] m; got 0.0"),
         ("kd=2,x", "kd must be a finite number [V·s/rad]; got 'x'"),
         (
             "controller=lqr",
@@ -106,6 +109,23 @@ def test_swept_gains_reach_the_run(tmp_path):
     (task,) = SweepSpec.parse(["kp=50", "kd=1"], duration_s=0.4).tasks()
     config = config_for(SimConfig(), task.values, str(tmp_path))
     assert config.gains == PDGains(kp=50.0, kd=1.0)
+
+
+def test_a_swept_landing_approach_reaches_the_run(tmp_path):
+    spec = SweepSpec.parse(["landing_speed=0,0.025", "landing_depth=0.002"], duration_s=0.4)
+    paper, approach = (config_for(SimConfig(), t.values, str(tmp_path)).gait for t in spec.tasks())
+    assert (paper.landing_speed_mps, approach.landing_speed_mps) == (0.0, 0.025)
+    assert paper.landing_depth_m == approach.landing_depth_m == 0.002
+    # a depth the swing cannot hold is the run's failure, named by the gait's own field
+    (deep,) = SweepSpec.parse(
+        ["landing_speed=0.025", "landing_depth=0.01", "lift_height=0.015"], duration_s=0.4
+    ).tasks()
+    with pytest.raises(InvalidParameter) as info:
+        config_for(SimConfig(), deep.values, str(tmp_path))
+    assert str(info.value) == (
+        "landing_depth_m must be in (0, 0.01] m and below lift_height / 2 = 0.0075 m; got 0.01 "
+        "(the approach is the last millimetres of the swing, into the sole's compliance)"
+    )
 
 
 def test_listing_gives_every_parameter_its_unit_range_and_default():
