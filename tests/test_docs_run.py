@@ -15,11 +15,11 @@ The rule (docs/index.md, "How these pages are tested"):
 - :data:`NOT_RUN` lists what cannot run here, with the reason; everything else must exit 0.
 - ``.venv/bin/exo-ctrl`` commands run in a child forked from the test's process, which calls
   the console script's entry point (``exo_ctrl.cli:main``, ``[project.scripts]``) with the words
-  the shell would pass, in the page's directory, with the page's environment, its stdout and
-  stderr captured apart and its exit code the child's: the command as written, without a new
-  interpreter's start-up (about 1.5 s a command: importing, numba's registries, the cached
-  kernels).  The console script itself runs in the CLI tests (tests/cli/).  Every other command
-  runs in a shell.
+  the shell would pass, in the page's directory, with the page's environment and a new
+  interpreter's warning filters, its stdout and stderr captured apart and its exit code the
+  child's: the command as written, without a new interpreter's start-up (about 1.5 s a
+  command: importing, numba's registries, the cached kernels).  The console script itself runs
+  in the CLI tests (tests/cli/).  Every other command runs in a shell.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ import sys
 import tempfile
 import time
 import traceback
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -171,6 +172,23 @@ def workdir(tmp: Path) -> Path:
     return tmp
 
 
+def fresh_warnings() -> None:
+    """The warnings' filters and printing of a new interpreter, in place of the test's.
+
+    pytest records the warnings of each test and shows deprecations ``always``; a
+    command started from a shell has Python's default filters and prints to stderr.
+    """
+    warnings.resetwarnings()
+    for category in (ResourceWarning, ImportWarning, PendingDeprecationWarning, DeprecationWarning):
+        warnings.simplefilter("ignore", category)  # each put first: Python's order
+    warnings.filterwarnings("default", category=DeprecationWarning, module="__main__")
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+    warnings.showwarning = show
+
+
 def run_forked(words: list[str], cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
     """``words`` (``.venv/bin/exo-ctrl …``) run in a forked child (module docstring)."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
@@ -190,6 +208,7 @@ def run_forked(words: list[str], cwd: Path, env: dict[str, str]) -> subprocess.C
                 sys.stdout = open(1, "w", encoding="utf-8", closefd=False)  # noqa: SIM115
                 sys.stderr = open(2, "w", encoding="utf-8", closefd=False)  # noqa: SIM115
                 sys.argv = list(words)
+                fresh_warnings()
                 code = exo_ctrl_main(words[1:])
             except SystemExit as exc:
                 code = exc.code if isinstance(exc.code, int) else 1
@@ -365,3 +384,21 @@ def test_a_forked_command_is_the_console_script(words, tmp_path):
         runs.append((done.returncode, done.stdout, done.stderr, written))
     assert runs[0] == runs[1]
     assert runs[0][0] == (2 if "-1" in words or "nope" in words else 0)
+
+
+def test_a_forked_command_has_a_new_interpreters_warning_filters():
+    shape = (
+        "[(a, getattr(m, 'pattern', m), c.__name__, getattr(mod, 'pattern', mod), n)"
+        " for a, m, c, mod, n in warnings.filters]"
+    )
+    new = subprocess.run(
+        [sys.executable, "-c", f"import warnings; print(repr({shape}))"],
+        capture_output=True,
+        text=True,
+        env={k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"},
+    ).stdout.strip()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # as a test may have left them
+        fresh_warnings()
+        forked = repr(eval(shape))
+    assert forked == new
