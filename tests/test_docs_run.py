@@ -210,8 +210,10 @@ def run_forked(words: list[str], cwd: Path, env: dict[str, str]) -> subprocess.C
                 sys.argv = list(words)
                 fresh_warnings()
                 code = exo_ctrl_main(words[1:])
-            except SystemExit as exc:
-                code = exc.code if isinstance(exc.code, int) else 1
+            except SystemExit as exc:  # as the interpreter ends on it: None 0, a text 1
+                code = 0 if exc.code is None else exc.code if isinstance(exc.code, int) else 1
+                if not isinstance(exc.code, int | None):
+                    print(exc.code, file=sys.stderr)
             except BaseException:
                 traceback.print_exc()
             finally:
@@ -402,3 +404,20 @@ def test_a_forked_command_has_a_new_interpreters_warning_filters():
         fresh_warnings()
         forked = repr(eval(shape))
     assert forked == new
+
+
+@pytest.mark.parametrize("code", [None, 0, 3, "a message"])
+def test_a_forked_command_ends_on_system_exit_as_an_interpreter_does(code, tmp_path, monkeypatch):
+    def leave(words):
+        raise SystemExit(code)
+
+    monkeypatch.setattr(sys.modules[__name__], "exo_ctrl_main", leave)
+    forked = run_forked([CONSOLE_SCRIPT], tmp_path, dict(os.environ))
+    shell = subprocess.run(
+        [sys.executable, "-c", f"raise SystemExit({code!r})"], capture_output=True, text=True
+    )
+    assert (forked.returncode, forked.stdout, forked.stderr) == (
+        shell.returncode,
+        shell.stdout,
+        shell.stderr,
+    )
