@@ -17,8 +17,12 @@ over the torques τ and one slack s_c per cuff,
     \quad \text{s.t.} \quad τ_{lo} \le τ \le τ_{hi}, \quad s \ge 0, \quad
     |n_k^T f_c(τ)| \le (F_{max} - m_c) \cos(π/8) + s_c \;\; (k = 0..3,\ c = \text{4 cuffs}),
 
-then converts back, ``U = R τ / (i_G k_m) + i_G ω / k_E``.  With no bound
-active the answer is τ_cmd and the command is the CT+PD voltage itself.
+then converts back, ``U = R τ / (i_G k_m) + i_G ω / k_E``, except where the
+clipped command meets every cuff row also with the drives whose τ_cmd is beyond
+the torque box held at their caps in the horizon: those get U_cmd within the
+supply, which their drivers hold at the cap (:mod:`~exo_ctrl.control.qp.torque_box`).
+With no cuff bound near, the command is the CT+PD voltage itself, at the drives'
+limits too.
 
 **Torque box** (per joint, at the present speed).  The URDF effort limit,
 ``|τ| ≤ τ_eff``, and what the drive can deliver: a steady-state current
@@ -377,6 +381,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
         self._status_text = "not_run"
         self._needs_solve, self._violated = rec["needs_solve"], rec["violated"]
         self._model_rec, self._obs_rec = self.cuff_model.record, self.observer.record
+        self._held = self._model_rec["held"][0]  # the drives the horizon holds at their caps
         self._pin = (self.cuff_model.model, self.cuff_model.data)
         self._q_all, self._v_all = self.cuff_model.q_all, self.cuff_model.v_all
         self._no_force = np.zeros((4, 2))
@@ -441,9 +446,10 @@ class QPController(QPFallbacks, ComputedTorqueController):
             status = tail(rec, model, self._obs_rec, mass, nle, q, dq, est, True, sw, std)
         if status:
             return self._refused(status, dq, est)
-        if self._needs_solve[0]:
-            return self._solve(dq)
-        return self._u
+        if not self._needs_solve[0]:
+            return self._u
+        self.solver_ticks += 1
+        return self._solve(dq)
 
     def _refused(self, status: int, omega: np.ndarray, est: np.ndarray | None) -> np.ndarray:
         """A tick :func:`~exo_ctrl.control.qp.tick.tail` refused.
@@ -461,12 +467,11 @@ class QPController(QPFallbacks, ComputedTorqueController):
     def _solve(self, omega: np.ndarray) -> np.ndarray:
         """The QP over the screened rows, widened until every row holds (module docstring)."""
         qp, rec = self.qp, self.record
-        self.solver_ticks += 1
         load(rec, qp.record)
-        for rounds in range(1, SCREEN_ROUNDS + 1):
+        for _ in range(SCREEN_ROUNDS):
             ok = qp.solve_in_place()
             rec["solve_time_us"] += qp.solve_time_us
-            rec["screen_rounds"] = rounds
+            rec["screen_rounds"] += 1
             if not ok:
                 return self._fallback(omega, qp.status)
             widen_rows(rec, qp.record)
@@ -477,9 +482,9 @@ class QPController(QPFallbacks, ComputedTorqueController):
             load_all(rec, qp.record)
             ok = qp.solve_in_place()
             rec["solve_time_us"] += qp.solve_time_us
-            rec["screen_rounds"] = SCREEN_ROUNDS + 1
+            rec["screen_rounds"] += 1
             if not ok:
                 why = f"the screened rows did not cover the bound after {SCREEN_ROUNDS} solves"
                 return self._fallback(omega, f"{why}; every row: {qp.status}")
-        take(rec, qp.record, omega)
+        take(rec, qp.record, omega, self._held)
         return self._u

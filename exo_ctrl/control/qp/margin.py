@@ -15,8 +15,10 @@ each term an absolute force [N]:
 - **the horizon's prediction error** e_pred = :data:`PREDICTION_ERROR_N`:
   the horizon model against the plant (nonlinear, elastic cuffs, drive
   current dynamics) stepped 40 ms with the voltage held, given the true cuff
-  state and patient: at most 5.5 N with the split cuff model on split cuffs
-  (asserted in tests/control/qp/test_prediction.py);
+  state and patient: at most 5.5 N with the split cuff model on split cuffs,
+  7.2 N with the drives held at their caps (their torque held, as the driver
+  holds a drive handed more than its cap: :mod:`~exo_ctrl.control.qp.torque_box`;
+  both asserted in tests/control/qp/test_prediction.py);
 - **the patient model's error** e_patient,c, from the cohort's spreads
   (:class:`~exo_ctrl.model.CohortSpread`, cited there: segment mass 10 %,
   centre-of-mass ratio 4 %, radius-of-gyration ratio 5 %; the leg lengths
@@ -138,8 +140,9 @@ __all__ = [
 ]
 
 #: e_pred, the horizon model's error given the true cuff state and patient [N]
-#: (split cuffs and model; tests/control/qp/test_prediction.py asserts it).
-PREDICTION_ERROR_N = 5.5
+#: (split cuffs and model, the larger of the voltage held and the drives held at
+#: their caps; tests/control/qp/test_prediction.py asserts both).
+PREDICTION_ERROR_N = 7.2
 #: k in e_est = k σ: three standard deviations of the filter's force estimate [-].
 ESTIMATE_SIGMAS = 3.0
 #: The momentum observer's estimate error at the reference period [N]: its

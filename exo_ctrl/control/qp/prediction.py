@@ -14,10 +14,11 @@ G_K = Jᵀ𝒦J for K G, G_C = Jᵀ𝒞J for C G and f = −𝒦J δ − 𝒞J �
 
     f = -J s, \qquad s = K δ + C \dot δ \quad [\text{N·m per m², joint space}].
 
-The drive's voltage U(τ) = R τ/(i_G k_m) + i_G ω₀/k_E is held over the
-horizon (move blocking), so the joint torque is τ − D (q̇ − ω₀) with the
-back-EMF damping D = i_G k_m (i_G/k_E)/R ≈ 330 N·m·s/rad.  Linearised at
-the measured (q, ω₀), with u_e = q̇_e − ω₀, u_p = q̇_p − ω₀:
+The drive's voltage U(τ) = R τ/(i_G k_m) + i_G ω₀/k_E is held over the horizon (move
+blocking), so the joint torque is τ − D (q̇ − ω₀) with the back-EMF damping D = i_G k_m
+(i_G/k_E)/R ≈ 330 N·m·s/rad; a drive ``held`` at its cap keeps τ (its driver holds the
+current, :mod:`~exo_ctrl.control.qp.torque_box`): D = 0.  Linearised at the measured
+(q, ω₀), with u_e = q̇_e − ω₀, u_p = q̇_p − ω₀:
 
 .. math::
 
@@ -41,8 +42,8 @@ of n's other binary digits.  All in compiled kernels
 
 Accuracy (tests/control/qp/test_prediction.py): against the plant
 (nonlinear, elastic cuffs, drive current dynamics) stepped 40 ms with the
-voltage held, given the true δ, δ̇: ≤ 4.9 N (isotropic), 5.5 N (split) on
-forces up to 150 N; 19.2 N with the nominal patient model.  Neglected: the
+voltage held, given the true δ, δ̇: ≤ 4.9 N (isotropic), 5.5 N (split) on forces up to
+150 N, 7.2 N with the drives held; 19.2 N with the nominal patient model.  Neglected: the
 drive's electrical time constant (0.7 ms), the change of M, h, J over 40 ms,
 the speed dependence of the Coriolis and friction torques, the cuff's
 nonlinearity in δ.
@@ -73,14 +74,12 @@ DEFAULT_HORIZON_TICKS = (5, 10, 20, 30, 40)
 def horizon_fields(n_points: int, n_squares: int) -> list[tuple[Any, ...]]:
     """The fields of a :class:`CuffHorizonModel`'s record (numpy dtype syntax).
 
-    Parameters: ``losses`` (rows b_e, f_e, b_p, f_p: URDF damping [N·m·s/rad]
-    and friction [N·m] per joint), the cuff points' ``points`` P and
-    ``select`` S (:class:`~exo_ctrl.plant.cuffs.CuffSet`; P: rows x then z of
-    its 8 points, columns cos θ then sin θ), ``damp_e`` D + b_e
-    and ``damp_p`` b_p [N·m·s/rad], ``stiffness`` K = k_n [N/m], ``damping``
-    C = C_n [N·s/m], ``shear_stiffness`` k_u [N/m], ``shear_damping`` C_u
-    [N·s/m], ``split`` (k_u ≠ k_n or C_u ≠ C_n: :mod:`~exo_ctrl.control.qp.split_cuffs`),
-    ``along0`` (the exoskeleton links' directions u at q = 0, per cuff),
+    Parameters: ``losses`` (rows b_e, f_e, b_p, f_p: URDF damping [N·m·s/rad] and friction
+    [N·m] per joint), the cuff points' ``points`` P and ``select`` S (the plant's CuffSet; P:
+    rows x then z of its 8 points, columns cos θ then sin θ), ``damp_e`` D + b_e, ``held`` (> 0:
+    at its cap, b_e alone), ``damp_p`` b_p [N·m·s/rad], ``stiffness`` K = k_n [N/m], ``damping``
+    C = C_n [N·s/m], ``shear_stiffness`` k_u [N/m], ``shear_damping`` C_u [N·s/m], ``split``
+    (k_u ≠ k_n or C_u ≠ C_n), ``along0`` (the exo links' directions u at q = 0, per cuff),
     ``block`` Δ [s] and ``powers`` n_i = t_i/Δ.  The linearisation:
     ``q_all``, ``v_all`` (the state both bodies are evaluated at), the mass
     matrices, bias torques and cuff Jacobians; for split cuffs also W_K, W_C
@@ -98,6 +97,7 @@ def horizon_fields(n_points: int, n_squares: int) -> list[tuple[Any, ...]]:
         ("points", f8, (16, 16)),
         ("select", f8, (8, 8)),
         ("damp_e", f8, (4,)),
+        ("held", f8, (4,)),
         ("damp_p", f8, (4,)),
         ("stiffness", f8),
         ("damping", f8),
@@ -256,7 +256,7 @@ def predict(
                 gp[r, c] = gk
                 gp[r, 2 + c] = gc
                 gp[r, 4 + c] = -gc
-            ge[r, 2 + r] -= damp_e[i0 + r]
+            ge[r, 2 + r] -= m.losses[0, i0 + r] if m.held[i0 + r] > 0.0 else damp_e[i0 + r]
             gp[r, 4 + r] -= damp_p[i0 + r]
             ge[r, 6 + r] = 1.0
             ge[r, 8] = -he[i0 + r]

@@ -29,6 +29,7 @@ from .workspace import ACTIVE_TOL
 
 __all__ = [
     "front",
+    "horizon",
     "load",
     "load_all",
     "qp_fields",
@@ -47,8 +48,9 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
     :data:`~exo_ctrl.control.pd.PD_FIELDS`).
 
     ``u_ct``: the CT+PD voltage [V]; the last tick's figures ``solve_time_us``,
-    ``screen_rounds``, ``solved`` (False: fell back), ``needs_solve`` (the
-    clip test failed: proxsuite is needed), ``violated`` (rows the last
+    ``screen_rounds`` (proxsuite's solves), ``solved`` (False: fell back),
+    ``needs_solve`` (the clip test failed: proxsuite is needed), ``observed`` (the
+    prediction starts from the observer's cuff state), ``violated`` (rows the last
     answer violates); ``force_feedback``; ``sensed`` (the device carries cuff
     sensors: the estimate's measured split is held over the horizon,
     :func:`~exo_ctrl.control.qp.observer.add_residual`); the torque box
@@ -71,6 +73,7 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
         ("screen_rounds", f8),
         ("solved", np.bool_),
         ("needs_solve", np.bool_),
+        ("observed", np.bool_),
         ("violated", np.int64),
         ("force_feedback", np.bool_),
         ("sensed", np.bool_),
@@ -150,18 +153,52 @@ def tail(
     if force.shape[0] != 4 or force.shape[1] != 2:
         return Status.WRONG_LENGTH.value
     gather(m, mass, nle, q, dq, split)
-    observed = False
-    if s.force_feedback and has_estimate:
-        observed = observe(observer[0], m, force, dq, split)
-    if observed:
+    for j in range(4):
+        m.held[j] = 0.0
+    s.observed = s.force_feedback and has_estimate and observe(observer[0], m, force, dq, split)
+    tighten(s, force_std)
+    s.solve_time_us = 0.0
+    s.screen_rounds = 0.0
+    status = horizon(state, model, observer, dq, split)
+    if status or s.needs_solve:
+        return status
+    # The clipped command meets every row with the voltages held.  A drive whose command
+    # is beyond the box gets its command's voltage, the driver holding the cap
+    # (torque_box), if the clip meets every row with those drives held at their caps too.
+    pushed = False
+    for j in range(4):
+        lo, hi, cmd = s.torque_lo[j], s.torque_hi[j], s.torque_cmd[j]
+        if lo <= hi and (cmd > hi or cmd < lo):
+            m.held[j] = 1.0
+            pushed = True
+    if not pushed:
+        return status
+    status = horizon(state, model, observer, dq, split)
+    if status or s.needs_solve:  # not with the caps held: the voltages held, as first
+        for j in range(4):
+            m.held[j] = 0.0
+        status = horizon(state, model, observer, dq, split)
+    return status
+
+
+@kernel
+def horizon(
+    state: np.ndarray, model: np.ndarray, observer: np.ndarray, dq: np.ndarray, split: bool | None
+) -> int:  # pragma: no cover - compiled
+    """The prediction with the drives held as ``held`` says, the octagon rows and the clip test.
+
+    From the observer's cuff state (``observed``) or the cuffs as fitted; as
+    :func:`tail` after the observer (its return values), and again with drives held.
+    """
+    s, m = state[0], model[0]
+    if s.observed:
         o = observer[0]
         delta, ddelta, dist = o.delta, o.ddelta, o.disturbance
     else:  # the cuffs taken as fitted: δ = δ̇ = d = 0
         delta = ddelta = dist = s.fitted
     predict(m, delta, ddelta, dist, split)
-    if observed and s.sensed:  # the measured split, held over the horizon
+    if s.observed and s.sensed:  # the measured split, held over the horizon
         add_residual(observer[0], m, split)
-    tighten(s, force_std)
     if not math.isfinite(bound_rows(s.directions, m.A, m.b, s.radius, s.rows, s.upper)):
         return Status.NOT_FINITE.value
     feasible, active = clip_if_feasible(
@@ -171,10 +208,8 @@ def tail(
     if feasible:
         for j in range(4):
             s.slack[j] = 0.0
-        voltage(s, s.torque, dq, s.u_cmd)
+        voltage(s, s.torque, dq, s.u_ct, m.held, s.u_cmd)
         s.active_constraints = active
-        s.solve_time_us = 0.0
-        s.screen_rounds = 0.0
         s.solved = True
     return Status.OK.value
 
@@ -214,12 +249,10 @@ def hand_command(s: np.void, p: np.void, n_in: int) -> None:  # pragma: no cover
 
 @kernel
 def load(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no cover - compiled
-    """Hand the QP τ_cmd, the torque box and the screened rows; reset the tick's solve figures."""
+    """Hand the QP τ_cmd, the torque box and the screened rows."""
     s, p = state[0], workspace[0]
     hand_command(s, p, s.slots.shape[0])
     screen(s.rows, s.upper, s.torque_cmd, s.torque, s.value, s.mark, s.slots, p.C, p.upper)
-    s.solve_time_us = 0.0
-    s.screen_rounds = 0.0
 
 
 @kernel
@@ -243,9 +276,12 @@ def widen_rows(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no 
 
 @kernel
 def take(
-    state: np.ndarray, workspace: np.ndarray, omega: np.ndarray
+    state: np.ndarray, workspace: np.ndarray, omega: np.ndarray, held: np.ndarray
 ) -> None:  # pragma: no cover - compiled
-    """Take the QP's answer: τ, slacks, active bounds (less the idle s ≥ 0), the voltage."""
+    """Take the QP's answer: τ, slacks, active bounds (less the idle s ≥ 0), the voltage.
+
+    ``held``: the drives the prediction held at their caps (:func:`tail`), (4,).
+    """
     s, p = state[0], workspace[0]
     idle = 0  # the s >= 0 bounds of slacks at zero are not constraints of the problem
     for j in range(4):
@@ -255,11 +291,13 @@ def take(
             idle += 1
     s.active_constraints = p.active - idle
     s.solved = True
-    voltage(s, s.torque, omega, s.u_cmd)
+    voltage(s, s.torque, omega, s.u_ct, held, s.u_cmd)
 
 
 @kernel
-def volts(state: np.ndarray, omega: np.ndarray) -> None:  # pragma: no cover - compiled
-    """u_cmd := the voltage giving ``torque`` at speed ω (a fallback's)."""
+def volts(
+    state: np.ndarray, omega: np.ndarray, held: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """u_cmd := the voltage giving ``torque`` at ω (a fallback's; ``held``: :func:`take`'s)."""
     s = state[0]
-    voltage(s, s.torque, omega, s.u_cmd)
+    voltage(s, s.torque, omega, s.u_ct, held, s.u_cmd)

@@ -28,6 +28,23 @@ depends on τ only through its sign, so the map is exact bound by bound: the
 command, the box and the QP's variable are joint torques (each bound times
 the ``g`` of its own sign, the effort cap applied at the joint), and a joint
 torque τ is the voltage ``U = (τ/g(τ) + c₁ ω)/c₂``.
+
+**At a bound the command exceeds.**  The box's caps are the driver's: it holds the
+current within I_max, and within what gives the joint's rated effort
+(:func:`~exo_ctrl.plant.motor.drive_cap`), whatever voltage it is handed.  The
+steady-state voltage of a cap reaches it only through the winding's time constant
+L/R (0.7 ms: the step's mean current ``I_∞ + (I_0 − I_∞)(1 − e^{−x})/x``,
+:mod:`exo_ctrl.plant.motor`, stays below I_∞ from below), and with the voltage
+held the back-EMF damps the joint as its speed changes, so a drive asked for more
+than its cap delivers less.  Where the clipped command meets every cuff row, the
+drives whose command τ_cmd is beyond the box are checked once more ``held`` at their
+caps (their torque held: no back-EMF damping, :mod:`~exo_ctrl.control.qp.prediction`);
+if the clip meets every row that way too, each such drive gets the command's own
+voltage U_cmd, within the supply ±U_max (``c₀/c₂``), where that drives harder than its
+bound's steady-state voltage: the driver then holds the cap, as under the CT+PD
+command.  Otherwise (a cuff row near, or proxsuite's answer) the voltages are the
+steady-state ones.  With no cuff bound near, the QP's voltage is CT+PD's, at the
+drives' limits too.
 """
 
 from __future__ import annotations
@@ -40,7 +57,11 @@ import numpy as np
 from ..._jit import kernel
 from ...plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
 
-__all__ = ["TORQUE_BOX_FIELDS", "box_constants", "torque_box", "voltage"]
+__all__ = ["AT_BOUND_NM", "TORQUE_BOX_FIELDS", "box_constants", "torque_box", "voltage"]
+
+#: A joint torque this close to a bound of the box is at it [N·m] (proxsuite's answers
+#: sit at their active bounds to its 1e-9 accuracy; a clipped command exactly).
+AT_BOUND_NM = 1e-6
 
 #: Fields of a record holding the box: c₀ [N·m], c₁ [N·m·s/rad], c₂ [N·m/V],
 #: the drive's cap i_G k_m I_max and the joint's effort [N·m] per joint, ln η
@@ -111,10 +132,29 @@ def torque_box(
 
 @kernel
 def voltage(
-    s: np.void, torque: np.ndarray, omega: np.ndarray, out: np.ndarray
+    s: np.void,
+    torque: np.ndarray,
+    omega: np.ndarray,
+    u_cmd: np.ndarray,
+    held: np.ndarray,
+    out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
-    """Write U = (τ/g(τ) + c₁ ω) / c₂ to ``out``: the voltage giving joint ``torque`` at ω [V]."""
+    """Write the voltage for joint ``torque`` at ω to ``out`` [V] (module docstring).
+
+    U = (τ/g(τ) + c₁ ω) / c₂; for a drive ``held`` at its cap (> 0: the horizon
+    predicts its torque held) at a bound of the box that the command exceeds,
+    clip(U_cmd, ±U_max) where that is beyond U (``u_cmd`` the CT+PD voltage [V]).
+    """
     c1, c2, lneta, inv_w = s.c1, s.c2, s.lneta, s.inv_w_eta
+    lo, hi, target = s.torque_lo, s.torque_hi, s.torque_cmd
     for j in range(4):
         w = omega[j]
-        out[j] = (torque[j] / gear(lneta, inv_w, torque[j], w) + c1[j] * w) / c2[j]
+        u = (torque[j] / gear(lneta, inv_w, torque[j], w) + c1[j] * w) / c2[j]
+        if held[j] > 0.0 and lo[j] <= hi[j]:  # an empty box keeps the fallback's voltage
+            u_max = s.c0 / c2[j]
+            u_drive = min(max(u_cmd[j], -u_max), u_max)
+            if (torque[j] >= hi[j] - AT_BOUND_NM and target[j] > hi[j] and u_drive > u) or (
+                torque[j] <= lo[j] + AT_BOUND_NM and target[j] < lo[j] and u_drive < u
+            ):
+                u = u_drive
+        out[j] = u

@@ -30,6 +30,7 @@ from exo_ctrl.control.qp import (
 from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import BodyModel
 from exo_ctrl.plant.drive import MotorParams
+from exo_ctrl.plant.motor import MotorBank
 from exo_ctrl.sim import drive_for
 
 #: ρ, the brief's slack weight [(N·m)²/N²].
@@ -271,15 +272,20 @@ def expected_box(exo: BodyModel, motor: MotorParams, omega: np.ndarray):
     )
 
 
-def torque_of(u: np.ndarray, omega: np.ndarray, motor: MotorParams) -> np.ndarray:
-    """Steady-state joint torque of voltage u at speed ω: g · i_G k_m (U − i_G ω/k_E)/R."""
-    kt = motor.gear_ratio * motor.torque_constant_Nm_per_A
-    tau_m = (
-        kt
-        * (u - motor.gear_ratio / motor.speed_constant_rad_per_Vs * omega)
-        / (motor.resistance_ohm)
+def delivered(u: np.ndarray, omega: np.ndarray, motor: MotorParams, exo: BodyModel) -> np.ndarray:
+    """Steady-state joint torque of voltage u at speed ω as the plant's driver gives it.
+
+    The supply clips the voltage, the driver's current loop the current to ±I_max
+    (plant/motor.py) and the joint's torque to its rated effort (plant/step.py).
+    """
+    v = np.clip(u, -motor.supply_voltage_V, motor.supply_voltage_V)
+    back_emf = motor.gear_ratio / motor.speed_constant_rad_per_Vs * omega
+    i = np.clip(
+        (v - back_emf) / motor.resistance_ohm, -motor.current_limit_A, motor.current_limit_A
     )
-    return tau_m * gear(motor, tau_m, omega)
+    tau_m = motor.gear_ratio * motor.torque_constant_Nm_per_A * i
+    effort = exo.model.effortLimit[:4][: np.size(u)]
+    return np.clip(tau_m * gear(motor, tau_m, omega), -effort, effort)
 
 
 #: The default drive with a 40 A driver: 185 N·m, beyond the URDF's 150 N·m effort.
@@ -314,10 +320,13 @@ def test_no_torque_beyond_its_limits_on_random_inputs(exo, patient, plan, capped
             )
             u = ctrl.command(k, s)
             lo, hi = expected_box(exo, motor, s.dq)
-            tau = torque_of(u, s.dq, motor)
+            tau = ctrl.torque  # the answer
             assert np.all(tau >= lo - 1e-9) and np.all(tau <= hi + 1e-9)
             assert np.all(np.abs(tau) <= EFFORT + 1e-9)  # the URDF effort
             assert np.all(np.abs(u) <= motor.supply_voltage_V + 1e-9)
+            # The voltage gives the answer as the driver delivers it: at a bound the
+            # command exceeds, the command's voltage, which the driver holds at the cap.
+            np.testing.assert_allclose(delivered(u, s.dq, motor, exo), tau, rtol=0, atol=1e-6)
             at_limit += np.any(np.isclose(tau, lo, atol=1e-6) | np.isclose(tau, hi, atol=1e-6))
             if ctrl.last_status != "solved":
                 assert ctrl.last_status.startswith("fallback: τ_cmd clipped to the torque box")
@@ -328,6 +337,40 @@ def test_no_torque_beyond_its_limits_on_random_inputs(exo, patient, plan, capped
     print(f"\nrandom saturated inputs ({'drive_for' if capped else '175 N·m'}): ", end="")
     print(f"{fallbacks} fallbacks of 450 ticks")
     assert at_limit > 50  # the box was binding in many of them
+
+
+def test_a_command_beyond_the_drives_limit_gets_the_limit_within_the_tick(
+    exo, patient, plan, motor
+) -> None:
+    """The driver holds the cap: the QP hands it the command's voltage there, as CT+PD does.
+
+    From drives at 80 % of the cap, one 1 ms step of the plant's drive model (the
+    current exact, clipped at ±I_max, plant/motor.py; the torque within the joint's
+    rated effort, as the plant's driver keeps it, plant/step.py): the QP's voltage
+    gives the cap over the step, as the CT+PD voltage does; the cap's steady-state
+    voltage would give less (the winding's 0.7 ms time constant).
+    """
+    ctrl = QPController(plan, exo, patient, motor, cuff_force_limit_N=1000.0, tighten=False)
+    k = 300
+    s = SensorReadings(q=plan.q[k] - 0.3, dq=plan.dq[k], tau=np.zeros(4))  # PD saturates, up
+    u = ctrl.command(k, s)
+    cmd, hi = ctrl.record["torque_cmd"][0], ctrl.record["torque_hi"][0]
+    pushed = cmd > hi
+    assert pushed.all() and ctrl.last_status == "solved"
+    effort = exo.model.effortLimit[:4]
+    kt = motor.gear_ratio * motor.torque_constant_Nm_per_A
+    ct = ComputedTorqueController(plan, exo, patient, motor).command(k, s)
+
+    def step_torque(voltage: np.ndarray) -> np.ndarray:
+        bank = MotorBank(4, motor)
+        bank.reset(0.8 * hi / kt)
+        return np.clip(bank.step(voltage, s.dq, 1e-3), -effort, effort)
+
+    qp, of_ct = step_torque(u), step_torque(ct)
+    steady = step_torque(MotorBank(4, motor).voltage_for(hi, s.dq))
+    np.testing.assert_allclose(qp, hi, rtol=1e-9)  # the cap
+    np.testing.assert_allclose(qp, of_ct, rtol=1e-12)
+    assert np.all(steady < hi - 1.0)  # short of it, by 4.7 to 21 N·m here
 
 
 @pytest.mark.parametrize(
@@ -376,8 +419,9 @@ def test_an_empty_torque_box_gives_a_finite_command_within_the_supply(
     assert "empty torque box at joint(s) 0" in ctrl.last_status
     assert np.all(np.isfinite(u)) and np.all(np.abs(u) <= motor.supply_voltage_V)
     assert ctrl.torque[0] == 0.0
-    tau = torque_of(u[1:], s.dq[1:], motor)
+    tau = ctrl.torque[1:]
     assert np.all(tau >= lo[1:] - 1e-9) and np.all(tau <= hi[1:] + 1e-9)
+    np.testing.assert_allclose(delivered(u, s.dq, motor, exo)[1:], tau, rtol=0, atol=1e-6)
 
 
 def test_bad_readings_give_zero_volts_and_programming_errors_raise(
