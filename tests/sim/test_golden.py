@@ -1,8 +1,10 @@
-"""Runs equal the golden runs of the main before the redesign (tests/data/make_golden.py).
+"""Runs equal the golden runs (tests/data/make_golden.py).
 
-PD and CT runs must equal them to 1e-12 and QP runs to 1e-8 on every signal
-(relative to the signal's largest magnitude, at least 1): the redesign moved
-the arithmetic, it did not change it.  The QP's tolerance is proxsuite's:
+The PD and CT runs are the main's before the redesign; the two QP runs were
+made again when the QP began handing a drive at its cap the command's voltage
+(issue 31).  PD and CT runs must equal them to 1e-12 and QP runs to 1e-8 on
+every signal (relative to the signal's largest magnitude, at least 1): the
+redesign moved the arithmetic, it did not change it.  The QP's tolerance is proxsuite's:
 its rounding depends on where its inputs sit in memory (≈ 1e-11 at first,
 growing over a solve-heavy run).
 """

@@ -381,7 +381,6 @@ class QPController(QPFallbacks, ComputedTorqueController):
         self._status_text = "not_run"
         self._needs_solve, self._violated = rec["needs_solve"], rec["violated"]
         self._model_rec, self._obs_rec = self.cuff_model.record, self.observer.record
-        self._held = self._model_rec["held"][0]  # the drives the horizon holds at their caps
         self._pin = (self.cuff_model.model, self.cuff_model.data)
         self._q_all, self._v_all = self.cuff_model.q_all, self.cuff_model.v_all
         self._no_force = np.zeros((4, 2))
@@ -486,5 +485,5 @@ class QPController(QPFallbacks, ComputedTorqueController):
             if not ok:
                 why = f"the screened rows did not cover the bound after {SCREEN_ROUNDS} solves"
                 return self._fallback(omega, f"{why}; every row: {qp.status}")
-        take(rec, qp.record, omega, self._held)
+        take(rec, qp.record, omega)
         return self._u

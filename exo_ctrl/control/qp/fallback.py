@@ -30,7 +30,6 @@ class QPFallbacks:
     _u: np.ndarray
     _u_max: float
     _status_text: str
-    _held: np.ndarray
 
     def _fail(self, why: str) -> None:
         """Count a fallback tick, with ``why`` as its status."""
@@ -52,11 +51,11 @@ class QPFallbacks:
             self.torque[empty] = 0.0
             joints = ", ".join(str(j) for j in np.flatnonzero(empty))
             self._fail(f"fallback: empty torque box at joint(s) {joints} ({why})")
-            volts(self.record, omega, self._held)
+            volts(self.record, omega)
             return np.clip(self._u, -self._u_max, self._u_max, out=self._u)
         np.clip(self.torque_cmd, lo, hi, out=self.torque)
         self._fail(f"fallback: τ_cmd clipped to the torque box ({why})")
-        volts(self.record, omega, self._held)
+        volts(self.record, omega)
         return self._u
 
     def _zero_volts(self, why: str) -> np.ndarray:

@@ -24,7 +24,7 @@ from .margin import SETTLE_TICKS
 from .observer import add_residual, observe
 from .prediction import gather, pair, predict
 from .screening import POLYGON_SIDES, bound_rows, clip_if_feasible, screen, widen
-from .torque_box import TORQUE_BOX_FIELDS, torque_box, voltage
+from .torque_box import TORQUE_BOX_FIELDS, drive_at_caps, torque_box, voltage
 from .workspace import ACTIVE_TOL
 
 __all__ = [
@@ -208,7 +208,8 @@ def horizon(
     if feasible:
         for j in range(4):
             s.slack[j] = 0.0
-        voltage(s, s.torque, dq, s.u_ct, m.held, s.u_cmd)
+        voltage(s, s.torque, dq, s.u_cmd)
+        drive_at_caps(s, m.held, s.u_ct, s.u_cmd)
         s.active_constraints = active
         s.solved = True
     return Status.OK.value
@@ -276,12 +277,9 @@ def widen_rows(state: np.ndarray, workspace: np.ndarray) -> None:  # pragma: no 
 
 @kernel
 def take(
-    state: np.ndarray, workspace: np.ndarray, omega: np.ndarray, held: np.ndarray
+    state: np.ndarray, workspace: np.ndarray, omega: np.ndarray
 ) -> None:  # pragma: no cover - compiled
-    """Take the QP's answer: τ, slacks, active bounds (less the idle s ≥ 0), the voltage.
-
-    ``held``: the drives the prediction held at their caps (:func:`tail`), (4,).
-    """
+    """Take the QP's answer: τ, slacks, active bounds (less the idle s ≥ 0), the voltage."""
     s, p = state[0], workspace[0]
     idle = 0  # the s >= 0 bounds of slacks at zero are not constraints of the problem
     for j in range(4):
@@ -291,13 +289,11 @@ def take(
             idle += 1
     s.active_constraints = p.active - idle
     s.solved = True
-    voltage(s, s.torque, omega, s.u_ct, held, s.u_cmd)
+    voltage(s, s.torque, omega, s.u_cmd)
 
 
 @kernel
-def volts(
-    state: np.ndarray, omega: np.ndarray, held: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    """u_cmd := the voltage giving ``torque`` at ω (a fallback's; ``held``: :func:`take`'s)."""
+def volts(state: np.ndarray, omega: np.ndarray) -> None:  # pragma: no cover - compiled
+    """u_cmd := the voltage giving ``torque`` at speed ω (a fallback's)."""
     s = state[0]
-    voltage(s, s.torque, omega, s.u_ct, held, s.u_cmd)
+    voltage(s, s.torque, omega, s.u_cmd)

@@ -57,11 +57,7 @@ import numpy as np
 from ..._jit import kernel
 from ...plant.drive import EFFICIENCY_SMOOTHING_RAD_S, MotorParams
 
-__all__ = ["AT_BOUND_NM", "TORQUE_BOX_FIELDS", "box_constants", "torque_box", "voltage"]
-
-#: A joint torque this close to a bound of the box is at it [N·m] (proxsuite's answers
-#: sit at their active bounds to its 1e-9 accuracy; a clipped command exactly).
-AT_BOUND_NM = 1e-6
+__all__ = ["TORQUE_BOX_FIELDS", "box_constants", "drive_at_caps", "torque_box", "voltage"]
 
 #: Fields of a record holding the box: c₀ [N·m], c₁ [N·m·s/rad], c₂ [N·m/V],
 #: the drive's cap i_G k_m I_max and the joint's effort [N·m] per joint, ln η
@@ -132,29 +128,30 @@ def torque_box(
 
 @kernel
 def voltage(
-    s: np.void,
-    torque: np.ndarray,
-    omega: np.ndarray,
-    u_cmd: np.ndarray,
-    held: np.ndarray,
-    out: np.ndarray,
+    s: np.void, torque: np.ndarray, omega: np.ndarray, out: np.ndarray
 ) -> None:  # pragma: no cover - compiled
-    """Write the voltage for joint ``torque`` at ω to ``out`` [V] (module docstring).
-
-    U = (τ/g(τ) + c₁ ω) / c₂; for a drive ``held`` at its cap (> 0: the horizon
-    predicts its torque held) at a bound of the box that the command exceeds,
-    clip(U_cmd, ±U_max) where that is beyond U (``u_cmd`` the CT+PD voltage [V]).
-    """
+    """Write U = (τ/g(τ) + c₁ ω) / c₂ to ``out``: the voltage giving joint ``torque`` at ω [V]."""
     c1, c2, lneta, inv_w = s.c1, s.c2, s.lneta, s.inv_w_eta
-    lo, hi, target = s.torque_lo, s.torque_hi, s.torque_cmd
     for j in range(4):
         w = omega[j]
-        u = (torque[j] / gear(lneta, inv_w, torque[j], w) + c1[j] * w) / c2[j]
-        if held[j] > 0.0 and lo[j] <= hi[j]:  # an empty box keeps the fallback's voltage
-            u_max = s.c0 / c2[j]
+        out[j] = (torque[j] / gear(lneta, inv_w, torque[j], w) + c1[j] * w) / c2[j]
+
+
+@kernel
+def drive_at_caps(
+    s: np.void, held: np.ndarray, u_cmd: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - compiled
+    """The drives ``held`` at their caps (> 0) get clip(U_cmd, ±U_max) in ``out`` [V].
+
+    For a clipped command only, whose held drives sit at the bound their command
+    τ_cmd exceeds (module docstring): the command's voltage ``u_cmd`` [V] where it
+    drives harder than the bound's steady-state one already in ``out``.
+    """
+    for j in range(4):
+        if held[j] > 0.0:
+            u_max = s.c0 / s.c2[j]
             u_drive = min(max(u_cmd[j], -u_max), u_max)
-            if (torque[j] >= hi[j] - AT_BOUND_NM and target[j] > hi[j] and u_drive > u) or (
-                torque[j] <= lo[j] + AT_BOUND_NM and target[j] < lo[j] and u_drive < u
-            ):
-                u = u_drive
-        out[j] = u
+            if s.torque_cmd[j] > s.torque_hi[j]:
+                out[j] = max(out[j], u_drive)
+            else:
+                out[j] = min(out[j], u_drive)

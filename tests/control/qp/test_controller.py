@@ -284,7 +284,7 @@ def delivered(u: np.ndarray, omega: np.ndarray, motor: MotorParams, exo: BodyMod
         (v - back_emf) / motor.resistance_ohm, -motor.current_limit_A, motor.current_limit_A
     )
     tau_m = motor.gear_ratio * motor.torque_constant_Nm_per_A * i
-    effort = exo.model.effortLimit[:4][: np.size(u)]
+    effort = exo.model.effortLimit[:4]
     return np.clip(tau_m * gear(motor, tau_m, omega), -effort, effort)
 
 
