@@ -290,21 +290,22 @@ def _read_chunks(path: Path, attempts: int = 3) -> tuple[list, int | None]:
     """
     error: Exception | None = None
     for _ in range(attempts):
-        try:
-            chunks = _load_chunks(path)
+        try:  # rerun reads forwards: a footer cut short is still a cut file
+            return _load_chunks(path), _complete_prefix(path)
         except (ValueError, RuntimeError, OSError) as exc:
             error = exc
-        else:  # rerun read it forwards; a footer cut short is still a cut file
-            return chunks, _complete_prefix(path)
-        end = _complete_prefix(path)
-        if end is None:
-            continue  # no message is cut (any more): read the file again
-        with tempfile.TemporaryDirectory() as tmp:
-            copy = Path(tmp) / path.name
-            with path.open("rb") as src, copy.open("wb") as dst:
-                _copy_bytes(src, dst, end)
-            with contextlib.suppress(ValueError, RuntimeError, OSError):
-                return _load_chunks(copy), end
+        try:
+            end = _complete_prefix(path)
+            if end is None:
+                continue  # no message is cut (any more): read the file again
+            with tempfile.TemporaryDirectory() as tmp:
+                copy = Path(tmp) / path.name
+                with path.open("rb") as src, copy.open("wb") as dst:
+                    _copy_bytes(src, dst, end)
+                with contextlib.suppress(ValueError, RuntimeError, OSError):
+                    return _load_chunks(copy), end
+        except OSError as exc:  # gone or unreadable since (a run that failed at its start)
+            raise RecordingError(f"cannot read recording {path}: {exc}") from None
     raise RecordingError(f"cannot read recording {path}: {error}") from None
 
 

@@ -89,6 +89,23 @@ def test_read_refuses_missing_foreign_and_junk_files(tmp_path):
         read_recording(foreign)
 
 
+def test_a_file_gone_while_it_is_read_is_a_recording_error(tmp_path, monkeypatch):
+    """A run that fails at its start removes its empty partial file, perhaps mid-read."""
+    gone = tmp_path / "run.partial.rrd"
+    gone.write_bytes(b"")
+
+    def vanish(path):
+        path.unlink()
+        raise ValueError("empty file")  # what rerun says of the empty file
+
+    monkeypatch.setattr("exo_ctrl.record.reader._load_chunks", vanish)
+    with pytest.raises(RecordingError) as info:
+        read_recording_integrity(gone)
+    assert str(info.value) == (
+        f"cannot read recording {gone}: [Errno 2] No such file or directory: '{gone}'"
+    )
+
+
 @pytest.mark.parametrize("keep", [-1, -32, -40, -5000])
 def test_a_file_cut_in_its_footer_keeps_every_message(short_run, assert_same_run, tmp_path, keep):
     """A file that ends inside the end marker or the stream footer (a write cut short).
