@@ -170,6 +170,7 @@ class OnlineGait:
         ramp_in_s: T_r of the lift's ramp-in [s] (0: none).
         sink: the stance feet's loading sink (:mod:`exo_ctrl.plan.loading`;
             used with double support, β > ½); None: on the belt line.
+        start: False: row 0 stays zero until :meth:`start` (the compile helper's build).
 
     Attributes:
         plan: the one-row plan the controllers read (overwritten each tick).
@@ -184,6 +185,7 @@ class OnlineGait:
         dt: float,
         ramp_in_s: float = 0.0,
         sink: StanceSink | None = None,
+        start: bool = True,
     ) -> None:
         self.law = law
         gait = law.reference
@@ -221,7 +223,8 @@ class OnlineGait:
             hip=self.record["hip"][0].reshape(1, 3) if gait.pelvis_excursion > 0.0 else None,
             lift_off_s=self.record["lift"][0].reshape(1, 2),
         )
-        self.start(self.belt_speed(0.0)[0])
+        if start:
+            self.start(self.belt_speed(0.0)[0])
 
     def hip(self) -> tuple[float, float, float]:
         """The hip's planned rise σ ΔH [m] and its rates [m/s, m/s²] at the present tick."""
@@ -273,12 +276,9 @@ class OnlineGait:
             return
         g = self.record[0]
         leg = int(g["fail_leg"])
-        raise SimulationDiverged(
-            t,
-            f"{SIDES[leg]} foot's planned distance from the hip [m]",
-            float(g["fail_r"]),
-            float(g["l1"][leg] + g["l2"][leg]),
-        )
+        where = f"{SIDES[leg]} foot's planned distance from the hip [m]"
+        reach = float(g["l1"][leg] + g["l2"][leg])
+        raise SimulationDiverged(t, where, float(g["fail_r"]), reach)
 
 
 # ---------------------------------------------------------------------- kernels

@@ -99,8 +99,12 @@ class Setup:
     estimator: Estimator | None = None
 
 
-def build(config: SimConfig) -> Setup:
+def build(config: SimConfig, start: bool = True) -> Setup:
     """Load the models, plan the run and build the plant and controller.
+
+    ``start``: False only for the compile helper (:mod:`exo_ctrl.sim.warmup`), which
+    calls the tick's kernels and never runs: a synchronised plan is neither checked
+    nor started, which leaves its kernels to the run's own process.
 
     Raises:
         ExoCtrlError: a model, a gait or a plan the device cannot follow
@@ -130,7 +134,9 @@ def build(config: SimConfig) -> Setup:
         check_followable(config, plan, exo, patient, motor)
     model_patient = device_patient(config.belief, config.patient, fitted)
     if config.synced:  # generated each tick from the measured belt speed (sim/sync.py)
-        online = online_gait(config, exo, patient, motor, model_exo, check_followable, sink)
+        online = online_gait(
+            config, exo, patient, motor, model_exo, check_followable, sink, start=start
+        )
         plan = online.plan
     # The device's drive: its datasheet, a parameter set of its own (a copy
     # when it is the installed drive's nominal values).

@@ -50,6 +50,7 @@ def online_gait(
     device_exo: BodyModel,
     check: Callable[..., None],
     sink: StanceSink | None = None,
+    start: bool = True,
 ) -> OnlineGait:
     """The run's online generator, its profile checked first.
 
@@ -62,6 +63,8 @@ def online_gait(
         check: the check of a plan's joint speeds
             (:func:`~exo_ctrl.sim.setup.check_followable`).
         sink: the stance feet's loading sink (:mod:`exo_ctrl.plan.loading`), or None.
+        start: False: neither checked nor started (the compile helper's build, which
+            only needs the plan's record: :mod:`exo_ctrl.sim.warmup`).
 
     Raises:
         InvalidParameter: a profile speed the leg cannot reach or the drives
@@ -69,8 +72,10 @@ def online_gait(
 
     """
     law = SpeedAdaptation(config.gait, max_step_length(config.gait, exo))
-    check_profile(config, law, exo, patient, motor, check, sink)
-    return OnlineGait(law, config.speed_profile, device_exo, config.dt, config.ramp_in, sink)
+    if start:
+        check_profile(config, law, exo, patient, motor, check, sink)
+    dt, ramp_in = config.dt, config.ramp_in
+    return OnlineGait(law, config.speed_profile, device_exo, dt, ramp_in, sink, start=start)
 
 
 def check_profile(

@@ -82,7 +82,8 @@ class Runner:
     Args:
         setup: the run's pieces.
         start: put the plant on the plan's first row (:func:`~exo_ctrl.sim.setup.start_on_plan`);
-            False only for :mod:`exo_ctrl.sim.warmup`'s helper, which compiles and never runs.
+            False only for :mod:`exo_ctrl.sim.warmup`'s helper, which compiles and never runs
+            (nor loads the cuff-load monitor's kernels ahead).
 
     """
 
@@ -166,7 +167,8 @@ class Runner:
             self.cuff_load = CuffLoadMonitor(
                 setup.device_patient, tau_ext, config.dt, period, schedule, shoes=self._shoes
             )
-            self.cuff_load.preload(self.sensors.q, self.sensors.dq)
+            if start:  # (the helper leaves these kernels to the run's own process)
+                self.cuff_load.preload(self.sensors.q, self.sensors.dq)
         #: On a stop the harness locks the pelvis (plant/pelvis.py) and the treadmill
         #: runs down to rest (BeltParams.stop_decel_mps2): :meth:`_device_stop`.
         self._stop_pending = sup is not None and config.contact.enabled

@@ -7,7 +7,9 @@ compiler lock), but each process saves what it compiles to the cache on disk,
 and a kernel's first call with new argument types looks there before it
 compiles.  So :class:`Warmup`, when the cache holds no marker for the run's
 features (:func:`feature_key`), starts a helper: a child Python process that
-builds the same run and calls the tick's stages in the reverse of the order
+builds the same run without starting it (the kernels the build itself calls,
+the synchronised plan's start and the cuff-load model's, are left to this
+process: both would compile them at once) and calls the tick's stages in the reverse of the order
 this process first calls them (the estimator's step, the applied log row,
 the plant's step, the supervisor, the controller;
 :meth:`~exo_ctrl.sim.tick.Runner.compile_back`), while this process compiles

@@ -26,7 +26,7 @@ def compile_back_half(parent_pid: int) -> None:
     """Build the run read from standard input; compile its tick's back half."""
     die_with_parent(parent_pid)
     config = pickle.loads(sys.stdin.buffer.read())
-    setup = build(config)
+    setup = build(config, start=False)
     runner = Runner(setup, start=False)
     runner.compile_back()
 

@@ -20,8 +20,10 @@ from pathlib import Path
 import pytest
 
 from exo_ctrl import SimConfig
-from exo_ctrl.plan import GaitParams
+from exo_ctrl.plan import GaitParams, online
 from exo_ctrl.plant import ContactParams
+from exo_ctrl.safety.cuff_load import CuffLoadMonitor
+from exo_ctrl.sim import Runner, build
 from exo_ctrl.sim.warmup import ENV, Warmup, core_free, feature_key
 
 EXO_CTRL = Path(sys.executable).parent / "exo-ctrl"
@@ -168,3 +170,33 @@ def _alive(pid: int) -> bool:
     except OSError:
         return False
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def test_the_helpers_build_leaves_the_plans_start_and_the_load_models_to_the_run(
+    monkeypatch,
+) -> None:
+    """The helper's build (start=False) calls neither the plan's start nor the preload.
+
+    Both processes would otherwise compile those kernels at the same moment
+    (docs/performance.md, "Start-up and compiling"); the run's own build calls them.
+    """
+
+    def refuse(*args):
+        raise RuntimeError("called")
+
+    config = SimConfig(contact=ContactParams(enabled=True), duration_s=0.2)
+    assert config.synced and config.safety
+    monkeypatch.setattr(online, "online_start", refuse)
+    monkeypatch.setattr(CuffLoadMonitor, "preload", refuse)
+    setup = build(config, start=False)
+    runner = Runner(setup, start=False)
+    assert runner.cuff_load is not None
+    assert not setup.online.record["out"].any()  # row 0 not started
+    with pytest.raises(RuntimeError, match="called"):
+        build(config)
+    monkeypatch.undo()
+    setup = build(config)
+    assert setup.online.record["out"].any()
+    with pytest.raises(RuntimeError, match="called"):
+        monkeypatch.setattr(CuffLoadMonitor, "preload", refuse)
+        Runner(setup)
