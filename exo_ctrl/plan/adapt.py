@@ -100,7 +100,13 @@ class SpeedAdaptation:
         return self.step_length(speed_mps) / (self.reference.duty_factor * speed_mps)
 
     def gait(self, speed_mps: float) -> GaitParams:
-        """The configured gait with the step length and period of speed v [m/s]."""
+        """The configured gait with the step length and period of speed v [m/s].
+
+        At the reference speed v_0 the configured gait itself (s(v_0) = s_0 and
+        T(v_0) = T_0 exactly, not as rounded through the law).
+        """
+        if speed_mps == self.reference.belt_speed:
+            return self.reference
         return dataclasses.replace(
             self.reference,
             step_length=self.step_length(speed_mps),

@@ -137,8 +137,8 @@ class SimConfig:
             gait's v_f); with contact on.
         sync: plan online from the measured belt speed (:mod:`exo_ctrl.plan.online`,
             the gait adapting to the speed by :mod:`exo_ctrl.plan.adapt`);
-            None: on with contact on (:attr:`synced`).  Off: the precomputed
-            plan, which assumes the gait's v_f whatever the belt does.
+            None: on with contact on, except for the QP (:attr:`synced`).  Off: the
+            precomputed plan, which assumes the gait's v_f whatever the belt does.
         duration_s: simulated time [s], ramps included, from one control
             tick to :data:`MAX_DURATION_S`.  Default 3.6 s: the default
             ramp-in (one 1.2 s gait period) and two gait cycles.
@@ -380,7 +380,12 @@ class SimConfig:
 
     @property
     def synced(self) -> bool:
-        """Whether the plan follows the measured belt (``sync``, default: contact on, a gait)."""
+        """Whether the plan follows the measured belt (``sync``; default: contact on, gait, no QP).
+
+        The QP follows the synchronised plan when asked (``sync`` on), as CT where its bound
+        leaves the gait's load; where the bound makes it leave the plan in stance the plan
+        follows the measured legs (docs/performance.md, touchdowns under load).
+        """
         if self.sync is None:
             return (
                 self.contact.enabled

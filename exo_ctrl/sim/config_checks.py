@@ -296,8 +296,6 @@ def check_sync(config: Any) -> None:
         why = "the belt's speed is measured with contact on only"
     elif config.exercise != "gait":
         why = f"the {config.exercise} exercise has no gait"
-    elif config.controller == "qp":
-        why = "the QP's prediction follows a precomputed plan; use pd or ct"
     elif config.ramp_out_s > 0.0:
         why = "a ramp-out with the synchronised plan is not supported"
     if why is not None:

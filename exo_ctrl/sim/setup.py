@@ -47,7 +47,7 @@ from ..plant.patient_active import ActivePatient
 from .belief import device_exo, device_patient, nominal_stature
 from .config import SimConfig
 from .session import session_controller
-from .sync import online_gait, set_speeds
+from .sync import online_gait, profile_runs, set_speeds
 from .tracking import stance_load_for, tracking_controller
 
 __all__ = [
@@ -114,23 +114,13 @@ def build(config: SimConfig, start: bool = True) -> Setup:
     exo = load_exo(config.exo)
     fitted = load_patient(config.patient)  # as the device is fitted to it: coaxial
     patient = misaligned_patient(fitted, config.misalignment)  # the truth
-    rows = config.plan_layout
     motor = drive_for(config.motor, exo)
     online = None
     model_exo = device_exo(config.belief, config.exo)
     sink = stance_sink_for(config, model_exo)
-    if config.exercise == "calibration":
-        times = rows.ticks() * config.dt
-        plan = calibration_plan(exo, times, config.duration_s, config.gait.hip_height)
-    elif not config.synced:
-        gait = GaitPlan(config.gait, sink)
-        plan = plan_joints(RampedGait(gait, config.ramp), exo, rows.ticks() * config.dt)
-    if rows.period and not config.synced:
-        tail = None if rows.tail == NO_TAIL else rows.tail
-        plan = dataclasses.replace(
-            plan, period_ticks=rows.period, lead_ticks=rows.lead, tail_tick=tail
-        )
+    references: tuple[JointTrajectory, ...] = ()
     if not config.synced:  # the online plan's speeds are checked by online_gait
+        plan = precomputed_plan(config, exo, sink)
         check_followable(config, plan, exo, patient, motor)
     model_patient = device_patient(config.belief, config.patient, fitted)
     if config.synced:  # generated each tick from the measured belt speed (sim/sync.py)
@@ -138,6 +128,9 @@ def build(config: SimConfig, start: bool = True) -> Setup:
             config, exo, patient, motor, model_exo, check_followable, sink, start=start
         )
         plan = online.plan
+        if config.controller == "qp":  # its bound's margin: along the profile's steady gaits
+            runs = profile_runs(config, online.law)
+            references = tuple(precomputed_plan(run, exo, sink) for run in runs)
     # The device's drive: its datasheet, a parameter set of its own (a copy
     # when it is the installed drive's nominal values).
     model_motor = drive_for(dataclasses.replace(config.belief.motor_model(config.motor)), model_exo)
@@ -161,7 +154,7 @@ def build(config: SimConfig, start: bool = True) -> Setup:
             belt_speed = set_speeds(config, sigma[:2])
     user_estimator = users_estimator(config.estimator, ESTIMATORS)  # None: a built-in
     controller = tracking = tracking_controller(
-        config, plan, model_exo, model_patient, model_motor, user_estimator
+        config, plan, model_exo, model_patient, model_motor, user_estimator, references
     )
     if config.session is not None:  # one controller per segment, switched bumplessly
         controller = session_controller(  # type: ignore[assignment]
@@ -169,7 +162,9 @@ def build(config: SimConfig, start: bool = True) -> Setup:
             plan,
             model_exo,
             model_motor,
-            lambda: tracking_controller(config, plan, model_exo, model_patient, model_motor),
+            lambda: tracking_controller(
+                config, plan, model_exo, model_patient, model_motor, references=references
+            ),
             patient=model_patient,
         )
     elif config.mode == "path":  # the tunnel with free timing, on the device's models
@@ -211,6 +206,28 @@ def build(config: SimConfig, start: bool = True) -> Setup:
     )
 
 
+def precomputed_plan(
+    config: SimConfig, exo: BodyModel, sink: StanceSink | None = None
+) -> JointTrajectory:
+    """The run's plan at its control ticks, precomputed (``config`` not synchronised).
+
+    The calibration motion, or the gait ramped in (:class:`~exo_ctrl.plan.RampedGait`)
+    through the closed-form inverse kinematics on ``exo``, laid out as
+    ``config.plan_layout`` says (a periodic part stored once).
+    """
+    rows = config.plan_layout
+    times = rows.ticks() * config.dt
+    if config.exercise == "calibration":
+        return calibration_plan(exo, times, config.duration_s, config.gait.hip_height)
+    plan = plan_joints(RampedGait(GaitPlan(config.gait, sink), config.ramp), exo, times)
+    if rows.period:
+        tail = None if rows.tail == NO_TAIL else rows.tail
+        plan = dataclasses.replace(
+            plan, period_ticks=rows.period, lead_ticks=rows.lead, tail_tick=tail
+        )
+    return plan
+
+
 def run_warnings(
     config: SimConfig, exo: BodyModel, fitted: BodyModel, controller: object = None
 ) -> list[str]:
@@ -240,7 +257,7 @@ def run_warnings(
         if departure is not None:
             out.append(departure)
         if config.pelvis.supported:
-            out.append(contact_warning(controller.cuff_force_limit_N))
+            out.append(contact_warning(controller.cuff_force_limit_N, config.synced))
     return out
 
 

@@ -36,7 +36,7 @@ from ..plan import (
 from ..plant import MotorParams
 from .config import SimConfig
 
-__all__ = ["check_profile", "online_gait", "set_speeds"]
+__all__ = ["check_profile", "online_gait", "profile_runs", "set_speeds"]
 
 #: Samples per gait period of each speed's check.
 SAMPLES_PER_PERIOD = 1000
@@ -100,22 +100,10 @@ def check_profile(
 
     """
     profile = config.speed_profile or SpeedProfile.constant(config.gait.belt_speed)
-    start_speed = float(profile.at(0.0)[0][0])
-    points = [(0.0, start_speed), *zip(profile.times, profile.speeds, strict=True)]
-    for i, (t, speed) in enumerate(points):
-        gait = law.gait(speed)
-        ramp_in = config.ramp_in if i == 0 else 0.0
+    for (t, speed), cfg in zip(_points(profile), profile_runs(config, law), strict=True):
+        gait, ramp_in = cfg.gait, cfg.ramp_in_s
         span = ramp_in + gait.period
         n = max(math.ceil(SAMPLES_PER_PERIOD * span / gait.period), 2) + 1
-        cfg = dataclasses.replace(
-            config,
-            gait=gait,
-            speed_profile=None,
-            sync=False,
-            ramp_in_s=ramp_in,
-            duration_s=max(config.duration_s, span),
-            session=None,  # a profile point's check, not the session's run
-        )
         try:
             ramped = RampedGait(GaitPlan(gait, sink), Ramp(ramp_in))
             plan = plan_joints(ramped, exo, np.linspace(0.0, span, n))
@@ -129,6 +117,41 @@ def check_profile(
                 f"at t = {t:g} s the belt speed {speed:g} m/s needs step_length "
                 f"{gait.step_length:.4g} m{cap} and period {gait.period:.4g} s: {exc}",
             ) from None
+
+
+def profile_runs(config: SimConfig, law: SpeedAdaptation) -> list[SimConfig]:
+    """Each point of the session's profile (its start first) as a run on a precomputed plan.
+
+    The point's speed v gets the law's gait (s(v), T(v)); the start keeps the
+    run's ramp-in, the others none; each lasts the run's duration or one ramp
+    and period, whichever is longer.  Planned as such a run is
+    (:func:`~exo_ctrl.sim.setup.precomputed_plan`), a point's plan is the
+    synchronised one at a steady speed v: what :func:`check_profile` checks and
+    the QP's bound margin is computed along (:mod:`exo_ctrl.control.qp.margin`).
+    """
+    profile = config.speed_profile or SpeedProfile.constant(config.gait.belt_speed)
+    runs = []
+    for i, (_, speed) in enumerate(_points(profile)):
+        gait = law.gait(speed)
+        ramp_in = config.ramp_in if i == 0 else 0.0
+        runs.append(
+            dataclasses.replace(
+                config,
+                gait=gait,
+                speed_profile=None,
+                sync=False,
+                ramp_in_s=ramp_in,
+                duration_s=max(config.duration_s, ramp_in + gait.period),
+                session=None,  # a profile point, not the session's run
+            )
+        )
+    return runs
+
+
+def _points(profile: SpeedProfile) -> list[tuple[float, float]]:
+    """The profile's points (time [s], speed [m/s]), its start at t = 0 first."""
+    start_speed = float(profile.at(0.0)[0][0])
+    return [(0.0, start_speed), *zip(profile.times, profile.speeds, strict=True)]
 
 
 def set_speeds(config: SimConfig, sigma: tuple[np.ndarray, np.ndarray]) -> np.ndarray:

@@ -31,11 +31,15 @@ def tracking_controller(
     model_patient: BodyModel,
     model_motor: MotorParams,
     user_estimator: Estimator | None = None,
+    references: tuple[JointTrajectory, ...] = (),
 ) -> PDController:
     """A new tracking controller of the run (``config.controller``) on the device's models.
 
     With a user's estimator the QP takes its estimate as the momentum
-    observer's, a first-order lag at the class's ``bandwidth_per_s``.
+    observer's, a first-order lag at the class's ``bandwidth_per_s``.  The QP's
+    bound margin is computed along ``references`` (a synchronised run: the
+    precomputed plans of its profile's steady gaits,
+    :func:`~exo_ctrl.sim.sync.profile_runs`), else along ``plan``.
 
     ``"pd"`` and ``"ct"`` are the classes :class:`~exo_ctrl.control.PD` and
     :class:`~exo_ctrl.control.CT` with ``config.gains``; an object of exactly
@@ -55,6 +59,7 @@ def tracking_controller(
             model_motor,
             config.gains,
             cuff_force_limit_N=config.cuff_force_limit_N,
+            margin_plans=references,
             cuffs=config.belief.cuff_model_of(config.cuffs),
             dt=config.dt,
             estimate_gain_per_s=gain,

@@ -124,7 +124,7 @@ from ..lift_off import LIFT_OFF_BLEND_S
 from ..stance_load import StanceLoad
 from .cuff_knowledge import CuffKnowledge
 from .fallback import QPFallbacks
-from .margin import ESTIMATE_SIGMAS, checked_margin
+from .margin import ESTIMATE_SIGMAS, checked_margin, widest
 from .observer import CuffStateObserver
 from .prediction import DEFAULT_HORIZON_TICKS, CuffHorizonModel
 from .screening import POLYGON_SIDES, SCREEN_ROUNDS, SCREENED_ROWS, polygon_rows
@@ -220,6 +220,9 @@ class QPController(QPFallbacks, ComputedTorqueController):
             for the margin's e_cuffs (default
             :class:`~exo_ctrl.control.qp.cuff_knowledge.CuffKnowledge`: the
             published cuffs, the literature's spread, no cuff sensors).
+        margin_plans: the plans the margin's static part is computed along, the
+            widest per cuff kept (default: ``plan``; a synchronised one-row plan
+            gives the precomputed plans of its steady gaits).
 
     Attributes:
         margin: the margin's static terms and working force (:class:`BoundMargin`).
@@ -285,6 +288,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
         stance_load: StanceLoad | None = None,
         lift_off_blend_s: float = LIFT_OFF_BLEND_S,
         cuff_knowledge: CuffKnowledge | None = None,
+        margin_plans: tuple[JointTrajectory, ...] = (),
     ) -> None:
         if estimator not in DISTURBANCE_BANDWIDTH_PER_S:
             allowed = ", ".join(DISTURBANCE_BANDWIDTH_PER_S)
@@ -343,14 +347,17 @@ class QPController(QPFallbacks, ComputedTorqueController):
         rec["force_feedback"] = bool(force_feedback)
         rec["sensed"] = cuff_knowledge is not None and cuff_knowledge.sensors != "none"
         rec["limit"] = self.cuff_force_limit_N
-        self.margin = checked_margin(
-            plan,
-            (exo, patient, motor, cuffs),
-            self.cuff_model,
-            (estimator, disturbance_bandwidth_per_s),
-            self.cuff_force_limit_N,
-            gait if tighten else None,
-            cuff_knowledge,
+        self.margin = widest(
+            checked_margin(
+                along,
+                (exo, patient, motor, cuffs),
+                self.cuff_model,
+                (estimator, disturbance_bandwidth_per_s),
+                self.cuff_force_limit_N,
+                gait if tighten else None,
+                cuff_knowledge,
+            )
+            for along in margin_plans or (plan,)
         )
         rec["margin_static"] = self.margin.static_N
         rec["working"] = self.margin.working_N

@@ -107,9 +107,10 @@ the body's weight can let a foot strike.  The margin does not cover that
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,6 +138,7 @@ __all__ = [
     "departure_warning",
     "share_matrices",
     "step_factors",
+    "widest",
 ]
 
 #: e_pred, the horizon model's error given the true cuff state and patient [N]
@@ -408,6 +410,12 @@ def checked_margin(
     return margin
 
 
+def widest(margins: Iterable[BoundMargin]) -> BoundMargin:
+    """Each term of several plans' margins, the largest per cuff (at least one margin)."""
+    terms = [dataclasses.astuple(m) for m in margins]
+    return BoundMargin(*(np.max(np.stack(term), axis=0) for term in zip(*terms, strict=True)))
+
+
 def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none") -> str | None:
     """A sentence when the tightened bound leaves a cuff less than its load along the plan.
 
@@ -433,10 +441,20 @@ def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none"
     return text
 
 
-def contact_warning(limit_N: float) -> str:
-    """The sentence a run with the pelvis supported and the QP gets (module docstring)."""
+def contact_warning(limit_N: float, synced: bool = False) -> str:
+    """The sentence a run with the pelvis supported and the QP gets (module docstring).
+
+    ``synced``: on the synchronised plan, which places the swing foot against the stance
+    leg as measured, a stance leg the QP lets sag can take the plan out of the leg's reach.
+    """
+    reach = (
+        "; on the synchronised plan, which follows the measured legs, the plan can then "
+        "leave the leg's reach and the run end"
+        if synced
+        else ""
+    )
     return (
         f"cuff_force_limit {limit_N:g} N is not promised with the pelvis supported: the QP's "
         "horizon holds no ground contact, and where it leaves the plan under the body's weight "
-        "a foot can strike the belt (docs/performance.md, the QP's cuff-force bound)"
+        f"a foot can strike the belt{reach} (docs/performance.md, the QP's cuff-force bound)"
     )

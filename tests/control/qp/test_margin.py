@@ -177,6 +177,14 @@ def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not() -> No
     assert not any("not promised" in w for w in build(fixed).warnings)
     ct = dataclasses.replace(supported, controller="ct")
     assert not any("not promised" in w for w in build(ct).warnings)
+    synced = dataclasses.replace(supported, sync=True)
+    text = text.replace(
+        "strike the belt",
+        "strike the belt; on the synchronised plan, which follows the measured legs, the plan "
+        "can then leave the leg's reach and the run end",
+    )
+    assert contact_warning(150.0, synced=True) == text
+    assert text in build(synced).warnings
 
 
 @pytest.mark.parametrize(
