@@ -1,7 +1,7 @@
 """Does the QP's cuff-force bound hold?  A seeded, randomised campaign ("Load held", issue 31).
 
     .venv/bin/python tools/load_held.py [--points N] [--seed S] [--json PATH]
-        [--patients spastic,active] [--cuff-sensors none|normal|full]
+        [--patients spastic,active] [--cuff-sensors none|normal|full] [--sync on]
 
 Draws N points (default 200) from ``numpy.random.default_rng(S)`` (default
 seed 0; point i is the same whatever N > i), each
@@ -26,6 +26,8 @@ seed 0; point i is the same whatever N > i), each
   (:class:`~exo_ctrl.plant.cuff_scatter.CuffScatter`, its default spread,
   seeded per point), and the cuff sensors of ``--cuff-sensors`` (default
   none; their noise seeded per point);
+- the plan: the QP's default, precomputed; with ``--sync on`` the supported
+  points on the synchronised plan (the fixed points have no belt to follow);
 
 and runs the QP (safety supervisor off, the default Kalman filter) for
 three gait periods (the ramp-in and two cycles).  A point the device
@@ -124,8 +126,13 @@ def draw_points(
     return out
 
 
-def point_config(point: dict[str, Any], folder: Path, cuff_sensors: str = "none") -> SimConfig:
-    """The point's run: its URDFs written into ``folder``; ``cuff_sensors`` the sensor set."""
+def point_config(
+    point: dict[str, Any], folder: Path, cuff_sensors: str = "none", sync: bool = False
+) -> SimConfig:
+    """The point's run: its URDFs written into ``folder``; ``cuff_sensors`` the sensor set.
+
+    ``sync``: a supported point on the synchronised plan (else the QP's default).
+    """
     nominal = patient_from_anthropometry(point["height_m"], point["mass_kg"], point["sex"])
     truth = drawn_patient(nominal, np.asarray(point["z"]), CohortSpread())
     exo = write_urdf(fitted_exo(truth), folder / f"exo_{point['index']:04d}.urdf")
@@ -154,6 +161,7 @@ def point_config(point: dict[str, Any], folder: Path, cuff_sensors: str = "none"
         cuff_force_limit_N=point["bound_N"],
         safety=False,
         pelvis=pelvis,
+        sync=True if sync and pelvis.supported else None,
         duration_s=RUN_PERIODS * point["period_s"],
         cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
         cuff_sensors=CuffSensorParams(mode=cuff_sensors, seed=point["cuff_seed"]),
@@ -165,11 +173,13 @@ def point_config(point: dict[str, Any], folder: Path, cuff_sensors: str = "none"
     )
 
 
-def run_point(point: dict[str, Any], folder: Path, cuff_sensors: str = "none") -> dict[str, Any]:
+def run_point(
+    point: dict[str, Any], folder: Path, cuff_sensors: str = "none", sync: bool = False
+) -> dict[str, Any]:
     """Run one point: its true peak cuff force against its bound, or why it was refused."""
     out = dict(point)
     try:
-        result = simulate(point_config(point, folder, cuff_sensors))
+        result = simulate(point_config(point, folder, cuff_sensors, sync))
     except CuffBoundTooTight as exc:
         out.update(outcome="refused", kind="bound", reason=str(exc))
         return out
@@ -197,6 +207,7 @@ def campaign(
     patients: tuple[str, ...] = PATIENT_TORQUES,
     pelvis: tuple[str, ...] = PELVIS,
     cuff_sensors: str = "none",
+    sync: bool = False,
 ) -> list[dict[str, Any]]:
     """Run the first ``n`` points of ``seed``, one after the other, with ``cuff_sensors``."""
     points = draw_points(n, seed, patients, pelvis)
@@ -204,7 +215,7 @@ def campaign(
     results = []
     with tempfile.TemporaryDirectory(prefix="load_held_") as tmp:
         for i, point in enumerate(points):
-            results.append(run_point(point, Path(tmp), cuff_sensors))
+            results.append(run_point(point, Path(tmp), cuff_sensors, sync))
             if bar is not None:
                 bar.update(i + 1)
     if bar is not None:
@@ -283,6 +294,12 @@ def main(argv: list[str] | None = None) -> int:
         choices=CUFF_SENSOR_SETS,
         help="the cuff sensors of every point (default none)",
     )
+    p.add_argument(
+        "--sync",
+        default="off",
+        choices=("off", "on"),
+        help="on: the supported points on the synchronised plan (default off: precomputed)",
+    )
     args = p.parse_args(argv)
     patients = tuple(args.patients.split(","))
     if not patients or any(x not in PATIENT_TORQUES for x in patients):
@@ -291,7 +308,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.points < 1 or args.seed < 0:
         print("load_held: --points must be >= 1 and --seed >= 0", file=sys.stderr)
         return 2
-    results = campaign(args.points, args.seed, patients=patients, cuff_sensors=args.cuff_sensors)
+    results = campaign(
+        args.points,
+        args.seed,
+        patients=patients,
+        cuff_sensors=args.cuff_sensors,
+        sync=args.sync == "on",
+    )
     text, held = report(results)
     print(text)
     if args.json is not None:

@@ -2,6 +2,7 @@
 
     .venv/bin/python tools/tick_profile.py [--scenarios pd,ct] [--ticks N]
     .venv/bin/python tools/tick_profile.py --boundary [--scenarios pd,ct,qp]
+    .venv/bin/python tools/tick_profile.py --fusion [--scenarios pd,ct,qp]
 
 Runs the scenario's ticks through :meth:`Runner.tick` with its stage calls
 wrapped by a timer: each stage's per-tick method (the device's sensors read,
@@ -26,6 +27,17 @@ is found by wrapping the numba dispatchers among the package's module
 globals for a few ticks (a kernel held elsewhere, as an attribute, counts as
 Python); each is then timed on copies of its last arguments, the run's state
 untouched.
+
+``--fusion`` bounds what a fused tick could gain (design.md §8: a
+configuration's tick as one compiled composition of its stages' kernels
+between the library calls, which numba cannot call).  One tick's calls are
+recorded in order, Pinocchio's and the kernels', and the kernels are grouped
+into the runs between library calls: each group is what one fused call
+would do.  Its boundary is measured as an empty kernel called with the
+group's distinct arguments (a record or an array two kernels share is
+passed once), against the group's kernels' own boundaries.  A fused tick
+keeps the floor and the kernels' work; at best it also loses all the Python
+around the calls: floor + work + the fused boundaries is its lower bound.
 """
 
 from __future__ import annotations
@@ -337,6 +349,117 @@ def _print_anatomy(name: str, out: dict) -> None:
         )
 
 
+def _recorded_tick(name: str, warm: int = 300) -> tuple[Runner, list[tuple[str, object, tuple]]]:
+    """One tick of scenario ``name``: its kernel and library calls in order, with arguments.
+
+    Pinocchio's functions are wrapped before the run is built, so that the
+    stages that hold them (bound at construction) hold the wrappers; the
+    kernels as :func:`_captured_calls` does, after ``warm`` ticks.  The tick
+    recorded is the first after ``warm`` whose kernels are those most ticks call.
+    """
+    order: list[tuple[str, object, tuple]] = []
+    pin_originals = {}
+    for fname in dir(pin):
+        func = getattr(pin, fname)
+        if fname[:1].islower() and type(func).__name__ in (
+            "function",
+            "builtin_function_or_method",
+        ):
+            pin_originals[fname] = func
+
+    def library(fname, func):
+        def call(*args, **kwargs):
+            order.append(("library", fname, ()))
+            return func(*args, **kwargs)
+
+        return call
+
+    for fname, func in pin_originals.items():
+        setattr(pin, fname, library(fname, func))
+    try:
+        runner = Runner(build(SimConfig(**SCENARIOS[name])))
+        for k in range(warm):
+            runner.tick(k, k % runner.chunk)
+        patched = _kernel_holders(runner)
+
+        def capture(kname, kernel):
+            def call(*args):
+                order.append(("kernel", kname, args))
+                return kernel(*args)
+
+            return call
+
+        for holder, attr, obj in patched:
+            own = f"{obj.py_func.__module__.removeprefix('exo_ctrl.')}.{obj.py_func.__name__}"
+            setattr(holder, attr, capture(own, obj))
+        ticks = []
+        try:
+            for k in range(warm, warm + 40):
+                order.clear()
+                runner.tick(k, k % runner.chunk)
+                ticks.append(list(order))
+        finally:
+            for holder, attr, obj in patched:
+                setattr(holder, attr, obj)
+    finally:
+        for fname, func in pin_originals.items():
+            setattr(pin, fname, func)
+    patterns = [tuple(n for _, n, _ in t) for t in ticks]
+    common = max(set(patterns), key=patterns.count)
+    return runner, ticks[patterns.index(common)]
+
+
+def fusion(name: str, ticks: int) -> dict:
+    """The lower bound of a fused tick of scenario ``name`` (module docstring) [µs]."""
+    out = anatomy(name, ticks)
+    _, calls = _recorded_tick(name)
+    groups: list[list[tuple[str, tuple]]] = [[]]
+    for kind, fname, args in calls:
+        if kind == "library":
+            if groups[-1]:
+                groups.append([])
+        else:
+            groups[-1].append((fname, args))
+    groups = [g for g in groups if g]
+    rows = []
+    for group in groups:
+        apart = 0.0
+        distinct: dict[int, object] = {}
+        for _, args in group:
+            empty = _empty_kernel(len(args))
+            empty(*args)
+            apart += _per_call_us(empty, args)
+            for a in args:
+                distinct.setdefault(id(a), a)
+        args = tuple(distinct.values())
+        empty = _empty_kernel(len(args))
+        empty(*args)
+        rows.append(([f for f, _ in group], len(args), apart, _per_call_us(empty, args)))
+    fused = sum(r[3] for r in rows)
+    apart = sum(r[2] for r in rows)
+    bound = out["floor_us"] + out["kernel_work_us"] + fused
+    out.update(groups=rows, fused_boundary_us=fused, apart_boundary_us=apart, fused_tick_us=bound)
+    return out
+
+
+def _print_fusion(name: str, out: dict) -> None:
+    print(
+        f"{name}: tick {out['tick_us']:.1f} µs (floor {out['floor_us']:.1f}, kernels' work "
+        f"{out['kernel_work_us']:.1f}, boundary {out['boundary_us']:.1f}, Python "
+        f"{out['python_us']:.1f}); {len(out['groups'])} kernel runs between library calls:"
+    )
+    for names, n_args, apart, fused in out["groups"]:
+        short = ", ".join(n.rsplit(".", 1)[-1] for n in names)
+        print(
+            f"  [{short}]: boundary {apart:.2f} µs apart, {fused:.2f} µs in one call "
+            f"({n_args} args)"
+        )
+    print(
+        f"  fused tick at best (floor + work + fused boundaries, no Python): "
+        f"{out['fused_tick_us']:.1f} µs, {out['fused_tick_us'] / out['tick_us']:.2f} of the tick"
+    )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=2400)
@@ -344,7 +467,14 @@ def main() -> int:
     parser.add_argument(
         "--boundary", action="store_true", help="floor, kernels' work, call boundary, Python"
     )
+    parser.add_argument(
+        "--fusion", action="store_true", help="the lower bound of a fused tick (docstring)"
+    )
     args = parser.parse_args()
+    if args.fusion:
+        for name in args.scenarios.split(","):
+            _print_fusion(name.strip(), fusion(name.strip(), args.ticks))
+        return 0
     if args.boundary:
         for name in args.scenarios.split(","):
             _print_anatomy(name.strip(), anatomy(name.strip(), args.ticks))

@@ -37,7 +37,7 @@ __all__ = ["STARTING", "end_result", "new_result", "simulate"]
 #: known compiled for these features (:attr:`Warmup.warm <.warmup.Warmup.warm>`):
 #: loading them can take a second on a loaded machine too.
 STARTING = {
-    False: "compiling kernels, first run only (10-30 s; later runs load them) ...",
+    False: "compiling kernels, first run only (about 10-30 s; later runs load them) ...",
     True: "loading the compiled kernels ...",
 }
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import pinocchio as pin
 import pytest
 
 from exo_ctrl.sim import Runner, SimConfig, build
@@ -50,3 +51,30 @@ def test_the_capture_is_faithful_complete_and_undone(scenario: str) -> None:
         assert calls[name][1] == 1.0, name
     if scenario == "ct_contact":  # the plant's friction solve, a kernel held as an attribute
         assert "plant.contact.friction_impulse" in calls
+
+
+def test_the_fusion_bound_records_one_tick_in_order_and_restores_pinocchio() -> None:
+    """``--fusion``'s record of a PD tick: its kernels and Pinocchio calls in the tick's order.
+
+    The sensors read, the Kalman filter's two CRBA and nonLinearEffects calls on the device's
+    two bodies, its step, the measured row, the PD law, the supervisor's check, the plant's
+    forces, its ABA, its kick and the applied row (tick.py, kalman.py, plant.py): the kernel
+    runs between library calls are what a fused call could compose.
+    """
+    originals = {name: getattr(pin, name) for name in ("aba", "crba", "nonLinearEffects")}
+    _, calls = tool._recorded_tick("pd", warm=WARM)
+    assert [name.rsplit(".", 1)[-1] for _, name, _ in calls] == [
+        "read_device",
+        *("crba", "nonLinearEffects") * 2,
+        "kalman_step",
+        "write_measured",
+        "pd_command",
+        "check_readings",
+        "drift_and_forces",
+        "aba",
+        "kick_and_drift",
+        "write_applied",
+    ]
+    kinds = [kind for kind, _, _ in calls]
+    assert kinds.count("library") == 5 and kinds.count("kernel") == 8
+    assert all(getattr(pin, name) is func for name, func in originals.items())
