@@ -92,10 +92,13 @@ def tracking_controller(
 
 
 def _gait_words(config: SimConfig) -> str:
-    """The gait in words, for a refusal's message."""
+    """The gait in words, for a refusal's message (with the speed profile it adapts along)."""
     step = config.gait.step_length
     shown = f"{step:g} m" if isinstance(step, (int, float)) else str(step)
-    return f"the gait with period {config.gait.period:g} s and step_length {shown}"
+    words = f"the gait with period {config.gait.period:g} s and step_length {shown}"
+    if config.synced and config.speed_profile is not None:
+        words += f" adapted along speed_profile {config.speed_profile.text()}"
+    return words
 
 
 def lift_off_blend_for(config: SimConfig) -> float:

@@ -230,6 +230,20 @@ def test_cli_refuses_before_the_run_naming_bound_margin_and_gait(capsys) -> None
     assert "cuff's margin of" in err and "raise the bound to at least" in err
 
 
+def test_a_synchronised_run_refused_names_the_speed_profile_its_gait_adapts_along(capsys) -> None:
+    """The margin is taken along each profile point's gait: the refusal names the profile."""
+    argv = ["simulate", "--controller", "qp", "--contact", "on", "--sync", "on", "--no-record"]
+    argv += ["--speed-profile", "0:0.45,2:0.7", "--cuff-force-limit", "60"]
+    code = cli.main(argv)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert (
+        "qp.cuff_force_limit_N = 60 N cannot be held on the gait with period 1.2 s and "
+        "step_length 0.35 m adapted along speed_profile 0:0.45,2:0.7: the left_thigh cuff's "
+        "margin of"
+    ) in err
+
+
 def test_kalman_force_std_is_the_covariance_mapped_to_each_cuff() -> None:
     """σ_c = √λ_max(H_c P H_cᵀ), recomputed here from the filter's record."""
     config = SimConfig(controller="qp", belief=Belief(cuffs=CuffParams()))
