@@ -30,14 +30,18 @@ untouched.
 
 ``--fusion`` bounds what a fused tick could gain (design.md §8: a
 configuration's tick as one compiled composition of its stages' kernels
-between the library calls, which numba cannot call).  One tick's calls are
-recorded in order, Pinocchio's and the kernels', and the kernels are grouped
-into the runs between library calls: each group is what one fused call
-would do.  Its boundary is measured as an empty kernel called with the
-group's distinct arguments (a record or an array two kernels share is
-passed once), against the group's kernels' own boundaries.  A fused tick
-keeps the floor and the kernels' work; at best it also loses all the Python
-around the calls: floor + work + the fused boundaries is its lower bound.
+between the library calls, which numba cannot call), on the tick stage by
+stage.  One tick's calls are recorded in order, Pinocchio's and the
+kernels', and the kernels are grouped into the runs between library calls:
+each group is what one fused call would do.  Its boundary is measured as an
+empty kernel called with the group's distinct arguments (a record or an
+array two kernels share is passed once), against the group's kernels' own
+boundaries.  A fused tick keeps the floor and the kernels' work; at best it
+also loses all the Python around the calls: floor + work + the fused
+boundaries is its lower bound.  Beside it, the tick as runs use it (fused
+where :mod:`exo_ctrl.sim.fused` covers the scenario).  ``--boundary`` and
+the timing of the kernels split the tick as runs use it; the stages' costs
+(no option) are of the tick stage by stage.
 """
 
 from __future__ import annotations
@@ -93,10 +97,10 @@ def _wrap(func, name, acc):
 
 
 def profile(name: str, ticks: int) -> dict[str, float]:
-    """Median per-tick cost of each stage of scenario ``name`` [µs]."""
+    """Median per-tick cost of each stage of scenario ``name`` [µs] (the tick stage by stage)."""
     config = SimConfig(**SCENARIOS[name])
     setup = build(config)
-    runner = Runner(setup)
+    runner = Runner(setup, fuse=False)  # the fused tick (sim/fused.py) has no stages to time
     acc: dict[str, int] = defaultdict(int)
     # Stage methods, replaced on the runner's stage tuple and objects.
     read, truth, estimate, command, supervise, step = runner._stages
@@ -277,16 +281,18 @@ def _median_tick(runner: Runner, start: int, n: int) -> tuple[float, float]:
     return float(np.median(samples)) / 1e3, crba / n
 
 
-def anatomy(name: str, ticks: int) -> dict:
+def anatomy(name: str, ticks: int, fuse: bool = True) -> dict:
     """The tick of scenario ``name`` as floor + kernels' work + call boundary + Python [µs].
 
     The ticks are timed before and after the kernels (the machine's speed
-    drifts); the faster median is the tick's figure.
+    drifts); the faster median is the tick's figure.  ``fuse``: the tick as
+    runs use it (fused where :mod:`exo_ctrl.sim.fused` covers the scenario);
+    False: stage by stage.
     """
     from bench import library_floor
 
     setup = build(SimConfig(**SCENARIOS[name]))
-    runner = Runner(setup)
+    runner = Runner(setup, fuse=fuse)
     n = min(ticks, setup.config.n_ticks // 3)
     warm = n // 10
     for k in range(warm):
@@ -377,7 +383,7 @@ def _recorded_tick(name: str, warm: int = 300) -> tuple[Runner, list[tuple[str, 
     for fname, func in pin_originals.items():
         setattr(pin, fname, library(fname, func))
     try:
-        runner = Runner(build(SimConfig(**SCENARIOS[name])))
+        runner = Runner(build(SimConfig(**SCENARIOS[name])), fuse=False)
         for k in range(warm):
             runner.tick(k, k % runner.chunk)
         patched = _kernel_holders(runner)
@@ -410,8 +416,12 @@ def _recorded_tick(name: str, warm: int = 300) -> tuple[Runner, list[tuple[str, 
 
 
 def fusion(name: str, ticks: int) -> dict:
-    """The lower bound of a fused tick of scenario ``name`` (module docstring) [µs]."""
-    out = anatomy(name, ticks)
+    """The lower bound of a fused tick of scenario ``name`` (module docstring) [µs].
+
+    Of the stage-by-stage tick; beside it the tick as runs use it (``tick_used_us``).
+    """
+    out = anatomy(name, ticks, fuse=False)
+    out["tick_used_us"] = anatomy(name, ticks)["tick_us"]
     _, calls = _recorded_tick(name)
     groups: list[list[tuple[str, tuple]]] = [[]]
     for kind, fname, args in calls:
@@ -456,7 +466,8 @@ def _print_fusion(name: str, out: dict) -> None:
         )
     print(
         f"  fused tick at best (floor + work + fused boundaries, no Python): "
-        f"{out['fused_tick_us']:.1f} µs, {out['fused_tick_us'] / out['tick_us']:.2f} of the tick"
+        f"{out['fused_tick_us']:.1f} µs, {out['fused_tick_us'] / out['tick_us']:.2f} of the tick; "
+        f"the tick runs use: {out['tick_used_us']:.1f} µs"
     )
 
 

@@ -78,10 +78,17 @@ class PDController(CommandCounters):
             q, dq = v.arrays((4,), sensors_q=q, sensors_dq=dq)
         status = pd_command(self.record, self._q_des, self._dq_des, self._u_ff, k, q, dq)
         if status:
-            self._refuse(status, k, q, dq)
+            self.refuse(status, k, q, dq)
         return self._u
 
-    def _refuse(self, status: int, k: int, q: np.ndarray, dq: np.ndarray) -> NoReturn:
+    def command_arguments(self) -> tuple[np.ndarray, ...]:
+        """:func:`pd_command`'s arguments before the tick and the readings, for a fused tick.
+
+        (:mod:`exo_ctrl.sim.fused`; the command is then ``record["u_cmd"][0]``.)
+        """
+        return self.record, self._q_des, self._dq_des, self._u_ff
+
+    def refuse(self, status: int, k: int, q: np.ndarray, dq: np.ndarray) -> NoReturn:
         """Raise for a tick :func:`pd_law` refused (its docstring)."""
         rows = self._q_des.shape[0]
         row = self.plan.row(k)

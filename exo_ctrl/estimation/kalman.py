@@ -1,14 +1,12 @@
 r"""Cuff forces from a Kalman filter on the coupled exoskeleton–cuff–patient model.
 
-The momentum observer (:mod:`.observer`) sees only the exoskeleton: two joint
-torques per leg, and an assumption on how the load shares between the two
-cuffs.  This estimator holds the device's whole model instead: the
-exoskeleton's link model, the nominal patient (``setup.device_patient``)
-and the cuff model (normal and shear stiffness and damping,
-:mod:`exo_ctrl.plant.cuffs`).  The cuff forces are then functions of the
-relative displacement and velocity of the cuff points, f = f(q_e, v_e, q_p,
-v_p), so estimating the patient's joint state estimates every component of
-every cuff force, the along-link ones included.
+The momentum observer (:mod:`.observer`) sees only the exoskeleton: two joint torques per leg, and
+an assumption on how the load shares between the two cuffs.  This estimator holds the device's
+whole model instead: the exoskeleton's link model, the nominal patient (``setup.device_patient``)
+and the cuff model (normal and shear stiffness and damping, :mod:`exo_ctrl.plant.cuffs`).  The cuff
+forces are then functions of the relative displacement and velocity of the cuff points, f = f(q_e,
+v_e, q_p, v_p), so estimating the patient's joint state estimates every component of every cuff
+force, the along-link ones included.
 
 **Model** (per leg; the legs hang from a fixed pelvis and do not couple).
 State x = (q_e, q_p, v_e, v_p, d) ∈ ℝ¹⁰: exoskeleton and patient hip and
@@ -57,22 +55,18 @@ of the step just taken (q − ½ h v, v: the estimand is the force over the
 step, as the momentum observer's external torque over the step), their
 normal and along-link components, and τ_ext = J_eᵀ f.
 
-**What is observed** (:data:`COMPONENTS`).  Every component is estimated.
-The joint torques see the shank's normal force and, per leg, one
-combination of the thigh's normal and the shank's along-link force
-(:mod:`.cuff_geometry`); the remaining two components per leg — the
-thigh's along-thigh force and how the hip torque splits between the thigh's
-normal and the shank's along-shank force — come from the cuff model and the
-patient model through the patient's posture: they are model-driven, right
-as far as the device's models are (a misaligned knee, a heavier patient
-than the nominal one, cuffs other than the model's make them wrong).
+**What is observed** (:data:`COMPONENTS`).  Every component is estimated. The joint torques see the
+shank's normal force and, per leg, one combination of the thigh's normal and the shank's along-link
+force (:mod:`.cuff_geometry`); the remaining two components per leg — the thigh's along-thigh force
+and how the hip torque splits between the thigh's normal and the shank's along-shank force — come
+from the cuff model and the patient model through the patient's posture: they are model-driven,
+right as far as the device's models are (a misaligned knee, a heavier patient than the nominal one,
+cuffs other than the model's make them wrong).
 
-**Instrumented cuffs** (``cuff_sensors``): their fresh readings are fused
-after the encoders, one scalar update per axis, with a model-error force per
-measured axis added to the outputs and a bias per measured axis (the
-sensor's offset and drift) told from it by the joint torques
-(:mod:`.kalman_cuff`, :mod:`.kalman_check`); the sensors may be tared at the
-start on request.
+**Instrumented cuffs** (``cuff_sensors``): their fresh readings are fused after the encoders, one
+scalar update per axis, with a model-error force per measured axis added to the outputs and a bias
+per measured axis (the sensor's offset and drift) told from it by the joint torques
+(:mod:`.kalman_cuff`, :mod:`.kalman_check`); the sensors may be tared at the start on request.
 
 **Bad readings.**  A non-finite angle skips that leg's measurement update
 (the covariance grows, the prediction carries on); a non-finite torque
@@ -417,7 +411,7 @@ class CuffForceKalman:
             self.cuff_meas,
         )
         if status:
-            self._answer(status, q, tau)
+            self.answer(status, q, tau)
         return self.force
 
     def bind(self, sensors: SensorReadings) -> Callable[[], np.ndarray]:
@@ -449,14 +443,28 @@ class CuffForceKalman:
                 nle(mp, dp, qp, vp), q, tau, split, meas,
             )  # fmt: skip
             if status:
-                self._answer(status, q, tau)
+                self.answer(status, q, tau)
             return force
 
         return update
 
-    # ------------------------------------------------------------------ internals
+    @property
+    def started(self) -> bool:
+        """Whether the filter has started (its next update steps it)."""
+        return self._started
 
-    def _answer(self, status: int, q: np.ndarray, tau: np.ndarray) -> None:
+    def step_arguments(self) -> tuple[tuple, tuple, tuple]:
+        """What a fused tick (:mod:`exo_ctrl.sim.fused`) calls of :meth:`step`, once started.
+
+        The models, data and state (q, v) of the exoskeleton's and the patient's
+        CRBA and nonLinearEffects calls, then :func:`kalman_step`'s arguments
+        before those four results and after the readings q, τ.
+        """
+        me, de, mp, dp = self._model_e, self._data_e, self._model_p, self._data_p
+        library = (me, de, self._q_e, self._v_e, mp, dp, self._q_p, self._v_p)
+        return library, (self.record, self.cuffs.record), (self.cuffs.split_switch, self.cuff_meas)
+
+    def answer(self, status: int, q: np.ndarray, tau: np.ndarray) -> None:
         """A step's status other than OK: NOT_FINITE restarts the filter, the rest raise."""
         if status == Status.NOT_FINITE.value:
             self._started = False  # the state left the finite numbers: restart at the next readings

@@ -342,18 +342,40 @@ class Plant:
         status = drift_and_forces(self.record, voltage_V, patient_torque_Nm, given, *self._switches)
         if status:
             check(status, "Plant.step", voltage_V=voltage_V, patient_torque_Nm=patient_torque_Nm)
+        self.kicked(kick_and_drift(self.record, self.mid_step(), *self._kick_switches))
+
+    def mid_step(self) -> np.ndarray:
+        """The step after :func:`~.step.drift_and_forces`: t + h, the accelerations at mid-step.
+
+        The kick's accelerations of both bodies (ABA), damping implicit through
+        the armature, which the drift may have changed.
+        """
         if self._changed[0] and not self._pelvis_on:
             self.model.armature = self._arm
-        # Kick: accelerations of both bodies at mid-step, damping implicit
-        # through the armature.
         self.t += self.dt
-        status = kick_and_drift(self.record, self._accelerations(), *self._kick_switches)
-        while self._resolve[0]:  # a drive reached its current limit: at most 4 times
+        return self._accelerations()
+
+    def kicked(self, status: int) -> None:
+        """The step after :func:`~.step.kick_and_drift` returned ``status``.
+
+        A drive that reached its current limit kicks again (at most 4 times);
+        a divergence raises :class:`~exo_ctrl.exceptions.SimulationDiverged`.
+        """
+        while self._resolve[0]:
             if not self._pelvis_on:
                 self.model.armature = self._arm
             status = kick_and_drift(self.record, self._accelerations(), *self._kick_switches)
         if status:
             self._diverged()
+
+    def step_arguments(self) -> tuple[tuple, tuple]:
+        """The step's kernels' arguments for a fused tick (:mod:`exo_ctrl.sim.fused`).
+
+        :func:`~.step.drift_and_forces`'s after the record and the voltage (no
+        patient torque given, the switches) and :func:`~.step.kick_and_drift`'s
+        switches; the fused tick calls them around :meth:`mid_step`, then :meth:`kicked`.
+        """
+        return (self.patient_torque, False, *self._switches), self._kick_switches
 
     def _accelerations(self) -> np.ndarray:
         """ABA's accelerations at mid-step, with the feet's friction impulses if in contact."""

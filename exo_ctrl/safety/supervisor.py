@@ -21,18 +21,15 @@ the emergency-stop time, it stops the gait:
        U_{hold} = \frac{R}{i_G k_m}\,\bigl(g_{exo}(q_h) + g_{patient}(q_h)\bigr)
                 + k_p (q_h - q) - k_d \dot q,
 
-   the first term being the motor model at zero speed
-   (:meth:`MotorBank.voltage_for` with ω = 0) applied to the generalised
-   gravity torques of both bodies at the hold posture (the patient's legs
-   hang in the cuffs, so the drives carry them too; the patient's joint
-   angles are taken equal to the exoskeleton's, as the computed-torque
-   feedforward does).  The command is ramped linearly from the last normal
-   command U_0 to the hold command over ``ramp_s``,
-   U = U_0 + α (U_hold - U_0), α = (t - t_stop) / ramp_s, so the drive
-   torque has no step (a volt across the 0.1 Ω winding is 10 A, 170 N·m).
-   U_0 still carries the back-EMF of the planned speed, so the joints coast
-   on a little before the PD pulls them back (0.085 rad at most for the
-   default e-stop at 0.5 s, back within 0.015 rad by the end of the ramp).
+   the first term being the motor model at zero speed (:meth:`MotorBank.voltage_for` with ω = 0)
+   applied to the generalised gravity torques of both bodies at the hold posture (the patient's
+   legs hang in the cuffs, so the drives carry them too; the patient's joint angles are taken
+   equal to the exoskeleton's, as the computed-torque feedforward does).  The command is ramped
+   linearly from the last normal command U_0 to the hold command over ``ramp_s``, U = U_0 + α
+   (U_hold - U_0), α = (t - t_stop) / ramp_s, so the drive torque has no step (a volt across the
+   0.1 Ω winding is 10 A, 170 N·m). U_0 still carries the back-EMF of the planned speed, so the
+   joints coast on a little before the PD pulls them back (0.085 rad at most for the default
+   e-stop at 0.5 s, back within 0.015 rad by the end of the ramp).
 2. ``"holding"``: U = U_hold.  The hold has failed if a joint leaves the
    posture by more than ``hold_tolerance_rad`` or moves faster than its
    speed limit (checked from the end of the ramp on); then
@@ -222,13 +219,14 @@ class SafetySupervisor:
             motor, sensors, self.dt, self.speed_limit, current_sensor
         )
         self.plausibility_record = plausibility_record(motor, sensors, self.dt)
-        self._checks = bool(plausibility_checks)
+        #: Whether the plausibility monitors run (``plausibility_checks``).
+        self.checks = bool(plausibility_checks)
         if compliant_drives:
             # A compliant joint's sensor reads the spring, τ_d − J_r θ̈ with the rotor's θ̈
             # unmeasured: the rigid drive model's residual carries J_r (θ̈ − q̈) of the rotor's
             # ~42 Hz mode (31 N·m on the default PD run): it, .consistency and .still are off.
             self.plausibility_limits[[0, 4, 5]] = np.finfo(float).max
-        if self._checks:
+        if self.checks:
             self.record["limit"][0][LIMIT_GROUPS:BELT] = self.plausibility_limits
         self._u_sent = self.plausibility_record["u_prev"][0]
         #: The belt monitor (None: no belt).
@@ -270,23 +268,20 @@ class SafetySupervisor:
     ) -> np.ndarray:
         """Check the tick's readings; return the voltages to apply [V], (4,).
 
-        One compiled call (:mod:`.tick_check`; with the belt, the belt
-        monitor's before it); the rest only when the tick did not pass (the stop).
+        One compiled call (:mod:`.tick_check`; with the belt, the belt monitor's before
+        it); the rest only when the tick did not pass (the stop, :meth:`respond`).
 
         Args:
             k: control tick index.
             t: time of the tick [s].
             sensors: the sensor readings the controller saw.
-            cuff_force: cuff forces on the exoskeleton (x, z), (4, 2) [N]
-                (measured or estimated, see ``use_estimate``).
+            cuff_force: cuff forces on the exo (x, z), (4, 2) [N] (measured or estimated).
             current_A: drive currents, (4,) [A] (mean over the last step).
             u_cmd: the controller's voltage command, (4,) [V].
-            command_age_s: the command's age, the time since the readings it
-                was computed from [s] (0: this tick's; the watchdog's input).
+            command_age_s: the time since the command's readings [s] (0: this tick's).
 
         Returns:
-            ``u_cmd`` itself while normal; otherwise the supervisor's own
-            buffer (the stop command), overwritten by the next call.
+            ``u_cmd`` while normal; else its own buffer (the stop command).
 
         Raises:
             InvalidParameter: an input of the wrong shape (named).
@@ -305,23 +300,27 @@ class SafetySupervisor:
         if self._belt is not None:  # its own row; the plausibility monitors' are others
             belt_monitor(*self._belt, rec)
         status = check_readings(
-            f, q, dq, tau, current, u, command_age_s, t, self._checks, self.plausibility_record, rec
+            f, q, dq, tau, current, u, command_age_s, t, self.checks, self.plausibility_record, rec
         )
         if status:
-            self._refuse(status, f, q, dq, tau, current, u)
-        if self._passed[0]:
-            return u_cmd
+            self.refuse(status, f, q, dq, tau, current, u)
+        return u_cmd if self._passed[0] else self.respond(t, sensors, f, u_cmd)
+
+    def respond(
+        self, t: float, sensors: SensorReadings, cuff_force: np.ndarray, u_cmd: np.ndarray
+    ) -> np.ndarray:
+        """:meth:`step`'s answer to a tick whose check did not pass: the stop command [V], (4,)."""
         worst = float(self.record["worst"][0])
         if self.state_code == 0:
             self._start_stop(t, sensors, u_cmd, worst)
         elif not worst <= 0.0:
             self._log_violations(t)
-        out = self._stop_command(t, sensors, f, clean=worst == worst)
+        out = self._stop_command(t, sensors, cuff_force, clean=worst == worst)
         np.copyto(self._u_sent, out)  # what the drives get, for the drive model
         return out
 
     @staticmethod
-    def _refuse(status: int, f: object, *vectors: object) -> None:
+    def refuse(status: int, f: object, *vectors: object) -> None:
         """Raise for the monitor's ``status``, naming the input at fault."""
         names = ("sensors_q", "sensors_dq", "sensors_tau", "current_A", "u_cmd")
         inputs = dict(zip(names, vectors, strict=True))

@@ -109,13 +109,24 @@ class DeviceSensors:
         status = read_device(k, q_true, dq_true, tau_true, *self._args)
         if status:
             check(status, "Sensors.read", q_true=q_true, dq_true=dq_true, tau_true=tau_true)
+        self.refill()
+        return self.readings
+
+    def read_arguments(self) -> tuple:
+        """:func:`read_device`'s arguments after the truth, for a fused tick.
+
+        (:mod:`exo_ctrl.sim.fused`; after such a call, :meth:`refill`.)
+        """
+        return self._args
+
+    def refill(self) -> None:
+        """Draw the next block of noise of each sensor whose block the last read used up."""
         if self._joints_depleted[0]:
             self.joints.draw()
         if self._currents_depleted[0]:
             self.currents.draw()
         if self.cuffs is not None and self.cuffs.record["depleted"][0]:
             self.cuffs.draw()
-        return self.readings
 
 
 @kernel

@@ -98,7 +98,7 @@ _UNITS = {
 #: What a ``belt_stop`` needs (the message of its refusal without the belt).
 BELT_STOP_NEEDS = "a fault of a part the run models: the belt exists with contact on only"
 
-#: Fields of the injector's readings record (what :func:`~exo_ctrl.sim.tick.write_measured`
+#: Fields of the injector's readings record (what :func:`~exo_ctrl.sim.log_rows.write_measured`
 #: logs): ``q`` [rad], ``dq`` [rad/s], ``tau`` [N·m].
 READING_FIELDS = [("q", np.float64, (4,)), ("dq", np.float64, (4,)), ("tau", np.float64, (4,))]
 

@@ -60,7 +60,9 @@ def simulate(
             recorded runs; ``result.t`` is then empty).
         warmup: on the first run of these features after an install, compile
             the tick's kernels in two processes (:mod:`exo_ctrl.sim.warmup`;
-            the CLI's choice; results are the same either way).
+            the CLI's choice; results are the same either way).  Once a run of
+            these features has completed, the tick is fused where the
+            configuration allows (:mod:`exo_ctrl.sim.fused`; the same, bit for bit).
 
     Returns:
         The result; ``status`` says whether it completed.  A divergence or
@@ -74,7 +76,10 @@ def simulate(
     helper = Warmup(config, enabled=warmup)
     result = None
     try:
-        result = _run(config, observers, progress, keep_history, STARTING[helper.warm])
+        # The first run of these features goes stage by stage: composing the fused tick's
+        # calls (sim/fused.py) compiles for 1-3 s more; its helper compiles them last.
+        fuse = helper.warm
+        result = _run(config, observers, progress, keep_history, STARTING[helper.warm], fuse)
     finally:
         helper.finish(result is not None and result.status == "completed")
     return result
@@ -86,10 +91,14 @@ def _run(
     progress: bool,
     keep_history: bool,
     starting: str,
+    fuse: bool = True,
 ) -> SimResult:
-    """:func:`simulate`'s run, the helper left out; ``starting``: the start-up's notice."""
+    """:func:`simulate`'s run, the helper left out; ``starting``: the start-up's notice.
+
+    ``fuse``: the tick fused where the configuration allows (:mod:`exo_ctrl.sim.fused`).
+    """
     setup = build(config)
-    runner = Runner(setup)
+    runner = Runner(setup, fuse=fuse)
     n = config.n_ticks
     hist_n = n if keep_history else 0
     result = new_result(setup, hist_n)

@@ -5,7 +5,7 @@ Each tick writes one row of a structured array whose fields are the
 :func:`~exo_ctrl.record.read_recording` and ``exo-ctrl estimate`` all take
 their signals from this table.  Adding a signal is one entry here plus the
 code that computes it (and writes it into the row: the tick writes by name,
-:func:`exo_ctrl.sim.tick.write_row`).
+:mod:`exo_ctrl.sim.log_rows`).
 
 Row k holds the state at t_k and what acted over [t_k, t_k+1): command,
 applied voltage, mean current, drive torque, cuff force (at mid-step).

@@ -7,14 +7,17 @@ them, and the plant advances by Δt (in ``plant_substeps`` equal steps) with
 the voltages held.  Each stage is called through its public per-tick
 method, a compiled kernel or a Pinocchio call with little Python around it;
 the rare branches (the supervisor stopping, a QP tick that calls proxsuite)
-are ordinary branches inside those methods.
+are ordinary branches inside those methods.  Where the configuration allows,
+the same stages' kernels run composed into two compiled calls between the
+library calls (:mod:`exo_ctrl.sim.fused`; bit for bit the same tick).
 
 The tick writes row ``row`` of a structured log array whose fields are the
 declared signals (:mod:`exo_ctrl.sim.schema`), by name, from the stages'
-records, in two compiled calls: :func:`write_measured` (the state at t_k and
-what the device measured and estimated) before the command, and
-:func:`write_applied` (the command, what acted over [t_k, t_k+1), the belt,
-the feet and the pelvis) after the plant step.
+records, in two compiled calls (:mod:`exo_ctrl.sim.log_rows`):
+:func:`write_measured` (the state at t_k and what the device measured and
+estimated) before the command, and :func:`write_applied` (the command, what
+acted over [t_k, t_k+1), the belt, the feet and the pelvis) after the plant
+step.
 
 **Cost.**  A compiled call costs its dispatch, about 0.3 µs plus 0.05 µs per
 array argument and 0.17 µs per record argument on these machines, and a
@@ -27,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import kernel, record
+from .._jit import record
 from ..control.modes.path import PathController
 from ..estimation import CuffForceEstimator, CuffForceKalman, EstimatorDevice, PluginEstimator
 from ..plan.online import online_step, write_plan
@@ -45,6 +48,8 @@ from ..sensing import (
 )
 from ..sensing.belt_encoder import read_belt
 from .faults import FaultInjector
+from .fused import FusedTick
+from .log_rows import write_applied, write_measured
 from .schema import log_dtype
 from .setup import Setup, patient_torque_for, start_on_plan
 from .supervision import build_supervisor
@@ -84,10 +89,13 @@ class Runner:
         start: put the plant on the plan's first row (:func:`~exo_ctrl.sim.setup.start_on_plan`);
             False only for :mod:`exo_ctrl.sim.warmup`'s helper, which compiles and never runs
             (nor loads the cuff-load monitor's kernels ahead).
+        fuse: run the tick as compiled compositions of the stages' kernels where the
+            configuration allows (:mod:`exo_ctrl.sim.fused`; equal to the stage-by-stage
+            tick, bit for bit); False: stage by stage always.
 
     """
 
-    def __init__(self, setup: Setup, start: bool = True) -> None:
+    def __init__(self, setup: Setup, start: bool = True, fuse: bool = True) -> None:
         self.setup = setup
         config = setup.config
         plant = setup.plant
@@ -239,10 +247,15 @@ class Runner:
             self.foot_load.record,
         )
         self._current = self.current_sensor.current
+        #: The fused tick (:mod:`exo_ctrl.sim.fused`; None: stage by stage).
+        self.fused = FusedTick.of(self) if fuse else None
 
     def tick(self, k: int, row: int) -> None:
         """Run control tick ``k``, logging into row ``row`` of :attr:`log`."""
-        self.act(k, row, self.measure(k, row))
+        if self.fused is not None:
+            self.fused.tick(k, row)
+        else:
+            self.act(k, row, self.measure(k, row))
 
     def measure(self, k: int, row: int) -> SensorReadings:
         """Tick ``k``'s first half: the sensors read, the estimate made, row ``row`` begun.
@@ -293,7 +306,9 @@ class Runner:
         estimator's step (the largest, some 3 s); so the helper takes them
         the other way round: the plan's rows, the estimator's step (its first
         call starts it, the second steps), the applied row, the plant's step,
-        the supervisor, the controller.  The values are the unstarted run's
+        the supervisor, the controller; then the fused tick's two calls
+        (:mod:`exo_ctrl.sim.fused`), which the first run of a feature set leaves
+        to later runs (:func:`~exo_ctrl.sim.loop.simulate`).  The values are the unstarted run's
         (zeros): what they compute is thrown away.
         """
         _, _, estimate, command, supervise, step = self._stages
@@ -309,6 +324,8 @@ class Runner:
         if supervise is not None:
             supervise(0, 0.0, self.sensors, self._sup_force, self._current, u, 0.0)
         command(0, self.sensors)
+        if self.fused is not None:
+            self.fused.preload()
 
     def _belt_tick(self, k: int, row: int, q_meas: np.ndarray) -> None:
         """Tick ``k``'s belt set speed and rate, its encoder and drive read; the plan's row."""
@@ -374,101 +391,3 @@ class Runner:
         index = plan.rows(start, rows)
         self.buf["q_des"][:rows] = plan.q[index]
         self.buf["dq_des"][:rows] = plan.dq[index]
-
-
-@kernel
-def write_measured(log, row, plant, readings, estimate, cuffs):
-    """The state at t_k and what the device measured and estimated, into log row ``row``.
-
-    ``plant``, ``readings``, ``estimate``: the records of the plant, the
-    sensors and the estimator (fields ``q``, ``v`` (8: exo, patient);
-    ``q``, ``dq``, ``tau``; ``tau_ext``, ``cuff_normal``, ``cuff_force``);
-    ``cuffs``: the cuff sensors' readings record (an axis not read: 0).
-    """
-    r = log[row]
-    p = plant[0]
-    s = readings[0]
-    e = estimate[0]
-    c = cuffs[0]
-    r.cuff_sensor_fresh = c.fresh
-    for j in range(4):
-        r.cuff_sensor_normal[j] = c.reading[j, 0] if c.axes > 0 else 0.0
-        r.cuff_sensor_along[j] = c.reading[j, 1] if c.axes > 1 else 0.0
-    for j in range(4):
-        r.q[j] = p.q[j]
-        r.q_patient[j] = p.q[4 + j]
-        r.dq[j] = p.v[j]
-        r.dq_patient[j] = p.v[4 + j]
-        r.q_meas[j] = s.q[j]
-        r.dq_meas[j] = s.dq[j]
-        r.tau_sensor[j] = s.tau[j]
-        r.tau_ext_est[j] = e.tau_ext[j]
-        r.cuff_normal_est[j] = e.cuff_normal[j]
-        r.cuff_force_est[j, 0] = e.cuff_force[j, 0]
-        r.cuff_force_est[j, 1] = e.cuff_force[j, 1]
-
-
-@kernel
-def write_applied(log, row, controller, supervisor, plant, encoder, phase, foot):
-    """The command and what acted over [t_k, t_k+1), into log row ``row``.
-
-    ``controller``: its record (``u_cmd``, ``active_constraints``,
-    ``failures``, ``margin``); ``supervisor``: its record (``state``); ``plant``: its
-    record (``voltage``, ``current``, ``drive_torque``, ``patient_torque``,
-    ``stop_torque``, ``deflection``, ``cuff_force``; ``contact``,
-    :mod:`exo_ctrl.plant.contact`, all zero with contact off; ``patient_feet``,
-    :mod:`exo_ctrl.plant.patient_feet`, zero with them off; ``pelvis``,
-    height and speed zero when fixed); ``encoder``: the belt encoder's
-    record (``speed``); ``phase``: the path mode's record, whose ``row`` is
-    the plan row of the device's phase (-1 in other modes); ``foot``: the
-    foot plates' load cells' record.
-    """
-    r = log[row]
-    c = controller[0]
-    p = plant[0]
-    r.safety_state = supervisor[0].state
-    r.qp_active = c.active_constraints
-    r.qp_failures = c.failures
-    for j in range(4):
-        r.voltage_cmd[j] = c.u_cmd[j]
-        r.cuff_bound_margin[j] = c.margin[j]
-        r.voltage[j] = p.voltage[j]
-        r.current[j] = p.current[j]
-        r.drive_torque[j] = p.drive_torque[j]
-        r.patient_torque[j] = p.patient_torque[j]
-        r.end_stop_torque[j] = p.stop_torque[j]
-        r.joint_deflection[j] = p.deflection[j]
-        r.cuff_force[j, 0] = p.cuff_force[j, 0]
-        r.cuff_force[j, 1] = p.cuff_force[j, 1]
-    ct = p.contact
-    b = ct.belt
-    for f in range(2):
-        r.ground_force[f, 0] = ct.ft[f]
-        r.ground_force[f, 1] = ct.fn[f]
-        r.foot_slip[f] = ct.slip[f]
-        r.foot_penetration[f] = ct.pen[f]
-        r.contact_state[f] = ct.state[f]
-        r.normal_force_rate[f] = ct.fn_rate[f]
-        r.touchdown_velocity[f, 0] = ct.td_vx[f]
-        r.touchdown_velocity[f, 1] = ct.td_vz[f]
-    pf = p.patient_feet  # zero unless the patient's feet meet the belt
-    for f in range(2):
-        r.patient_ground_force[f, 0] = pf.ft[f]
-        r.patient_ground_force[f, 1] = pf.fn[f]
-        r.patient_foot_slip[f] = pf.slip[f]
-        r.patient_foot_penetration[f] = pf.pen[f]
-        r.patient_contact_state[f] = pf.state[f]
-    r.belt_speed = b.v
-    r.belt_speed_set = b.v_set
-    r.belt_speed_meas = encoder[0].speed
-    r.belt_drive_force = b.f_drive
-    r.path_phase = phase[0].row
-    fl = foot[0]
-    for j in range(2):
-        r.foot_force_meas[j, 0] = fl.force[j, 0]
-        r.foot_force_meas[j, 1] = fl.force[j, 1]
-    for j in range(4):
-        r.tau_ground_meas[j] = fl.tau[j]
-    r.pelvis_z = p.pelvis.z
-    r.pelvis_vz = p.pelvis.vz
-    r.pelvis_stop_force = p.pelvis.stop_force

@@ -437,7 +437,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
         rec, model, sw = self.record, self._model_rec, self.cuff_model.split_switch
         status = front(rec, model, self._q_des, self._dq_des, self._u_ff, k, q, dq)
         if status:
-            self._refuse(status, k, q, dq)
+            self.refuse(status, k, q, dq)
         pin_model, pin_data = self._pin
         mass = pin.crba(pin_model, pin_data, self._q_all)
         nle = pin.nonLinearEffects(pin_model, pin_data, self._q_all, self._v_all)

@@ -1,0 +1,315 @@
+"""A configuration's tick as compiled compositions of its stages' kernels (design.md §8).
+
+numba cannot call Pinocchio, so a tick's kernels compose only between its
+library calls.  For the PD or CT controller with the Kalman filter, the
+pelvis fixed and no belt (no faults, one plant step a tick, no
+patient-torque model; with or without the safety supervisor) the tick of
+:class:`~exo_ctrl.sim.tick.Runner` is, here:
+
+1. the filter's four Pinocchio calls (CRBA and nonLinearEffects of both
+   bodies at its last posterior);
+2. :func:`middle`, one compiled call: the sensors' read, the filter's step,
+   the measured log row, the PD law, the supervisor's check, the plant's
+   drift and forces;
+3. the plant's mid-step, ABA (:meth:`~exo_ctrl.plant.Plant.mid_step`);
+4. :func:`end`, one compiled call: the plant's kick and the applied log row.
+
+The stages' kernels are called with the arguments, in the order, the
+stage-by-stage tick calls them, but for two pieces that touch nothing the
+others use: the filter's library calls, on its own state, come before the
+sensors' read instead of after it, and the supervisor's cuff-load monitor,
+on the readings and its own state, after the plant's drift instead of
+before it.  A composed call stops at the first kernel that does
+not answer OK, at a check that does not pass (the supervisor's stop) or at a
+drive that reaches its current limit, and returns which: the tick then goes
+on stage by stage from there, as the stage's own method does.  So the fused
+tick is the stage-by-stage tick on every branch, bit for bit
+(``tests/sim/test_fused.py``).  The filter's first tick, which starts it,
+runs stage by stage.  What it gains: docs/performance.md, "The fused tick".
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .._jit import check, kernel, preload
+from ..control.computed_torque import ComputedTorqueController
+from ..control.pd import PDController, pd_command
+from ..estimation import CuffForceKalman
+from ..estimation.kalman_step import kalman_step
+from ..plan.online import online_step, write_plan
+from ..plant.step import drift_and_forces, kick_and_drift
+from ..safety import SafetySupervisor
+from ..safety.belt_monitor import belt_monitor
+from ..safety.tick_check import check_readings
+from ..sensing.belt_encoder import read_belt
+from ..sensing.device import read_device
+from ..sensing.foot_load import read_foot_load
+from .log_rows import write_applied, write_measured
+
+__all__ = ["FusedTick", "end", "middle"]
+
+#: :func:`middle`'s stop codes: the stage that stopped it, times 16, plus its kernel's status.
+READ, PLAN, ESTIMATE, COMMAND, CHECK, STOP, DRIFT = 16, 32, 48, 64, 80, 96, 112
+
+
+class FusedTick:
+    """The fused tick of a runner whose configuration it covers (module docstring).
+
+    Build it with :meth:`of` from a :class:`~exo_ctrl.sim.tick.Runner`, which
+    says None for a configuration it does not cover; :meth:`tick` then runs
+    tick ``k`` into row ``row`` as :meth:`Runner.tick <exo_ctrl.sim.tick.Runner.tick>`
+    does, on the runner's stages and log.
+    """
+
+    def __init__(self, runner: Any) -> None:
+        self.runner = runner
+        _, self._truth, _, _, _, _ = runner._stages
+        self._device = runner._device_sensors
+        self._est: CuffForceKalman = runner.estimator  # type: ignore[assignment]
+        self._plant = plant = runner.setup.plant
+        self._sup = sup = runner.supervisor
+        self._ctrl: PDController = runner.setup.controller  # type: ignore[assignment]
+        self._library, before, after = self._est.step_arguments()
+        self._readings = readings = runner.sensors
+        self._foot = runner.foot_load if runner._est_in is not None else None
+        self._tau_est = readings.tau if self._foot is None else self._foot.tau_known
+        drift, kick = plant.step_arguments()
+        self._u = self._ctrl.record["u_cmd"][0]
+        self._online = runner._online
+        belt: tuple[Any, ...] = (None, None, None, None, None, None, None, None)
+        if self._foot is not None:
+            belt = (
+                runner._belt,
+                runner._belt_speed,
+                runner.belt_encoder.record,
+                runner.belt_encoder.speed,
+                runner.belt_drive_force,
+                None if self._online is None else self._online.record,
+                runner._plate_load,
+                self._foot.record,
+            )
+        checking: tuple[Any, ...] = (None, np.zeros((4, 2)), np.zeros(4), False, None, None)
+        if sup is not None:
+            watch = sup.belt.args if sup.belt is not None else None
+            force, current = runner._sup_force, runner._current
+            checking = (sup.record, force, current, sup.checks, sup.plausibility_record, watch)
+        self._middle = (
+            *self._truth,
+            *self._device.read_arguments(),
+            *belt,
+            plant.contact.record,
+            *before,
+            readings.q,
+            self._tau_est,
+            *after,
+            runner.log,
+            *runner._measured,
+            *self._ctrl.command_arguments(),
+            readings.dq,
+            readings.tau,
+            *checking,
+            self._u,
+            *drift,
+        )
+        self._end = (*kick, runner.log)
+        self._applied = runner._applied
+        self._dt = runner._dt
+
+    @classmethod
+    def of(cls, runner: Any) -> FusedTick | None:
+        """The fused tick of ``runner``, or None where its configuration is not covered.
+
+        Covered: the PD or CT controller (not CT on the synchronised plan, whose
+        row's feedforward takes two RNEA calls a tick), the Kalman filter, the
+        supervisor or none, no faults, one plant step a tick without a
+        patient-torque model, the pelvis fixed, the belt on or off (the
+        patient's feet off).
+        """
+        setup = runner.setup
+        plant = setup.plant
+        covered = (
+            runner.faults is None
+            and type(runner.estimator) is CuffForceKalman
+            and type(setup.controller) in (PDController, ComputedTorqueController)
+            and runner._refresh is None
+            and (runner.supervisor is None or type(runner.supervisor) is SafetySupervisor)
+            and runner._stages[5] is not None  # one plant step, no patient-torque model
+            and not plant.pelvis_params.supported
+            and runner._shoes is None
+        )
+        return cls(runner) if covered else None
+
+    def preload(self) -> None:
+        """Compile (or load) :func:`middle` and :func:`end` for this run, running neither.
+
+        For the first run's compile helper (:mod:`exo_ctrl.sim.warmup`), after the
+        stages' own kernels, which both call.
+        """
+        me, de, qe, ve, mp, dp, qp, vp = self._library
+        library = (pin.crba(me, de, qe), pin.nonLinearEffects(me, de, qe, ve))
+        library += (pin.crba(mp, dp, qp), pin.nonLinearEffects(mp, dp, qp, vp))
+        preload(middle, 0, 0.0, 0, *library, *self._middle)
+        acc = np.zeros(self._plant.q.shape[0])
+        preload(end, self._plant.record, acc, *self._end, 0, *self._applied)
+
+    def tick(self, k: int, row: int) -> None:
+        """Run control tick ``k`` into row ``row`` of the runner's log."""
+        runner = self.runner
+        if not self._est.started:  # the filter's start: the tick stage by stage
+            runner.act(k, row, runner.measure(k, row))
+            return
+        me, de, qe, ve, mp, dp, qp, vp = self._library
+        t = k * self._dt
+        code = middle(
+            k,
+            t,
+            row,
+            pin.crba(me, de, qe),
+            pin.nonLinearEffects(me, de, qe, ve),
+            pin.crba(mp, dp, qp),
+            pin.nonLinearEffects(mp, dp, qp, vp),
+            *self._middle,
+        )
+        self._device.refill()
+        foot = self._foot
+        if foot is not None and foot.record["depleted"][0]:
+            foot.draw()
+        if code:
+            self._resume(code, k, t, row)
+            return
+        self._normal_tail(k, t)
+        plant = self._plant
+        status = end(plant.record, plant.mid_step(), *self._end, row, *self._applied)
+        if status:
+            plant.kicked(status - 1)
+            write_applied(runner.log, row, *self._applied)
+
+    # ------------------------------------------------------------------ the stage path
+
+    def _resume(self, code: int, k: int, t: float, row: int) -> None:
+        """Go on stage by stage after :func:`middle` stopped with ``code``."""
+        stage, status = code & ~15, code & 15
+        runner, readings = self.runner, self._readings
+        q, dq, tau = readings.q, readings.dq, readings.tau
+        if stage == READ:
+            q_true, dq_true, tau_true = self._truth
+            check(status, "Sensors.read", q_true=q_true, dq_true=dq_true, tau_true=tau_true)
+        elif stage == PLAN:  # the generator's own step raises with the reason
+            speed, load = float(runner.belt_encoder.speed[0]), runner._plate_load
+            self._online.step(k, speed, q, load)  # type: ignore[union-attr]
+        elif stage == ESTIMATE:
+            self._est.answer(status, q, self._tau_est)
+            write_measured(runner.log, row, *runner._measured)
+            runner.act(k, row, readings)
+        elif stage == COMMAND:
+            self._ctrl.refuse(status, k, q, dq)
+        elif stage == CHECK:
+            SafetySupervisor.refuse(status, runner._sup_force, q, dq, tau, runner._current, self._u)
+        elif stage == STOP:
+            sup = self._sup
+            u = sup.respond(t, readings, runner._sup_force, self._u)  # type: ignore[union-attr]
+            if runner._stop_pending and sup.state_code:  # type: ignore[union-attr]
+                runner._device_stop(k)
+            self._normal_tail(k, t)
+            self._plant.step(u)
+            write_applied(runner.log, row, *self._applied)
+        else:  # DRIFT: the plant refused its input
+            torque = self._plant.patient_torque
+            check(status, "Plant.step", voltage_V=self._u, patient_torque_Nm=torque)
+
+    def _normal_tail(self, k: int, t: float) -> None:
+        """The supervisor's cuff-load monitor on its normal ticks, as :meth:`Runner.act`."""
+        load, sup = self.runner.cuff_load, self._sup
+        if load is not None and sup is not None and not sup.state_code:
+            load.step(k, t, self._readings.q, self._readings.dq, sup.events)
+
+
+@kernel
+def middle(
+    k, t, row, m_e, h_e, m_p, h_p,
+    q_true, dq_true, tau_true, joints, current_true, currents, cuff_truth, cuff_sensors, cuff_out,
+    belt, belt_speed, encoder, encoder_speed, drive_force, generator, plate_load, foot, contact,
+    est, cuffs, q, tau_est, split, meas,
+    log, plant, readings, estimate, cuff_readings,
+    ctrl, q_des, dq_des, u_ff, dq, tau,
+    sup, force, current, checks, plausibility, watch,
+    u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet,
+):  # fmt: skip
+    """The read, the belt, the filter's step, the measured row, the PD law, the check, the drift.
+
+    In :class:`~exo_ctrl.sim.tick.Runner`'s order (module docstring); ``belt``
+    None: no belt (its arguments unused), ``generator`` None: the precomputed
+    plan, ``sup`` None: no supervisor, ``watch`` None: no belt monitor.
+    Returns 0 when every kernel answered OK and the check passed, else the
+    stage that stopped it (:data:`READ` … :data:`DRIFT`) plus its status.
+    """
+    s = read_device(
+        k, q_true, dq_true, tau_true, joints, current_true, currents, cuff_truth, cuff_sensors,
+        cuff_out,
+    )  # fmt: skip
+    if s != 0:
+        return READ + s
+    if belt is not None:  # Runner._belt_tick, then the foot plates' read
+        b = belt[0]
+        b.v_set = belt_speed[k, 0]
+        b.a_set = belt_speed[k, 1]
+        read_belt(encoder, k, belt)
+        drive_force[0] = b.f_motor
+        if generator is not None:
+            s = online_step(generator, k, encoder_speed[0], q, plate_load)
+            if s != 0:
+                return PLAN + s
+            write_plan(log, row, generator)
+        read_foot_load(foot, contact, q, tau)
+    s = kalman_step(est, cuffs, m_e, h_e, m_p, h_p, q, tau_est, split, meas)
+    if s != 0:
+        return ESTIMATE + s
+    write_measured(log, row, plant, readings, estimate, cuff_readings)
+    s = pd_command(ctrl, q_des, dq_des, u_ff, k, q, dq)
+    if s != 0:
+        return COMMAND + s
+    if sup is not None:
+        if watch is not None:
+            belt_monitor(watch[0], watch[1], watch[2], watch[3], sup)
+        s = check_readings(force, q, dq, tau, current, u, 0.0, t, checks, plausibility, sup)
+        if s != 0:
+            return CHECK + s
+        if not sup[0].passed:
+            return STOP
+    s = drift_and_forces(plant, u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet)
+    if s != 0:
+        return DRIFT + s
+    return 0
+
+
+@kernel
+def end(
+    plant,
+    acc,
+    s_pelvis,
+    s_contact,
+    s_compliant,
+    s_feet,
+    log,
+    row,
+    ctrl,
+    sup,
+    plant_again,
+    encoder,
+    phase,
+    foot,
+):
+    """The plant's kick, then the applied row: 0, or 1 + the kick's status where the row waits.
+
+    The row waits for the plant's own answer where the kick did not answer OK
+    or a drive reached its current limit (the step kicks again).
+    """
+    s = kick_and_drift(plant, acc, s_pelvis, s_contact, s_compliant, s_feet)
+    if s != 0 or plant[0].resolve:
+        return s + 1
+    write_applied(log, row, ctrl, sup, plant_again, encoder, phase, foot)
+    return 0
