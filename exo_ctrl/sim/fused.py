@@ -62,7 +62,10 @@ class FusedTick:
     Build it with :meth:`of` from a :class:`~exo_ctrl.sim.tick.Runner`, which
     says None for a configuration it does not cover; :meth:`tick` then runs
     tick ``k`` into row ``row`` as :meth:`Runner.tick <exo_ctrl.sim.tick.Runner.tick>`
-    does, on the runner's stages and log.
+    does, on the runner's stages and log.  It is the runner's own tick,
+    composed: it holds the runner's pieces (its stages' records and arrays,
+    its log and buffers) as the runner looked them up, and calls back into
+    its stage-by-stage tick where a composed call stops.
     """
 
     def __init__(self, runner: Any) -> None:
