@@ -1,17 +1,20 @@
 """A configuration's tick as compiled compositions of its stages' kernels (design.md §8).
 
 numba cannot call Pinocchio, so a tick's kernels compose only between its
-library calls.  For the PD or CT controller with the Kalman filter, the
-pelvis fixed and no belt (no faults, one plant step a tick, no
-patient-torque model; with or without the safety supervisor) the tick of
-:class:`~exo_ctrl.sim.tick.Runner` is, here:
+library calls.  For the PD or CT controller with the Kalman filter (the
+configurations :meth:`FusedTick.of` lists: the default scenario among them)
+the tick of :class:`~exo_ctrl.sim.tick.Runner` is, here:
 
 1. the filter's four Pinocchio calls (CRBA and nonLinearEffects of both
    bodies at its last posterior);
-2. :func:`middle`, one compiled call: the sensors' read, the filter's step,
-   the measured log row, the PD law, the supervisor's check, the plant's
-   drift and forces;
-3. the plant's mid-step, ABA (:meth:`~exo_ctrl.plant.Plant.mid_step`);
+2. :func:`middle`, one compiled call: the sensors' read; with the belt its
+   encoder, the synchronised plan's row, the foot plates and the patient's
+   shoes; the filter's step, the measured log row, the PD law, the belt
+   monitor and the supervisor's check, the plant's drift and forces (CT on
+   the synchronised plan: :func:`front` up to the plan's row, its
+   feedforward's two RNEA calls, :func:`rest`);
+3. the plant's mid-step (:meth:`~exo_ctrl.plant.Plant.mid_step`: ABA; the
+   pelvis's guide, a foot's CRBA and friction impulses);
 4. :func:`end`, one compiled call: the plant's kick and the applied log row.
 
 The stages' kernels are called with the arguments, in the order, the
@@ -47,10 +50,10 @@ from ..safety.belt_monitor import belt_monitor
 from ..safety.tick_check import check_readings
 from ..sensing.belt_encoder import read_belt
 from ..sensing.device import read_device
-from ..sensing.foot_load import read_foot_load
+from ..sensing.foot_load import read_foot_load, read_shoe_load
 from .log_rows import write_applied, write_measured
 
-__all__ = ["FusedTick", "end", "middle"]
+__all__ = ["FusedTick", "end", "front", "middle", "rest"]
 
 #: :func:`middle`'s stop codes: the stage that stopped it, times 16, plus its kernel's status.
 READ, PLAN, ESTIMATE, COMMAND, CHECK, STOP, DRIFT = 16, 32, 48, 64, 80, 96, 112
@@ -83,7 +86,8 @@ class FusedTick:
         drift, kick = plant.step_arguments()
         self._u = self._ctrl.record["u_cmd"][0]
         self._online = runner._online
-        belt: tuple[Any, ...] = (None, None, None, None, None, None, None, None)
+        belt: tuple[Any, ...] = (None,) * 7
+        feet: tuple[Any, ...] = (None, None)
         if self._foot is not None:
             belt = (
                 runner._belt,
@@ -93,17 +97,23 @@ class FusedTick:
                 runner.belt_drive_force,
                 None if self._online is None else self._online.record,
                 runner._plate_load,
-                self._foot.record,
             )
+            shoes = plant.record["patient_feet"] if runner._shoes is not None else None
+            feet = (self._foot.record, shoes)
         checking: tuple[Any, ...] = (None, np.zeros((4, 2)), np.zeros(4), False, None, None)
         if sup is not None:
             watch = sup.belt.args if sup.belt is not None else None
             force, current = runner._sup_force, runner._current
             checking = (sup.record, force, current, sup.checks, sup.plausibility_record, watch)
-        self._middle = (
+        self._front = (
             *self._truth,
             *self._device.read_arguments(),
             *belt,
+            runner.log,
+            readings.q,
+        )
+        self._rest = (
+            *feet,
             plant.contact.record,
             *before,
             readings.q,
@@ -119,6 +129,7 @@ class FusedTick:
             *drift,
         )
         self._end = (*kick, runner.log)
+        self._refresh = runner._refresh
         self._applied = runner._applied
         self._dt = runner._dt
 
@@ -126,23 +137,20 @@ class FusedTick:
     def of(cls, runner: Any) -> FusedTick | None:
         """The fused tick of ``runner``, or None where its configuration is not covered.
 
-        Covered: the PD or CT controller (not CT on the synchronised plan, whose
-        row's feedforward takes two RNEA calls a tick), the Kalman filter, the
-        supervisor or none, no faults, one plant step a tick without a
-        patient-torque model, the pelvis fixed, the belt on or off (the
-        patient's feet off).
+        Covered: the PD or CT controller, the Kalman filter, the supervisor or
+        none, no faults, one plant step a tick without a patient-torque model;
+        the belt on or off, the plan synchronised or not (CT's row on the
+        synchronised plan takes two RNEA calls between :func:`front` and
+        :func:`rest`), the pelvis fixed or supported, the patient's feet on the
+        belt or not.
         """
         setup = runner.setup
-        plant = setup.plant
         covered = (
             runner.faults is None
             and type(runner.estimator) is CuffForceKalman
             and type(setup.controller) in (PDController, ComputedTorqueController)
-            and runner._refresh is None
             and (runner.supervisor is None or type(runner.supervisor) is SafetySupervisor)
             and runner._stages[5] is not None  # one plant step, no patient-torque model
-            and not plant.pelvis_params.supported
-            and runner._shoes is None
         )
         return cls(runner) if covered else None
 
@@ -155,7 +163,11 @@ class FusedTick:
         me, de, qe, ve, mp, dp, qp, vp = self._library
         library = (pin.crba(me, de, qe), pin.nonLinearEffects(me, de, qe, ve))
         library += (pin.crba(mp, dp, qp), pin.nonLinearEffects(mp, dp, qp, vp))
-        preload(middle, 0, 0.0, 0, *library, *self._middle)
+        if self._refresh is None:
+            preload(middle, 0, 0.0, 0, *library, *self._front, *self._rest)
+        else:
+            preload(front, 0, 0, *self._front)
+            preload(rest, 0, 0.0, 0, *library, *self._rest)
         acc = np.zeros(self._plant.q.shape[0])
         preload(end, self._plant.record, acc, *self._end, 0, *self._applied)
 
@@ -167,16 +179,20 @@ class FusedTick:
             return
         me, de, qe, ve, mp, dp, qp, vp = self._library
         t = k * self._dt
-        code = middle(
-            k,
-            t,
-            row,
+        library = (
             pin.crba(me, de, qe),
             pin.nonLinearEffects(me, de, qe, ve),
             pin.crba(mp, dp, qp),
             pin.nonLinearEffects(mp, dp, qp, vp),
-            *self._middle,
         )
+        refresh = self._refresh
+        if refresh is None:
+            code = middle(k, t, row, *library, *self._front, *self._rest)
+        else:  # the synchronised plan's row feeds CT's feedforward forward: two RNEA calls
+            code = front(k, row, *self._front)
+            if not code:
+                refresh()
+                code = rest(k, t, row, *library, *self._rest)
         self._device.refill()
         foot = self._foot
         if foot is not None and foot.record["depleted"][0]:
@@ -232,23 +248,18 @@ class FusedTick:
 
 
 @kernel
-def middle(
-    k, t, row, m_e, h_e, m_p, h_p,
+def front(
+    k, row,
     q_true, dq_true, tau_true, joints, current_true, currents, cuff_truth, cuff_sensors, cuff_out,
-    belt, belt_speed, encoder, encoder_speed, drive_force, generator, plate_load, foot, contact,
-    est, cuffs, q, tau_est, split, meas,
-    log, plant, readings, estimate, cuff_readings,
-    ctrl, q_des, dq_des, u_ff, dq, tau,
-    sup, force, current, checks, plausibility, watch,
-    u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet,
+    belt, belt_speed, encoder, encoder_speed, drive_force, generator, plate_load,
+    log, q,
 ):  # fmt: skip
-    """The read, the belt, the filter's step, the measured row, the PD law, the check, the drift.
+    """The sensors' read; with the belt its set speed, encoder and drive, the plan's row.
 
-    In :class:`~exo_ctrl.sim.tick.Runner`'s order (module docstring); ``belt``
-    None: no belt (its arguments unused), ``generator`` None: the precomputed
-    plan, ``sup`` None: no supervisor, ``watch`` None: no belt monitor.
-    Returns 0 when every kernel answered OK and the check passed, else the
-    stage that stopped it (:data:`READ` … :data:`DRIFT`) plus its status.
+    As :meth:`Runner.measure <exo_ctrl.sim.tick.Runner.measure>` up to the
+    synchronised plan's row (``belt`` None: no belt, its arguments unused;
+    ``generator`` None: the precomputed plan).  Returns 0, or :data:`READ` or
+    :data:`PLAN` plus the status of the kernel that refused.
     """
     s = read_device(
         k, q_true, dq_true, tau_true, joints, current_true, currents, cuff_truth, cuff_sensors,
@@ -256,7 +267,7 @@ def middle(
     )  # fmt: skip
     if s != 0:
         return READ + s
-    if belt is not None:  # Runner._belt_tick, then the foot plates' read
+    if belt is not None:  # Runner._belt_tick
         b = belt[0]
         b.v_set = belt_speed[k, 0]
         b.a_set = belt_speed[k, 1]
@@ -267,6 +278,31 @@ def middle(
             if s != 0:
                 return PLAN + s
             write_plan(log, row, generator)
+    return 0
+
+
+@kernel
+def rest(
+    k, t, row, m_e, h_e, m_p, h_p,
+    foot, shoes, contact,
+    est, cuffs, q, tau_est, split, meas,
+    log, plant, readings, estimate, cuff_readings,
+    ctrl, q_des, dq_des, u_ff, dq, tau,
+    sup, force, current, checks, plausibility, watch,
+    u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet,
+):  # fmt: skip
+    """The foot plates, the filter's step, the measured row, the PD law, the check, the drift.
+
+    The rest of the tick after :func:`front` up to the plant's mid-step, in
+    :class:`~exo_ctrl.sim.tick.Runner`'s order (``foot`` None: no belt;
+    ``shoes`` None: the patient's feet off it; ``sup`` None: no supervisor;
+    ``watch`` None: no belt monitor).  Returns 0 when every kernel answered
+    OK and the check passed, else the stage that stopped it (:data:`ESTIMATE`
+    … :data:`DRIFT`) plus its status.
+    """
+    if foot is not None:  # the foot plates (and the patient's shoes, read first)
+        if shoes is not None:
+            read_shoe_load(foot, shoes)
         read_foot_load(foot, contact, q, tau)
     s = kalman_step(est, cuffs, m_e, h_e, m_p, h_p, q, tau_est, split, meas)
     if s != 0:
@@ -287,6 +323,35 @@ def middle(
     if s != 0:
         return DRIFT + s
     return 0
+
+
+@kernel
+def middle(
+    k, t, row, m_e, h_e, m_p, h_p,
+    q_true, dq_true, tau_true, joints, current_true, currents, cuff_truth, cuff_sensors, cuff_out,
+    belt, belt_speed, encoder, encoder_speed, drive_force, generator, plate_load,
+    log_front, q_front,
+    foot, shoes, contact,
+    est, cuffs, q, tau_est, split, meas,
+    log, plant, readings, estimate, cuff_readings,
+    ctrl, q_des, dq_des, u_ff, dq, tau,
+    sup, force, current, checks, plausibility, watch,
+    u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet,
+):  # fmt: skip
+    """:func:`front` then :func:`rest`, one call (a tick with nothing between them)."""
+    s = front(
+        k, row, q_true, dq_true, tau_true, joints, current_true, currents, cuff_truth,
+        cuff_sensors, cuff_out, belt, belt_speed, encoder, encoder_speed, drive_force, generator,
+        plate_load, log_front, q_front,
+    )  # fmt: skip
+    if s != 0:
+        return s
+    return rest(
+        k, t, row, m_e, h_e, m_p, h_p, foot, shoes, contact, est, cuffs, q, tau_est, split, meas,
+        log, plant, readings, estimate, cuff_readings, ctrl, q_des, dq_des, u_ff, dq, tau,
+        sup, force, current, checks, plausibility, watch,
+        u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet,
+    )  # fmt: skip
 
 
 @kernel
