@@ -458,11 +458,13 @@ class CuffForceKalman:
 
         The models, data and state (q, v) of the exoskeleton's and the patient's
         CRBA and nonLinearEffects calls, then :func:`kalman_step`'s arguments
-        before those four results and after the readings q, τ.
+        before those four results and after the readings q, τ (and the fused
+        tick's estimator switches: the filter, no observer).
         """
         me, de, mp, dp = self._model_e, self._data_e, self._model_p, self._data_p
         library = (me, de, self._q_e, self._v_e, mp, dp, self._q_p, self._v_p)
-        return library, (self.record, self.cuffs.record), (self.cuffs.split_switch, self.cuff_meas)
+        after = (self.cuffs.split_switch, self.cuff_meas, True, None)
+        return library, (self.record, self.cuffs.record), after
 
     def answer(self, status: int, q: np.ndarray, tau: np.ndarray) -> None:
         """A step's status other than OK: NOT_FINITE restarts the filter, the rest raise."""

@@ -77,7 +77,7 @@ from ..model import FRICTION_SMOOTHING_RAD_S, BodyModel
 from ..sensing.readings import SensorReadings
 from .cuff_geometry import GEOMETRY_FIELDS, CuffGeometry, _cuff_directions
 
-__all__ = ["DEFAULT_GAIN_PER_S", "CuffForceEstimator"]
+__all__ = ["DEFAULT_GAIN_PER_S", "CuffForceEstimator", "observer_step"]
 
 #: Default observer gain K_O [1/s] (bandwidth K_O / 2π ≈ 16 Hz).
 DEFAULT_GAIN_PER_S = 100.0
@@ -119,7 +119,7 @@ class CuffForceEstimator:
 
     An update is two Pinocchio calls (``crba`` and ``nonLinearEffects`` of
     the link model) and one call of the compiled kernel
-    :func:`_observer_kernel`, which does the rest (momentum, model terms, the
+    :func:`observer_step`, which does the rest (momentum, model terms, the
     observer step, the cuff forces).
 
     Args:
@@ -257,7 +257,7 @@ class CuffForceEstimator:
         elif h != self._h_cached:
             self._set_step(h)
         model, data = self._model, self._data
-        status = _observer_kernel(
+        status = observer_step(
             self.record,
             pin.crba(model, data, q),
             pin.nonLinearEffects(model, data, q, dq),
@@ -290,12 +290,30 @@ class CuffForceEstimator:
             if not (self._started and self._h_cached == h):
                 return self.step(q, dq, tau, h)
             mass, bias = crba(model, data, q), nle(model, data, q, dq)
-            status = _observer_kernel(rec, mass, bias, q, dq, tau, h)
+            status = observer_step(rec, mass, bias, q, dq, tau, h)
             if status:
                 check(status, "CuffForceEstimator.step", tau=tau)
             return force
 
         return update
+
+    @property
+    def started(self) -> bool:
+        """Whether the observer has started at its period dt (its next update steps it)."""
+        return self.running_at(self.dt)
+
+    def step_arguments(self) -> tuple[tuple, tuple, tuple]:
+        """What a fused tick (:mod:`exo_ctrl.sim.fused`) calls of :meth:`step`, once started.
+
+        The model and data of the CRBA and nonLinearEffects calls on this
+        tick's readings, then the kernel's record and its step dt (in the
+        fused tick's layout: no cuff model, split, cuff sensors or filter).
+        """
+        return (self._model, self._data), (self.record, None), (None, None, None, self.dt)
+
+    def answer(self, status: int, q: np.ndarray, tau: np.ndarray) -> None:
+        """A step's status other than OK raises, naming the reading."""
+        check(status, "CuffForceEstimator.step", tau=tau)
 
     def running_at(self, h: float) -> bool:
         """Whether the observer has started and steps by h (its next update takes no set-up)."""
@@ -323,7 +341,7 @@ del _offsets
 
 
 @kernel
-def _observer_kernel(state, mass, nle, q, dq, tau, h):
+def observer_step(state, mass, nle, q, dq, tau, h):
     """One observer step in place (module docstring, discrete form), then the cuff forces.
 
     ``mass``, ``nle``: M(q) and n(q, q̇) of the link model (Pinocchio's

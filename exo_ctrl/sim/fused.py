@@ -1,12 +1,14 @@
 """A configuration's tick as compiled compositions of its stages' kernels (design.md §8).
 
 numba cannot call Pinocchio, so a tick's kernels compose only between its
-library calls.  For the PD or CT controller with the Kalman filter (the
-configurations :meth:`FusedTick.of` lists: the default scenario among them)
-the tick of :class:`~exo_ctrl.sim.tick.Runner` is, here:
+library calls.  For the PD or CT controller with the Kalman filter or the
+momentum observer (the configurations :meth:`FusedTick.of` lists: the
+default scenario among them) the tick of :class:`~exo_ctrl.sim.tick.Runner`
+is, here:
 
 1. the filter's four Pinocchio calls (CRBA and nonLinearEffects of both
-   bodies at its last posterior);
+   bodies at its last posterior; the observer's two, on this tick's
+   readings, come after the read: :func:`front`, then :func:`rest`);
 2. :func:`middle`, one compiled call: the sensors' read; with the belt its
    encoder, the synchronised plan's row, the foot plates and the patient's
    shoes; the filter's step, the measured log row, the PD law, the belt
@@ -41,8 +43,9 @@ import pinocchio as pin
 from .._jit import check, kernel, preload
 from ..control.computed_torque import ComputedTorqueController
 from ..control.pd import PDController, pd_command
-from ..estimation import CuffForceKalman
+from ..estimation import CuffForceEstimator, CuffForceKalman
 from ..estimation.kalman_step import kalman_step
+from ..estimation.observer import observer_step
 from ..plan.online import online_step, write_plan
 from ..plant.step import drift_and_forces, kick_and_drift
 from ..safety import SafetySupervisor
@@ -75,7 +78,9 @@ class FusedTick:
         self.runner = runner
         _, self._truth, _, _, _, _ = runner._stages
         self._device = runner._device_sensors
-        self._est: CuffForceKalman = runner.estimator  # type: ignore[assignment]
+        self._est: CuffForceKalman | CuffForceEstimator = runner.estimator
+        #: The observer's library calls are on this tick's readings, after the read.
+        self._observer = type(self._est) is CuffForceEstimator
         self._plant = plant = runner.setup.plant
         self._sup = sup = runner.supervisor
         self._ctrl: PDController = runner.setup.controller  # type: ignore[assignment]
@@ -137,22 +142,35 @@ class FusedTick:
     def of(cls, runner: Any) -> FusedTick | None:
         """The fused tick of ``runner``, or None where its configuration is not covered.
 
-        Covered: the PD or CT controller, the Kalman filter, the supervisor or
-        none, no faults, one plant step a tick without a patient-torque model;
-        the belt on or off, the plan synchronised or not (CT's row on the
-        synchronised plan takes two RNEA calls between :func:`front` and
-        :func:`rest`), the pelvis fixed or supported, the patient's feet on the
-        belt or not.
+        Covered: the PD or CT controller, the Kalman filter or the momentum observer, the
+        supervisor or none, no faults, one plant step a tick without a patient-torque model;
+        the belt on or off, the plan synchronised or not (CT's row on the synchronised plan
+        takes two RNEA calls between :func:`front` and :func:`rest`), the pelvis fixed or
+        supported, the patient's feet on the belt or not.
         """
         setup = runner.setup
         covered = (
             runner.faults is None
-            and type(runner.estimator) is CuffForceKalman
+            and type(runner.estimator) in (CuffForceKalman, CuffForceEstimator)
             and type(setup.controller) in (PDController, ComputedTorqueController)
             and (runner.supervisor is None or type(runner.supervisor) is SafetySupervisor)
             and runner._stages[5] is not None  # one plant step, no patient-torque model
         )
         return cls(runner) if covered else None
+
+    def _library_results(self) -> tuple:
+        """The estimator's Pinocchio calls: M and n of both bodies (filter) or M, n (observer)."""
+        if self._observer:
+            model, data = self._library
+            q, dq = self._readings.q, self._readings.dq
+            return pin.crba(model, data, q), pin.nonLinearEffects(model, data, q, dq), None, None
+        me, de, qe, ve, mp, dp, qp, vp = self._library
+        return (
+            pin.crba(me, de, qe),
+            pin.nonLinearEffects(me, de, qe, ve),
+            pin.crba(mp, dp, qp),
+            pin.nonLinearEffects(mp, dp, qp, vp),
+        )
 
     def preload(self) -> None:
         """Compile (or load) :func:`middle` and :func:`end` for this run, running neither.
@@ -160,10 +178,8 @@ class FusedTick:
         For the first run's compile helper (:mod:`exo_ctrl.sim.warmup`), after the
         stages' own kernels, which both call.
         """
-        me, de, qe, ve, mp, dp, qp, vp = self._library
-        library = (pin.crba(me, de, qe), pin.nonLinearEffects(me, de, qe, ve))
-        library += (pin.crba(mp, dp, qp), pin.nonLinearEffects(mp, dp, qp, vp))
-        if self._refresh is None:
+        library = self._library_results()
+        if self._refresh is None and not self._observer:
             preload(middle, 0, 0.0, 0, *library, *self._front, *self._rest)
         else:
             preload(front, 0, 0, *self._front)
@@ -177,22 +193,16 @@ class FusedTick:
         if not self._est.started:  # the filter's start: the tick stage by stage
             runner.act(k, row, runner.measure(k, row))
             return
-        me, de, qe, ve, mp, dp, qp, vp = self._library
         t = k * self._dt
-        library = (
-            pin.crba(me, de, qe),
-            pin.nonLinearEffects(me, de, qe, ve),
-            pin.crba(mp, dp, qp),
-            pin.nonLinearEffects(mp, dp, qp, vp),
-        )
         refresh = self._refresh
-        if refresh is None:
-            code = middle(k, t, row, *library, *self._front, *self._rest)
-        else:  # the synchronised plan's row feeds CT's feedforward forward: two RNEA calls
+        if refresh is None and not self._observer:
+            code = middle(k, t, row, *self._library_results(), *self._front, *self._rest)
+        else:  # CT's feedforward of the synchronised plan's row, or the observer's library
             code = front(k, row, *self._front)
             if not code:
-                refresh()
-                code = rest(k, t, row, *library, *self._rest)
+                if refresh is not None:
+                    refresh()
+                code = rest(k, t, row, *self._library_results(), *self._rest)
         self._device.refill()
         foot = self._foot
         if foot is not None and foot.record["depleted"][0]:
@@ -285,26 +295,31 @@ def front(
 def rest(
     k, t, row, m_e, h_e, m_p, h_p,
     foot, shoes, contact,
-    est, cuffs, q, tau_est, split, meas,
+    est, cuffs, q, tau_est, split, meas, kalman, h_obs,
     log, plant, readings, estimate, cuff_readings,
     ctrl, q_des, dq_des, u_ff, dq, tau,
     sup, force, current, checks, plausibility, watch,
     u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet,
 ):  # fmt: skip
-    """The foot plates, the filter's step, the measured row, the PD law, the check, the drift.
+    """The foot plates, the estimator's step, the measured row, the PD law, the check, the drift.
 
     The rest of the tick after :func:`front` up to the plant's mid-step, in
-    :class:`~exo_ctrl.sim.tick.Runner`'s order (``foot`` None: no belt;
-    ``shoes`` None: the patient's feet off it; ``sup`` None: no supervisor;
-    ``watch`` None: no belt monitor).  Returns 0 when every kernel answered
-    OK and the check passed, else the stage that stopped it (:data:`ESTIMATE`
-    … :data:`DRIFT`) plus its status.
+    :class:`~exo_ctrl.sim.tick.Runner`'s order (``foot`` None: no belt; ``shoes`` None: the
+    patient's feet off it; ``kalman`` True: the Kalman filter; else ``h_obs``: the momentum
+    observer's step [s], ``m_e``, ``h_e`` its M(q), n(q, q̇); ``sup`` None: no supervisor;
+    ``watch`` None: no belt monitor).  Returns 0 when every kernel answered OK and the check
+    passed, else the stage that stopped it (:data:`ESTIMATE` … :data:`DRIFT`) plus its
+    status.
     """
     if foot is not None:  # the foot plates (and the patient's shoes, read first)
         if shoes is not None:
             read_shoe_load(foot, shoes)
         read_foot_load(foot, contact, q, tau)
-    s = kalman_step(est, cuffs, m_e, h_e, m_p, h_p, q, tau_est, split, meas)
+    s = 0  # each estimator's branch pruned where its switch is None (exo_ctrl/_jit.py)
+    if kalman is not None:
+        s = kalman_step(est, cuffs, m_e, h_e, m_p, h_p, q, tau_est, split, meas)
+    if h_obs is not None:
+        s = observer_step(est, m_e, h_e, q, dq, tau_est, h_obs)
     if s != 0:
         return ESTIMATE + s
     write_measured(log, row, plant, readings, estimate, cuff_readings)
@@ -332,7 +347,7 @@ def middle(
     belt, belt_speed, encoder, encoder_speed, drive_force, generator, plate_load,
     log_front, q_front,
     foot, shoes, contact,
-    est, cuffs, q, tau_est, split, meas,
+    est, cuffs, q, tau_est, split, meas, kalman, h_obs,
     log, plant, readings, estimate, cuff_readings,
     ctrl, q_des, dq_des, u_ff, dq, tau,
     sup, force, current, checks, plausibility, watch,
@@ -348,7 +363,8 @@ def middle(
         return s
     return rest(
         k, t, row, m_e, h_e, m_p, h_p, foot, shoes, contact, est, cuffs, q, tau_est, split, meas,
-        log, plant, readings, estimate, cuff_readings, ctrl, q_des, dq_des, u_ff, dq, tau,
+        kalman, h_obs, log, plant, readings, estimate, cuff_readings,
+        ctrl, q_des, dq_des, u_ff, dq, tau,
         sup, force, current, checks, plausibility, watch,
         u, tau_p, given, s_pelvis, s_contact, s_compliant, s_split, s_feet,
     )  # fmt: skip

@@ -15,6 +15,8 @@ supported its lock and the belt's run-down), a drive at its current limit
 from __future__ import annotations
 
 import dataclasses
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +29,11 @@ from exo_ctrl.scenario.load import load_scenario
 from exo_ctrl.sim import Runner, build
 from exo_ctrl.sim.faults import Fault
 from exo_ctrl.sim.fused import FusedTick
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the golden runs' set-up, beside
+
+from test_golden import LEGACY
+from test_golden import SCENARIOS as GOLDEN
 
 BELT = ContactParams(enabled=True)
 
@@ -53,6 +60,9 @@ CASES = {
     "e-stop": SimConfig(controller="ct", estop_at_s=0.5, duration_s=1.5),
     # gains ten times the default's: drives at their current limit
     "current-limit": SimConfig(controller="pd", gains=PDGains(kp=3000.0, kd=20.0)),
+    # the momentum observer: its library calls on this tick's readings, after the read
+    "momentum": SimConfig(controller="ct", estimator="momentum"),
+    "momentum-belt": SimConfig(controller="pd", estimator="momentum", contact=BELT),
 }
 
 
@@ -98,6 +108,14 @@ def test_the_fused_tick_logs_what_the_stages_log(case: str) -> None:
         assert any(kicked)
 
 
+@pytest.mark.parametrize("name", ["pd", "ct", "pd_estop", "ct_estop"])
+def test_the_golden_runs_are_the_same_fused(name: str) -> None:
+    """The golden PD and CT runs (the momentum observer; test_golden.py holds them to the
+    stored runs stage by stage or fused, whichever a run uses) fused and stage by stage."""
+    fused, staged = _run_both(SimConfig(**LEGACY, **GOLDEN[name][0]))
+    assert np.array_equal(fused.setup.plant.q, staged.setup.plant.q)
+
+
 def test_a_tick_that_fails_fails_as_the_stages_do() -> None:
     """A non-finite state under the sensors: the same error, the same rows before it."""
     config = SimConfig(controller="pd", duration_s=0.2)
@@ -119,11 +137,10 @@ def test_a_tick_that_fails_fails_as_the_stages_do() -> None:
     "change",
     [
         {"controller": "qp"},
-        {"estimator": "momentum"},
         {"faults": (Fault("encoder_freeze", 0.1, "left_knee"),)},
         {"patient_torque": "spastic"},
     ],
-    ids=["qp", "momentum", "faults", "patient-model"],
+    ids=["qp", "faults", "patient-model"],
 )
 def test_a_configuration_not_covered_runs_stage_by_stage(change: dict) -> None:
     config = dataclasses.replace(SimConfig(duration_s=0.3), **change)
