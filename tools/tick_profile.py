@@ -113,7 +113,7 @@ def profile(name: str, ticks: int) -> dict[str, float]:
         None if step is None else _wrap(step, "plant.step", acc),
     )
     originals = {}
-    for kname in ("write_measured", "write_applied", "read_belt", "write_plan"):
+    for kname in ("write_measured", "write_applied", "belt_tick", "write_plan"):
         if hasattr(tick_module, kname):
             originals[kname] = getattr(tick_module, kname)
             setattr(tick_module, kname, _wrap(originals[kname], f"log.{kname}", acc))

@@ -22,7 +22,7 @@ import numpy as np
 from .. import _validate as v
 from .._jit import kernel, record
 
-__all__ = ["BELT_ENCODER_FIELDS", "BeltEncoder", "BeltEncoderParams"]
+__all__ = ["BELT_ENCODER_FIELDS", "BeltEncoder", "BeltEncoderParams", "belt_tick"]
 
 #: The longest window, in ticks (the record's ring of counts).
 MAX_WINDOW_TICKS = 1000
@@ -100,3 +100,21 @@ def read_belt(encoder: np.ndarray, k: int, belt: np.ndarray) -> None:
         return
     back = e.window if k >= e.window else k
     e.speed = e.res * (n - e.counts[(k - back) % size]) / (back * e.dt)
+
+
+@kernel
+def belt_tick(
+    encoder: np.ndarray, k: int, belt: np.ndarray, set_speed: np.ndarray, drive_force: np.ndarray
+) -> None:
+    """Control tick ``k`` on the belt: its set speed, the encoder's read, the drive's report.
+
+    The treadmill's set speed and rate of tick k (``set_speed[k]``, [m/s, m/s²])
+    into the belt record ``belt`` (``v_set``, ``a_set``), the encoder's read
+    (:func:`read_belt`), and the treadmill drive's report of its force (the
+    belt's ``f_motor``) into ``drive_force`` [N], (1,).
+    """
+    b = belt[0]
+    b.v_set = set_speed[k, 0]
+    b.a_set = set_speed[k, 1]
+    read_belt(encoder, k, belt)
+    drive_force[0] = b.f_motor

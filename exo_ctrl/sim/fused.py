@@ -51,7 +51,7 @@ from ..plant.step import drift_and_forces, kick_and_drift
 from ..safety import SafetySupervisor
 from ..safety.belt_monitor import belt_monitor
 from ..safety.tick_check import check_readings
-from ..sensing.belt_encoder import read_belt
+from ..sensing.belt_encoder import belt_tick
 from ..sensing.device import read_device
 from ..sensing.foot_load import read_foot_load, read_shoe_load
 from .log_rows import write_applied, write_measured
@@ -135,6 +135,8 @@ class FusedTick:
         )
         self._end = (*kick, runner.log)
         self._refresh = runner._refresh
+        #: One compiled call before the plant's mid-step: no Python between front and rest.
+        self._one_call = self._refresh is None and not self._observer
         self._applied = runner._applied
         self._dt = runner._dt
 
@@ -179,7 +181,7 @@ class FusedTick:
         stages' own kernels, which both call.
         """
         library = self._library_results()
-        if self._refresh is None and not self._observer:
+        if self._one_call:
             preload(middle, 0, 0.0, 0, *library, *self._front, *self._rest)
         else:
             preload(front, 0, 0, *self._front)
@@ -194,14 +196,13 @@ class FusedTick:
             runner.act(k, row, runner.measure(k, row))
             return
         t = k * self._dt
-        refresh = self._refresh
-        if refresh is None and not self._observer:
+        if self._one_call:
             code = middle(k, t, row, *self._library_results(), *self._front, *self._rest)
         else:  # CT's feedforward of the synchronised plan's row, or the observer's library
             code = front(k, row, *self._front)
             if not code:
-                if refresh is not None:
-                    refresh()
+                if self._refresh is not None:
+                    self._refresh()
                 code = rest(k, t, row, *self._library_results(), *self._rest)
         self._device.refill()
         foot = self._foot
@@ -210,7 +211,8 @@ class FusedTick:
         if code:
             self._resume(code, k, t, row)
             return
-        self._normal_tail(k, t)
+        if self._sup is not None:
+            runner.after_check(k, self._readings)
         plant = self._plant
         status = end(plant.record, plant.mid_step(), *self._end, row, *self._applied)
         if status:
@@ -239,22 +241,13 @@ class FusedTick:
         elif stage == CHECK:
             SafetySupervisor.refuse(status, runner._sup_force, q, dq, tau, runner._current, self._u)
         elif stage == STOP:
-            sup = self._sup
-            u = sup.respond(t, readings, runner._sup_force, self._u)  # type: ignore[union-attr]
-            if runner._stop_pending and sup.state_code:  # type: ignore[union-attr]
-                runner._device_stop(k)
-            self._normal_tail(k, t)
+            u = self._sup.respond(t, readings, runner._sup_force, self._u)  # type: ignore[union-attr]
+            runner.after_check(k, readings)
             self._plant.step(u)
             write_applied(runner.log, row, *self._applied)
         else:  # DRIFT: the plant refused its input
             torque = self._plant.patient_torque
             check(status, "Plant.step", voltage_V=self._u, patient_torque_Nm=torque)
-
-    def _normal_tail(self, k: int, t: float) -> None:
-        """The supervisor's cuff-load monitor on its normal ticks, as :meth:`Runner.act`."""
-        load, sup = self.runner.cuff_load, self._sup
-        if load is not None and sup is not None and not sup.state_code:
-            load.step(k, t, self._readings.q, self._readings.dq, sup.events)
 
 
 @kernel
@@ -278,11 +271,7 @@ def front(
     if s != 0:
         return READ + s
     if belt is not None:  # Runner._belt_tick
-        b = belt[0]
-        b.v_set = belt_speed[k, 0]
-        b.a_set = belt_speed[k, 1]
-        read_belt(encoder, k, belt)
-        drive_force[0] = b.f_motor
+        belt_tick(encoder, k, belt, belt_speed, drive_force)
         if generator is not None:
             s = online_step(generator, k, encoder_speed[0], q, plate_load)
             if s != 0:

@@ -46,7 +46,7 @@ from ..sensing import (
     SensorReadings,
     Sensors,
 )
-from ..sensing.belt_encoder import read_belt
+from ..sensing.belt_encoder import belt_tick
 from .faults import FaultInjector
 from .fused import FusedTick
 from .log_rows import write_applied, write_measured
@@ -139,9 +139,8 @@ class Runner:
         #: The belt-speed sensor (read each tick with contact on).
         self.belt_encoder = BeltEncoder(config.belt_encoder, config.dt)
         self._belt = plant.contact.belt
-        self._belt_set, self._belt_rate = self._belt["v_set"], self._belt["a_set"]
         #: The treadmill drive's report of its force [N], (1,) (copied each tick with contact on).
-        self.belt_drive_force, self._belt_motor = np.zeros(1), self._belt["f_motor"]
+        self.belt_drive_force = np.zeros(1)
         self._belt_speed = setup.belt_speed  # the set speed per tick (None: contact off)
         if setup.belt_speed is not None:
             self.sensors.belt_speed = self.belt_encoder.speed
@@ -284,16 +283,26 @@ class Runner:
             u, age = faults.command_at(k, u)
         if supervise is not None:
             u = supervise(k, k * self._dt, readings, self._sup_force, self._current, u, age)
-            if self._stop_pending and self.supervisor.state_code:
-                self._device_stop(k)
-            load = self.cuff_load
-            if load is not None and not self.supervisor.state_code:
-                load.step(k, k * self._dt, readings.q, readings.dq, self.supervisor.events)
+            self.after_check(k, readings)
         if step is not None:
             step(u)
         else:
             self._substep(u)
         write_applied(self.log, row, *self._applied)
+
+    def after_check(self, k: int, readings: SensorReadings) -> None:
+        """Tick ``k`` after the supervisor's answer: a stop's harness and belt, the load monitor.
+
+        On the tick the supervisor stops, the harness locks and the belt runs
+        down (:meth:`_device_stop`); on its normal ticks its patient-load monitor
+        steps on the readings.
+        """
+        sup = self.supervisor
+        if self._stop_pending and sup.state_code:
+            self._device_stop(k)
+        load = self.cuff_load
+        if load is not None and not sup.state_code:
+            load.step(k, k * self._dt, readings.q, readings.dq, sup.events)
 
     def compile_back(self) -> None:
         """Call the tick's stages once, last first, on a run that was not started: they compile.
@@ -329,10 +338,7 @@ class Runner:
 
     def _belt_tick(self, k: int, row: int, q_meas: np.ndarray) -> None:
         """Tick ``k``'s belt set speed and rate, its encoder and drive read; the plan's row."""
-        self._belt_set[0] = self._belt_speed[k, 0]
-        self._belt_rate[0] = self._belt_speed[k, 1]
-        read_belt(self.belt_encoder.record, k, self._belt)
-        self.belt_drive_force[0] = self._belt_motor[0]
+        belt_tick(self.belt_encoder.record, k, self._belt, self._belt_speed, self.belt_drive_force)
         if self._online is not None:
             self._plan_tick(k, row, q_meas)
 
