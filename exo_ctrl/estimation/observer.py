@@ -267,7 +267,7 @@ class CuffForceEstimator:
             h,
         )
         if status:
-            check(status, "CuffForceEstimator.step", tau=tau)
+            self.answer(status, q, tau)
         return self.force
 
     def bind(self, sensors: SensorReadings) -> Callable[[], np.ndarray]:
@@ -292,7 +292,7 @@ class CuffForceEstimator:
             mass, bias = crba(model, data, q), nle(model, data, q, dq)
             status = observer_step(rec, mass, bias, q, dq, tau, h)
             if status:
-                check(status, "CuffForceEstimator.step", tau=tau)
+                self.answer(status, q, tau)
             return force
 
         return update
