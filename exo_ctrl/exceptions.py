@@ -139,7 +139,10 @@ class CuffBoundTooTight(ExoCtrlError, ValueError):
     The QP holds each cuff's predicted force within F_max − m_c
     (:mod:`exo_ctrl.control.qp.margin`); below the working force F_work,c
     (the nominal patient's gravity load along the plan) no command can keep
-    the bound while carrying the leg.
+    the bound while carrying the leg.  With the pelvis supported the working
+    force is the whole load the plan puts on the cuff: the QP would hold a
+    lower bound by leaving the plan, and a leg off its plan on the belt can
+    strike it.
 
     Attributes:
         bound_N: F_max, the user's bound [N].
@@ -147,23 +150,39 @@ class CuffBoundTooTight(ExoCtrlError, ValueError):
         working_N: F_work,c [N].
         cuff: the cuff's name.
         gait: the gait, in words.
+        supported: the pelvis is supported (the working force is the plan's load).
 
     """
 
     def __init__(
-        self, bound_N: float, margin_N: float, working_N: float, cuff: str, gait: str
+        self,
+        bound_N: float,
+        margin_N: float,
+        working_N: float,
+        cuff: str,
+        gait: str,
+        supported: bool = False,
     ) -> None:
         self.bound_N = bound_N
         self.margin_N = margin_N
         self.working_N = working_N
         self.cuff = cuff
         self.gait = gait
+        self.supported = supported
+        need = f"the {working_N:.1f} N the cuff carries of the leg's weight along the plan"
+        other = "or choose a slower gait"
+        if supported:
+            need = (
+                f"the {working_N:.1f} N the plan puts on the cuff: with the pelvis supported "
+                "the QP cannot leave the plan to hold its bound, since a leg off its plan can "
+                "strike the belt"
+            )
+            other = "or add cuff sensors (--cuff-sensors), which shrink the margin"
         super().__init__(
             f"qp.cuff_force_limit_N = {bound_N:g} N cannot be held on {gait}: the "
             f"{cuff} cuff's margin of {margin_N:.1f} N (what the device does not know) "
-            f"leaves {bound_N - margin_N:.1f} N, less than the {working_N:.1f} N the cuff "
-            f"carries of the leg's weight along the plan; raise the bound to at least "
-            f"{math.ceil(margin_N + working_N)} N or choose a slower gait"
+            f"leaves {bound_N - margin_N:.1f} N, less than {need}; raise the bound to at least "
+            f"{math.ceil(margin_N + working_N)} N {other}"
         )
 
 

@@ -212,6 +212,7 @@ class SafetySupervisor:
         self._rest_ticks, self._doubt = 0, False
         self._rest_needed = max(round(REST_TIME_S / self.dt), 1)
         self._estop = math.inf if self.estop_at_s is None else self.estop_at_s
+        self._request: tuple[dict[str, Any], str] | None = None
         self.record = monitor_record(resolved, self._estop)
         sensors = sensors if sensors is not None else SensorParams()
         #: The plausibility monitors' limits (4 groups, 4 joints) and state.
@@ -319,6 +320,13 @@ class SafetySupervisor:
         np.copyto(self._u_sent, out)  # what the drives get, for the drive model
         return out
 
+    def request_stop(self, t: float, cause: dict[str, Any], reaction: str) -> None:
+        """Stop at this tick's check for ``cause`` (event fields), once (:mod:`.departure`)."""
+        if self.state_code == 0 and self._request is None:
+            self._request = (cause, check_stop_reaction(reaction))
+            self._estop = min(self._estop, float(t))
+            self.record["estop_s"] = self._estop
+
     @staticmethod
     def refuse(status: int, f: object, *vectors: object) -> None:
         """Raise for the monitor's ``status``, naming the input at fault."""
@@ -335,19 +343,16 @@ class SafetySupervisor:
     ) -> None:
         if not worst <= 0.0:
             cause = self._log_violations(t)[0]
+        elif self._request is not None:  # a stop asked for (request_stop)
+            cause = self._event(t, "violation", **self._request[0])
         else:
-            cause = self._event(
-                t,
-                "estop",
-                "time",
-                float(t),
-                float(self._estop),
-                f"emergency stop at t = {t:.4f} s",
-            )
+            text = f"emergency stop at t = {t:.4f} s"
+            cause = self._event(t, "estop", "time", float(t), float(self._estop), text)
         self.stop_time_s = self._ramp_t0 = float(t)
         self._doubt = False
         self.release.begin()
-        self.reaction = reaction_at(self.stop_reactions, t)
+        asked = self._request
+        self.reaction = reaction_at(self.stop_reactions, t) if asked is None else asked[1]
         q = np.asarray(sensors.q, dtype=float)
         finite = np.isfinite(q)
         self.hold_posture_rad = np.where(finite, q, self.record["q_last"][0])
@@ -470,14 +475,8 @@ class SafetySupervisor:
     def _violation_event(self, t: float, c: int, excess: float) -> dict[str, Any]:
         channel = self._channels[c]
         if channel.finite_only(excess):
-            return self._event(
-                t,
-                "violation",
-                channel.quantity,
-                None,
-                None,
-                f"{channel.quantity} is not finite at t = {t:.4f} s",
-            )
+            text = f"{channel.quantity} is not finite at t = {t:.4f} s"
+            return self._event(t, "violation", channel.quantity, None, None, text)
         value, text = channel.describe(excess)
         return self._event(
             t, "violation", channel.quantity, value, channel.limit, f"{text} at t = {t:.4f} s"

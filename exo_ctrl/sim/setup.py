@@ -47,6 +47,7 @@ from ..plant.patient_active import ActivePatient
 from .belief import device_exo, device_patient, nominal_stature
 from .config import SimConfig
 from .session import session_controller
+from .supervision import departure_for
 from .sync import online_gait, profile_runs, set_speeds
 from .tracking import stance_load_for, tracking_controller
 
@@ -201,7 +202,7 @@ def build(config: SimConfig, start: bool = True) -> Setup:
         model_motor,
         belt_speed,
         online,
-        tuple(run_warnings(config, exo, fitted, tracking)),
+        tuple(run_warnings(config, exo, fitted, tracking, model_exo)),
         user_estimator,
     )
 
@@ -229,7 +230,11 @@ def precomputed_plan(
 
 
 def run_warnings(
-    config: SimConfig, exo: BodyModel, fitted: BodyModel, controller: object = None
+    config: SimConfig,
+    exo: BodyModel,
+    fitted: BodyModel,
+    controller: object = None,
+    model_exo: BodyModel | None = None,
 ) -> list[str]:
     """The run's warnings (:attr:`Setup.warnings`).
 
@@ -237,8 +242,9 @@ def run_warnings(
     precomputed plan (:mod:`exo_ctrl.plan.surface` needs the synchronised one),
     then, for the QP, a bound its
     margin leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`)
-    and a bound not promised with the pelvis supported
-    (:func:`~exo_ctrl.control.qp.contact_warning`).
+    and, with the pelvis supported, the departure stop that keeps its bound
+    (:func:`~exo_ctrl.control.qp.contact_warning`; ``model_exo``: the device's
+    exoskeleton, whose legs set the stop's limit; default ``exo``).
     """
     out = fit_warnings(exo, fitted)
     if config.belief.patient == "nominal":
@@ -257,7 +263,9 @@ def run_warnings(
         if departure is not None:
             out.append(departure)
         if config.pelvis.supported:
-            out.append(contact_warning(controller.cuff_force_limit_N, config.synced))
+            stop = departure_for(config, model_exo or exo)
+            limit = None if stop is None else stop.limit_rad
+            out.append(contact_warning(controller.cuff_force_limit_N, limit, config.synced))
     return out
 
 

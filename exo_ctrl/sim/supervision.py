@@ -17,11 +17,14 @@ from typing import Any
 
 import numpy as np
 
+from ..model import BodyModel
 from ..safety import SafetyLimits, SafetySupervisor
 from ..safety.belt_monitor import BeltMonitor
+from ..safety.departure import DepartureMonitor, departure_limit_rad
+from ..safety.monitor import LIMIT_GROUPS
 from ..sensing.readings import SensorReadings
 
-__all__ = ["ReportingDrives", "build_supervisor"]
+__all__ = ["ReportingDrives", "build_supervisor", "departure_for"]
 
 #: Limits that never trip: the supervisor then only serves the e-stop.
 NO_LIMITS = SafetyLimits(
@@ -63,22 +66,46 @@ class ReportingDrives(SafetySupervisor):
         return super().step(k, t, sensors, cuff_force, current_A, u_cmd, command_age_s)
 
 
-def build_supervisor(runner: Any, setup: Any, current_mode: bool) -> SafetySupervisor | None:
-    """The supervisor of a run (None: no safety and no e-stop).
+def departure_for(config: Any, exo: BodyModel) -> DepartureMonitor | None:
+    """The QP's departure stop (:mod:`exo_ctrl.safety.departure`), or None.
+
+    With the QP's bound tightened, the pelvis supported and the gait
+    exercise; δ from the gait's lift and ``exo``'s (the device's) leg length.
+    """
+    if not (
+        config.controller == "qp"
+        and config.qp_tighten_bound
+        and config.pelvis.supported
+        and config.exercise == "gait"
+    ):
+        return None
+    leg = min(legs.reach[1] for legs in exo.legs.values())
+    return DepartureMonitor(departure_limit_rad(config.gait.lift_height, leg))
+
+
+def build_supervisor(
+    runner: Any, setup: Any, current_mode: bool, departure: bool = False
+) -> SafetySupervisor | None:
+    """The supervisor of a run (None: no safety, no e-stop and no departure stop).
 
     Args:
         runner: the tick's runner (its belt encoder, foot load and belt drive force).
         setup: the run's :class:`~exo_ctrl.sim.setup.Setup`.
         current_mode: the drives follow current references (:class:`ReportingDrives`).
+        departure: the run has the QP's departure stop, which needs a supervisor
+            (with safety off one that serves stops only, as for an e-stop).
 
     """
     config = setup.config
-    if not (config.safety or config.estop_at_s is not None):
+    if not (config.safety or config.estop_at_s is not None or departure):
         return None
-    limits = config.safety_limits if config.safety else NO_LIMITS
+    # Safety off: a supervisor that serves stops only.  The departure stop's yield
+    # takes its damping and ramp from the limits (safety/stop_reaction.py), so it
+    # keeps them, and its monitors never trip (a non-finite reading still does).
+    limits = config.safety_limits if config.safety or departure else NO_LIMITS
     extra = {"applied_voltage_V": setup.plant.record["voltage"][0]} if current_mode else {}
     cls = ReportingDrives if current_mode else SafetySupervisor
-    return cls(
+    sup = cls(
         limits,
         setup.device_exo,
         setup.device_patient,
@@ -99,5 +126,9 @@ def build_supervisor(runner: Any, setup: Any, current_mode: bool) -> SafetySuper
         stop_reaction=config.stop_reactions,
         cuff_stiffness=config.belief.cuff_model_of(config.cuffs).stiffness_N_per_m,
         current_sensor=config.current_sensor,
+        plausibility_checks=config.safety or limits is NO_LIMITS,
         **extra,
     )
+    if limits is not NO_LIMITS and not config.safety:
+        sup.record["limit"][0][:LIMIT_GROUPS] = np.finfo(float).max
+    return sup

@@ -52,7 +52,7 @@ from .fused import FusedTick
 from .log_rows import write_applied, write_measured
 from .schema import log_dtype
 from .setup import Setup, patient_torque_for, start_on_plan
-from .supervision import build_supervisor
+from .supervision import build_supervisor, departure_for
 
 __all__ = [
     "UNTIMED_TICKS",
@@ -163,7 +163,12 @@ class Runner:
             self.cuff_sensors,
             plant.record["cuffs"],
         )
-        self.supervisor: SafetySupervisor | None = build_supervisor(self, setup, bind is not None)
+        #: The QP's departure stop (safety/departure.py; None: none), checked before
+        #: the supervisor on the plan row the controller tracked.
+        self._departure = departure_for(config, setup.device_exo)
+        self.supervisor: SafetySupervisor | None = build_supervisor(
+            self, setup, bind is not None, self._departure is not None
+        )
         sup = self.supervisor
         #: The supervisor's patient-load monitor (safety/cuff_load.py; None: off the whole
         #: run), run on its normal ticks; its warnings go to the supervisor's events.
@@ -281,6 +286,11 @@ class Runner:
         faults = self.faults
         if faults is not None:
             u, age = faults.command_at(k, u)
+        if self._departure is not None and self.supervisor is not None:
+            ctrl = self.setup.controller  # the QP: the plan row it tracked
+            cause = self._departure.check(k * self._dt, readings.q, ctrl.plan.q[ctrl.last_row])
+            if cause is not None:
+                self.supervisor.request_stop(k * self._dt, cause, "yield")
         if supervise is not None:
             u = supervise(k, k * self._dt, readings, self._sup_force, self._current, u, age)
             self.after_check(k, readings)

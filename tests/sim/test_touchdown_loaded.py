@@ -61,9 +61,9 @@ def test_half_support_lands_near_the_bound() -> None:
     ("overrides", "warned"),
     [
         ([], False),
-        (["run.controller=qp"], True),
+        (["run.controller=qp", "qp.cuff_force_limit_N=300"], True),
         (["treadmill.sync=false"], True),
-        (["run.controller=qp", "treadmill.sync=true"], False),
+        (["run.controller=qp", "qp.cuff_force_limit_N=300", "treadmill.sync=true"], False),
     ],
 )
 def test_an_approach_on_a_precomputed_plan_is_warned_before_the_run(

@@ -356,6 +356,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
                 self.cuff_force_limit_N,
                 gait if tighten else None,
                 cuff_knowledge,
+                supported=stance_load is not None,
             )
             for along in margin_plans or (plan,)
         )

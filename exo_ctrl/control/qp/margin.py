@@ -100,9 +100,14 @@ puts on a cuff, F_load,c = max_t ‖D_c s_n‖, is held by leaving the plan:
 **Ground contact.**  The horizon's model holds the two bodies and their
 cuffs, not the belt: with the pelvis supported, the feet's loads and a
 foot striking the belt lie outside it, and a QP that leaves the plan under
-the body's weight can let a foot strike.  The margin does not cover that
-(the campaign of ``tools/load_held.py``, docs/performance.md), and
-:func:`contact_warning` says so before such a run.
+the body's weight can let a foot strike (measured: 10–45 % past the bound,
+the campaign of ``tools/load_held.py``, docs/performance.md).  So with the
+pelvis supported the QP may not leave the plan: the working force is the
+plan's whole load, F_work,c = F_load,c (a lower bound is refused before the
+run), and where the patient's own torques, which the device cannot know
+before the run, take a leg off its plan all the same, the walk stops
+(:mod:`exo_ctrl.safety.departure`); :func:`contact_warning` says so before
+such a run.
 """
 
 from __future__ import annotations
@@ -362,6 +367,7 @@ def checked_margin(
     limit_N: float,
     gait: str | None,
     knowledge: CuffKnowledge | None = None,
+    supported: bool = False,
 ) -> BoundMargin:
     """The QP's margin along ``plan``, the bound checked against it (module docstring).
 
@@ -376,6 +382,8 @@ def checked_margin(
         knowledge: what the device knows of the true cuffs (default
             :class:`CuffKnowledge`: the published cuffs, the literature's
             spread, no cuff sensors).
+        supported: the pelvis is supported: the working force is the plan's
+            whole load on the cuff (module docstring, "Ground contact").
 
     Raises:
         CuffBoundTooTight: F_max − (static margin) below a cuff's working force.
@@ -403,10 +411,14 @@ def checked_margin(
         sensors=knowledge.sensors,
         tare=knowledge.tare,
     )
+    if supported:
+        margin = dataclasses.replace(margin, working_N=np.maximum(margin.working_N, margin.load_N))
     for c, name in enumerate(CUFF_NAMES):
         if limit_N - margin.static_N[c] < margin.working_N[c]:
             where = gait or f"a plan of period {period:g} s"
-            raise CuffBoundTooTight(limit_N, margin.static_N[c], margin.working_N[c], name, where)
+            raise CuffBoundTooTight(
+                limit_N, margin.static_N[c], margin.working_N[c], name, where, supported
+            )
     return margin
 
 
@@ -441,11 +453,13 @@ def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none"
     return text
 
 
-def contact_warning(limit_N: float, synced: bool = False) -> str:
+def contact_warning(limit_N: float, departure_rad: float | None, synced: bool = False) -> str:
     """The sentence a run with the pelvis supported and the QP gets (module docstring).
 
-    ``synced``: on the synchronised plan, which places the swing foot against the stance
-    leg as measured, a stance leg the QP lets sag can take the plan out of the leg's reach.
+    ``departure_rad``: δ of the departure stop (:mod:`exo_ctrl.safety.departure`); None:
+    the bound is not tightened, and nothing is promised.  ``synced``: on the synchronised
+    plan, which places the swing foot against the stance leg as measured, a stance leg the
+    QP lets sag can take the plan out of the leg's reach.
     """
     reach = (
         "; on the synchronised plan, which follows the measured legs, the plan can then "
@@ -453,8 +467,16 @@ def contact_warning(limit_N: float, synced: bool = False) -> str:
         if synced
         else ""
     )
+    if departure_rad is None:
+        return (
+            f"cuff_force_limit {limit_N:g} N is not promised with the pelvis supported: the "
+            "QP's horizon holds no ground contact, and where it leaves the plan under the "
+            f"body's weight a foot can strike the belt{reach} (docs/performance.md, the QP's "
+            "cuff-force bound)"
+        )
     return (
-        f"cuff_force_limit {limit_N:g} N is not promised with the pelvis supported: the QP's "
-        "horizon holds no ground contact, and where it leaves the plan under the body's weight "
-        f"a foot can strike the belt{reach} (docs/performance.md, the QP's cuff-force bound)"
+        f"with the pelvis supported the walk stops (yield) where a leg leaves its plan by more "
+        f"than {departure_rad:.3f} rad: the QP holds cuff_force_limit {limit_N:g} N by leaving "
+        f"the plan where the patient loads the cuffs beyond it, and a leg off its plan can "
+        f"strike the belt{reach} (docs/performance.md, the QP's cuff-force bound)"
     )

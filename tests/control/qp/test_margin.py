@@ -7,6 +7,7 @@ user's bound (test_closed_loop.py, test_load_held.py); here the mechanism.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pinocchio as pin
@@ -25,6 +26,7 @@ from exo_ctrl.control.qp.margin import (
 from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.estimation.kalman import CuffForceKalman
 from exo_ctrl.exceptions import CuffBoundTooTight, InvalidParameter
+from exo_ctrl.model import CUFF_NAMES
 from exo_ctrl.plant import ContactParams, CuffParams, PelvisParams
 from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.sim import Runner, SimConfig, build
@@ -159,32 +161,72 @@ def test_departure_warning_names_the_load_and_the_cuff_sensors() -> None:
 
 
 def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not() -> None:
-    """The horizon holds no ground contact: a supported pelvis's run says so, a fixed one not."""
+    """The horizon holds no ground contact: a supported pelvis's run says how the bound holds."""
     supported = SimConfig(
         controller="qp",
-        cuff_force_limit_N=150.0,
+        cuff_force_limit_N=300.0,
         contact=ContactParams(enabled=True),
         pelvis=PelvisParams(supported=True, bws_fraction=0.4),
     )
+    setup = build(supported)
+    legs = setup.device_exo.legs.values()
+    limit = supported.gait.lift_height / min(g.thigh_length + g.shank_length for g in legs)
     text = (
-        "cuff_force_limit 150 N is not promised with the pelvis supported: the QP's horizon "
+        f"with the pelvis supported the walk stops (yield) where a leg leaves its plan by more "
+        f"than {limit:.3f} rad: the QP holds cuff_force_limit 300 N by leaving the plan where "
+        "the patient loads the cuffs beyond it, and a leg off its plan can strike the belt "
+        "(docs/performance.md, the QP's cuff-force bound)"
+    )
+    assert f"{limit:.3f}" == "0.096"  # 0.10 m of lift over the default legs' 1.04 m
+    assert contact_warning(300.0, limit) == text
+    assert text in setup.warnings
+    fixed = dataclasses.replace(supported, pelvis=PelvisParams())
+    assert not any("pelvis supported" in w for w in build(fixed).warnings)
+    ct = dataclasses.replace(supported, controller="ct")
+    assert not any("pelvis supported" in w for w in build(ct).warnings)
+    loose = dataclasses.replace(supported, qp_tighten_bound=False)
+    assert (
+        "cuff_force_limit 300 N is not promised with the pelvis supported: the QP's horizon "
         "holds no ground contact, and where it leaves the plan under the body's weight a foot "
         "can strike the belt (docs/performance.md, the QP's cuff-force bound)"
-    )
-    assert contact_warning(150.0) == text
-    assert text in build(supported).warnings
-    fixed = dataclasses.replace(supported, pelvis=PelvisParams())
-    assert not any("not promised" in w for w in build(fixed).warnings)
-    ct = dataclasses.replace(supported, controller="ct")
-    assert not any("not promised" in w for w in build(ct).warnings)
+    ) in build(loose).warnings
     synced = dataclasses.replace(supported, sync=True)
     text = text.replace(
         "strike the belt",
         "strike the belt; on the synchronised plan, which follows the measured legs, the plan "
         "can then leave the leg's reach and the run end",
     )
-    assert contact_warning(150.0, synced=True) == text
+    assert contact_warning(300.0, limit, synced=True) == text
     assert text in build(synced).warnings
+
+
+def test_a_supported_pelvis_needs_room_for_the_plans_whole_load() -> None:
+    """The QP may not leave the plan on the belt: a bound below load + margin is refused."""
+    fixed = SimConfig(controller="qp", cuff_force_limit_N=150.0)
+    supported = dataclasses.replace(
+        fixed,
+        contact=ContactParams(enabled=True),
+        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
+    )
+    margin = build(fixed).controller.margin  # the fixed pelvis runs, leaving the plan
+    with pytest.raises(CuffBoundTooTight) as info:
+        build(supported)
+    err = info.value
+    assert err.supported and err.bound_N == 150.0
+    loaded = build(dataclasses.replace(supported, cuff_force_limit_N=400.0)).controller.margin
+    c = CUFF_NAMES.index(err.cuff)
+    assert err.working_N == pytest.approx(loaded.load_N[c], rel=1e-12)
+    assert err.working_N > 150.0 - err.margin_N
+    assert str(err) == (
+        f"qp.cuff_force_limit_N = 150 N cannot be held on {err.gait}: the {err.cuff} cuff's "
+        f"margin of {err.margin_N:.1f} N (what the device does not know) leaves "
+        f"{150.0 - err.margin_N:.1f} N, less than the {err.working_N:.1f} N the plan puts on "
+        "the cuff: with the pelvis supported the QP cannot leave the plan to hold its bound, "
+        "since a leg off its plan can strike the belt; raise the bound to at least "
+        f"{math.ceil(err.margin_N + err.working_N)} N or add cuff sensors (--cuff-sensors), "
+        "which shrink the margin"
+    )
+    assert margin.working_N[c] < err.working_N  # the fixed pelvis needs the leg's weight only
 
 
 @pytest.mark.parametrize(

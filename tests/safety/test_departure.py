@@ -1,0 +1,125 @@
+"""The QP's departure stop (exo_ctrl/safety/departure.py) and the supervisor's stop on request.
+
+With the pelvis supported a QP that leaves its plan to hold its cuff bound
+lets a leg strike the belt; the device stops the walk (yield) where a leg
+leaves its plan by more than the swing foot's lift over the leg's length.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from exo_ctrl.exceptions import InvalidParameter
+from exo_ctrl.model import JOINT_NAMES
+from exo_ctrl.plant import ContactParams, PelvisParams
+from exo_ctrl.safety import SafetyLimits, SafetySupervisor
+from exo_ctrl.safety.departure import DepartureMonitor, departure_limit_rad
+from exo_ctrl.sensing import SensorParams, SensorReadings
+from exo_ctrl.sim import SimConfig, build, start_on_plan
+from exo_ctrl.sim.supervision import departure_for
+
+
+def test_the_limit_is_the_swing_foots_lift_over_the_legs_length() -> None:
+    assert departure_limit_rad(0.10, 1.04) == 0.10 / 1.04
+    with pytest.raises(InvalidParameter, match=r"lift_height must be > 0 m; got 0"):
+        departure_limit_rad(0.0, 1.0)
+    with pytest.raises(InvalidParameter, match=r"leg length must be > 0 m; got -1"):
+        departure_limit_rad(0.1, -1.0)
+
+
+def test_the_monitor_names_the_joint_furthest_from_its_plan() -> None:
+    monitor = DepartureMonitor(0.1)
+    plan = np.array([0.3, 0.6, 0.2, 0.5])
+    assert monitor.check(0.5, plan + 0.0999, plan) is None  # within δ
+    q = plan + np.array([0.05, -0.12, 0.11, 0.0])
+    cause = monitor.check(0.5, q, plan)
+    assert cause is not None
+    assert cause["quantity"] == "departure_left_knee"
+    assert cause["value"] == pytest.approx(0.12)
+    assert cause["limit"] == 0.1
+    assert cause["message"] == (
+        "the left_knee left the plan by 0.120 rad at t = 0.5000 s (limit 0.100 rad, the swing "
+        "foot's lift over the leg's length): the QP holds its cuff bound by leaving the plan, "
+        "and on the belt a leg off its plan can strike it"
+    )
+    q[0] = math.nan  # a non-finite reading is the supervisor's own violation, not a departure
+    q[1] = plan[1]
+    q[2] = plan[2]
+    assert monitor.check(0.5, q, plan) is None
+    with pytest.raises(InvalidParameter, match=r"departure limit must be > 0 rad; got 0"):
+        DepartureMonitor(0.0)
+
+
+def test_the_stop_is_the_qps_with_the_pelvis_supported_and_its_bound_tightened() -> None:
+    supported = SimConfig(
+        controller="qp",
+        cuff_force_limit_N=300.0,
+        contact=ContactParams(enabled=True),
+        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
+    )
+    setup = build(supported)
+    exo = setup.device_exo
+    monitor = departure_for(supported, exo)
+    assert monitor is not None
+    legs = [exo.legs[side] for side in ("left", "right")]
+    leg = min(g.thigh_length + g.shank_length for g in legs)
+    assert monitor.limit_rad == pytest.approx(supported.gait.lift_height / leg, rel=1e-12)
+    fixed = dataclasses.replace(supported, pelvis=PelvisParams())
+    assert departure_for(fixed, exo) is None  # the legs swing in the air
+    assert departure_for(dataclasses.replace(supported, controller="ct"), exo) is None
+    loose = dataclasses.replace(supported, qp_tighten_bound=False)
+    assert departure_for(loose, exo) is None
+
+
+def supervisor_on_default_run() -> tuple[SafetySupervisor, SensorReadings, object]:
+    config = SimConfig(controller="ct")
+    setup = build(config)
+    start_on_plan(setup)
+    plant = setup.plant
+    sup = SafetySupervisor(
+        SafetyLimits(),
+        setup.exo,
+        setup.patient,
+        plant.motor_params,
+        config.dt,
+        sensors=SensorParams.ideal(),
+    )
+    sensors = SensorReadings(q=plant.q[:4].copy(), dq=plant.v[:4].copy(), tau=np.zeros(4))
+    np.copyto(sensors.tau, plant.sensor_torque)
+    return sup, sensors, plant
+
+
+def test_a_requested_stop_starts_at_its_tick_with_its_cause_and_reaction() -> None:
+    sup, sensors, plant = supervisor_on_default_run()
+    u_cmd = np.full(4, 0.5)
+    force, current = plant.cuff_force, plant.motors.mean_current_A
+    out = sup.step(0, 0.0, sensors, force, current, u_cmd)
+    assert out is u_cmd and sup.state == "normal"
+    cause = {"quantity": "departure_right_hip", "value": 0.2, "limit": 0.1, "message": "off"}
+    sup.request_stop(0.001, cause, "yield")
+    assert not sup.normal_at(0.001)
+    out = sup.step(1, 0.001, sensors, force, current, u_cmd)
+    assert sup.state == "stopping" and sup.reaction == "yield"
+    assert sup.stop_time_s == 0.001
+    violation, state = sup.events
+    assert violation == {"t": 0.001, "kind": "violation", **cause}
+    assert state["value"] == "stopping"
+    assert state["message"] == "safety state normal -> stopping: controlled stop (yield): off"
+    np.testing.assert_array_equal(sup.hold_posture_rad, sensors.q)
+    sup.request_stop(0.002, {**cause, "message": "again"}, "hold")  # once stopped: ignored
+    sup.step(2, 0.002, sensors, force, current, u_cmd)
+    assert len(sup.events) == 2 and sup.reaction == "yield"
+    with pytest.raises(InvalidParameter, match="stop_reaction must be one of"):
+        supervisor_on_default_run()[0].request_stop(0.0, cause, "brake")
+
+
+def test_joint_names_are_the_causes_quantities() -> None:
+    monitor = DepartureMonitor(0.05)
+    for j, name in enumerate(JOINT_NAMES):
+        q = np.zeros(4)
+        q[j] = -0.06
+        assert monitor.check(0.0, q, np.zeros(4))["quantity"] == f"departure_{name}"
