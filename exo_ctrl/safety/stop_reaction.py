@@ -95,6 +95,20 @@ before its reflex damping acted at once; on the model since, a patient
 with 2.5× the default reflex stiffness keeps pushing the released limb,
 past the limits: tests/safety/test_hold_pushed.py.)
 
+**The patient's feet on the belt** (``ContactParams.patient_feet`` with the
+pelvis supported, :meth:`YieldCommand.stand`).  At a stop the harness
+locks the pelvis and the patient stands on the stopped belt: a leg whose
+foot is down stands on it, a leg in the air sinks onto it against d_y, and
+a patient who carries their own legs is not lifted against their own
+torques.  So the yield (and the hold it ends in) compensates the
+exoskeleton's gravity alone.  Measured on the QP's departure stop
+(:mod:`.departure`, ``tools/load_held.py --cuff-sensors full``, points 2,
+7 and 54: active patients walking on against the stopped device): the
+thigh cuffs at 119–126 N with the patient's legs compensated too (bounds
+109–112 N), 60–104 N without; scaling each leg's compensation by the
+share of its weight the shoes' load cells read on the belt left them at
+119–125 N (the legs in the air are the active patient's own to carry).
+
 **The speed \hat ω**: the encoder's difference (q_k − q_{k−1})/Δt through a
 first-order filter of :data:`SPEED_FILTER_HZ` = 150 Hz (as the interaction
 modes' back-EMF compensation, :class:`~exo_ctrl.control.modes.ModeParams`),
@@ -377,6 +391,13 @@ class YieldCommand:
         self._q_prev = np.zeros(4)
         #: The joints that left their range of motion in this yield (:meth:`brake_outside`).
         self.braked = np.zeros(4, dtype=bool)
+
+    def stand(self) -> None:
+        """The patient stands on the belt at a stop: U_y carries the exoskeleton alone.
+
+        Module docstring, "The patient's feet on the belt".
+        """
+        del self._bodies[1:]
 
     def start(self, q: np.ndarray, dq: np.ndarray) -> None:
         """Start the speed filter at the stop: ω̂ from the speed reading, q_{k−1} = q."""

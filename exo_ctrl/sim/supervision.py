@@ -131,4 +131,6 @@ def build_supervisor(
     )
     if limits is not NO_LIMITS and not config.safety:
         sup.record["limit"][0][:LIMIT_GROUPS] = np.finfo(float).max
+    if config.pelvis.supported and config.contact.patient_feet:
+        sup.yield_command.stand()  # the patient stands on the belt at a stop
     return sup

@@ -1,4 +1,5 @@
-"""The QP's departure stop (exo_ctrl/safety/departure.py) and the supervisor's stop on request.
+"""The QP's departure stop (exo_ctrl/safety/departure.py), the supervisor's stop on request, and
+the yield of a patient who stands on the belt at a stop.
 
 With the pelvis supported a QP that leaves its plan to hold its cuff bound
 lets a leg strike the belt; the device stops the walk (yield) where a leg
@@ -11,6 +12,7 @@ import dataclasses
 import math
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from exo_ctrl.exceptions import InvalidParameter
@@ -19,7 +21,7 @@ from exo_ctrl.plant import ContactParams, PelvisParams
 from exo_ctrl.safety import SafetyLimits, SafetySupervisor
 from exo_ctrl.safety.departure import DepartureMonitor, departure_limit_rad
 from exo_ctrl.sensing import SensorParams, SensorReadings
-from exo_ctrl.sim import SimConfig, build, start_on_plan
+from exo_ctrl.sim import Runner, SimConfig, build, start_on_plan
 from exo_ctrl.sim.supervision import departure_for
 
 
@@ -123,3 +125,29 @@ def test_joint_names_are_the_causes_quantities() -> None:
         q = np.zeros(4)
         q[j] = -0.06
         assert monitor.check(0.0, q, np.zeros(4))["quantity"] == f"departure_{name}"
+
+
+def test_at_a_stop_the_standing_patient_is_not_lifted_by_the_yield() -> None:
+    """Pelvis supported, the patient's feet on the belt: the yield carries the exoskeleton alone."""
+    config = SimConfig(
+        controller="ct",
+        contact=ContactParams(enabled=True, patient_feet=True),
+        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
+    )
+    q = np.array([0.3, 0.5, 0.1, 0.2])
+
+    def gravity(body) -> np.ndarray:
+        model = body.model
+        data = model.createData()
+        qm = np.zeros(model.nq)
+        qm[body.q_index] = q
+        return pin.computeGeneralizedGravity(model, data, qm)[body.q_index]
+
+    standing = Runner(build(config))
+    exo = gravity(standing.setup.device_exo)
+    patient = gravity(standing.setup.device_patient)
+    assert np.abs(patient).max() > 5.0  # the patient's legs weigh on the joints
+    np.testing.assert_allclose(standing.supervisor.yield_command.gravity(q), exo, rtol=1e-12)
+    hanging = Runner(build(dataclasses.replace(config, contact=ContactParams(enabled=True))))
+    both = hanging.supervisor.yield_command.gravity(q)
+    np.testing.assert_allclose(both, exo + patient, rtol=1e-12)
