@@ -69,11 +69,14 @@ class ReportingDrives(SafetySupervisor):
 def departure_for(config: Any, exo: BodyModel) -> DepartureMonitor | None:
     """The QP's departure stop (:mod:`exo_ctrl.safety.departure`), or None.
 
-    With the QP's bound tightened, the pelvis supported and the gait
-    exercise; δ from the gait's lift and ``exo``'s (the device's) leg length.
+    With the QP tracking its plan (the tracking mode, no session), its bound
+    tightened, the pelvis supported and the gait exercise; δ from the gait's
+    lift and ``exo``'s (the device's) leg length.
     """
     if not (
         config.controller == "qp"
+        and config.mode == "tracking"
+        and config.session is None
         and config.qp_tighten_bound
         and config.pelvis.supported
         and config.exercise == "gait"

@@ -75,6 +75,8 @@ def test_the_stop_is_the_qps_with_the_pelvis_supported_and_its_bound_tightened()
     assert departure_for(dataclasses.replace(supported, controller="ct"), exo) is None
     loose = dataclasses.replace(supported, qp_tighten_bound=False)
     assert departure_for(loose, exo) is None
+    guided = dataclasses.replace(supported, mode="transparent")  # the plan is not the target
+    assert departure_for(guided, exo) is None
 
 
 def supervisor_on_default_run() -> tuple[SafetySupervisor, SensorReadings, object]:
