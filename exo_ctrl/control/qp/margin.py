@@ -459,7 +459,7 @@ def contact_warning(limit_N: float, departure_rad: float | None, synced: bool = 
     ``departure_rad``: δ of the departure stop (:mod:`exo_ctrl.safety.departure`); None:
     the bound is not tightened, and nothing is promised.  ``synced``: on the synchronised
     plan, which places the swing foot against the stance leg as measured, a stance leg the
-    QP lets sag can take the plan out of the leg's reach.
+    QP lets sag can take the plan out of the leg's reach (where nothing stops the walk first).
     """
     reach = (
         "; on the synchronised plan, which follows the measured legs, the plan can then "
@@ -478,5 +478,5 @@ def contact_warning(limit_N: float, departure_rad: float | None, synced: bool = 
         f"with the pelvis supported the walk stops (yield) where a leg leaves its plan by more "
         f"than {departure_rad:.3f} rad: the QP holds cuff_force_limit {limit_N:g} N by leaving "
         f"the plan where the patient loads the cuffs beyond it, and a leg off its plan can "
-        f"strike the belt{reach} (docs/performance.md, the QP's cuff-force bound)"
+        f"strike the belt (docs/performance.md, the QP's cuff-force bound)"
     )
