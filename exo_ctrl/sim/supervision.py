@@ -18,22 +18,13 @@ from typing import Any
 import numpy as np
 
 from ..model import BodyModel
-from ..safety import SafetyLimits, SafetySupervisor
+from ..safety import SafetySupervisor
 from ..safety.belt_monitor import BeltMonitor
 from ..safety.departure import DepartureMonitor, departure_limit_rad
 from ..safety.monitor import LIMIT_GROUPS
 from ..sensing.readings import SensorReadings
 
 __all__ = ["ReportingDrives", "build_supervisor", "departure_for"]
-
-#: Limits that never trip: the supervisor then only serves the e-stop.
-NO_LIMITS = SafetyLimits(
-    cuff_force_N=(1e12,) * 4,
-    position_lower_rad=(-1e12,) * 4,
-    position_upper_rad=(1e12,) * 4,
-    speed_limit_rad_s=(1e12,) * 4,
-    current_limit_A=1e12,
-)
 
 
 class ReportingDrives(SafetySupervisor):
@@ -102,14 +93,14 @@ def build_supervisor(
     config = setup.config
     if not (config.safety or config.estop_at_s is not None or departure):
         return None
-    # Safety off: a supervisor that serves stops only.  The departure stop's yield
-    # takes its damping and ramp from the limits (safety/stop_reaction.py), so it
-    # keeps them, and its monitors never trip (a non-finite reading still does).
-    limits = config.safety_limits if config.safety or departure else NO_LIMITS
+    # Safety off: a supervisor that serves stops only (the e-stop, the departure stop).
+    # Its reactions take their damping, ramp and hold checks from the limits
+    # (safety/stop_reaction.py), so it keeps them; its monitors never trip (a
+    # non-finite reading still does) and the plausibility monitors do not run.
     extra = {"applied_voltage_V": setup.plant.record["voltage"][0]} if current_mode else {}
     cls = ReportingDrives if current_mode else SafetySupervisor
     sup = cls(
-        limits,
+        config.safety_limits,
         setup.device_exo,
         setup.device_patient,
         setup.device_motor,
@@ -129,10 +120,10 @@ def build_supervisor(
         stop_reaction=config.stop_reactions,
         cuff_stiffness=config.belief.cuff_model_of(config.cuffs).stiffness_N_per_m,
         current_sensor=config.current_sensor,
-        plausibility_checks=config.safety or limits is NO_LIMITS,
+        plausibility_checks=config.safety,
         **extra,
     )
-    if limits is not NO_LIMITS and not config.safety:
+    if not config.safety:
         sup.record["limit"][0][:LIMIT_GROUPS] = np.finfo(float).max
     if config.pelvis.supported and config.contact.patient_feet:
         sup.yield_command.stand()  # the patient stands on the belt at a stop

@@ -21,7 +21,7 @@ from exo_ctrl.plant import ContactParams, PelvisParams
 from exo_ctrl.safety import SafetyLimits, SafetySupervisor
 from exo_ctrl.safety.departure import DepartureMonitor, departure_limit_rad
 from exo_ctrl.sensing import SensorParams, SensorReadings
-from exo_ctrl.sim import Runner, SimConfig, build, start_on_plan
+from exo_ctrl.sim import Runner, SimConfig, build, simulate, start_on_plan
 from exo_ctrl.sim.supervision import departure_for
 
 
@@ -153,3 +153,18 @@ def test_at_a_stop_the_standing_patient_is_not_lifted_by_the_yield() -> None:
     hanging = Runner(build(dataclasses.replace(config, contact=ContactParams(enabled=True))))
     both = hanging.supervisor.yield_command.gravity(q)
     np.testing.assert_allclose(both, exo + patient, rtol=1e-12)
+
+
+def test_with_safety_off_the_supervisor_serves_stops_only_with_the_limits_reactions() -> None:
+    """``--no-safety`` with an e-stop: no monitor trips, and the yield is the limits' (11 ms)."""
+    on = SimConfig(controller="ct", stop_reaction="yield", duration_s=1.2)
+    off = dataclasses.replace(on, safety=False, estop_at_s=0.8)
+    full, stops = Runner(build(on)).supervisor, Runner(build(off)).supervisor
+    np.testing.assert_array_equal(stops.yield_command.damping, full.yield_command.damping)
+    assert stops.yield_command.ramp_s == full.yield_command.ramp_s < 0.02
+    assert not stops.checks and full.checks  # the plausibility monitors: off
+    big = np.finfo(float).max
+    assert (stops.record["limit"][0] == big).all()  # no monitor trips
+    result = simulate(dataclasses.replace(off, safety_limits=SafetyLimits(cuff_force_N=1.0)))
+    assert [e["kind"] for e in result.events][:1] == ["estop"]
+    assert result.events[0]["t"] == pytest.approx(0.8)
