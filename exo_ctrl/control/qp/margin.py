@@ -461,13 +461,13 @@ def contact_warning(limit_N: float, departure_rad: float | None, synced: bool = 
     plan, which places the swing foot against the stance leg as measured, a stance leg the
     QP lets sag can take the plan out of the leg's reach (where nothing stops the walk first).
     """
-    reach = (
-        "; on the synchronised plan, which follows the measured legs, the plan can then "
-        "leave the leg's reach and the run end"
-        if synced
-        else ""
-    )
     if departure_rad is None:
+        reach = (
+            "; on the synchronised plan, which follows the measured legs, the plan can then "
+            "leave the leg's reach and the run end"
+            if synced
+            else ""
+        )
         return (
             f"cuff_force_limit {limit_N:g} N is not promised with the pelvis supported: the "
             "QP's horizon holds no ground contact, and where it leaves the plan under the "
