@@ -99,6 +99,14 @@ class ComputedTorqueController(PDController):
             plan.q[row], plan.dq[row], plan.ddq[row], self._torque_ff[row], self._u_ff[row], lift
         )
 
+    def feedforward_along(self, plan: JointTrajectory) -> np.ndarray:
+        """τ_ff along another plan on this controller's models, (N, 4) [N·m].
+
+        For a plan generated each tick, whose own table holds one row: the
+        same gait precomputed (:mod:`exo_ctrl.control.drive_reach`).
+        """
+        return self._ff.tables(plan)[0]
+
     @property
     def torque_ff(self) -> np.ndarray:
         """Feedforward torque of the last tick [N·m], (4,)."""

@@ -15,9 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control import (
+    ComputedTorqueController,
     PDController,
     feedforward_torque,
 )
+from ..control.drive_reach import torque_reach_warning
 from ..control.modes import InteractionController, PathController
 from ..control.qp import QPController, contact_warning, departure_warning
 from ..estimation import ESTIMATORS, Estimator
@@ -129,7 +131,7 @@ def build(config: SimConfig, start: bool = True) -> Setup:
             config, exo, patient, motor, model_exo, check_followable, sink, start=start
         )
         plan = online.plan
-        if config.controller == "qp":  # its bound's margin: along the profile's steady gaits
+        if config.controller in ("qp", "ct"):  # the QP's margin, the drives' reach (warnings)
             runs = profile_runs(config, online.law)
             references = tuple(precomputed_plan(run, exo, sink) for run in runs)
     # The device's drive: its datasheet, a parameter set of its own (a copy
@@ -202,7 +204,7 @@ def build(config: SimConfig, start: bool = True) -> Setup:
         model_motor,
         belt_speed,
         online,
-        tuple(run_warnings(config, exo, fitted, tracking, model_exo)),
+        tuple(run_warnings(config, exo, fitted, tracking, model_exo, model_motor, references)),
         user_estimator,
     )
 
@@ -235,12 +237,17 @@ def run_warnings(
     fitted: BodyModel,
     controller: object = None,
     model_exo: BodyModel | None = None,
+    model_motor: MotorParams | None = None,
+    references: tuple[JointTrajectory, ...] = (),
 ) -> list[str]:
     """The run's warnings (:attr:`Setup.warnings`).
 
     The fit, then the nominal patient's notes, then a landing approach on a
     precomputed plan (:mod:`exo_ctrl.plan.surface` needs the synchronised one),
-    then, for the QP, a bound its
+    then, for computed torque and the QP, a plan whose feedforward exceeds the
+    drives' peak torque (:func:`~exo_ctrl.control.drive_reach.torque_reach_warning`;
+    ``model_motor``: the device's drive, None: not checked; along
+    ``references``, a synchronised run's steady gaits precomputed), then, for the QP, a bound its
     margin leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`)
     and, with the pelvis supported, the departure stop that keeps its bound
     (:func:`~exo_ctrl.control.qp.contact_warning`; ``model_exo``: the device's
@@ -256,6 +263,13 @@ def run_warnings(
             "height: touchdowns under body-weight support can be harder than on the paper's "
             "path (docs/performance.md, touchdowns under load)"
         )
+    if isinstance(controller, ComputedTorqueController) and model_motor is not None:
+        table = controller.torque_ff_table
+        if references:  # the one-row plan: the profile's steady gaits precomputed
+            table = np.concatenate([controller.feedforward_along(p) for p in references])
+        reach = torque_reach_warning(table, model_motor.peak_torque_Nm)
+        if reach is not None:
+            out.append(reach)
     if isinstance(controller, QPController):
         departure = departure_warning(
             controller.margin, controller.cuff_force_limit_N, config.cuff_sensors.mode
