@@ -215,6 +215,14 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{summary['touchdown_slip_mps']:.4f} m/s; peak ground force [N]: {feet}; "
             f"belt speed error RMS {summary['belt_speed_error_rms_mps']:.4f} m/s"
         )
+        if summary.get("stop_touchdown_count") or summary.get("stop_slip_speed_max_mps"):
+            lines.append(
+                "belt contact during the supervisor's stop (not in the figures above): slip "
+                f"RMS {summary['stop_slip_speed_rms_mps']:.4f} m/s, "
+                f"{summary['stop_touchdown_count']} touchdowns, worst vertical "
+                f"{summary['stop_touchdown_speed_mps']:.4f} m/s, horizontal "
+                f"{summary['stop_touchdown_slip_mps']:.4f} m/s"
+            )
     pf = summary.get("patient_feet")
     if pf:  # --patient-feet on (exo_ctrl/plant/patient_feet.py)
         lines.append(

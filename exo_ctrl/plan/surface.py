@@ -22,7 +22,8 @@ stance leg that is still giving way), then held and let go over the press's
 (the filter's (ε − ε̄) / (T_f + Δt)), its z̈ the weight's only.
 
 Measured (``exo-ctrl simulate --preset clinic-bws --set
-interaction.patient_torque=none --set pelvis.bws_fraction=0.3``, CT): without
+interaction.patient_torque=none --set pelvis.bws_fraction=0.3``, CT, on the preset's
+former 1.2 s gait: ``--set gait.period=1.2 --set gait.pelvis_excursion=0.05``): without
 it the feet met the belt 10-30 ms early at 0.06-0.11 m/s; with it within a
 few milliseconds of the plan, at 0.03-0.04 m/s.  The sole's sink read from
 the foot plates' load (δ = (F_z/k)^{1/n} against the plan's) was tried as a

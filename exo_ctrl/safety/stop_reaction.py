@@ -108,8 +108,8 @@ thigh cuffs at 119–126 N with the patient's legs compensated too (bounds
 109–112 N), 60–104 N without; scaling each leg's compensation by the
 share of its weight the shoes' load cells read on the belt left them at
 119–125 N (the legs in the air are the active patient's own to carry).
-And after an e-stop with the yield (``--preset clinic-bws``, CT, the
-patient's feet on, stops at 0.9, 1.5 and 2.1 s) the largest cuff force
+And after an e-stop with the yield (``--preset clinic-bws`` on its former
+1.2 s gait, CT, the patient's feet on, stops at 0.9, 1.5 and 2.1 s) the largest cuff force
 after the stop: 42–45 N passive, 58–66 N spastic, 114–129 N active, against
 57–60, 71–83 and 147–150 N with the patient's legs compensated too.
 

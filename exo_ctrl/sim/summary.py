@@ -255,6 +255,10 @@ class ContactStats:
     ramp-in: during it the plan's own stance foot slides by σ̇ x,
     :mod:`exo_ctrl.plan.ramp`); forces and the belt's speed error over the
     whole run.  A touchdown is a tick where a foot's contact state leaves 0.
+    The walk's figures leave out the ticks where the safety supervisor stops
+    (``safety_state`` not normal: the belt runs down, the legs yield or are
+    held), which get figures of their own (``stop_*``): a foot that comes down
+    on the slowing belt during a stop is not one of the gait's touchdowns.
 
     Args:
         from_tick: first tick of the slip and touchdown figures.
@@ -272,9 +276,10 @@ class ContactStats:
         if patient_feet:
             self.patient = {"peak": np.zeros(2), "depth": np.zeros(2), "sq": 0.0, "n": np.zeros(2)}
         self._window = max(round(TOUCHDOWN_WINDOW_S / dt), 1)
-        self._slip_sq = 0.0
-        self._slip_n = 0
-        self._slip_max = 0.0
+        # Σ slip², ticks × feet in contact and the largest slip: [the walk, the stops].
+        self._slip_sq = np.zeros(2)
+        self._slip_n = np.zeros(2, dtype=np.int64)
+        self._slip_max = np.zeros(2)
         self._belt_sq = 0.0
         self._belt_n = 0
         self._peak_force = np.zeros(2)
@@ -288,12 +293,13 @@ class ContactStats:
         state, slip = rows["contact_state"], rows["foot_slip"]
         n = state.shape[0]
         start = min(max(self.from_tick - first_tick, 0), n)
-        late = state[start:] > 0.0
-        s = slip[start:][late]
-        self._slip_sq += float(s @ s)
-        self._slip_n += int(s.size)
-        if s.size:
-            self._slip_max = max(self._slip_max, float(np.max(np.abs(s))))
+        stopped = rows["safety_state"] != 0.0
+        for phase, ticks in enumerate((~stopped[start:], stopped[start:])):
+            s = slip[start:][(state[start:] > 0.0) & ticks[:, None]]
+            self._slip_sq[phase] += float(s @ s)
+            self._slip_n[phase] += int(s.size)
+            if s.size:
+                self._slip_max[phase] = max(self._slip_max[phase], float(np.max(np.abs(s))))
         err = rows["belt_speed"] - rows["belt_speed_set"]
         self._belt_sq += float(err @ err)
         self._belt_n += n
@@ -312,7 +318,7 @@ class ContactStats:
                 self.touchdowns.append(
                     {"tick": first_tick + int(r), "t_s": (first_tick + int(r)) * self.dt,
                      "foot": SIDES[f], "speed_x_mps": float(vx), "speed_z_mps": float(vz),
-                     "peak_normal_force_rate_N_per_s": 0.0}
+                     "peak_normal_force_rate_N_per_s": 0.0, "during_stop": bool(stopped[r])}
                 )  # fmt: skip
                 self._open[f] = [len(self.touchdowns) - 1, self._window]
                 self._extend(f, int(r), rate[:, f])
@@ -352,9 +358,11 @@ class ContactStats:
     def summary(self) -> dict[str, Any]:
         """The contact's summary keys.
 
-        ``slip_speed_rms_mps``, ``slip_speed_max_mps`` (both feet, in contact),
-        ``touchdown_speed_mps`` (worst vertical), ``touchdown_slip_mps`` (worst
-        horizontal, relative to the belt), ``touchdown_count``,
+        While walking (class docstring): ``slip_speed_rms_mps``,
+        ``slip_speed_max_mps`` (both feet, in contact), ``touchdown_speed_mps``
+        (worst vertical), ``touchdown_slip_mps`` (worst horizontal, relative to
+        the belt), ``touchdown_count``; during the supervisor's stops the same
+        prefixed ``stop_`` (0 without a stop); over both:
         ``peak_normal_force_rate_N_per_s`` (worst within
         :data:`TOUCHDOWN_WINDOW_S` of a touchdown), ``peak_ground_force_N``
         (keyed by foot), ``belt_speed_error_rms_mps`` (belt - set speed) and
@@ -367,12 +375,22 @@ class ContactStats:
         keyed by foot).
         """
         td = self.touchdowns
-        out = {
-            "slip_speed_rms_mps": math.sqrt(self._slip_sq / max(self._slip_n, 1)),
-            "slip_speed_max_mps": self._slip_max,
-            "touchdown_speed_mps": max((abs(e["speed_z_mps"]) for e in td), default=0.0),
-            "touchdown_slip_mps": max((abs(e["speed_x_mps"]) for e in td), default=0.0),
-            "touchdown_count": len(td),
+        out: dict[str, Any] = {}
+        for phase, prefix in enumerate(("", "stop_")):
+            mine = [e for e in td if e["during_stop"] is bool(phase)]
+            rms = math.sqrt(self._slip_sq[phase] / max(int(self._slip_n[phase]), 1))
+            out |= {
+                f"{prefix}slip_speed_rms_mps": rms,
+                f"{prefix}slip_speed_max_mps": float(self._slip_max[phase]),
+                f"{prefix}touchdown_speed_mps": max(
+                    (abs(e["speed_z_mps"]) for e in mine), default=0.0
+                ),
+                f"{prefix}touchdown_slip_mps": max(
+                    (abs(e["speed_x_mps"]) for e in mine), default=0.0
+                ),
+                f"{prefix}touchdown_count": len(mine),
+            }
+        out |= {
             "peak_normal_force_rate_N_per_s": max(
                 (e["peak_normal_force_rate_N_per_s"] for e in td), default=0.0
             ),

@@ -58,10 +58,10 @@ def _reach(warnings: tuple[str, ...]) -> list[str]:
 
 
 def test_the_supported_gait_is_warned_from_its_table_and_the_fixed_default_not() -> None:
-    """clinic-bws at 30 % support: the feedforward passes the drives (swing hip, stance knee)."""
-    config = load_scenario(
-        preset="clinic-bws", overrides=["pelvis.bws_fraction=0.3", "treadmill.sync=false"]
-    ).config
+    """The 1.2 s clinic gait at 30 % support passes the drives (swing hip, stance knee)."""
+    faster = ["gait.period=1.2", "gait.pelvis_excursion=0.05", "run.duration_s=3.6"]
+    overrides = ["pelvis.bws_fraction=0.3", "treadmill.sync=false", *faster]
+    config = load_scenario(preset="clinic-bws", overrides=overrides).config
     setup = build(config)
     assert isinstance(setup.controller, ComputedTorqueController)
     motor = setup.device_motor
@@ -78,7 +78,11 @@ def test_the_supported_gait_is_warned_from_its_table_and_the_fixed_default_not()
     synced = build(dataclasses.replace(config, sync=True))
     assert synced.plan.q.shape[0] == 1
     assert _reach(synced.warnings) == [_sentence(cap, named)]
-    # The default QP with the pelvis fixed stays within its drives; PD feeds nothing forward.
+    # The preset's own gait (1.6 s) stays within the drives, as does the default QP with the
+    # pelvis fixed; PD feeds nothing forward.
+    preset = build(load_scenario(preset="clinic-bws", overrides=["treadmill.sync=false"]).config)
+    assert np.abs(preset.controller.torque_ff_table).max() < cap
+    assert _reach(preset.warnings) == []
     fixed = build(SimConfig(controller="qp"))
     assert np.abs(fixed.controller.torque_ff_table).max() < cap
     assert _reach(fixed.warnings) == []

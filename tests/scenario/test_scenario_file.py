@@ -112,8 +112,9 @@ def test_presets_are_listed_described_and_load() -> None:
     assert (bws.pelvis.supported, bws.pelvis.bws_fraction, bws.gait.pelvis_excursion) == (
         True,
         0.4,
-        0.05,
+        0.025,
     )
+    assert (bws.gait.period, bws.duration_s) == (1.6, 4.8)  # the ramp-in and two cycles
     assert preset("spastic-qp").config.controller == "qp"
     assert preset("spastic-qp").config.patient_torque == "spastic"
     active = preset("active-transparent").config
