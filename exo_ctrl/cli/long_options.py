@@ -55,14 +55,16 @@ __all__ = [
     "option_settings",
 ]
 
-#: The gait's hip height H_s and excursion e [m] and duty factor β that ``--pelvis supported``
-#: sets (where no option gives them): the 0.52 + 0.52 m legs extend to 19.5° of knee flexion at
-#: mid-stance (36° at the transfers; a 0.90 m fixed hip walks a 56–60° crouch,
-#: tests/plan/test_hip_excursion.py), 13.7 mm within the leg's reach; β = 0.6, normal walking's
-#: 60 % stance (Perry & Burnfield, Gait Analysis, 2nd ed. 2010, ch. 1), so that the load passes
-#: from foot to foot over a double support and the plan's loading phase can sink the loaded
-#: foot (:mod:`exo_ctrl.plan.loading`).
-SUPPORTED_GAIT = {"hip_height": 1.0, "pelvis_excursion": 0.05, "duty_factor": 0.6}
+#: The gait's hip height H_s, excursion e [m], duty factor β and period T [s] that
+#: ``--pelvis supported`` sets (where no option gives them), the ``clinic-bws`` preset's: the
+#: 0.52 + 0.52 m legs extend to 26° of knee flexion at mid-stance (a 0.90 m fixed hip
+#: walks a 56–60° crouch, tests/plan/test_hip_excursion.py); β = 0.6, normal walking's 60 %
+#: stance (Perry & Burnfield, Gait Analysis, 2nd ed. 2010, ch. 1), so that the load passes from
+#: foot to foot over a double support and the plan's loading phase can sink the loaded foot
+#: (:mod:`exo_ctrl.plan.loading`); T = 1.6 s and e = 2.5 cm keep the planned torque within the
+#: default drives at 30–50 % support (the 1.2 s period with e = 5 cm needs up to 203 N·m:
+#: docs/performance.md, touchdowns under load).
+SUPPORTED_GAIT = {"hip_height": 1.0, "pelvis_excursion": 0.025, "duty_factor": 0.6, "period": 1.6}
 
 #: The forms an option's text can take (:class:`LongOption`).
 FORMS = ("value", "switch", "flag", "pair", "joints", "session", "motor", "cuffs", "compliance")

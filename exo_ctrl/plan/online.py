@@ -32,7 +32,7 @@ the belt's speed controller wound up and overshot the set speed by 18 %
 after the ramp-in, and the first touchdowns landed at 0.70 m/s along the
 belt (0.03 m/s with it; belt speed error RMS 0.047 → 0.019 m/s; measured
 with computed torque, ``exo-ctrl simulate --controller ct --contact on
---pelvis supported --bws 0.5 --cycles 3``).
+--pelvis supported --bws 0.5 --pelvis-excursion 0.05 --period 1.2 --cycles 3``).
 
 **Swing foot, x**: a cubic re-solved every tick from the foot's present
 (x, ẋ) to its segment's end point in the time the phase leaves: D → A ends

@@ -95,8 +95,8 @@ def test_beside_a_preset_an_option_is_its_key_set(argv: list[str], setting: str 
 def _check_implied(argv: list[str], config: SimConfig) -> None:
     if argv[0] == "--pelvis":  # the supported gait, the fraction given
         assert config.pelvis.supported and config.pelvis.bws_fraction == 0.3
-        assert (config.gait.hip_height, config.gait.pelvis_excursion) == (1.0, 0.05)
-        assert config.gait.duty_factor == 0.6
+        assert (config.gait.hip_height, config.gait.pelvis_excursion) == (1.0, 0.025)
+        assert (config.gait.duty_factor, config.gait.period) == (0.6, 1.6)
     else:  # a stiffness switches the spring on
         assert config.joint_compliance.enabled
         assert config.joint_compliance.stiffness_Nm_per_rad == 10000.0
