@@ -145,12 +145,14 @@ class CuffBoundTooTight(ExoCtrlError, ValueError):
     strike it.
 
     Attributes:
-        bound_N: F_max, the user's bound [N].
+        bound_N: F_max, the user's bound on this cuff [N].
         margin_N: m_c, the cuff's margin [N].
         working_N: F_work,c [N].
         cuff: the cuff's name.
         gait: the gait, in words.
         supported: the pelvis is supported (the working force is the plan's load).
+        given: the bound as the user gave it, one number or (thigh, shank) [N]
+            (None: ``bound_N``).
 
     """
 
@@ -162,6 +164,7 @@ class CuffBoundTooTight(ExoCtrlError, ValueError):
         cuff: str,
         gait: str,
         supported: bool = False,
+        given: object = None,
     ) -> None:
         self.bound_N = bound_N
         self.margin_N = margin_N
@@ -178,11 +181,15 @@ class CuffBoundTooTight(ExoCtrlError, ValueError):
                 "strike the belt"
             )
             other = "or add cuff sensors (--cuff-sensors), which shrink the margin"
+        shown, which = f"{bound_N:g} N", "the bound"
+        if isinstance(given, (tuple, list)) and len(set(given)) > 1:  # (thigh, shank)
+            region = "shank" if cuff.endswith("_shank") else "thigh"
+            shown, which = f"[{given[0]:g}, {given[1]:g}] N (thigh, shank)", f"the {region} bound"
         super().__init__(
-            f"qp.cuff_force_limit_N = {bound_N:g} N cannot be held on {gait}: the "
+            f"qp.cuff_force_limit_N = {shown} cannot be held on {gait}: the "
             f"{cuff} cuff's margin of {margin_N:.1f} N (what the device does not know) "
-            f"leaves {bound_N - margin_N:.1f} N, less than {need}; raise the bound to at least "
-            f"{math.ceil(margin_N + working_N)} N {other}"
+            f"leaves {bound_N - margin_N:.1f} N, less than {need}; raise "
+            f"{which} to at least {math.ceil(margin_N + working_N)} N {other}"
         )
 
 

@@ -67,7 +67,18 @@ __all__ = [
 SUPPORTED_GAIT = {"hip_height": 1.0, "pelvis_excursion": 0.025, "duty_factor": 0.6, "period": 1.6}
 
 #: The forms an option's text can take (:class:`LongOption`).
-FORMS = ("value", "switch", "flag", "pair", "joints", "session", "motor", "cuffs", "compliance")
+FORMS = (
+    "value",
+    "switch",
+    "flag",
+    "pair",
+    "joints",
+    "regions",
+    "session",
+    "motor",
+    "cuffs",
+    "compliance",
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +93,8 @@ class LongOption:
             ``value`` the key's own type; ``switch`` one of two words for a
             boolean (:attr:`words`, true first); ``flag`` no text, sets
             :attr:`const`; ``pair`` ``A,B``; ``joints`` one number for every
-            joint or four in joint order; ``session`` a session JSON file;
+            joint or four in joint order; ``regions`` one number for every
+            cuff or ``THIGH,SHANK``; ``session`` a session JSON file;
             ``motor`` a drive preset's name; ``cuffs`` ``split`` (unset: the
             published cuffs) or ``isotropic``; ``compliance`` a stiffness
             that also switches the joint spring on.
@@ -165,7 +177,7 @@ LONG_OPTIONS: tuple[LongOption, ...] = (
     _o("--pelvis", "pelvis.supported", _PELVIS, form="switch", words=("supported", "fixed")),
     _o("--bws", "pelvis.bws_fraction", _PELVIS, metavar="FRACTION"),
     _o("--body-mass", "pelvis.body_mass_kg", _PELVIS),
-    _o("--cuff-force-limit", "qp.cuff_force_limit_N", _DEVICE),
+    _o("--cuff-force-limit", "qp.cuff_force_limit_N", _DEVICE, form="regions", metavar="N"),
     _o("--controller-patient", "belief.patient", _DEVICE, metavar="nominal|truth|URDF"),
     _o("--controller-exo", "belief.exo", _DEVICE, metavar="URDF"),
     _o("--controller-cuffs", "belief.cuffs", _DEVICE, form="cuffs", choices=("isotropic", "split")),
@@ -206,6 +218,7 @@ _FORM_NOTES = {
     "pair": "given as two numbers A,B",
     "joints": "one number for every joint, or four in joint order (left hip, left knee, "
     "right hip, right knee)",
+    "regions": "one number for every cuff, or two, THIGH,SHANK, each for both legs' cuffs",
     "session": "read from a JSON file: a list of segments, each {duration [s], mode, its "
     "parameters, belt_speed [m/s]} (exo_ctrl/sim/session.py); the run lasts their sum",
     "motor": "a preset: default (an energy-consistent brushless motor with the paper's "
@@ -372,6 +385,9 @@ def _read(opt: LongOption, value: Any) -> tuple[Any, list[tuple[str, Any]]]:
         return on, [(f"gait.{name}", v) for name, v in SUPPORTED_GAIT.items()] if supported else []
     if opt.form == "pair":
         return list(_numbers(opt, value, (2,))), []
+    if opt.form == "regions":
+        numbers = _numbers(opt, value, (1, 2))
+        return (numbers[0] if len(numbers) == 1 else list(numbers)), []
     if opt.form == "joints":
         numbers = _numbers(opt, value, (1, 4))
         return list(numbers * 4 if len(numbers) == 1 else numbers), []

@@ -10,6 +10,7 @@ from typing import Any
 from .. import _validate as v
 from ..control import PD, Controller, PDGains, controller_name
 from ..control.modes import ModeParams, PathParams
+from ..control.qp.bounds import cuff_limits
 from ..control.qp.controller import RESTORED_BANDWIDTH_PER_S
 from ..estimation import DEFAULT_GAIN_PER_S, ESTIMATORS, Estimator, estimator_name
 from ..exceptions import InvalidParameter
@@ -101,10 +102,12 @@ class SimConfig:
             [1/s] (:mod:`exo_ctrl.control.qp.observer`; default 200, twice
             the estimator's: its lag halved; ``observer_gain_per_s`` leaves
             the estimate as it is).
-        cuff_force_limit_N: the QP's bound on each cuff's force [N].  Default
-            120 N: ISO/TS 15066 Annex A's quasi-static limit for the lower leg,
-            130 N, with a margin.  The QP holds its prediction within the
-            bound less each cuff's margin (:mod:`exo_ctrl.control.qp.margin`).
+        cuff_force_limit_N: the QP's bound on each cuff's force [N]: one for
+            every cuff, or two, (thigh, shank), each region's
+            (:mod:`exo_ctrl.control.qp.bounds`).  Default 120 N: ISO/TS 15066
+            Annex A's quasi-static limit for the lower leg, 130 N, with a
+            margin.  The QP holds its prediction within the bound less each
+            cuff's margin (:mod:`exo_ctrl.control.qp.margin`).
         qp_tighten_bound: tighten the bound by the margin (False: at the bound).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
@@ -251,7 +254,7 @@ class SimConfig:
     observer_gain_per_s: float = DEFAULT_GAIN_PER_S
     cuff_stiffness_ratio: float = 1.0
     estimator: str | Estimator = "kalman"
-    cuff_force_limit_N: float = 120.0
+    cuff_force_limit_N: float | tuple[float, float] = 120.0
     qp_estimate_bandwidth_per_s: float = RESTORED_BANDWIDTH_PER_S
     qp_tighten_bound: bool = True
     patient_torque: str = "none"
@@ -302,7 +305,9 @@ class SimConfig:
         checks.check_mode(self)
         if self.stop_reaction is not None:
             check_stop_reaction(self.stop_reaction)
-        v.positive("cuff_force_limit", self.cuff_force_limit_N, "N")
+        cuff_limits(self.cuff_force_limit_N)  # one bound, or (thigh, shank)
+        if isinstance(self.cuff_force_limit_N, list):  # a scenario file's pair
+            object.__setattr__(self, "cuff_force_limit_N", tuple(self.cuff_force_limit_N))
         checks.check_estimator(self, ESTIMATORS)
         v.positive("qp_estimate_bandwidth", self.qp_estimate_bandwidth_per_s, "1/s")
         v.one_of("cuff_fit", self.cuff_fit, CUFF_FITS)

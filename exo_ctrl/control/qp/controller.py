@@ -122,6 +122,7 @@ from ..base import PDGains
 from ..computed_torque import ComputedTorqueController
 from ..lift_off import LIFT_OFF_BLEND_S
 from ..stance_load import StanceLoad
+from .bounds import cuff_limits
 from .cuff_knowledge import CuffKnowledge
 from .fallback import QPFallbacks
 from .margin import ESTIMATE_SIGMAS, checked_margin, widest
@@ -183,7 +184,8 @@ class QPController(QPFallbacks, ComputedTorqueController):
         motor: the drive model (as configured for the exo: see
             :func:`exo_ctrl.sim.setup.drive_for`).
         gains: the PD gains.
-        cuff_force_limit_N: F_max, bound on each cuff's force magnitude [N].
+        cuff_force_limit_N: F_max, bound on each cuff's force magnitude [N]: one,
+            or (thigh, shank) (:func:`~exo_ctrl.control.qp.bounds.cuff_limits`).
         torque_weights: diagonal of W, one per joint, > 0 [-].
         max_iter: proxsuite's iteration limit per solve.
         force_feedback: start the horizon prediction from the cuff state
@@ -271,7 +273,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
         patient: BodyModel,
         motor: MotorParams,
         gains: PDGains | None = None,
-        cuff_force_limit_N: float = 150.0,
+        cuff_force_limit_N: float | tuple[float, float] = 150.0,
         torque_weights: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0),
         max_iter: int = 100,
         force_feedback: bool = True,
@@ -297,7 +299,8 @@ class QPController(QPFallbacks, ComputedTorqueController):
             disturbance_bandwidth_per_s = DISTURBANCE_BANDWIDTH_PER_S[estimator]
         if patient is None:
             raise InvalidParameter("patient", None, "a patient model (the cuff model needs one)")
-        self.cuff_force_limit_N = v.positive("cuff_force_limit", cuff_force_limit_N, "N")
+        self.cuff_limits_N = cuff_limits(cuff_force_limit_N)  # F_max per cuff [N]
+        self.cuff_force_limit_N = cuff_force_limit_N
         weights = np.asarray(torque_weights, dtype=float)
         if weights.shape != (4,):
             raise InvalidParameter("torque_weights", torque_weights, "four numbers > 0")
@@ -346,14 +349,14 @@ class QPController(QPFallbacks, ComputedTorqueController):
             rec[name] = value
         rec["force_feedback"] = bool(force_feedback)
         rec["sensed"] = cuff_knowledge is not None and cuff_knowledge.sensors != "none"
-        rec["limit"] = self.cuff_force_limit_N
+        rec["limit"] = self.cuff_limits_N
         self.margin = widest(
             checked_margin(
                 along,
                 (exo, patient, motor, cuffs),
                 self.cuff_model,
                 (estimator, disturbance_bandwidth_per_s),
-                self.cuff_force_limit_N,
+                cuff_force_limit_N,
                 gait if tighten else None,
                 cuff_knowledge,
                 supported=stance_load is not None,
@@ -364,7 +367,7 @@ class QPController(QPFallbacks, ComputedTorqueController):
         rec["working"] = self.margin.working_N
         rec["margin"] = self.margin.static_N
         rec["sigmas"] = ESTIMATE_SIGMAS if tighten and estimator == "kalman" else 0.0
-        rec["radius"] = (self.cuff_force_limit_N - self.margin.static_N) * math.cos(
+        rec["radius"] = (self.cuff_limits_N - self.margin.static_N) * math.cos(
             math.pi / POLYGON_SIDES
         )
         rec["directions"] = polygon_rows(1)  # (S/2, 2): n_k of one cuff

@@ -117,6 +117,7 @@ import itertools
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -127,6 +128,7 @@ from ...model.cohort import TRUNCATION_Z
 from ...plan.kinematics import JointTrajectory
 from ...plant.cuffs import CuffParams
 from ...plant.drive import MotorParams
+from .bounds import bound_words, cuff_limits
 from .cuff_knowledge import CuffKnowledge, link_normals, unobserved
 from .prediction import CuffHorizonModel
 
@@ -364,7 +366,7 @@ def checked_margin(
     device: tuple[BodyModel, BodyModel, MotorParams, CuffParams],
     model: CuffHorizonModel,
     estimate: tuple[str, float],
-    limit_N: float,
+    limit_N: float | tuple[float, float],
     gait: str | None,
     knowledge: CuffKnowledge | None = None,
     supported: bool = False,
@@ -376,7 +378,7 @@ def checked_margin(
         device: the exoskeleton, patient, drive and cuff models the device holds.
         model: the QP's cuff model (on ``device``'s cuffs).
         estimate: the live estimator's name and ω_d of the patient-torque estimate [1/s].
-        limit_N: F_max [N].
+        limit_N: F_max [N]: one, or (thigh, shank) (:mod:`.bounds`).
         gait: the gait in words for the refusal's message ("": the plan's
             period); None: no tightening (every term zero).
         knowledge: what the device knows of the true cuffs (default
@@ -413,11 +415,11 @@ def checked_margin(
     )
     if supported:
         margin = dataclasses.replace(margin, working_N=np.maximum(margin.working_N, margin.load_N))
-    for c, name in enumerate(CUFF_NAMES):
-        if limit_N - margin.static_N[c] < margin.working_N[c]:
+    for c, (name, limit) in enumerate(zip(CUFF_NAMES, cuff_limits(limit_N), strict=True)):
+        if limit - margin.static_N[c] < margin.working_N[c]:
             where = gait or f"a plan of period {period:g} s"
             raise CuffBoundTooTight(
-                limit_N, margin.static_N[c], margin.working_N[c], name, where, supported
+                limit, margin.static_N[c], margin.working_N[c], name, where, supported, limit_N
             )
     return margin
 
@@ -428,19 +430,19 @@ def widest(margins: Iterable[BoundMargin]) -> BoundMargin:
     return BoundMargin(*(np.max(np.stack(term), axis=0) for term in zip(*terms, strict=True)))
 
 
-def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none") -> str | None:
+def departure_warning(margin: BoundMargin, limit_N: Any, sensors: str = "none") -> str | None:
     """A sentence when the tightened bound leaves a cuff less than its load along the plan.
 
     The QP then holds the bound by leaving the plan (module docstring,
     "Working force"); None when every cuff's load fits.
     """
-    room = limit_N - margin.static_N
+    room, words = cuff_limits(limit_N) - margin.static_N, bound_words(limit_N)
     short = np.flatnonzero(room < margin.load_N)
     if short.size == 0:
         return None
     c = int(short[np.argmax((margin.load_N - room)[short])])
     text = (
-        f"the QP will leave the plan to hold cuff_force_limit {limit_N:g} N: the gait loads "
+        f"the QP will leave the plan to hold cuff_force_limit {words}: the gait loads "
         f"the {CUFF_NAMES[c]} cuff with up to {margin.load_N[c]:.0f} N, and the margin "
         f"{margin.static_N[c]:.1f} N leaves {room[c]:.1f} N"
     )
@@ -453,7 +455,7 @@ def departure_warning(margin: BoundMargin, limit_N: float, sensors: str = "none"
     return text
 
 
-def contact_warning(limit_N: float, departure_rad: float | None, synced: bool = False) -> str:
+def contact_warning(limit_N: Any, departure_rad: float | None, synced: bool = False) -> str:
     """The sentence a run with the pelvis supported and the QP gets (module docstring).
 
     ``departure_rad``: δ of the departure stop (:mod:`exo_ctrl.safety.departure`); None:
@@ -464,9 +466,10 @@ def contact_warning(limit_N: float, departure_rad: float | None, synced: bool = 
     push the drives cannot follow has taken a cuff past the bound: the bound is not promised
     there (docs/performance.md: the campaign with cuff sensors, up to 60 % past it).
     """
+    words = bound_words(limit_N)
     if departure_rad is not None and synced:
         return (
-            f"cuff_force_limit {limit_N:g} N is not promised on the synchronised plan with "
+            f"cuff_force_limit {words} is not promised on the synchronised plan with "
             f"the pelvis supported: the walk stops (yield) where a leg leaves its plan by "
             f"more than {departure_rad:.3f} rad, but that plan follows the measured legs, so "
             "a patient's push the drives cannot follow can take a cuff past the bound first "
@@ -481,14 +484,14 @@ def contact_warning(limit_N: float, departure_rad: float | None, synced: bool = 
             else ""
         )
         return (
-            f"cuff_force_limit {limit_N:g} N is not promised with the pelvis supported: the "
+            f"cuff_force_limit {words} is not promised with the pelvis supported: the "
             "QP's horizon holds no ground contact, and where it leaves the plan under the "
             f"body's weight a foot can strike the belt{reach} (docs/performance.md, the QP's "
             "cuff-force bound)"
         )
     return (
         f"with the pelvis supported the walk stops (yield) where a leg leaves its plan by more "
-        f"than {departure_rad:.3f} rad: the QP holds cuff_force_limit {limit_N:g} N by leaving "
+        f"than {departure_rad:.3f} rad: the QP holds cuff_force_limit {words} by leaving "
         f"the plan where the patient loads the cuffs beyond it, and a leg off its plan can "
         f"strike the belt (docs/performance.md, the QP's cuff-force bound)"
     )

@@ -57,7 +57,7 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
     (:data:`~exo_ctrl.control.qp.torque_box.TORQUE_BOX_FIELDS`); the answer
     ``torque`` [N·m] and ``slack`` [N]; ``fitted``: zeros, the cuff state
     taken without an estimate; the octagon's ``directions`` and ``radius``
-    r_c per cuff [N]; the bound ``limit`` F_max [N], the margin's static
+    r_c per cuff [N]; the bound ``limit`` F_max per cuff [N], the margin's static
     part ``margin_static`` [N], the estimate's ``sigmas`` k, the largest
     margin so far ``margin_peak`` [N] (the tick's m_c is the common
     ``margin``), the
@@ -83,7 +83,7 @@ def qp_fields(n_rows: int, n_slots: int) -> list[tuple[Any, ...]]:
         ("fitted", f8, (4,)),
         ("directions", f8, (POLYGON_SIDES // 2, 2)),
         ("radius", f8, (4,)),
-        ("limit", f8),
+        ("limit", f8, (4,)),
         ("margin_static", f8, (4,)),
         ("sigmas", f8),
         ("margin_peak", f8, (4,)),
@@ -231,12 +231,12 @@ def tighten(s: np.void, force_std: np.ndarray) -> None:  # pragma: no cover - co
     settled = s.ticks > SETTLE_TICKS
     for c in range(4):
         sigma = force_std[c] if math.isfinite(force_std[c]) and settled else 0.0
-        margin = min(s.margin_static[c] + s.sigmas * sigma, s.limit - s.working[c])
+        margin = min(s.margin_static[c] + s.sigmas * sigma, s.limit[c] - s.working[c])
         margin = max(margin, s.margin_static[c])
         s.margin[c] = margin
         if settled and margin > s.margin_peak[c]:
             s.margin_peak[c] = margin
-        s.radius[c] = max(s.limit - margin, 0.0) * apothem
+        s.radius[c] = max(s.limit[c] - margin, 0.0) * apothem
 
 
 @leaf
