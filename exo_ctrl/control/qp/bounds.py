@@ -6,9 +6,10 @@ safety supervisor holds each cuff to its region's (:mod:`exo_ctrl.safety`).
 The QP's bound F_max may follow it: ``cuff_force_limit_N`` is one number
 [N] for all four cuffs, or two, (thigh, shank), each for both legs' cuffs
 of that region.  With the pelvis supported the thigh cuffs carry the
-patient's weight along the plan (122 N on the ``clinic-bws`` preset's gait)
-where the shanks carry 42 N: one bound for all four is set by the thighs'
-load, while the shanks' ISO limit is the lower.
+patient's weight along the plan (122 N on the ``clinic-bws`` preset's gait,
+the shanks 42 N: the margin's ``load_N``, tests/control/qp/test_bounds.py):
+one bound for all four is set by the thighs' load, while the shanks' ISO
+limit is the lower.
 """
 
 from __future__ import annotations

@@ -117,7 +117,6 @@ import itertools
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -430,7 +429,9 @@ def widest(margins: Iterable[BoundMargin]) -> BoundMargin:
     return BoundMargin(*(np.max(np.stack(term), axis=0) for term in zip(*terms, strict=True)))
 
 
-def departure_warning(margin: BoundMargin, limit_N: Any, sensors: str = "none") -> str | None:
+def departure_warning(
+    margin: BoundMargin, limit_N: float | Sequence[float], sensors: str = "none"
+) -> str | None:
     """A sentence when the tightened bound leaves a cuff less than its load along the plan.
 
     The QP then holds the bound by leaving the plan (module docstring,
@@ -455,7 +456,9 @@ def departure_warning(margin: BoundMargin, limit_N: Any, sensors: str = "none") 
     return text
 
 
-def contact_warning(limit_N: Any, departure_rad: float | None, synced: bool = False) -> str:
+def contact_warning(
+    limit_N: float | Sequence[float], departure_rad: float | None, synced: bool = False
+) -> str:
     """The sentence a run with the pelvis supported and the QP gets (module docstring).
 
     ``departure_rad``: δ of the departure stop (:mod:`exo_ctrl.safety.departure`); None:
