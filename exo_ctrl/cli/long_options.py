@@ -310,6 +310,9 @@ def _help(opt: LongOption) -> str:
     note = _FORM_NOTES.get(opt.form)
     if note:
         text += f"; {note}"
+    if opt.key == "pelvis.supported":  # the gait it implies (SUPPORTED_GAIT)
+        implied = ", ".join(f"gait.{name} = {v:g}" for name, v in SUPPORTED_GAIT.items())
+        text += f"; supported also sets {implied} where no option gives them"
     return f"{text} (scenario key {opt.key}) (default {_shown(opt)})"
 
 
