@@ -28,8 +28,9 @@ from exo_ctrl.model import BodyModel, default_urdf_path, load_body, load_human_p
 from exo_ctrl.model.urdfgen import BodyParams, write_urdf
 from exo_ctrl.plan.gait import GaitParams, GaitPlan
 from exo_ctrl.plan.kinematics import JointTrajectory, plan_joints
+from exo_ctrl.plant import ContactParams, PelvisParams
 from exo_ctrl.plant.drive import MotorParams
-from exo_ctrl.sim import drive_for
+from exo_ctrl.sim import SimConfig, drive_for
 
 # The fault campaign (tools/faults.py), importable by the tests as ``fault_campaign``
 # (its dataclasses look their module up by that name).
@@ -102,6 +103,17 @@ def short_exo(short_exo_path: Path) -> BodyModel:
 def human() -> BodyModel:
     """example-robot-data's human model as a patient."""
     return load_human_patient()
+
+
+@pytest.fixture(scope="session")
+def supported_qp() -> SimConfig:
+    """The QP at a 300 N bound on the belt, the pelvis supported at 40 % (the departure stop's)."""
+    return SimConfig(
+        controller="qp",
+        cuff_force_limit_N=300.0,
+        contact=ContactParams(enabled=True),
+        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
+    )
 
 
 @pytest.fixture

@@ -56,13 +56,10 @@ def test_the_monitor_names_the_joint_furthest_from_its_plan() -> None:
         DepartureMonitor(0.0)
 
 
-def test_the_stop_is_the_qps_with_the_pelvis_supported_and_its_bound_tightened() -> None:
-    supported = SimConfig(
-        controller="qp",
-        cuff_force_limit_N=300.0,
-        contact=ContactParams(enabled=True),
-        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
-    )
+def test_the_stop_is_the_qps_with_the_pelvis_supported_and_its_bound_tightened(
+    supported_qp: SimConfig,
+) -> None:
+    supported = supported_qp
     setup = build(supported)
     exo = setup.device_exo
     monitor = departure_for(supported, exo)

@@ -27,7 +27,7 @@ from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.estimation.kalman import CuffForceKalman
 from exo_ctrl.exceptions import CuffBoundTooTight, InvalidParameter
 from exo_ctrl.model import CUFF_NAMES
-from exo_ctrl.plant import ContactParams, CuffParams, PelvisParams
+from exo_ctrl.plant import CuffParams, PelvisParams
 from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
@@ -160,14 +160,11 @@ def test_departure_warning_names_the_load_and_the_cuff_sensors() -> None:
     assert departure_warning(margin, 150.0, "none") is None
 
 
-def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not() -> None:
+def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not(
+    supported_qp: SimConfig,
+) -> None:
     """The horizon holds no ground contact: a supported pelvis's run says how the bound holds."""
-    supported = SimConfig(
-        controller="qp",
-        cuff_force_limit_N=300.0,
-        contact=ContactParams(enabled=True),
-        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
-    )
+    supported = supported_qp
     setup = build(supported)
     legs = setup.device_exo.legs.values()
     limit = supported.gait.lift_height / min(g.thigh_length + g.shank_length for g in legs)
@@ -206,14 +203,10 @@ def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not() -> No
     assert not any("leg's reach" in w for w in build(loose).warnings)  # precomputed
 
 
-def test_a_supported_pelvis_needs_room_for_the_plans_whole_load() -> None:
+def test_a_supported_pelvis_needs_room_for_the_plans_whole_load(supported_qp: SimConfig) -> None:
     """The QP may not leave the plan on the belt: a bound below load + margin is refused."""
     fixed = SimConfig(controller="qp", cuff_force_limit_N=150.0)
-    supported = dataclasses.replace(
-        fixed,
-        contact=ContactParams(enabled=True),
-        pelvis=PelvisParams(supported=True, bws_fraction=0.4),
-    )
+    supported = dataclasses.replace(supported_qp, cuff_force_limit_N=150.0)
     margin = build(fixed).controller.margin  # the fixed pelvis runs, leaving the plan
     with pytest.raises(CuffBoundTooTight) as info:
         build(supported)
