@@ -141,6 +141,8 @@ class FaultResult:
         channel: the first violation's quantity ("" if none).
         state: the supervisor's final state ("" if not run).
         worst_cuff_force_N: largest cuff force magnitude after the onset [N].
+        worst_thigh_N: the same for the thigh cuffs alone [N].
+        worst_shank_N: the same for the shank cuffs alone [N].
         worst_excursion_rad: largest |q - q_ref| after the onset [rad].
         ticks: ticks run.
         recording_ok: the recording holds every tick and the fault event
@@ -167,6 +169,8 @@ class FaultResult:
     channel: str = ""
     state: str = ""
     worst_cuff_force_N: float = math.nan
+    worst_thigh_N: float = math.nan
+    worst_shank_N: float = math.nan
     worst_excursion_rad: float = math.nan
     ticks: int = 0
     recording_ok: bool | None = None
@@ -214,6 +218,7 @@ def analyse(result, fault: Fault, reference=None) -> FaultResult:
     k0 = round(fault.at_s / result.config.dt)
     force = np.linalg.norm(s["cuff_force"][k0:], axis=-1)
     out.worst_cuff_force_N = float(force.max())
+    out.worst_thigh_N, out.worst_shank_N = float(force[:, 0::2].max()), float(force[:, 1::2].max())
     ref = s["q_des"].copy() if reference is None else reference.signals["q"].copy()
     stopped = np.flatnonzero(s["safety_state"] != 0)
     starts = [e["message"] for e in result.events if "controlled stop (" in e.get("message", "")]
