@@ -1,7 +1,7 @@
 """Does the QP's cuff-force bound hold?  A seeded, randomised campaign ("Load held", issue 31).
 
     .venv/bin/python tools/load_held.py [--points N] [--seed S] [--json PATH]
-        [--patients spastic,active] [--cuff-sensors none|normal|full] [--sync on]
+        [--patients spastic,active] [--cuff-sensors none|normal|full] [--sync off]
 
 Draws N points (default 200) from ``numpy.random.default_rng(S)`` (default
 seed 0; point i is the same whatever N > i), each
@@ -26,8 +26,9 @@ seed 0; point i is the same whatever N > i), each
   (:class:`~exo_ctrl.plant.cuff_scatter.CuffScatter`, its default spread,
   seeded per point), and the cuff sensors of ``--cuff-sensors`` (default
   none; their noise seeded per point);
-- the plan: the QP's default, precomputed; with ``--sync on`` the supported
-  points on the synchronised plan (the fixed points have no belt to follow);
+- the plan: the QP's default, the synchronised plan for the supported points
+  (the fixed points have no belt to follow: precomputed); with ``--sync off``
+  the supported points on the precomputed plan;
 
 and runs the QP (safety supervisor off, the default Kalman filter) for
 three gait periods (the ramp-in and two cycles).  A point the device
@@ -132,11 +133,12 @@ def draw_points(
 
 
 def point_config(
-    point: dict[str, Any], folder: Path, cuff_sensors: str = "none", sync: bool = False
+    point: dict[str, Any], folder: Path, cuff_sensors: str = "none", sync: bool = True
 ) -> SimConfig:
     """The point's run: its URDFs written into ``folder``; ``cuff_sensors`` the sensor set.
 
-    ``sync``: a supported point on the synchronised plan (else the QP's default).
+    ``sync``: False puts a supported point on the precomputed plan (True: the QP's
+    default, synchronised).
     """
     nominal = patient_from_anthropometry(point["height_m"], point["mass_kg"], point["sex"])
     truth = drawn_patient(nominal, np.asarray(point["z"]), CohortSpread())
@@ -166,7 +168,7 @@ def point_config(
         cuff_force_limit_N=point["bound_N"],
         safety=False,
         pelvis=pelvis,
-        sync=True if sync and pelvis.supported else None,
+        sync=None if sync else False,
         duration_s=RUN_PERIODS * point["period_s"],
         cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
         cuff_sensors=CuffSensorParams(mode=cuff_sensors, seed=point["cuff_seed"]),
@@ -179,7 +181,7 @@ def point_config(
 
 
 def run_point(
-    point: dict[str, Any], folder: Path, cuff_sensors: str = "none", sync: bool = False
+    point: dict[str, Any], folder: Path, cuff_sensors: str = "none", sync: bool = True
 ) -> dict[str, Any]:
     """Run one point: its true peak cuff force against its bound, or why it was refused."""
     out = dict(point)
@@ -214,7 +216,7 @@ def campaign(
     patients: tuple[str, ...] = PATIENT_TORQUES,
     pelvis: tuple[str, ...] = PELVIS,
     cuff_sensors: str = "none",
-    sync: bool = False,
+    sync: bool = True,
 ) -> list[dict[str, Any]]:
     """Run the first ``n`` points of ``seed``, one after the other, with ``cuff_sensors``."""
     points = draw_points(n, seed, patients, pelvis)
@@ -306,9 +308,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument(
         "--sync",
-        default="off",
+        default="on",
         choices=("off", "on"),
-        help="on: the supported points on the synchronised plan (default off: precomputed)",
+        help="off: the supported points on the precomputed plan (default on: synchronised)",
     )
     args = p.parse_args(argv)
     patients = tuple(args.patients.split(","))

@@ -21,19 +21,29 @@ encoder counts (:mod:`exo_ctrl.sensing.belt_encoder`).
 
 **Parameters** (chosen for a rehabilitation treadmill of the class under
 gait trainers, e.g. a 0.5 m × 1.5 m deck with a 2–3 kW drive; no source
-gives them, so each is an estimate and configurable):
+gives them, so each is an estimate, checked against measured belts below,
+and configurable):
 
 - ``mass_kg = 20``: a rubber belt of about 0.5 m × 3.2 m × 3 mm (≈ 6 kg),
   two hollow steel rollers of ≈ 4 kg (their rotary inertia m r² / r² ≈ m at
   the surface, ≈ 8 kg) and the motor's rotor through the belt transmission
   (≈ 6 kg equivalent): the O(10–30 kg) of this class.
-- ``bandwidth_hz = 2``: ω_c = 2π f_c; K_p = m_b ω_c (251 N·s/m) and
-  K_i = m_b ω_c² / 4 (790 N/m).  The closed loop m_b s² + K_p s + K_i = 0 then
-  has a double pole at s = -ω_c / 2 (critically damped, time constant
-  2 / ω_c = 0.16 s): a heel strike's friction pulse slows the belt by
-  ∫F_t dt / m_b at first and the controller returns it within about 0.5 s.
-  Its static stiffness against a constant load is infinite (the integral);
+- ``bandwidth_hz = 30``: ω_c = 2π f_c; K_p = m_b ω_c (3770 N·s/m) and
+  K_i = m_b ω_c² / 4 (1.78e5 N/m).  The closed loop m_b s² + K_p s + K_i = 0
+  then has a double pole at s = -ω_c / 2 (critically damped, time constant
+  2 / ω_c = 10.6 ms): a friction force stepping to F dips the belt by
+  v(t) = (F / m_b) t e^{-ω_c t / 2}, at most 0.736 F / (m_b ω_c) at
+  t = 2 / ω_c, and the controller returns it within about 50 ms.  Its
+  static stiffness against a constant load is infinite (the integral);
   with ``integral=False`` (P only) a load F slows it by F / K_p.
+  The check: measured treadmill belts run at 98–103 % of their set speed on
+  average and dip by more than 5 % in the stance of running only (four
+  treadmills, 1–4.5 m/s; Willwacher et al. 2021).  Walking's braking ground
+  force, about 0.2 body weights (157 N at 80 kg; Winter 2009), dips this
+  belt by 0.031 m/s, 3 % at 1 m/s.  The speed controller of a
+  vector-controlled drive with an encoder closes at tens of hertz; a 2 Hz
+  loop would let the same force dip the belt by 0.46 m/s, and under 30–50 %
+  body-weight support at 0.37 m/s the feet would move it by −12 … +19 %.
 - ``force_limit_N = 1000``: the drive's torque limit at the belt surface
   (a 2.5 kW drive delivers 1000 N at 2.5 m/s).
 
@@ -57,9 +67,17 @@ while the brake has the speed controller out (the brake's force is not the
 drive's, and no reading of it exists).
 
 Integration, step h: the force is taken at the start of the step (explicit;
-K_p h / m_b = 0.013 at 1 ms, far inside the bound 2), the friction
+K_p h / m_b = ω_c h = 0.19 at 1 ms, far inside the bound 2), the friction
 impulses of the feet over the step are added with the belt's inertia in the
 foot-contact solve (:mod:`exo_ctrl.plant.contact`).
+
+References:
+    Willwacher S, Oberländer KD, Mai P, et al. (2021). A new method for
+    measuring treadmill belt velocity fluctuations: effects of treadmill
+    type, body mass and locomotion speed. Sci Rep 11:2244.
+    Winter DA (2009). Biomechanics and Motor Control of Human Movement, 4th
+    ed., Wiley, Appendix A (normal gait: ground reaction forces).
+
 """
 
 from __future__ import annotations
@@ -97,8 +115,10 @@ class BeltParams:
         integral: use the integral term (False: P only).
         stop_decel_mps2: the treadmill's controlled stop when the device
             stops the gait: its set speed falls at this rate to rest [m/s²]
-            (chosen: 1 m/s², about a tenth of g, so a patient still standing
-            on the belt is not thrown; the default 0.58 m/s stops in 0.6 s).
+            (chosen: 3 m/s²; a stance foot the device holds at a stop travels
+            with the belt v² / (2a) as it runs down, 5.6 cm from the default
+            0.58 m/s, 17 cm at 1 m/s², more than a held leg follows within
+            the hold's 0.1 rad; the default 0.58 m/s stops in 0.19 s).
 
     Raises:
         InvalidParameter: a height, mass, bandwidth, force limit or stop
@@ -108,10 +128,10 @@ class BeltParams:
 
     height_m: float | None = None
     mass_kg: float = 20.0
-    bandwidth_hz: float = 2.0
+    bandwidth_hz: float = 30.0
     force_limit_N: float = 1000.0
     integral: bool = True
-    stop_decel_mps2: float = 1.0
+    stop_decel_mps2: float = 3.0
 
     def __post_init__(self) -> None:
         if self.height_m is not None:

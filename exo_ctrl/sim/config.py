@@ -140,7 +140,8 @@ class SimConfig:
             gait's v_f); with contact on.
         sync: plan online from the measured belt speed (:mod:`exo_ctrl.plan.online`,
             the gait adapting to the speed by :mod:`exo_ctrl.plan.adapt`);
-            None: on with contact on, except for the QP (:attr:`synced`).  Off: the
+            None: on with contact on, for the QP with the pelvis supported only
+            (:attr:`synced`).  Off: the
             precomputed plan, which assumes the gait's v_f whatever the belt does.
         duration_s: simulated time [s], ramps included, from one control
             tick to :data:`MAX_DURATION_S`.  Default 3.6 s: the default
@@ -385,17 +386,18 @@ class SimConfig:
 
     @property
     def synced(self) -> bool:
-        """Whether the plan follows the measured belt (``sync``; default: contact on, gait, no QP).
+        """Whether the plan follows the measured belt (``sync``; default: contact on, gait).
 
-        The QP follows the synchronised plan when asked (``sync`` on), as CT where its bound
-        leaves the gait's load; where the bound makes it leave the plan in stance the plan
-        follows the measured legs (docs/performance.md, touchdowns under load).
+        The QP's default is the synchronised plan with the pelvis supported (on the
+        precomputed one the ramp-in drags the loaded stance feet along the belt) and the
+        precomputed plan with it fixed, where the feet skim the belt; its bound holds on
+        either (docs/performance.md, the QP's cuff-force bound).
         """
         if self.sync is None:
             return (
                 self.contact.enabled
                 and self.exercise == "gait"
-                and self.controller != "qp"
+                and (self.controller != "qp" or self.pelvis.supported)
                 and self.ramp_out_s == 0.0
             )
         return bool(self.sync)

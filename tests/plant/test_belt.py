@@ -20,11 +20,13 @@ from exo_ctrl.plant.belt import belt_response
 H = 1e-3
 
 
-def respond(params: BeltParams, v0: float, v_set: float, load: np.ndarray) -> np.ndarray:
+def respond(
+    params: BeltParams, v0: float, v_set: float, load: np.ndarray, h: float = H
+) -> np.ndarray:
     rec = params.new_record()
     rec["v"] = v0
     speed = np.zeros_like(load)
-    belt_response(rec, v_set, load, H, speed)
+    belt_response(rec, v_set, load, h, speed)
     return speed
 
 
@@ -38,19 +40,23 @@ def test_the_controller_holds_the_set_speed_and_reaches_a_new_one() -> None:
 
 
 def test_a_friction_load_dips_the_speed_by_the_loops_analytic_peak_and_is_rejected() -> None:
+    """At a step h = 0.1 ms (ω_c h = 0.019: the explicit step's error is of that order,
+    1.8 % at the plant's 1 ms), the dip within 0.5 %; its time within 5 % (the peak is
+    flat: 5 % off it the speed differs by 0.1 %)."""
     params = BeltParams()
-    load = np.zeros(8000)
+    h = 1e-4
+    load = np.zeros(20000)
     load[1000:] = -50.0  # the feet hold back with 50 N
-    speed = respond(params, 1.0, 1.0, load)
+    speed = respond(params, 1.0, 1.0, load, h)
     w = math.pi * params.bandwidth_hz  # ω_c / 2
-    dip, at = 1.0 - speed.min(), (np.argmin(speed) - 1000) * H
+    dip, at = 1.0 - speed.min(), (np.argmin(speed) - 1000) * h
     expected = 50.0 / (params.mass_kg * w * math.e)
     print(
-        f"dip {dip * 1e3:.2f} mm/s at {at:.3f} s;",
-        f"analytic {expected * 1e3:.2f} mm/s at {1 / w:.3f} s",
+        f"dip {dip * 1e3:.2f} mm/s at {at * 1e3:.1f} ms;",
+        f"analytic {expected * 1e3:.2f} mm/s at {1e3 / w:.1f} ms",
     )
-    assert dip == pytest.approx(expected, rel=0.01)
-    assert at == pytest.approx(1.0 / w, abs=0.01)
+    assert dip == pytest.approx(expected, rel=0.005)
+    assert at == pytest.approx(1.0 / w, rel=0.05)
     assert abs(speed[-1] - 1.0) < 1e-6  # the integral removes it
 
 

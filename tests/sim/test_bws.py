@@ -84,7 +84,7 @@ def test_the_foot_plates_let_the_estimator_see_past_the_ground_force(supported) 
 
 
 def test_a_stop_locks_the_harness_and_runs_the_belt_down() -> None:
-    """An e-stop mid-gait: the pelvis held, the belt at 1 m/s² to rest, the legs held."""
+    """An e-stop mid-gait: the pelvis held, the belt run down at its stop rate, the legs held."""
     gait = GaitParams(hip_height=1.0, pelvis_excursion=0.05)
     pelvis = PelvisParams(supported=True, bws_fraction=0.5)
     result = _run(gait=gait, pelvis=pelvis, estop_at_s=2.0)
@@ -95,7 +95,8 @@ def test_a_stop_locks_the_harness_and_runs_the_belt_down() -> None:
     z_lock = s["pelvis_z"][k]
     assert np.abs(s["pelvis_z"][after] - z_lock).max() < 0.01  # the brake: within 1 cm
     v0 = s["belt_speed_set"][k]
-    expected = np.maximum(v0 - 1.0 * (t[after] - t[k]), 0.0)
+    decel = result.config.contact.belt.stop_decel_mps2
+    expected = np.maximum(v0 - decel * (t[after] - t[k]), 0.0)
     np.testing.assert_allclose(s["belt_speed_set"][after], expected, atol=1e-12)
     assert s["belt_speed_set"][-1] == 0.0 and abs(s["belt_speed"][-1]) < 0.01
 

@@ -4,12 +4,10 @@ The clinic-bws preset (CT, hip 1.0 m, T = 1.6 s, β = 0.6, e = 0.025 m, synchron
 landing approach at 0.025 m/s over 1.2 mm, exo_ctrl/plan/landing.py and surface.py; its
 planned torque within the drives' 148 N·m), safety on: after the ramp-in the feet touch
 down under 0.05 m/s vertically and along the belt and slip under 0.02 m/s RMS in stance
-with a passive patient at 30-50 % support and an active one at 30-40 %
-(docs/performance.md, "Touchdowns under load").  The active patient at 50 % lands at
-0.057 m/s along the belt, over the issue's 0.05: its own knee lets go of the plan 10-20 ms
-before touchdown.  The spastic patient's knee reflex (40 N·m at the swing's flexion
-speed) takes the shank cuff past ISO/TS 15066's 130 N, and the supervisor stops the walk:
-asserted to be a true excess, with the walk's touchdowns before it within the bounds.
+with a passive and an active patient at 30-50 % support (docs/performance.md, "Touchdowns
+under load").  The spastic patient's knee reflex (40 N·m at the swing's flexion speed)
+takes the shank cuff past ISO/TS 15066's 130 N in the ramp-in's first swing, and the
+supervisor stops the walk: asserted to be a true excess.
 """
 
 from __future__ import annotations
@@ -39,7 +37,7 @@ def _run(patient: str, support: float):
 
 @pytest.mark.parametrize(
     ("patient", "support"),
-    [("none", 0.3), ("none", 0.4), ("none", 0.5), ("active", 0.3), ("active", 0.4)],
+    [(patient, support) for patient in ("none", "active") for support in (0.3, 0.4, 0.5)],
 )
 def test_loaded_feet_touch_down_within_the_issues_bounds(patient: str, support: float) -> None:
     s = _run(patient, support).summary()
@@ -52,35 +50,31 @@ def test_loaded_feet_touch_down_within_the_issues_bounds(patient: str, support: 
     assert slip < SLIP_RMS_MPS
 
 
-def test_the_active_patient_at_half_support_lands_near_the_bound() -> None:
-    s = _run("active", 0.5).summary()
-    down, along, slip = s["touchdown_speed_mps"], s["touchdown_slip_mps"], s["slip_speed_rms_mps"]
-    print(f"active 0.5: touchdown {down:.3f} / {along:.3f} m/s, slip RMS {slip:.4f}")
-    assert s["safety_state"] == "normal"
-    assert down < BOUND_MPS
-    assert along < 0.06  # measured 0.057: over the issue's 0.05
-    assert slip < SLIP_RMS_MPS
-
-
-def test_the_spastic_walk_is_stopped_on_a_true_excess_and_lands_within_before_it() -> None:
-    """The supervisor's stop is no false alarm: the true shank force passed 130 N first.
-
-    And the summary's walk and stop figures are the log's, split by the supervisor's state.
-    """
+def test_the_spastic_walk_is_stopped_on_a_true_excess() -> None:
+    """The supervisor's stop (on the estimated force) is no false alarm: the true shank force
+    passes 130 N too, within 10 ms of the stop (the knee's reflex at its cap in the ramp-in's
+    first swing: measured 3 ms after, the estimate 0.1 N ahead of the truth at the crossing)."""
     result = _run("spastic", 0.3)
-    s = result.summary()
     stop = next(e for e in result.events if e["kind"] == "violation")
     assert stop["quantity"].endswith("_shank")
     k = int(np.searchsorted(result.t, stop["t"]))
-    true = np.linalg.norm(result.cuff_force[: k + 1], axis=2).max(axis=0)
-    assert true[[1, 3]].max() > SHANK_LIMIT_N  # the truth passed the limit before the stop
+    true = np.linalg.norm(result.cuff_force[: k + 11], axis=2).max(axis=0)
+    assert true[[1, 3]].max() > SHANK_LIMIT_N
+    assert result.summary()["safety_state"] != "normal"
+
+
+def test_the_summary_splits_the_walk_and_the_stop_by_the_supervisors_state() -> None:
+    """An e-stop 70 ms before the walk's second touchdown (2.72 s): the summary's walk and
+    stop figures are the log's, split by the supervisor's state at each touchdown's tick."""
+    overrides = ["interaction.patient_torque=none", "pelvis.bws_fraction=0.3"]
+    config = load_scenario(preset="clinic-bws", overrides=[*overrides, "safety.estop_at_s=2.65"])
+    result = simulate(config.config)
+    s = result.summary()
     assert s["touchdown_count"] >= 1 and s["stop_touchdown_count"] >= 1
-    assert s["touchdown_speed_mps"] < BOUND_MPS and s["touchdown_slip_mps"] < BOUND_MPS
-    # The split, from the log: a touchdown's phase is the supervisor's state at its tick.
     state = result.signals["safety_state"]
     for e in s["touchdowns"]:
         assert e["during_stop"] is bool(state[e["tick"]] != 0)
-        assert (e["t_s"] >= stop["t"]) is e["during_stop"]  # no release here
+        assert (e["t_s"] >= 2.65) is e["during_stop"]  # no release here
     walk = [e for e in s["touchdowns"] if not e["during_stop"]]
     assert s["touchdown_speed_mps"] == max(abs(e["speed_z_mps"]) for e in walk)
     assert s["stop_touchdown_slip_mps"] == max(
@@ -99,9 +93,9 @@ def test_the_spastic_walk_is_stopped_on_a_true_excess_and_lands_within_before_it
     ("overrides", "warned"),
     [
         ([], False),
-        (["run.controller=qp", "qp.cuff_force_limit_N=300"], True),
+        (["run.controller=qp", "qp.cuff_force_limit_N=300"], False),
         (["treadmill.sync=false"], True),
-        (["run.controller=qp", "qp.cuff_force_limit_N=300", "treadmill.sync=true"], False),
+        (["run.controller=qp", "qp.cuff_force_limit_N=300", "treadmill.sync=false"], True),
     ],
 )
 def test_an_approach_on_a_precomputed_plan_is_warned_before_the_run(

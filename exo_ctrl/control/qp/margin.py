@@ -465,20 +465,9 @@ def contact_warning(
     the bound is not tightened, and nothing is promised.  ``synced``: on the synchronised
     plan, which places the swing foot against the stance leg as measured, a stance leg the
     QP lets sag can take the plan out of the leg's reach (where nothing stops the walk
-    first), and the stop, measured against a plan that follows the legs, can come after a
-    push the drives cannot follow has taken a cuff past the bound: the bound is not promised
-    there (docs/performance.md: the campaign with cuff sensors, up to 60 % past it).
+    first).
     """
     words = bound_words(limit_N)
-    if departure_rad is not None and synced:
-        return (
-            f"cuff_force_limit {words} is not promised on the synchronised plan with "
-            f"the pelvis supported: the walk stops (yield) where a leg leaves its plan by "
-            f"more than {departure_rad:.3f} rad, but that plan follows the measured legs, so "
-            "a patient's push the drives cannot follow can take a cuff past the bound first "
-            "(docs/performance.md, the QP's cuff-force bound; --sync off keeps the "
-            "precomputed plan, where it holds)"
-        )
     if departure_rad is None:
         reach = (
             "; on the synchronised plan, which follows the measured legs, the plan can then "

@@ -69,14 +69,15 @@ def test_every_point_holds_within_5_percent_of_the_users_bound(campaign) -> None
             assert r["margin_N"] > 0.0
 
 
-def test_sync_on_puts_the_supported_points_on_the_synchronised_plan(tmp_path) -> None:
-    """``--sync on``: the supported points follow the belt; the fixed ones have none to follow."""
+def test_the_supported_points_walk_the_synchronised_plan(tmp_path) -> None:
+    """The supported points follow the belt (the QP's default; ``--sync off``: precomputed);
+    the fixed ones have none to follow."""
     fixed, supported = (tool.draw_points(1, SEED, ("spastic",), (p,))[0] for p in tool.PELVIS)
     assert supported["pelvis"] == "supported" and fixed["pelvis"] == "fixed"
-    for point in (fixed, supported):
-        assert not tool.point_config(point, tmp_path).synced  # the QP's default: precomputed
-    assert tool.point_config(supported, tmp_path, sync=True).synced
-    assert not tool.point_config(fixed, tmp_path, sync=True).synced
+    assert tool.point_config(supported, tmp_path).synced
+    assert not tool.point_config(supported, tmp_path, sync=False).synced
+    for sync in (True, False):
+        assert not tool.point_config(fixed, tmp_path, sync=sync).synced
 
 
 @pytest.mark.parametrize("sensors", ["none", "full"])
