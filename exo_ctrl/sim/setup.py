@@ -276,7 +276,7 @@ def run_warnings(
         )
         if departure is not None:
             out.append(departure)
-        if config.pelvis.supported:
+        if config.contact.enabled:
             stop = departure_for(config, model_exo or exo)
             limit = None if stop is None else stop.limit_rad
             out.append(contact_warning(controller.cuff_force_limit_N, limit, config.synced))

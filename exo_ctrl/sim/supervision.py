@@ -61,15 +61,17 @@ def departure_for(config: Any, exo: BodyModel) -> DepartureMonitor | None:
     """The QP's departure stop (:mod:`exo_ctrl.safety.departure`), or None.
 
     With the QP tracking its plan (the tracking mode, no session), its bound
-    tightened, the pelvis supported and the gait exercise; δ from the gait's
-    lift and ``exo``'s (the device's) leg length.
+    tightened, the feet over the belt (contact on; the pelvis fixed or
+    supported: a leg the QP takes off its plan can strike the belt either way)
+    and the gait exercise; δ from the gait's lift and ``exo``'s (the device's)
+    leg length.
     """
     if not (
         config.controller == "qp"
         and config.mode == "tracking"
         and config.session is None
         and config.qp_tighten_bound
-        and config.pelvis.supported
+        and config.contact.enabled
         and config.exercise == "gait"
     ):
         return None

@@ -58,8 +58,10 @@ def test_the_healthy_default_run_with_the_patients_feet_runs_with_the_supervisor
 @pytest.mark.parametrize("controller", ["ct", "qp"])
 def test_no_false_stop_with_ct_or_qp(controller) -> None:
     """CT and QP on the same scenario: the supervisor stays normal and the belt monitor
-    never trips (CT's patient-load monitor may still warn: the warning is no stop)."""
-    result = simulate(with_feet(controller))
+    never trips (CT's patient-load monitor may still warn: the warning is no stop).  The QP
+    with a bound the gait's load leaves (200 N): at the default 120 N it leaves its plan and
+    the departure stop acts (tests/control/qp/test_closed_loop.py)."""
+    result = simulate(with_feet(controller, cuff_force_limit_N=200.0))
     assert result.status == "completed"
     assert result.safety_state == "normal"
     assert [e for e in result.events if e.get("quantity") == QUANTITY] == []

@@ -459,7 +459,7 @@ def departure_warning(
 def contact_warning(
     limit_N: float | Sequence[float], departure_rad: float | None, synced: bool = False
 ) -> str:
-    """The sentence a run with the pelvis supported and the QP gets (module docstring).
+    """The sentence a QP run with the feet over the belt (contact on) gets (module docstring).
 
     ``departure_rad``: δ of the departure stop (:mod:`exo_ctrl.safety.departure`); None:
     the bound is not tightened, and nothing is promised.  ``synced``: on the synchronised
@@ -476,13 +476,12 @@ def contact_warning(
             else ""
         )
         return (
-            f"cuff_force_limit {words} is not promised with the pelvis supported: the "
-            "QP's horizon holds no ground contact, and where it leaves the plan under the "
-            f"body's weight a foot can strike the belt{reach} (docs/performance.md, the QP's "
-            "cuff-force bound)"
+            f"cuff_force_limit {words} is not promised with the feet over the belt: the "
+            "QP's horizon holds no ground contact, and where it leaves the plan a foot can "
+            f"strike the belt{reach} (docs/performance.md, the QP's cuff-force bound)"
         )
     return (
-        f"with the pelvis supported the walk stops (yield) where a leg leaves its plan by more "
+        f"with the feet over the belt the walk stops (yield) where a leg leaves its plan by more "
         f"than {departure_rad:.3f} rad: the QP holds cuff_force_limit {words} by leaving "
         f"the plan where the patient loads the cuffs beyond it, and a leg off its plan can "
         f"strike the belt (docs/performance.md, the QP's cuff-force bound)"

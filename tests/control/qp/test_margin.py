@@ -160,16 +160,17 @@ def test_departure_warning_names_the_load_and_the_cuff_sensors() -> None:
     assert departure_warning(margin, 150.0, "none") is None
 
 
-def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not(
+def test_feet_over_the_belt_are_warned_before_the_run_and_free_air_not(
     supported_qp: SimConfig,
 ) -> None:
-    """The horizon holds no ground contact: a supported pelvis's run says how the bound holds."""
+    """The horizon holds no ground contact: a run with the feet over the belt (the pelvis
+    supported or fixed) says how the bound holds; one in free air has no belt to strike."""
     supported = supported_qp
     setup = build(supported)
     legs = setup.device_exo.legs.values()
     limit = supported.gait.lift_height / min(g.thigh_length + g.shank_length for g in legs)
     text = (
-        f"with the pelvis supported the walk stops (yield) where a leg leaves its plan by more "
+        f"with the feet over the belt the walk stops (yield) where a leg leaves its plan by more "
         f"than {limit:.3f} rad: the QP holds cuff_force_limit 300 N by leaving the plan where "
         "the patient loads the cuffs beyond it, and a leg off its plan can strike the belt "
         "(docs/performance.md, the QP's cuff-force bound)"
@@ -178,16 +179,18 @@ def test_a_supported_pelvis_is_warned_before_the_run_and_a_fixed_one_not(
     assert contact_warning(300.0, limit) == text
     assert text in setup.warnings
     fixed = dataclasses.replace(supported, pelvis=PelvisParams())
-    assert not any("pelvis supported" in w for w in build(fixed).warnings)
+    assert text in build(fixed).warnings
+    free_air = dataclasses.replace(fixed, contact=dataclasses.replace(fixed.contact, enabled=False))
+    assert not any("over the belt" in w for w in build(free_air).warnings)
     ct = dataclasses.replace(supported, controller="ct")
-    assert not any("pelvis supported" in w for w in build(ct).warnings)
+    assert not any("over the belt" in w for w in build(ct).warnings)
     loose = dataclasses.replace(supported, qp_tighten_bound=False)
     for sync in (True, False):  # the stop on either plan
         assert text in build(dataclasses.replace(supported, sync=sync)).warnings
     loose_text = (
-        "cuff_force_limit 300 N is not promised with the pelvis supported: the QP's horizon "
-        "holds no ground contact, and where it leaves the plan under the body's weight a foot "
-        "can strike the belt; on the synchronised plan, which follows the measured legs, the "
+        "cuff_force_limit 300 N is not promised with the feet over the belt: the QP's horizon "
+        "holds no ground contact, and where it leaves the plan a foot can strike the belt; on "
+        "the synchronised plan, which follows the measured legs, the "
         "plan can then leave the leg's reach and the run end (docs/performance.md, the QP's "
         "cuff-force bound)"
     )
