@@ -5,14 +5,15 @@ cuffs beyond it (:mod:`exo_ctrl.control.qp.margin`).  In free air (no belt)
 a leg off its plan only tracks worse.  Over the belt it strikes the belt or
 is dragged by it, a load outside every horizon the QP holds: with the
 pelvis supported the feet walk on the moving belt, and with it fixed they
-skim it (the default scenario's spastic patient at a 120 N bound on a 1.0 s,
-0.4 m gait: the QP left the plan by 0.3 rad RMS and the feet's strikes took
-a thigh cuff to 263 N).  Measured on ``tools/load_held.py``'s supported points, safety
-off: a spastic or active patient whose own torques the device cannot know
-before the run left the plan by 0.2–0.8 rad, and the strikes that followed
-took the cuffs 10–45 % past their bound; stopped at the first departure
-beyond 0.15 rad (an e-stop at that tick, the yield reaction) every one of
-nine such points stayed within its bound (docs/performance.md).
+skim it (the default scenario's spastic patient at a 120 N bound on a
+1.0 s, 0.4 m gait: the QP left the plan by 0.3 rad RMS and the feet's
+strikes took a thigh cuff to 263 N).  Measured on ``tools/load_held.py``'s
+supported points, safety off: a spastic or active patient whose own torques
+the device cannot know before the run left the plan by 0.2–0.8 rad, and the
+strikes that followed took the cuffs 10–45 % past their bound; stopped at
+the first departure beyond 0.15 rad (an e-stop at that tick, the yield
+reaction) every one of nine such points stayed within its bound
+(docs/performance.md).
 
 So with the feet over the belt and the QP's bound tightened, every control
 tick compares the encoders' joint angles with the plan's row,

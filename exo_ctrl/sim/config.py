@@ -141,8 +141,8 @@ class SimConfig:
         sync: plan online from the measured belt speed (:mod:`exo_ctrl.plan.online`,
             the gait adapting to the speed by :mod:`exo_ctrl.plan.adapt`);
             None: on with contact on, for the QP with the pelvis supported only
-            (:attr:`synced`).  Off: the
-            precomputed plan, which assumes the gait's v_f whatever the belt does.
+            (:attr:`synced`).  Off: the precomputed plan, which assumes the gait's
+            v_f whatever the belt does.
         duration_s: simulated time [s], ramps included, from one control
             tick to :data:`MAX_DURATION_S`.  Default 3.6 s: the default
             ramp-in (one 1.2 s gait period) and two gait cycles.
