@@ -198,6 +198,11 @@ def plan_fault(kind: str, seed: int, dt: float = 1e-3) -> Fault:
     return Fault(kind, at, target, magnitude, duration, seed=seed)
 
 
+def region_peaks(force: np.ndarray) -> tuple[float, float]:
+    """The largest thigh and shank cuff force [N] of ``force``, (n, 4) in the plant's cuff order."""
+    return float(force[:, 0::2].max()), float(force[:, 1::2].max())
+
+
 def analyse(result, fault: Fault, reference=None) -> FaultResult:
     """The campaign's figures of a run with ``fault`` (module docstring).
 
@@ -218,15 +223,14 @@ def analyse(result, fault: Fault, reference=None) -> FaultResult:
     k0 = round(fault.at_s / result.config.dt)
     force = np.linalg.norm(s["cuff_force"][k0:], axis=-1)
     out.worst_cuff_force_N = float(force.max())
-    out.worst_thigh_N, out.worst_shank_N = float(force[:, 0::2].max()), float(force[:, 1::2].max())
+    out.worst_thigh_N, out.worst_shank_N = region_peaks(force)
     ref = s["q_des"].copy() if reference is None else reference.signals["q"].copy()
     stopped = np.flatnonzero(s["safety_state"] != 0)
     starts = [e["message"] for e in result.events if "controlled stop (" in e.get("message", "")]
     out.reaction = starts[0].split("(", 1)[1].split(")", 1)[0] if starts else ""
     if stopped.size:
         after_stop = np.linalg.norm(s["cuff_force"][stopped[0] :], axis=-1)
-        out.thigh_after_stop_N = float(after_stop[:, 0::2].max())
-        out.shank_after_stop_N = float(after_stop[:, 1::2].max())
+        out.thigh_after_stop_N, out.shank_after_stop_N = region_peaks(after_stop)
     if stopped.size and out.reaction != "yield":
         k_stop = stopped[0]
         q_meas = s["q_meas"][: k_stop + 1]
