@@ -98,16 +98,16 @@ puts on a cuff, F_load,c = max_t ‖D_c s_n‖, is held by leaving the plan:
 :func:`departure_warning` says so before the run.
 
 **Ground contact.**  The horizon's model holds the two bodies and their
-cuffs, not the belt: with the pelvis supported, the feet's loads and a
-foot striking the belt lie outside it, and a QP that leaves the plan under
-the body's weight can let a foot strike (measured: 10–45 % past the bound,
-the campaign of ``tools/load_held.py``, docs/performance.md).  So with the
-pelvis supported the QP may not leave the plan: the working force is the
-plan's whole load, F_work,c = F_load,c (a lower bound is refused before the
-run), and where the patient's own torques, which the device cannot know
-before the run, take a leg off its plan all the same, the walk stops
-(:mod:`exo_ctrl.safety.departure`); :func:`contact_warning` says so before
-such a run.
+cuffs, not the belt: the feet's loads and a foot striking the belt lie
+outside it, and a QP that leaves the plan over the belt can let a foot
+strike (measured: 10–45 % past the bound on the supported points of
+``tools/load_held.py``; 263 N against 120 N with the pelvis fixed,
+docs/performance.md).  So over the belt, with the pelvis fixed or
+supported, where a leg leaves its plan the walk stops
+(:mod:`exo_ctrl.safety.departure`), and with the pelvis supported the QP
+may not leave the plan at all: the working force is the plan's whole load,
+F_work,c = F_load,c (a lower bound is refused before the run).
+:func:`contact_warning` says so before every run over the belt.
 """
 
 from __future__ import annotations
