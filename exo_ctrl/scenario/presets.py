@@ -18,6 +18,7 @@ PRESETS: tuple[str, ...] = (
     "paper",
     "paper-free-air",
     "clinic-bws",
+    "clinic-spastic",
     "spastic-qp",
     "active-transparent",
     "calibration",

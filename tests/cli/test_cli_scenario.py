@@ -77,7 +77,7 @@ def test_scenario_list_names_every_preset(capsys) -> None:
     [
         (
             ["--preset", "fast"],
-            "preset must be one of paper, paper-free-air, clinic-bws, spastic-qp, "
+            "preset must be one of paper, paper-free-air, clinic-bws, clinic-spastic, spastic-qp, "
             "active-transparent, calibration; got 'fast'",
         ),
         (

@@ -244,8 +244,8 @@ class _Mine(Controller):
         ({"control_rate": 0.0}, "control_rate must be > 0 Hz; got 0.0"),
         (
             {"scenario": 42},
-            "scenario must be a preset name (paper, paper-free-air, clinic-bws, spastic-qp, "
-            "active-transparent, calibration), a scenario file's path, a Scenario or a "
+            "scenario must be a preset name (paper, paper-free-air, clinic-bws, clinic-spastic, "
+            "spastic-qp, active-transparent, calibration), a scenario file's path, a Scenario or a "
             "SimConfig; got 42",
         ),
         (
