@@ -122,9 +122,15 @@ def test_alone_the_options_run_on_free_air_for_two_cycles_after_the_ramp_in() ->
     assert _config("--contact", "off", "--duration", "3.6") == base
 
 
-def test_the_paper_preset_is_free_air_with_the_belt() -> None:
-    assert _config("--preset", "paper", "--contact", "off") == preset("paper-free-air").config
-    assert _config("--contact", "on", "--duration", "3.6") == preset("paper").config
+def test_the_paper_preset_is_free_air_with_the_belt_and_a_bound_for_it() -> None:
+    """The belt, and the QP's per-region bound that leaves the gait's load over it."""
+    paper = preset("paper").config
+    assert paper.cuff_force_limit_N == (200.0, 120.0)
+    assert _config("--preset", "paper", "--contact", "off") == dataclasses.replace(
+        preset("paper-free-air").config, cuff_force_limit_N=(200.0, 120.0)
+    )
+    options = ("--contact", "on", "--duration", "3.6", "--cuff-force-limit", "200,120")
+    assert _config(*options) == paper
 
 
 def test_isotropic_cuffs_set_the_belief_and_split_unsets_it() -> None:

@@ -59,9 +59,9 @@ def test_the_healthy_default_run_with_the_patients_feet_runs_with_the_supervisor
 def test_no_false_stop_with_ct_or_qp(controller) -> None:
     """CT and QP on the same scenario: the supervisor stays normal and the belt monitor
     never trips (CT's patient-load monitor may still warn: the warning is no stop).  The QP
-    with a bound the gait's load leaves (200 N): at the default 120 N it leaves its plan and
-    the departure stop acts (tests/control/qp/test_closed_loop.py)."""
-    result = simulate(with_feet(controller, cuff_force_limit_N=200.0))
+    at the default scenario's bound, 200 N on the thighs and 120 N on the shanks, which
+    leaves the gait's load (tests/control/qp/test_closed_loop.py)."""
+    result = simulate(with_feet(controller))
     assert result.status == "completed"
     assert result.safety_state == "normal"
     assert [e for e in result.events if e.get("quantity") == QUANTITY] == []

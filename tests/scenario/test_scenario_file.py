@@ -107,7 +107,9 @@ def test_presets_are_listed_described_and_load() -> None:
         assert preset_description(name)
         assert isinstance(preset(name), Scenario)
     assert preset("paper-free-air").config == SimConfig()
-    assert preset("paper").config == SimConfig(contact=ContactParams(enabled=True))
+    assert preset("paper").config == SimConfig(
+        contact=ContactParams(enabled=True), cuff_force_limit_N=(200.0, 120.0)
+    )
     bws = preset("clinic-bws").config
     assert (bws.pelvis.supported, bws.pelvis.bws_fraction, bws.gait.pelvis_excursion) == (
         True,
@@ -115,6 +117,10 @@ def test_presets_are_listed_described_and_load() -> None:
         0.025,
     )
     assert (bws.gait.period, bws.duration_s) == (1.6, 4.8)  # the ramp-in and two cycles
+    spastic = preset("clinic-spastic").config
+    assert (spastic.gait.period, spastic.duration_s) == (2.0, 6.0)  # the ramp-in and two cycles
+    assert (spastic.patient_torque, spastic.controller) == ("spastic", "qp")
+    assert spastic.pelvis.supported and spastic.cuff_force_limit_N == (200.0, 120.0)
     assert preset("spastic-qp").config.controller == "qp"
     assert preset("spastic-qp").config.patient_torque == "spastic"
     active = preset("active-transparent").config

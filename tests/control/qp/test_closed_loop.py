@@ -259,3 +259,24 @@ def test_over_the_belt_with_the_pelvis_fixed_the_bound_holds(limit: float, gait:
     peak = float(np.linalg.norm(result.cuff_force, axis=2).max())
     print(f"\nbound {limit:.0f} N: true peak {peak:.1f} N ({peak / limit - 1:+.1%})")
     assert peak <= limit * 1.05
+
+
+def test_the_default_scenarios_qp_walks_within_its_per_region_bound() -> None:
+    """The default scenario (the belt on) bounds the thighs at 200 N and the shanks at 120 N:
+    room for the gait's load and the margin, so the passive patient walks two cycles with the
+    supervisor on and no stop (at 120 N on every cuff the thighs' bound left less than the
+    gait's load and the departure stop ended the walk about 1 s in); every true peak within
+    its region's bound plus 5 %, the tracking within 10 % of CT's on the same scenario."""
+    runs = {
+        c: simulate(load_scenario(overrides=[f"run.controller={c}"]).config) for c in ("ct", "qp")
+    }
+    qp = runs["qp"]
+    assert qp.config.cuff_force_limit_N == (200.0, 120.0) and qp.config.safety
+    assert qp.status == "completed" and qp.safety_state == "normal"
+    assert [e for e in qp.events if e["kind"] == "violation"] == []
+    assert qp.summary()["touchdown_count"] >= 4
+    peak = np.linalg.norm(qp.cuff_force, axis=2).max(axis=0)
+    assert (peak <= np.array([200.0, 120.0, 200.0, 120.0]) * 1.05).all(), peak
+    rms = {c: np.sqrt(np.mean((r.signals["q_des"] - r.signals["q"]) ** 2)) for c, r in runs.items()}
+    print(f"\npeaks {np.round(peak, 1)} N; RMS error qp {rms['qp']:.2e}, ct {rms['ct']:.2e} rad")
+    assert rms["qp"] <= 1.10 * rms["ct"]
