@@ -65,7 +65,7 @@ NOT_RUN = (
     (r"^\.venv/bin/rerun (?!rrd )", "opens the viewer, or serves it, until it is closed"),
     (
         r"^\.venv/bin/python tools/(bench|bench_sweep|tick_profile|compile_profile|faults"
-        r"|load_held|robustness|modes|path_wall)\.py\b",
+        r"|load_held|touchdowns|robustness|modes|path_wall)\.py\b",
         "a benchmark or a campaign of several minutes",
     ),
 )

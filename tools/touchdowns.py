@@ -1,0 +1,217 @@
+"""Do the loaded touchdowns hold off the default patient?  A seeded campaign (issue 31, item 4).
+
+    .venv/bin/python tools/touchdowns.py [--points N] [--seed S] [--controller ct|qp]
+        [--patients none,active,spastic] [--cycles C] [--json PATH]
+
+The touchdown bounds (under 0.05 m/s vertically and along the belt, slip RMS
+under 0.02 m/s in stance) are asserted on the default patient
+(``tests/sim/test_touchdown_loaded.py``).  This draws N points (default 30)
+from ``numpy.random.default_rng([S, i])`` (default seed 0; point i is the same
+whatever N > i), each a true patient as ``tools/load_held.py`` draws them
+(stature 1.55–1.95 m, body mass 50–110 kg within a body-mass index of
+18.5–35 kg/m², sex at random, the segments around de Leva's by the cohort's
+spreads, the exoskeleton fitted to its legs, the knee misaligned up to 2 cm,
+the true cuffs scattered around the published ones; the device holds the
+nominal patient of that stature, mass and sex), a body-weight support
+U(0.3, 0.5) and a patient torque (passive, active or spastic, at random),
+and walks it on its preset with the safety supervisor on: the passive and
+the active patient on ``clinic-bws``, the spastic one on ``clinic-spastic``
+(its slower gait), the gait's hip height, lift and step length scaled to the
+patient's legs (``tools/load_held.py`` scales hip height and lift so: the
+presets' are for a 1.04 m leg; the period kept, so the belt runs slower
+under shorter legs), for the ramp-in and ``C`` cycles (default 3) with
+``--controller`` (default ct; qp at the ``clinic-spastic`` preset's bound,
+200 N on the thighs and 120 N on the shanks, for every point).
+
+Prints a progress line, per point its patient, support, the walk's worst
+touchdown (vertical and along the belt) and slip RMS, the supervisor's stop
+if any, and for a point outside the bounds whether the run warned before it
+started (the drives' reach, a device that does not fit, ...: ``warned``) or
+not (``unwarned``); then per patient torque the worst of each figure, the
+share of the points within all three bounds and the points outside them
+unwarned, and each warned point's first warning.  A point the planner
+refuses before the run is listed with its reason.  Exit 0 if every point
+walked without a stop within the bounds, 1 if one did not, 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from load_held import REFERENCE_LEG_M, draw_points  # a sibling tool
+
+from exo_ctrl._progress import Progress
+from exo_ctrl.exceptions import ExoCtrlError
+from exo_ctrl.model import CohortSpread, fitted_exo, write_urdf
+from exo_ctrl.model.anthropometry import patient_from_anthropometry
+from exo_ctrl.model.cohort import drawn_patient
+from exo_ctrl.plant.cuff_scatter import CuffScatter
+from exo_ctrl.plant.misalignment import Misalignment
+from exo_ctrl.scenario.load import load_scenario
+from exo_ctrl.sim import SimConfig, simulate
+from exo_ctrl.sim.belief import Belief
+
+#: The patient torques drawn from.
+PATIENTS = ("none", "active", "spastic")
+#: Each patient torque's preset.
+PRESET = {"none": "clinic-bws", "active": "clinic-bws", "spastic": "clinic-spastic"}
+#: The start of the warning every QP run over the belt carries (the departure stop's,
+#: :func:`~exo_ctrl.control.qp.contact_warning`): general, not about this point.
+EVERY_QP_RUN = "with the feet over the belt the walk stops"
+#: Issue 31's bounds: touchdown vertical and along the belt, slip RMS in stance [m/s].
+BOUND_MPS = 0.05
+SLIP_RMS_MPS = 0.02
+
+
+def point_config(point: dict[str, Any], folder: Path, controller: str, cycles: int) -> SimConfig:
+    """The point's run on its preset, its URDFs written into ``folder``."""
+    base = load_scenario(preset=PRESET[point["patient_torque"]]).config
+    nominal = patient_from_anthropometry(point["height_m"], point["mass_kg"], point["sex"])
+    truth = drawn_patient(nominal, np.asarray(point["z"]), CohortSpread())
+    exo = write_urdf(fitted_exo(truth), folder / f"exo_{point['index']:04d}.urdf")
+    patient = write_urdf(truth, folder / f"patient_{point['index']:04d}.urdf")
+    k = (truth.thigh_length + truth.shank_length) / REFERENCE_LEG_M
+    gait = dataclasses.replace(  # the preset's gait for these legs: lengths in proportion
+        base.gait,
+        hip_height=base.gait.hip_height * k,
+        lift_height=base.gait.lift_height * k,
+        step_length=base.gait.step_length * k,
+    )
+    pelvis = dataclasses.replace(
+        base.pelvis, bws_fraction=point["bws"], body_mass_kg=point["mass_kg"]
+    )
+    return dataclasses.replace(
+        base,
+        controller=controller,
+        gait=gait,
+        exo=str(exo),
+        patient=str(patient),
+        misalignment=Misalignment(knee_xz=point["knee_xz"]),
+        patient_torque=point["patient_torque"],
+        pelvis=pelvis,
+        duration_s=(1 + cycles) * gait.period,
+        cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
+        cuff_force_limit_N=(200.0, 120.0),
+        belief=Belief(
+            patient_height_m=point["height_m"],
+            patient_mass_kg=point["mass_kg"],
+            patient_sex=point["sex"],
+        ),
+    )
+
+
+def run_point(point: dict[str, Any], folder: Path, controller: str, cycles: int) -> dict:
+    """Walk one point: its touchdowns and slip, the supervisor's stop, or why it was refused."""
+    out = dict(point)
+    try:
+        result = simulate(point_config(point, folder, controller, cycles))
+    except ExoCtrlError as exc:
+        out.update(outcome="refused", reason=str(exc))
+        return out
+    s = result.summary()
+    stops = [e for e in result.events if e["kind"] == "violation"]
+    out.update(
+        outcome=result.status,
+        touchdowns=s["touchdown_count"],
+        down_mps=s["touchdown_speed_mps"],
+        along_mps=s["touchdown_slip_mps"],
+        slip_rms_mps=s["slip_speed_rms_mps"],
+        stop=None if not stops else f"{stops[0]['t']:.2f} s {stops[0].get('quantity', '')}",
+        warnings=[w for w in result.warnings if not w.startswith(EVERY_QP_RUN)],
+    )
+    out["held"] = (
+        out["stop"] is None
+        and out["touchdowns"] >= 2 * cycles
+        and out["down_mps"] < BOUND_MPS
+        and out["along_mps"] < BOUND_MPS
+        and out["slip_rms_mps"] < SLIP_RMS_MPS
+    )
+    return out
+
+
+def report(results: list[dict[str, Any]]) -> tuple[str, bool]:
+    """The table and the closing lines; and whether every point held."""
+    lines = ["  #  patient  height   mass  knee_cm   bws  down_mps along_mps slip_rms  stop"]
+    for r in results:
+        knee = 100 * float(np.hypot(*r["knee_xz"]))
+        head = (
+            f"{r['index']:3d} {r['patient_torque']:>8s} {r['height_m']:7.3f} {r['mass_kg']:6.1f} "
+            f"{knee:8.2f} {r['bws']:5.2f}"
+        )
+        if r["outcome"] == "refused":
+            lines.append(f"{head}  refused: {r['reason']}")
+            continue
+        mark = "" if r["held"] else ("  <- warned" if r["warnings"] else "  <- unwarned")
+        lines.append(
+            f"{head} {r['down_mps']:9.3f} {r['along_mps']:9.3f} {r['slip_rms_mps']:8.4f}  "
+            f"{r['stop'] or '-'}{mark}"
+        )
+    ran = [r for r in results if r["outcome"] != "refused"]
+    lines.append(f"{len(results)} points: {len(ran)} walked, {len(results) - len(ran)} refused")
+    for torque in PATIENTS:
+        group = [r for r in ran if r["patient_torque"] == torque]
+        if group:
+            lines.append(
+                f"  {torque:>8s}: {len(group):3d} points, within the bounds "
+                f"{100 * sum(r['held'] for r in group) / len(group):5.1f} %, worst "
+                f"{max(r['down_mps'] for r in group):.3f} / "
+                f"{max(r['along_mps'] for r in group):.3f} / "
+                f"{max(r['slip_rms_mps'] for r in group):.4f} m/s, "
+                f"{sum(r['stop'] is not None for r in group)} stopped, "
+                f"{sum(not r['held'] and not r['warnings'] for r in group)} outside unwarned"
+            )
+    held = bool(ran) and all(r["held"] for r in ran) and len(ran) == len(results)
+    for r in ran:
+        if not r["held"] and r["warnings"]:
+            lines.append(f"point {r['index']} was warned before the run: {r['warnings'][0]}")
+    return "\n".join(lines), held
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--points", type=int, default=30, help="points to draw (default 30)")
+    p.add_argument("--seed", type=int, default=0, help="the campaign's seed (default 0)")
+    p.add_argument("--controller", default="ct", choices=("ct", "qp"), help="(default ct)")
+    p.add_argument(
+        "--patients",
+        default=",".join(PATIENTS),
+        help="patient torques to draw from, comma-separated (default none,active,spastic)",
+    )
+    p.add_argument("--cycles", type=int, default=3, help="cycles after the ramp-in (default 3)")
+    p.add_argument("--json", type=Path, default=None, help="write the points here")
+    args = p.parse_args(argv)
+    patients = tuple(args.patients.split(","))
+    if not patients or any(x not in PATIENTS for x in patients):
+        print(f"touchdowns: --patients must name some of {PATIENTS}", file=sys.stderr)
+        return 2
+    if args.points < 1 or args.seed < 0 or args.cycles < 1:
+        print("touchdowns: --points and --cycles must be >= 1, --seed >= 0", file=sys.stderr)
+        return 2
+    points = draw_points(args.points, args.seed, patients, ("supported",))
+    bar = Progress(len(points), "touchdowns")
+    results = []
+    with tempfile.TemporaryDirectory(prefix="touchdowns_") as tmp:
+        for i, point in enumerate(points):
+            results.append(run_point(point, Path(tmp), args.controller, args.cycles))
+            bar.update(i + 1)
+    bar.close(len(points))
+    text, held = report(results)
+    print(text)
+    if args.json is not None:
+        args.json.write_text(json.dumps(results, indent=1))
+    return 0 if held else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
