@@ -132,6 +132,30 @@ def draw_points(
     return out
 
 
+def point_bodies(point: dict[str, Any], folder: Path) -> tuple[Path, Path, float]:
+    """The point's exoskeleton and true patient URDFs, written into ``folder``, and k.
+
+    The patient drawn around the nominal one of the point's stature, mass and
+    sex by the cohort's spreads, the exoskeleton fitted to its legs; k the
+    patient's leg (thigh + shank) over :data:`REFERENCE_LEG_M`, the factor the
+    default gait's lengths are scaled by.
+    """
+    nominal = patient_from_anthropometry(point["height_m"], point["mass_kg"], point["sex"])
+    truth = drawn_patient(nominal, np.asarray(point["z"]), CohortSpread())
+    exo = write_urdf(fitted_exo(truth), folder / f"exo_{point['index']:04d}.urdf")
+    patient = write_urdf(truth, folder / f"patient_{point['index']:04d}.urdf")
+    return exo, patient, (truth.thigh_length + truth.shank_length) / REFERENCE_LEG_M
+
+
+def device_belief(point: dict[str, Any]) -> Belief:
+    """What the device holds of the point's patient: the nominal one of its stature, mass, sex."""
+    return Belief(
+        patient_height_m=point["height_m"],
+        patient_mass_kg=point["mass_kg"],
+        patient_sex=point["sex"],
+    )
+
+
 def point_config(
     point: dict[str, Any], folder: Path, cuff_sensors: str = "none", sync: bool = True
 ) -> SimConfig:
@@ -140,16 +164,12 @@ def point_config(
     ``sync``: False puts a supported point on the precomputed plan (True: the QP's
     default, synchronised).
     """
-    nominal = patient_from_anthropometry(point["height_m"], point["mass_kg"], point["sex"])
-    truth = drawn_patient(nominal, np.asarray(point["z"]), CohortSpread())
-    exo = write_urdf(fitted_exo(truth), folder / f"exo_{point['index']:04d}.urdf")
-    patient = write_urdf(truth, folder / f"patient_{point['index']:04d}.urdf")
+    exo, patient, k = point_bodies(point, folder)
     pelvis = PelvisParams(
         supported=point["pelvis"] == "supported",
         bws_fraction=point["bws"],
         body_mass_kg=point["mass_kg"],
     )
-    k = (truth.thigh_length + truth.shank_length) / REFERENCE_LEG_M
     base = GaitParams()
     gait = GaitParams(
         period=point["period_s"],
@@ -172,11 +192,7 @@ def point_config(
         duration_s=RUN_PERIODS * point["period_s"],
         cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
         cuff_sensors=CuffSensorParams(mode=cuff_sensors, seed=point["cuff_seed"]),
-        belief=Belief(
-            patient_height_m=point["height_m"],
-            patient_mass_kg=point["mass_kg"],
-            patient_sex=point["sex"],
-        ),
+        belief=device_belief(point),
     )
 
 

@@ -49,18 +49,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from load_held import REFERENCE_LEG_M, draw_points  # a sibling tool
+from load_held import device_belief, draw_points, point_bodies  # a sibling tool
 
 from exo_ctrl._progress import Progress
 from exo_ctrl.exceptions import ExoCtrlError
-from exo_ctrl.model import CohortSpread, fitted_exo, write_urdf
-from exo_ctrl.model.anthropometry import patient_from_anthropometry
-from exo_ctrl.model.cohort import drawn_patient
 from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.misalignment import Misalignment
 from exo_ctrl.scenario.load import load_scenario
 from exo_ctrl.sim import SimConfig, simulate
-from exo_ctrl.sim.belief import Belief
 
 #: The patient torques drawn from.
 PATIENTS = ("none", "active", "spastic")
@@ -77,11 +73,7 @@ SLIP_RMS_MPS = 0.02
 def point_config(point: dict[str, Any], folder: Path, controller: str, cycles: int) -> SimConfig:
     """The point's run on its preset, its URDFs written into ``folder``."""
     base = load_scenario(preset=PRESET[point["patient_torque"]]).config
-    nominal = patient_from_anthropometry(point["height_m"], point["mass_kg"], point["sex"])
-    truth = drawn_patient(nominal, np.asarray(point["z"]), CohortSpread())
-    exo = write_urdf(fitted_exo(truth), folder / f"exo_{point['index']:04d}.urdf")
-    patient = write_urdf(truth, folder / f"patient_{point['index']:04d}.urdf")
-    k = (truth.thigh_length + truth.shank_length) / REFERENCE_LEG_M
+    exo, patient, k = point_bodies(point, folder)
     gait = dataclasses.replace(  # the preset's gait for these legs: lengths in proportion
         base.gait,
         hip_height=base.gait.hip_height * k,
@@ -103,11 +95,7 @@ def point_config(point: dict[str, Any], folder: Path, controller: str, cycles: i
         duration_s=(1 + cycles) * gait.period,
         cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
         cuff_force_limit_N=(200.0, 120.0),
-        belief=Belief(
-            patient_height_m=point["height_m"],
-            patient_mass_kg=point["mass_kg"],
-            patient_sex=point["sex"],
-        ),
+        belief=device_belief(point),
     )
 
 
