@@ -60,6 +60,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from exo_ctrl._io import atomic_write, check_output
 from exo_ctrl._progress import Progress
 from exo_ctrl.exceptions import CuffBoundTooTight, ExoCtrlError
 from exo_ctrl.model import CohortSpread, fitted_exo, write_urdf
@@ -306,6 +307,26 @@ def report(results: list[dict[str, Any]]) -> tuple[str, bool]:
     return "\n".join(lines), held
 
 
+def json_output(path: Path | None, tool: str) -> bool:
+    """Whether ``path`` (``--json``, None: not asked for) can be written, checked before the
+    campaign's minutes; if not, the reason is printed as ``tool``'s error."""
+    if path is None:
+        return True
+    try:
+        check_output(path, "--json")
+    except ExoCtrlError as exc:
+        print(f"{tool}: {exc}", file=sys.stderr)
+        return False
+    return True
+
+
+def write_json(path: Path | None, results: list[dict[str, Any]]) -> None:
+    """The points to ``path`` whole or not at all (None: nothing asked)."""
+    if path is not None:
+        with atomic_write(path) as f:
+            f.write(json.dumps(results, indent=1))
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--points", type=int, default=200, help="points to draw (default 200)")
@@ -336,6 +357,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.points < 1 or args.seed < 0:
         print("load_held: --points must be >= 1 and --seed >= 0", file=sys.stderr)
         return 2
+    if not json_output(args.json, "load_held"):
+        return 2
     results = campaign(
         args.points,
         args.seed,
@@ -345,8 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     text, held = report(results)
     print(text)
-    if args.json is not None:
-        args.json.write_text(json.dumps(results, indent=1))
+    write_json(args.json, results)
     return 0 if held else 1
 
 

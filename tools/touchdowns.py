@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 import tempfile
 from pathlib import Path
@@ -49,7 +48,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from load_held import device_belief, draw_points, point_bodies  # a sibling tool
+from load_held import (  # a sibling tool
+    device_belief,
+    draw_points,
+    json_output,
+    point_bodies,
+    write_json,
+)
 
 from exo_ctrl._progress import Progress
 from exo_ctrl.exceptions import ExoCtrlError
@@ -65,6 +70,9 @@ PRESET = {"none": "clinic-bws", "active": "clinic-bws", "spastic": "clinic-spast
 #: The start of the warning every QP run over the belt carries (the departure stop's,
 #: :func:`~exo_ctrl.control.qp.contact_warning`): general, not about this point.
 EVERY_QP_RUN = "with the feet over the belt the walk stops"
+#: What ``tools/load_held.py`` draws for a point that this campaign does not use (the gait is
+#: the preset's in proportion, the bound the preset's; every point's pelvis is supported).
+NOT_OURS = ("step_length_m", "period_s", "bound_N", "pelvis")
 #: Issue 31's bounds: touchdown vertical and along the belt, slip RMS in stance [m/s].
 BOUND_MPS = 0.05
 SLIP_RMS_MPS = 0.02
@@ -101,9 +109,12 @@ def point_config(point: dict[str, Any], folder: Path, controller: str, cycles: i
 
 def run_point(point: dict[str, Any], folder: Path, controller: str, cycles: int) -> dict:
     """Walk one point: its touchdowns and slip, the supervisor's stop, or why it was refused."""
-    out = dict(point)
+    out = {k: v for k, v in point.items() if k not in NOT_OURS}
     try:
-        result = simulate(point_config(point, folder, controller, cycles))
+        config = point_config(point, folder, controller, cycles)
+        g = config.gait
+        out.update(step_length_m=g.step_length, period_s=g.period, hip_height_m=g.hip_height)
+        result = simulate(config)
     except ExoCtrlError as exc:
         out.update(outcome="refused", reason=str(exc))
         return out
@@ -186,6 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.points < 1 or args.seed < 0 or args.cycles < 1:
         print("touchdowns: --points and --cycles must be >= 1, --seed >= 0", file=sys.stderr)
         return 2
+    if not json_output(args.json, "touchdowns"):
+        return 2
     points = draw_points(args.points, args.seed, patients, ("supported",))
     bar = Progress(len(points), "touchdowns")
     results = []
@@ -196,8 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     bar.close(len(points))
     text, held = report(results)
     print(text)
-    if args.json is not None:
-        args.json.write_text(json.dumps(results, indent=1))
+    write_json(args.json, results)
     return 0 if held else 1
 
 

@@ -69,3 +69,15 @@ def test_the_gait_is_the_presets_in_proportion_to_the_legs(tmp_path: Path) -> No
     assert config.gait.lift_height == pytest.approx(preset.lift_height * k, rel=1e-12)
     assert config.gait.period == preset.period and config.duration_s == 4 * preset.period
     assert 0.7 < k < 1.0  # de Leva's legs, shorter than the presets' 1.04 m
+
+
+def test_an_unwritable_json_is_refused_before_the_campaign(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Exit 2 naming --json and why, before any point runs (the points file comes last)."""
+    missing = tmp_path / "missing" / "points.json"
+    assert tool.main(["--points", "1", "--json", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("touchdowns: --json must be a writable file in an existing directory")
+    assert f"directory {missing.parent} does not exist" in err
+    assert not missing.parent.exists()
