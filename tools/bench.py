@@ -51,7 +51,6 @@ as the CLI's does, with a helper process on the second core
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import resource
 import subprocess
@@ -66,6 +65,7 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import mujoco_peer  # tools/: the peer, the same bodies in MuJoCo
+from tool_io import json_output, write_json  # tools/: the JSON outputs
 
 from exo_ctrl.envs import TreadmillEnv
 from exo_ctrl.estimation import CuffForceKalman
@@ -414,6 +414,8 @@ def main() -> int:
     unknown = [name for name in names if name not in SCENARIOS]
     if unknown:
         parser.error(f"--scenarios: unknown {unknown}; allowed: {', '.join(SCENARIOS)}")
+    if not json_output(args.json, "bench"):
+        return 2
     results = {}
     if args.cold:
         print(f"{'scenario':<12}{'cold: import':>13}{'run':>7}{'total':>8}{'CPU':>7}"
@@ -473,8 +475,7 @@ def main() -> int:
                 f"{name:<20}{r['step_median_us']:>8.1f}µs{r['step_p99_us']:>8.1f}µs"
                 f"{r['pd_tick_median_us']:>8.1f}µs{r['per_tick_ratio']:>13.2f}"
             )
-    if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+    write_json(args.json, results, indent=2)
     return 0
 
 

@@ -50,6 +50,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench import SCENARIOS
+from tool_io import json_output, write_json  # tools/: the JSON outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -207,6 +208,8 @@ def main() -> int:
     )
     parser.add_argument("rest", nargs="*", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if not json_output(args.json, "compile_profile"):
+        return 2
     if args.cli:
         with tempfile.TemporaryDirectory() as tmp:
             cli = ["simulate", "--out", str(Path(tmp) / "run.rrd"), *args.rest]
@@ -214,8 +217,7 @@ def main() -> int:
         report("exo-ctrl " + " ".join(cli[3:] or ["simulate"]), data, args.top, args.signatures)
         notice = [line for line in data["stderr"].splitlines() if line.strip()]
         print("  stderr of the first run:", *(f"    {line}" for line in notice), sep="\n")
-        if args.json:
-            Path(args.json).write_text(json.dumps({"cli": data}, indent=1) + "\n")
+        write_json(args.json, {"cli": data})
         return 0
     names = [n.strip() for n in args.scenarios.split(",")]
     unknown = [n for n in names if n not in SCENARIOS]
@@ -225,8 +227,7 @@ def main() -> int:
     for name in names:
         out[name] = profile(name, args.duration)
         report(name, out[name], args.top, args.signatures)
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1) + "\n")
+    write_json(args.json, out)
     return 0
 
 

@@ -49,7 +49,6 @@ on bad input.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -60,7 +59,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from exo_ctrl._io import atomic_write, check_output
+from tool_io import json_output, write_json  # tools/: the JSON outputs
+
 from exo_ctrl._progress import Progress
 from exo_ctrl.exceptions import CuffBoundTooTight, ExoCtrlError
 from exo_ctrl.model import CohortSpread, fitted_exo, write_urdf
@@ -305,26 +305,6 @@ def report(results: list[dict[str, Any]]) -> tuple[str, bool]:
                 )
     held = within5 == 1.0 and len(ran) + len(refused) == len(results)
     return "\n".join(lines), held
-
-
-def json_output(path: Path | None, tool: str) -> bool:
-    """Whether ``path`` (``--json``, None: not asked for) can be written, checked before the
-    campaign's minutes; if not, the reason is printed as ``tool``'s error."""
-    if path is None:
-        return True
-    try:
-        check_output(path, "--json")
-    except ExoCtrlError as exc:
-        print(f"{tool}: {exc}", file=sys.stderr)
-        return False
-    return True
-
-
-def write_json(path: Path | None, results: list[dict[str, Any]]) -> None:
-    """The points to ``path`` whole or not at all (None: nothing asked)."""
-    if path is not None:
-        with atomic_write(path) as f:
-            f.write(json.dumps(results, indent=1))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -48,13 +48,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from load_held import (  # a sibling tool
-    device_belief,
-    draw_points,
-    json_output,
-    point_bodies,
-    write_json,
-)
+from load_held import device_belief, draw_points, point_bodies  # a sibling tool
+from tool_io import json_output, write_json  # tools/: the JSON outputs
 
 from exo_ctrl._progress import Progress
 from exo_ctrl.exceptions import ExoCtrlError
