@@ -65,8 +65,9 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import mujoco_peer  # tools/: the peer, the same bodies in MuJoCo
-from tool_io import json_output, write_json  # tools/: the JSON outputs
 
+from exo_ctrl._io import output_problem
+from exo_ctrl.cli.common import write_json
 from exo_ctrl.envs import TreadmillEnv
 from exo_ctrl.estimation import CuffForceKalman
 from exo_ctrl.plant import ContactParams, PelvisParams
@@ -414,7 +415,8 @@ def main() -> int:
     unknown = [name for name in names if name not in SCENARIOS]
     if unknown:
         parser.error(f"--scenarios: unknown {unknown}; allowed: {', '.join(SCENARIOS)}")
-    if not json_output(args.json, "bench"):
+    if args.json is not None and (problem := output_problem(args.json)):
+        print(f"bench: --json {args.json}: {problem}", file=sys.stderr)
         return 2
     results = {}
     if args.cold:
@@ -475,7 +477,8 @@ def main() -> int:
                 f"{name:<20}{r['step_median_us']:>8.1f}µs{r['step_p99_us']:>8.1f}µs"
                 f"{r['pd_tick_median_us']:>8.1f}µs{r['per_tick_ratio']:>13.2f}"
             )
-    write_json(args.json, results, indent=2)
+    if args.json is not None:
+        write_json(args.json, results)
     return 0
 
 

@@ -50,7 +50,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench import SCENARIOS
-from tool_io import json_output, write_json  # tools/: the JSON outputs
+
+from exo_ctrl._io import output_problem
+from exo_ctrl.cli.common import write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -208,7 +210,8 @@ def main() -> int:
     )
     parser.add_argument("rest", nargs="*", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if not json_output(args.json, "compile_profile"):
+    if args.json is not None and (problem := output_problem(args.json)):
+        print(f"compile_profile: --json {args.json}: {problem}", file=sys.stderr)
         return 2
     if args.cli:
         with tempfile.TemporaryDirectory() as tmp:
@@ -217,7 +220,8 @@ def main() -> int:
         report("exo-ctrl " + " ".join(cli[3:] or ["simulate"]), data, args.top, args.signatures)
         notice = [line for line in data["stderr"].splitlines() if line.strip()]
         print("  stderr of the first run:", *(f"    {line}" for line in notice), sep="\n")
-        write_json(args.json, {"cli": data})
+        if args.json is not None:
+            write_json(args.json, {"cli": data})
         return 0
     names = [n.strip() for n in args.scenarios.split(",")]
     unknown = [n for n in names if n not in SCENARIOS]
@@ -227,7 +231,8 @@ def main() -> int:
     for name in names:
         out[name] = profile(name, args.duration)
         report(name, out[name], args.top, args.signatures)
-    write_json(args.json, out)
+    if args.json is not None:
+        write_json(args.json, out)
     return 0
 
 

@@ -59,9 +59,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tool_io import json_output, write_json  # tools/: the JSON outputs
 
+from exo_ctrl._io import output_problem
 from exo_ctrl._progress import Progress
+from exo_ctrl.cli.common import write_json
 from exo_ctrl.exceptions import CuffBoundTooTight, ExoCtrlError
 from exo_ctrl.model import CohortSpread, fitted_exo, write_urdf
 from exo_ctrl.model.anthropometry import SEXES, patient_from_anthropometry
@@ -337,7 +338,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.points < 1 or args.seed < 0:
         print("load_held: --points must be >= 1 and --seed >= 0", file=sys.stderr)
         return 2
-    if not json_output(args.json, "load_held"):
+    if args.json is not None and (problem := output_problem(args.json)):
+        print(f"load_held: --json {args.json}: {problem}", file=sys.stderr)
         return 2
     results = campaign(
         args.points,
@@ -348,7 +350,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     text, held = report(results)
     print(text)
-    write_json(args.json, results)
+    if args.json is not None:
+        write_json(args.json, results)
     return 0 if held else 1
 
 

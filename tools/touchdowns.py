@@ -49,9 +49,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from load_held import device_belief, draw_points, point_bodies  # a sibling tool
-from tool_io import json_output, write_json  # tools/: the JSON outputs
 
+from exo_ctrl._io import output_problem
 from exo_ctrl._progress import Progress
+from exo_ctrl.cli.common import write_json
 from exo_ctrl.exceptions import ExoCtrlError
 from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.plant.misalignment import Misalignment
@@ -192,7 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.points < 1 or args.seed < 0 or args.cycles < 1:
         print("touchdowns: --points and --cycles must be >= 1, --seed >= 0", file=sys.stderr)
         return 2
-    if not json_output(args.json, "touchdowns"):
+    if args.json is not None and (problem := output_problem(args.json)):
+        print(f"touchdowns: --json {args.json}: {problem}", file=sys.stderr)
         return 2
     points = draw_points(args.points, args.seed, patients, ("supported",))
     bar = Progress(len(points), "touchdowns")
@@ -204,7 +206,8 @@ def main(argv: list[str] | None = None) -> int:
     bar.close(len(points))
     text, held = report(results)
     print(text)
-    write_json(args.json, results)
+    if args.json is not None:
+        write_json(args.json, results)
     return 0 if held else 1
 
 
