@@ -119,7 +119,7 @@ def test_presets_are_listed_described_and_load() -> None:
     assert (bws.gait.period, bws.duration_s) == (1.6, 4.8)  # the ramp-in and two cycles
     spastic = preset("clinic-spastic").config
     assert (spastic.gait.period, spastic.duration_s) == (2.0, 6.0)  # the ramp-in and two cycles
-    assert (spastic.patient_torque, spastic.controller) == ("spastic", "qp")
+    assert (spastic.patient_torque, spastic.controller) == ("spastic", "ct")
     assert spastic.pelvis.supported and spastic.cuff_force_limit_N == (200.0, 120.0)
     assert preset("spastic-qp").config.controller == "qp"
     assert preset("spastic-qp").config.patient_torque == "spastic"

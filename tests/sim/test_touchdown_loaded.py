@@ -78,8 +78,8 @@ def test_the_spastic_walk_is_stopped_on_a_true_excess() -> None:
 def test_the_spastic_patient_walks_a_slower_gait_within_the_bounds(
     controller: str, support: float
 ) -> None:
-    """The clinic-spastic preset (clinic-bws's gait at T = 2.0 s, the QP at 200 N / 120 N per
-    region): the knee flexes slowly enough that the reflex leaves the shank under 130 N; the
+    """The clinic-spastic preset (clinic-bws's gait at T = 2.0 s, CT; the QP at 200 N / 120 N
+    per region): the knee flexes slowly enough that the reflex leaves the shank under 130 N; the
     touchdowns as the passive patient's, no stop, and every true cuff peak within the QP's bound
     plus 5 % (with CT, within ISO/TS 15066's limits, thigh 220 N, shank 130 N)."""
     overrides = [f"run.controller={controller}", f"pelvis.bws_fraction={support}"]
