@@ -98,7 +98,7 @@ def point_config(point: dict[str, Any], folder: Path, controller: str, cycles: i
         pelvis=pelvis,
         duration_s=(1 + cycles) * gait.period,
         cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
-        cuff_force_limit_N=(200.0, 120.0),
+        cuff_force_limit_N=load_scenario(preset="clinic-spastic").config.cuff_force_limit_N,
         belief=device_belief(point),
     )
 
