@@ -117,6 +117,7 @@ def test_presets_are_listed_described_and_load() -> None:
         0.025,
     )
     assert (bws.gait.period, bws.duration_s) == (1.6, 4.8)  # the ramp-in and two cycles
+    assert bws.cuff_force_limit_N == (200.0, 120.0)  # the QP's, leaving the plan's load
     spastic = preset("clinic-spastic").config
     assert (spastic.gait.period, spastic.duration_s) == (2.0, 6.0)  # the ramp-in and two cycles
     assert (spastic.patient_torque, spastic.controller) == ("spastic", "ct")
