@@ -337,6 +337,10 @@ MEMORY_CHILD = textwrap.dedent(
 )
 
 
+#: Pairs of children the memory test runs (each run length keeps its smallest growth).
+MEMORY_REPEATS = 3
+
+
 @pytest.mark.heavy
 def test_recording_memory_does_not_grow_with_run_length(tmp_path):
     """Peak RSS of a recorded 60 s run vs a 10 s one (keep_history=False), in children.
@@ -353,24 +357,39 @@ def test_recording_memory_does_not_grow_with_run_length(tmp_path):
     of about 2000 rows more at 60 s, well under 1 MB): measured differences
     -0.6 to 0.5 MB (7.5-10.5 MB when rerun's own file sink kept its index).
     The bound, 16 MB, is kept.  With keep_history=True the difference
-    measured 40 MB: the test then fails, as it should.
+    measured 65 MB (the smallest of three): the test then fails, as it should.
     (ru_maxrss is not used: it survives exec, so a child spawned from a large
-    pytest process reports the parent's size.)
+    pytest process reports the parent's size.)  A first child runs 0.2 s of the same
+    recorded run to its end, so that both measured children load the tick's kernels from
+    numba's cache: on a fresh install a kernel compiled inside one child's window added
+    LLVM's memory to that child's peak alone (17.2 MB once, on a clean clone).  Each length
+    runs MEMORY_REPEATS times and keeps its smallest growth: with the cache warm, single pairs
+    measured -0.8 to 14.3 MB (the allocator's and the collector's timing), a leak adds to
+    every repeat.
     """
-    procs = {
-        d: subprocess.Popen(
-            [sys.executable, "-c", MEMORY_CHILD, str(d), str(tmp_path / f"m{d}.rrd")],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-        )
-        for d in (10, 60)
-    }
-    out = {}
-    for d, proc in procs.items():
-        stdout, stderr = proc.communicate(timeout=300)
-        assert proc.returncode == 0, stderr.decode()
-        out[d] = json.loads(stdout)
-        assert out[d]["status"] == "completed" and out[d]["ticks"] == d * 1000
+    warm = subprocess.run(
+        [sys.executable, "-c", MEMORY_CHILD, "0.2", str(tmp_path / "warm.rrd")],
+        capture_output=True,
+        timeout=600,
+    )
+    assert warm.returncode == 0, warm.stderr.decode()
+    out: dict[int, dict] = {}
+    for rep in range(MEMORY_REPEATS):
+        procs = {
+            d: subprocess.Popen(
+                [sys.executable, "-c", MEMORY_CHILD, str(d), str(tmp_path / f"m{d}_{rep}.rrd")],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+            )
+            for d in (10, 60)
+        }
+        for d, proc in procs.items():
+            stdout, stderr = proc.communicate(timeout=300)
+            assert proc.returncode == 0, stderr.decode()
+            row = json.loads(stdout)
+            assert row["status"] == "completed" and row["ticks"] == d * 1000
+            if d not in out or row["loop_growth_kb"] < out[d]["loop_growth_kb"]:
+                out[d] = row
     growth_mb = (out[60]["loop_growth_kb"] - out[10]["loop_growth_kb"]) / 1024
     peaks = ", ".join(f"{d} s: {out[d]['process_peak_kb'] / 1024:.0f} MB" for d in out)
     print(f"loop peak growth 60 s - 10 s: {growth_mb:.1f} MB; process peak RSS {peaks}")
