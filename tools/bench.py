@@ -187,10 +187,10 @@ def library_floor(runner: Runner, contact_share: float) -> float:
 #: Pairs of runs, without and with a recording, for the real-time factors.
 RTF_PAIRS = 5
 
-#: The benchmarked scenarios: controller and SimConfig overrides.
 #: The clinic-bws preset's gait (exo_ctrl/scenario/presets).
 CLINIC_GAIT = load_scenario(preset="clinic-bws").config.gait
 
+#: The benchmarked scenarios: controller and SimConfig overrides.
 SCENARIOS = {
     "pd": {"controller": "pd"},
     "ct": {"controller": "ct"},

@@ -52,6 +52,7 @@ import argparse
 import math
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -238,15 +239,28 @@ def campaign(
 ) -> list[dict[str, Any]]:
     """Run the first ``n`` points of ``seed``, one after the other, with ``cuff_sensors``."""
     points = draw_points(n, seed, patients, pelvis)
-    bar = Progress(n, "load held") if progress else None
+    return run_points(
+        points, lambda p, folder: run_point(p, folder, cuff_sensors, sync), "load held", progress
+    )
+
+
+def run_points(
+    points: list[dict[str, Any]],
+    run: Callable[[dict[str, Any], Path], dict[str, Any]],
+    label: str,
+    progress: bool = True,
+) -> list[dict[str, Any]]:
+    """``run(point, folder)`` for each point in turn, the points' URDFs in one temporary
+    folder, with a progress bar named ``label`` (``progress``)."""
+    bar = Progress(len(points), label) if progress else None
     results = []
-    with tempfile.TemporaryDirectory(prefix="load_held_") as tmp:
+    with tempfile.TemporaryDirectory(prefix=label.replace(" ", "_") + "_") as tmp:
         for i, point in enumerate(points):
-            results.append(run_point(point, Path(tmp), cuff_sensors, sync))
+            results.append(run(point, Path(tmp)))
             if bar is not None:
                 bar.update(i + 1)
     if bar is not None:
-        bar.close(n)
+        bar.close(len(points))
     return results
 
 

@@ -39,7 +39,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -48,10 +47,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from load_held import device_belief, draw_points, point_bodies  # a sibling tool
+from load_held import device_belief, draw_points, point_bodies, run_points  # a sibling tool
 
 from exo_ctrl._io import output_problem
-from exo_ctrl._progress import Progress
 from exo_ctrl.cli.common import write_json
 from exo_ctrl.exceptions import ExoCtrlError
 from exo_ctrl.plant.cuff_scatter import CuffScatter
@@ -197,13 +195,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"touchdowns: --json {args.json}: {problem}", file=sys.stderr)
         return 2
     points = draw_points(args.points, args.seed, patients, ("supported",))
-    bar = Progress(len(points), "touchdowns")
-    results = []
-    with tempfile.TemporaryDirectory(prefix="touchdowns_") as tmp:
-        for i, point in enumerate(points):
-            results.append(run_point(point, Path(tmp), args.controller, args.cycles))
-            bar.update(i + 1)
-    bar.close(len(points))
+    results = run_points(
+        points, lambda p, folder: run_point(p, folder, args.controller, args.cycles), "touchdowns"
+    )
     text, held = report(results)
     print(text)
     if args.json is not None:

@@ -107,10 +107,11 @@ class SimConfig:
             (:mod:`exo_ctrl.control.qp.bounds`).  Default 120 N: ISO/TS 15066
             Annex A's quasi-static limit for the lower leg, 130 N, with a
             margin.  The QP holds its prediction within the bound less each
-            cuff's margin (:mod:`exo_ctrl.control.qp.margin`).  The ``paper``
-            preset (the belt on) sets 200 N on the thighs and 120 N on the
-            shanks: over the belt the QP may not leave its plan, and 120 N
-            leaves the thighs less than the gait's load plus the margin.
+            cuff's margin (:mod:`exo_ctrl.control.qp.margin`).  The presets with
+            the belt on (``paper``, ``clinic-bws``, ``clinic-spastic``) set
+            200 N on the thighs and 120 N on the shanks: over the belt the QP
+            may not leave its plan, and 120 N leaves the thighs less than the
+            gait's load plus the margin.
         qp_tighten_bound: tighten the bound by the margin (False: at the bound).
         gains: PD gains (shared by both controllers).
         motor: drive parameters.
