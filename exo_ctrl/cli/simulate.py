@@ -307,7 +307,13 @@ def run(args: argparse.Namespace) -> int:
     warning = consistency_warning(config.motor)
     if warning:
         print(f"exo-ctrl simulate: warning: the drive: {warning}", file=sys.stderr)
-    observers: list = [_WarnAtStart()]
+    notes = []
+    if scenario.source == f"preset {FLAGS_PRESET}" and args.preset is None:
+        notes.append(
+            f"long options without --preset or a scenario file run on preset {FLAGS_PRESET} "
+            "(the feet in free air); --preset paper for the default scenario (the belt on)"
+        )
+    observers: list = [_WarnAtStart(notes)]
     if not args.no_record:
         recorder = RerunRecorder(args.out, spawn=args.spawn, scene_rate_hz=scene_rate)
         observers.append(recorder)
@@ -336,9 +342,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 class _WarnAtStart:
-    """Prints the run's warnings (a device that does not fit its patient) before its first tick."""
+    """Prints notes on the run, then its warnings, before its first tick.
+
+    The warnings: a device that does not fit its patient, say.  A run refused before it
+    starts prints only the refusal.
+    """
+
+    def __init__(self, notes: list[str]) -> None:
+        self.notes = notes
 
     def start(self, result: SimResult) -> None:
+        for text in self.notes:
+            print(f"exo-ctrl simulate: note: {text}", file=sys.stderr)
         for text in result.warnings:
             print(f"exo-ctrl simulate: warning: {text}", file=sys.stderr)
 

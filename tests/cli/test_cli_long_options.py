@@ -168,3 +168,17 @@ def test_isotropic_cuffs_set_the_belief_and_split_unsets_it() -> None:
 def test_a_bad_value_names_the_option_that_set_it(capsys, argv: list[str], message: str) -> None:
     assert cli.main(["simulate", *argv, "--no-record"]) == 2
     assert capsys.readouterr().err == f"exo-ctrl simulate: error: {message}\n"
+
+
+def test_alone_the_options_say_their_run_is_on_free_air(capsys) -> None:
+    """The surprise of long options alone is said: their run is not the default scenario's."""
+    note = (
+        "exo-ctrl simulate: note: long options without --preset or a scenario file run on "
+        "preset paper-free-air (the feet in free air); --preset paper for the default "
+        "scenario (the belt on)\n"
+    )
+    assert cli.main(["simulate", "--period", "1.1", "--duration", "0.05", "--no-record"]) == 0
+    assert capsys.readouterr().err.startswith(note)
+    for argv in (["--preset", "paper-free-air", "--period", "1.1"], ["--set", "gait.period=1.1"]):
+        assert cli.main(["simulate", *argv, "--duration", "0.05", "--no-record"]) == 0
+        assert "note: long options" not in capsys.readouterr().err
