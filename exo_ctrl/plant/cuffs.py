@@ -30,7 +30,7 @@ shear, along the limb, than in compression, across it.  With u the unit
 direction of the exoskeleton link carrying the cuff (joint → cuff point) at
 the present angles, n = u turned by +90°, and the stretch split in the
 link's frame, s_n = n · Δp - r₀ₙ, s_u = u · Δp - r₀ᵤ (r₀ₙ, r₀ᵤ captured at
-the fit: the strap's slack offset turns with the link), the cuff stores
+the fit, zero for split cuffs: below), the cuff stores
 
     V = ½ k_u s_u² + V_n(s_n),   V_n = ½ k_n s_n²
 
@@ -41,6 +41,12 @@ spring also acts on that link with the moment M = σ_n (u · Δp) - σ_u (n · �
 (−∂V/∂θ at fixed Δp; it balances the couple Δp × f of an anisotropic spring,
 and makes the spring conservative: :meth:`CuffSet.spring_energy` is its
 potential).  The damper is dissipative, f · Δṗ ≤ 0.
+
+**The fit.**  The strap holds the limb's tissue under the shell: :meth:`CuffSet.fit`
+moves each split cuff's patient point, in its link's frame, onto the exoskeleton's
+(Δp = 0 there; :mod:`exo_ctrl.plant.misalignment`), so the moment's lever u · Δp is
+the limb's slide since the fit, not where a URDF frame sat (a knee 2 cm forward,
+fitted at the default start, left them 17 mm apart along the shank).
 
 **Preload.**  A strap tightened with preload P presses its two pads (the
 shell on one side of the limb, the strap on the other) on the limb with P
@@ -222,6 +228,7 @@ class CuffSet:
             for k in range(2):
                 diff[4 * k + c, 8 * k + c] = 1.0
                 diff[4 * k + c, 8 * k + 4 + c] = -1.0
+        self._diff, self._P0 = diff, self._P.copy()  # the URDFs' points: fit starts from them
         self._DP = diff @ self._P
         self._DPT = np.ascontiguousarray(self._DP.T)
         self._Dp0 = diff @ self._p0
@@ -235,6 +242,7 @@ class CuffSet:
         c["select"] = sel
         c["dp"] = self._DP
         c["dpt"] = self._DPT
+        self._DP, self._DPT = self.record["dp"][0], self.record["dpt"][0]  # fit moves them
         c["k"], c["c"] = self._k, self._c
         c["k_u"] = float(params.shear_stiffness_N_per_m)
         c["c_u"] = float(params.shear_damping_N_s_per_m)
@@ -299,10 +307,12 @@ class CuffSet:
     def fit(self, q_all: np.ndarray) -> None:
         """Fit the straps: make the present offsets the slack (zero-stretch) ones.
 
-        Isotropic cuffs keep r₀ in the world; split cuffs in the link's
-        frame (r₀ₙ = n · Δp, r₀ᵤ = u · Δp at the fit; module docstring).
+        Isotropic cuffs keep r₀ in the world; split cuffs move the patient's points
+        onto the exoskeleton's (module docstring, "The fit"): r₀ = 0 up to rounding.
         """
         self._trig(np.asarray(q_all, dtype=float))
+        if self._split:
+            self._attach_at_shells()
         self.rest_offset[:] = self._DP @ self._cs + self._Dp0
         np.subtract(self._Dp0, self.rest_offset, out=self._offset)
         np.multiply(self._offset, self._k, out=self._k_offset)
@@ -311,6 +321,27 @@ class CuffSet:
         normal, along = self.link_frame_offsets(q_all)
         self.rest_normal[:] = normal
         self.rest_along[:] = along
+
+    def _attach_at_shells(self) -> None:
+        """Patient cuff point 4 + c, last on link rotation 4 + c as R(θ) b in P: b += R(θ)ᵀ Δp.
+
+        From the URDFs' points each time, so a fit depends on its posture alone.
+        """
+        P = self._P
+        P[:] = self._P0
+        np.matmul(self._diff, P, out=self._DP)
+        offset = self._DP @ self._cs + self._Dp0  # exo minus patient: x of 4, z of 4
+        for c in range(4):
+            i = j = 4 + c
+            cos, sin = self._cs[j], self._cs[8 + j]
+            dx, dz = offset[c], offset[4 + c]
+            bx, bz = cos * dx + sin * dz, -sin * dx + cos * dz  # R(θ)ᵀ Δp
+            P[i, j] += bx
+            P[i, 8 + j] -= bz
+            P[8 + i, j] += bz
+            P[8 + i, 8 + j] += bx
+        np.matmul(self._diff, P, out=self._DP)
+        self._DPT[:] = self._DP.T
 
     def directions(self, q_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """U and n of the four cuffs at q_all (the exo links' frames), each (4, 2)."""

@@ -86,15 +86,23 @@ def independent_settle(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The patient's rest posture and the cuff forces, minimising V = Σ m g z + Σ ½ sᵀ K s.
 
-    Straps fitted with both at q0, the exo held there: s = p_p(q0) - p_p(q)
-    (exo minus patient, from the fit), K = k_n n nᵀ + k_u u uᵀ in the exo
-    link's frame at q0.  No CuffSet involved.
+    Straps fitted with both at q0, the exo held there: each strap holds the
+    patient's material point under the exo's cuff at q0 (fixed in the parent
+    joint's frame of the patient's cuff frame), s = p_exo(q0) - p_att(q) (exo
+    minus patient, from the fit), K = k_n n nᵀ + k_u u uᵀ in the exo link's
+    frame at q0.  No CuffSet involved.
     """
     data, exo_data = patient.model.createData(), exo.model.createData()
     pin.framesForwardKinematics(exo.model, exo_data, q0)
+    pin.framesForwardKinematics(patient.model, data, q0)
+    joints = [patient.model.frames[f].parentJoint for f in patient.cuff_frame_ids]
+    exo_at_fit = [exo_data.oMf[f].translation for f in exo.cuff_frame_ids]
+    local = [data.oMi[j].actInv(p) for j, p in zip(joints, exo_at_fit, strict=True)]
 
     def points(body: BodyModel, d: pin.Data, q: np.ndarray) -> np.ndarray:
         pin.framesForwardKinematics(body.model, d, q)
+        if body is patient:  # the material points the straps hold
+            return np.array([d.oMi[j].act(x)[[0, 2]] for j, x in zip(joints, local, strict=True)])
         return np.array([d.oMf[f].translation[[0, 2]] for f in body.cuff_frame_ids])
 
     stiff = []
