@@ -9,6 +9,7 @@ s_n = -dx, s_u = dz.
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from exo_ctrl.exceptions import InvalidParameter
@@ -154,3 +155,32 @@ def test_passive_energy_is_conserved_with_split_cuffs(bodies) -> None:
     assert stretch > 0.002  # the two bodies part by millimetres: the cuffs work
     print(f"\nsplit cuffs, passive: energy above rest {e0 - e_rest:.2f} J, drift {worst:.2e} J")
     assert worst < 1e-3 * (e0 - e_rest)
+
+
+def test_the_fit_attaches_the_limb_under_the_shell(bodies) -> None:
+    """Split cuffs fitted with the bodies apart: slack at the fit, no moment, and the patient's
+    point is then the material point of its link that lay under the exoskeleton's cuff (from
+    Pinocchio's joint placements, not the CuffSet's matrices); a second fit elsewhere is the
+    same as a first one there."""
+    exo, patient = bodies
+    rng = np.random.default_rng(5)
+    q0 = rng.normal(0.0, 0.4, 8)  # exo and patient in different postures: the points apart
+    cuffs = CuffSet(exo, patient, CuffParams())
+    cuffs.fit(q0)
+    np.testing.assert_allclose(cuffs.compute(q0, np.zeros(8)), 0.0, atol=1e-9)
+    np.testing.assert_allclose(cuffs.joint_torque, 0.0, atol=1e-9)
+    np.testing.assert_allclose(cuffs.rest_along, 0.0, atol=1e-15)
+    d_e, d_p = exo.model.createData(), patient.model.createData()
+    pin.framesForwardKinematics(exo.model, d_e, q0[:4])
+    pin.framesForwardKinematics(patient.model, d_p, q0[4:])
+    joints = [patient.model.frames[f].parentJoint for f in patient.cuff_frame_ids]
+    at_fit = [d_e.oMf[f].translation for f in exo.cuff_frame_ids]
+    local = [d_p.oMi[j].actInv(p) for j, p in zip(joints, at_fit, strict=True)]
+    q = q0 + rng.normal(0.0, 0.2, 8)
+    pin.framesForwardKinematics(patient.model, d_p, q[4:])
+    held = np.array([d_p.oMi[j].act(x)[[0, 2]] for j, x in zip(joints, local, strict=True)])
+    np.testing.assert_allclose(cuffs.positions(q)[1], held, atol=1e-12)
+    refit = CuffSet(exo, patient, CuffParams())
+    refit.fit(q)
+    refit.fit(q0)
+    np.testing.assert_array_equal(refit.positions(q)[1], cuffs.positions(q)[1])
