@@ -60,7 +60,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-
 from exo_ctrl._io import output_problem
 from exo_ctrl._progress import Progress
 from exo_ctrl.cli.common import write_json

@@ -230,6 +230,7 @@ class CuffSet:
                 diff[4 * k + c, 8 * k + 4 + c] = -1.0
         self._diff, self._P0 = diff, self._P.copy()  # the URDFs' points: fit starts from them
         self._DP = diff @ self._P
+        self._DP0 = self._DP.copy()
         self._DPT = np.ascontiguousarray(self._DP.T)
         self._Dp0 = diff @ self._p0
         self._sel2 = np.vstack((sel, sel))
@@ -327,10 +328,9 @@ class CuffSet:
 
         From the URDFs' points each time, so a fit depends on its posture alone.
         """
+        offset = self._DP0 @ self._cs + self._Dp0  # exo minus patient: x of 4, z of 4
         P = self._P
         P[:] = self._P0
-        np.matmul(self._diff, P, out=self._DP)
-        offset = self._DP @ self._cs + self._Dp0  # exo minus patient: x of 4, z of 4
         for c in range(4):
             i = j = 4 + c
             cos, sin = self._cs[j], self._cs[8 + j]
