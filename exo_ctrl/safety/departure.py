@@ -16,14 +16,21 @@ reaction) every one of nine such points stayed within its bound
 (docs/performance.md).
 
 So with the feet over the belt and the QP's bound tightened, every control
-tick compares the encoders' joint angles with the plan's row,
-d = max_j |q_j − q*_j|, and beyond
+tick compares the encoders' joint angles with the plan's row, and the
+departure a leg will have reached by the time a stop takes hold,
+
+.. math::
+
+    d = \max_j \max\big(|e_j|,\ |e_j + T\,\dot e_j|\big),\qquad
+    e = q - q^*,\ \dot e = \dot q - \dot q^*,
+
+against
 
 .. math::
 
     δ = h_s / (l_1 + l_2)
 
-the device stops the walk: the supervisor's controlled stop with the
+beyond which the device stops the walk: the supervisor's controlled stop with the
 ``yield`` reaction (:mod:`.stop_reaction`: gravity compensation and damping,
 so the patient's own torques move the legs against a bounded force; a hold
 against them took the cuffs 29–57 % past the bound on two active points),
@@ -34,10 +41,38 @@ at most (l_1 + l_2) δ = h_s, the lift the plan gives it (h_s the gait's
 rad with the defaults).  The stop belongs to the bound's promise: it acts
 with the safety supervisor off too (the supervisor then serves stops only,
 as for an e-stop), and not when the bound is not tightened.
+
+**The look-ahead T** (:func:`harness_arrest_s`).  A stance knee the QP lets
+sag under its bound drops the pelvis, and the swing foot with it: the stop
+locks the harness, but the brake (a spring–damper K, C at the height of the
+lock, :mod:`exo_ctrl.plant.pelvis`) arrests the falling pelvis only after
+
+.. math::
+
+    T = \frac{\operatorname{atan2}(\sqrt{1-ζ^2},\ ζ)}{ω\sqrt{1-ζ^2}},\qquad
+    ω = \sqrt{K/M},\ ζ = \frac{C}{2\sqrt{K M}}
+
+(the first zero of the speed of a damped oscillator started at its rest
+point with a speed; T = ln(s_1/s_2)/(s_1 − s_2), s_{1,2} = ω(ζ ± √(ζ²−1)), when
+ζ > 1, and 1/ω at ζ = 1), M the mass the guide moves (the patient's body
+mass, which the trainer's unloading is set from, and the exoskeleton's
+links).  With the defaults T = 33–48 ms over 50–110 kg (the default
+exoskeleton, 17 kg).  On the campaign (``tools/load_held.py --cuff-sensors
+full``, seed 0) the present departure alone (T = 0) stopped point 118
+(active, pelvis supported, bound 105 N) at 1.659 s with the stance knee
+sinking at 0.9 rad/s and the pelvis falling at 0.25 m/s: the patient's swing
+foot, 6 mm below the exoskeleton's sole (the knee 1.9 cm off), landed 6 ms
+after the stop, the belt stopped the patient's shank and the exoskeleton's
+knee, still extending at 2.2 rad/s, ran into it through the cuff (137.9 N,
++31.3 %).  With T the same point stops in its first cycle (1.02 s) within
+its bound (−0.9 %); the campaign's other stops come 28–74 ms earlier
+(docs/performance.md, the QP's cuff-force bound).  With the pelvis fixed
+nothing falls: T = 0.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -45,7 +80,7 @@ import numpy as np
 from .. import _validate as v
 from ..model import JOINT_NAMES
 
-__all__ = ["DepartureMonitor", "departure_limit_rad"]
+__all__ = ["DepartureMonitor", "departure_limit_rad", "harness_arrest_s"]
 
 
 def departure_limit_rad(lift_height_m: float, leg_length_m: float) -> float:
@@ -59,47 +94,93 @@ def departure_limit_rad(lift_height_m: float, leg_length_m: float) -> float:
     return lift / v.positive("leg length", leg_length_m, "m")
 
 
+def harness_arrest_s(stiffness_N_per_m: float, damping_N_s_per_m: float, mass_kg: float) -> float:
+    """T, the time the locked harness takes to arrest a falling pelvis [s] (module docstring).
+
+    Args:
+        stiffness_N_per_m: K of the harness's brake [N/m].
+        damping_N_s_per_m: C of the harness's brake [N·s/m].
+        mass_kg: M, the mass the guide moves [kg].
+
+    Raises:
+        InvalidParameter: K or M not > 0, C < 0.
+
+    """
+    k = v.positive("pelvis stop stiffness", stiffness_N_per_m, "N/m")
+    c = v.non_negative("pelvis stop damping", damping_N_s_per_m, "N·s/m")
+    m = v.positive("pelvis moving mass", mass_kg, "kg")
+    omega = math.sqrt(k / m)
+    zeta = c / (2.0 * math.sqrt(k * m))
+    if zeta < 1.0:
+        root = math.sqrt(1.0 - zeta * zeta)
+        return math.atan2(root, zeta) / (omega * root)
+    if zeta == 1.0:
+        return 1.0 / omega
+    root = math.sqrt(zeta * zeta - 1.0)
+    s1, s2 = omega * (zeta + root), omega * (zeta - root)
+    return math.log(s1 / s2) / (s1 - s2)
+
+
 class DepartureMonitor:
-    """The largest joint departure from the plan against δ (module docstring).
+    """The largest joint departure from the plan, now and T ahead, against δ (module docstring).
 
     Args:
         limit_rad: δ [rad].
+        lookahead_s: T [s] (0: the present departure alone).
 
     Raises:
-        InvalidParameter: a limit not > 0.
+        InvalidParameter: a limit not > 0, a look-ahead < 0.
 
     """
 
-    def __init__(self, limit_rad: float) -> None:
+    def __init__(self, limit_rad: float, lookahead_s: float = 0.0) -> None:
         self.limit_rad = v.positive("departure limit", limit_rad, "rad")
+        self.lookahead_s = v.non_negative("departure look-ahead", lookahead_s, "s")
+        self._e = np.zeros(4)
         self._d = np.zeros(4)
 
-    def check(self, t: float, q: np.ndarray, q_plan: np.ndarray) -> dict[str, Any] | None:
+    def check(
+        self, t: float, q: np.ndarray, dq: np.ndarray, q_plan: np.ndarray, dq_plan: np.ndarray
+    ) -> dict[str, Any] | None:
         """The stop's cause at time t [s] when d > δ, else None.
 
         Args:
             t: the tick's time [s].
             q: the encoders' joint angles, (4,) [rad].
+            dq: the joint speed readings, (4,) [rad/s].
             q_plan: the plan's row, (4,) [rad].
+            dq_plan: the plan's speeds on that row, (4,) [rad/s].
 
         Returns:
-            The supervisor's event fields (``quantity``, ``value``, ``limit``,
-            ``message``) of the joint furthest from its plan; None within δ.
+            The supervisor's event fields (``quantity``, ``value`` the departure
+            d, ``limit``, ``message``) of the joint furthest from its plan; None
+            within δ.  A non-finite speed reading leaves the present departure
+            alone; a non-finite angle is the supervisor's own violation.
 
         """
-        d = self._d
-        np.subtract(q, q_plan, out=d)
+        e, d = self._e, self._d
+        np.subtract(q, q_plan, out=e)
+        np.subtract(dq, dq_plan, out=d)
+        d *= self.lookahead_s
+        d += e
         np.abs(d, out=d)
-        j = int(np.argmax(d))
-        if not d[j] > self.limit_rad:  # (a non-finite reading is the supervisor's)
+        np.abs(e, out=e)
+        np.fmax(d, e, out=d)  # a NaN speed: the angle's departure alone
+        j = int(np.argmax(np.where(np.isfinite(e), d, 0.0)))
+        if not d[j] > self.limit_rad:
             return None
         name = JOINT_NAMES[j]
+        ahead = (
+            f", {d[j]:.3f} rad within the harness's arrest ({1e3 * self.lookahead_s:.0f} ms)"
+            if d[j] > e[j]
+            else ""
+        )
         return {
             "quantity": f"departure_{name}",
             "value": float(d[j]),
             "limit": self.limit_rad,
             "message": (
-                f"the {name} left the plan by {d[j]:.3f} rad at t = {t:.4f} s (limit "
+                f"the {name} left the plan by {e[j]:.3f} rad at t = {t:.4f} s{ahead} (limit "
                 f"{self.limit_rad:.3f} rad, the swing foot's lift over the leg's length): the QP "
                 "holds its cuff bound by leaving the plan, and on the belt a leg off its plan "
                 "can strike it"

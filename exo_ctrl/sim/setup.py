@@ -278,8 +278,8 @@ def run_warnings(
             out.append(departure)
         if config.contact.enabled:
             stop = departure_for(config, model_exo or exo)
-            limit = None if stop is None else stop.limit_rad
-            out.append(contact_warning(controller.cuff_force_limit_N, limit, config.synced))
+            limit, ahead = (None, 0.0) if stop is None else (stop.limit_rad, stop.lookahead_s)
+            out.append(contact_warning(controller.cuff_force_limit_N, limit, config.synced, ahead))
     return out
 
 

@@ -18,9 +18,10 @@ from typing import Any
 import numpy as np
 
 from ..model import BodyModel
+from ..plant.pelvis import moving_mass_kg
 from ..safety import SafetySupervisor
 from ..safety.belt_monitor import BeltMonitor
-from ..safety.departure import DepartureMonitor, departure_limit_rad
+from ..safety.departure import DepartureMonitor, departure_limit_rad, harness_arrest_s
 from ..safety.monitor import LIMIT_GROUPS
 from ..sensing.readings import SensorReadings
 
@@ -64,7 +65,9 @@ def departure_for(config: Any, exo: BodyModel) -> DepartureMonitor | None:
     tightened, the feet over the belt (contact on; the pelvis fixed or
     supported: a leg the QP takes off its plan can strike the belt either way)
     and the gait exercise; δ from the gait's lift and ``exo``'s (the device's)
-    leg length.
+    leg length; with the pelvis supported, the look-ahead T the harness takes to
+    arrest the pelvis (the brake's K and C on the body mass the unloading is set
+    from and ``exo``'s links; fixed: 0).
     """
     if not (
         config.controller == "qp"
@@ -76,7 +79,16 @@ def departure_for(config: Any, exo: BodyModel) -> DepartureMonitor | None:
     ):
         return None
     leg = min(legs.reach[1] for legs in exo.legs.values())
-    return DepartureMonitor(departure_limit_rad(config.gait.lift_height, leg))
+    limit = departure_limit_rad(config.gait.lift_height, leg)
+    pelvis = config.pelvis
+    if not pelvis.supported:  # nothing falls: the present departure alone
+        return DepartureMonitor(limit)
+    arrest = harness_arrest_s(
+        pelvis.stop_stiffness_N_per_m,
+        pelvis.stop_damping_N_s_per_m,
+        moving_mass_kg(pelvis, exo.model),
+    )
+    return DepartureMonitor(limit, arrest)
 
 
 def build_supervisor(

@@ -288,7 +288,10 @@ class Runner:
             u, age = faults.command_at(k, u)
         if self._departure is not None and self.supervisor is not None:
             ctrl = self.setup.controller  # the QP: the plan row it tracked
-            cause = self._departure.check(k * self._dt, readings.q, ctrl.plan.q[ctrl.last_row])
+            plan, r = ctrl.plan, ctrl.last_row
+            cause = self._departure.check(
+                k * self._dt, readings.q, readings.dq, plan.q[r], plan.dq[r]
+            )
             if cause is not None:
                 self.supervisor.request_stop(k * self._dt, cause, "yield")
         if supervise is not None:

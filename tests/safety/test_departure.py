@@ -19,7 +19,7 @@ from exo_ctrl.exceptions import InvalidParameter
 from exo_ctrl.model import JOINT_NAMES
 from exo_ctrl.plant import ContactParams, PelvisParams
 from exo_ctrl.safety import SafetyLimits, SafetySupervisor
-from exo_ctrl.safety.departure import DepartureMonitor, departure_limit_rad
+from exo_ctrl.safety.departure import DepartureMonitor, departure_limit_rad, harness_arrest_s
 from exo_ctrl.sensing import SensorParams, SensorReadings
 from exo_ctrl.sim import Runner, SimConfig, build, simulate, start_on_plan
 from exo_ctrl.sim.supervision import departure_for
@@ -35,10 +35,10 @@ def test_the_limit_is_the_swing_foots_lift_over_the_legs_length() -> None:
 
 def test_the_monitor_names_the_joint_furthest_from_its_plan() -> None:
     monitor = DepartureMonitor(0.1)
-    plan = np.array([0.3, 0.6, 0.2, 0.5])
-    assert monitor.check(0.5, plan + 0.0999, plan) is None  # within δ
+    plan, speed = np.array([0.3, 0.6, 0.2, 0.5]), np.array([1.0, -2.0, 0.5, 0.0])
+    assert monitor.check(0.5, plan + 0.0999, speed + 5.0, plan, speed) is None  # within δ
     q = plan + np.array([0.05, -0.12, 0.11, 0.0])
-    cause = monitor.check(0.5, q, plan)
+    cause = monitor.check(0.5, q, speed + 5.0, plan, speed)  # no look-ahead: speeds unread
     assert cause is not None
     assert cause["quantity"] == "departure_left_knee"
     assert cause["value"] == pytest.approx(0.12)
@@ -51,9 +51,61 @@ def test_the_monitor_names_the_joint_furthest_from_its_plan() -> None:
     q[0] = math.nan  # a non-finite reading is the supervisor's own violation, not a departure
     q[1] = plan[1]
     q[2] = plan[2]
-    assert monitor.check(0.5, q, plan) is None
+    assert monitor.check(0.5, q, speed, plan, speed) is None
     with pytest.raises(InvalidParameter, match=r"departure limit must be > 0 rad; got 0"):
         DepartureMonitor(0.0)
+    with pytest.raises(InvalidParameter, match=r"departure look-ahead must be >= 0 s; got -0.01"):
+        DepartureMonitor(0.1, -0.01)
+
+
+def test_the_look_ahead_stops_a_departure_before_it_reaches_the_limit() -> None:
+    """d = max(|e|, |e + T ė|): a knee 0.06 rad off sinking 2 rad/s faster than its plan is
+    0.12 rad off 30 ms on; a joint coming back is judged by where it is."""
+    monitor = DepartureMonitor(0.1, 0.03)
+    plan, speed = np.array([0.3, 0.6, 0.2, 0.5]), np.array([1.0, -2.0, 0.5, 0.0])
+    q = plan + np.array([0.0, 0.06, 0.0, 0.0])
+    assert monitor.check(1.0, q, speed, plan, speed) is None  # on its plan's speed
+    dq = speed + np.array([0.0, 2.0, 0.0, 0.0])
+    cause = monitor.check(1.0, q, dq, plan, speed)
+    assert cause["quantity"] == "departure_left_knee"
+    assert cause["value"] == pytest.approx(0.06 + 0.03 * 2.0)
+    assert cause["message"] == (
+        "the left_knee left the plan by 0.060 rad at t = 1.0000 s, 0.120 rad within the "
+        "harness's arrest (30 ms) (limit 0.100 rad, the swing foot's lift over the leg's "
+        "length): the QP holds its cuff bound by leaving the plan, and on the belt a leg off "
+        "its plan can strike it"
+    )
+    back = plan + np.array([0.0, 0.11, 0.0, 0.0])
+    returning = speed + np.array([0.0, -3.0, 0.0, 0.0])  # heading back to the plan
+    assert monitor.check(1.0, back, returning, plan, speed)["value"] == pytest.approx(0.11)
+    dq[1] = math.nan  # no speed reading: the present departure alone
+    assert monitor.check(1.0, q, dq, plan, speed) is None
+
+
+@pytest.mark.parametrize(
+    ("stiffness", "damping", "mass"),
+    [(1e5, 2e3, 67.0), (1e5, 2e3, 127.0), (1e5, 0.0, 80.0), (1e4, 2e3, 100.0), (1e4, 3e3, 80.0)],
+)
+def test_the_harness_arrests_the_pelvis_when_its_speed_first_vanishes(
+    stiffness: float, damping: float, mass: float
+) -> None:
+    """T against an independent integration of M z̈ = −K z − C ż from z = 0, ż = −1 m/s
+    (RK4, 1 µs): the first step whose speed is no longer downward; under-, critically
+    (1e4 N/m, 2e3 N·s/m, 100 kg) and over-damped (the pelvis then creeps back up)."""
+    h, z, w, t = 1e-6, 0.0, -1.0, 0.0
+
+    def acc(z: float, w: float) -> float:
+        return (-stiffness * z - damping * w) / mass
+
+    while w < 0.0:
+        k1z, k1w = w, acc(z, w)
+        k2z, k2w = w + 0.5 * h * k1w, acc(z + 0.5 * h * k1z, w + 0.5 * h * k1w)
+        k3z, k3w = w + 0.5 * h * k2w, acc(z + 0.5 * h * k2z, w + 0.5 * h * k2w)
+        k4z, k4w = w + h * k3w, acc(z + h * k3z, w + h * k3w)
+        z += h * (k1z + 2 * k2z + 2 * k3z + k4z) / 6
+        w += h * (k1w + 2 * k2w + 2 * k3w + k4w) / 6
+        t += h
+    assert harness_arrest_s(stiffness, damping, mass) == pytest.approx(t, abs=2e-6)
 
 
 def test_the_stop_is_the_qps_with_the_feet_over_the_belt_and_its_bound_tightened(
@@ -67,8 +119,13 @@ def test_the_stop_is_the_qps_with_the_feet_over_the_belt_and_its_bound_tightened
     legs = [exo.legs[side] for side in ("left", "right")]
     leg = min(g.thigh_length + g.shank_length for g in legs)
     assert monitor.limit_rad == pytest.approx(supported.gait.lift_height / leg, rel=1e-12)
+    pelvis = supported.pelvis  # the look-ahead: the harness's arrest of the guide's mass
+    mass = pelvis.body_mass + sum(i.mass for i in exo.model.inertias)  # links and pelvis link
+    arrest = harness_arrest_s(pelvis.stop_stiffness_N_per_m, pelvis.stop_damping_N_s_per_m, mass)
+    assert monitor.lookahead_s == pytest.approx(arrest, rel=1e-12)
+    assert 0.03 < monitor.lookahead_s < 0.05
     fixed = dataclasses.replace(supported, pelvis=PelvisParams())
-    assert departure_for(fixed, exo) is not None  # the feet skim the belt
+    assert departure_for(fixed, exo).lookahead_s == 0.0  # the feet skim the belt; nothing falls
     free_air = dataclasses.replace(fixed, contact=dataclasses.replace(fixed.contact, enabled=False))
     assert departure_for(free_air, exo) is None  # the legs swing in the air
     assert departure_for(dataclasses.replace(supported, controller="ct"), exo) is None
@@ -125,7 +182,8 @@ def test_joint_names_are_the_causes_quantities() -> None:
     for j, name in enumerate(JOINT_NAMES):
         q = np.zeros(4)
         q[j] = -0.06
-        assert monitor.check(0.0, q, np.zeros(4))["quantity"] == f"departure_{name}"
+        cause = monitor.check(0.0, q, np.zeros(4), np.zeros(4), np.zeros(4))
+        assert cause["quantity"] == f"departure_{name}"
 
 
 def test_at_a_stop_the_standing_patient_is_not_lifted_by_the_yield() -> None:

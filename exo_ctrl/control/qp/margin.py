@@ -457,12 +457,16 @@ def departure_warning(
 
 
 def contact_warning(
-    limit_N: float | Sequence[float], departure_rad: float | None, synced: bool = False
+    limit_N: float | Sequence[float],
+    departure_rad: float | None,
+    synced: bool = False,
+    lookahead_s: float = 0.0,
 ) -> str:
     """The sentence a QP run with the feet over the belt (contact on) gets (module docstring).
 
     ``departure_rad``: δ of the departure stop (:mod:`exo_ctrl.safety.departure`); None:
-    the bound is not tightened, and nothing is promised.  ``synced``: on the synchronised
+    the bound is not tightened, and nothing is promised; ``lookahead_s`` its look-ahead
+    T [s] (the harness's arrest with the pelvis supported).  ``synced``: on the synchronised
     plan, which places the swing foot against the stance leg as measured, a stance leg the
     QP lets sag can take the plan out of the leg's reach (where nothing stops the walk
     first).
@@ -480,9 +484,14 @@ def contact_warning(
             "QP's horizon holds no ground contact, and where it leaves the plan a foot can "
             f"strike the belt{reach} (docs/performance.md, the QP's cuff-force bound)"
         )
+    ahead = (
+        f", or is heading there within the harness's arrest ({1e3 * lookahead_s:.0f} ms)"
+        if lookahead_s > 0.0
+        else ""
+    )
     return (
         f"with the feet over the belt the walk stops (yield) where a leg leaves its plan by more "
-        f"than {departure_rad:.3f} rad: the QP holds cuff_force_limit {words} by leaving "
+        f"than {departure_rad:.3f} rad{ahead}: the QP holds cuff_force_limit {words} by leaving "
         f"the plan where the patient loads the cuffs beyond it, and a leg off its plan can "
         f"strike the belt (docs/performance.md, the QP's cuff-force bound)"
     )

@@ -117,3 +117,34 @@ def test_the_departure_stop_is_what_holds_a_spastic_supported_point(tmp_path, mo
     walked = simulate(config)
     assert not walked.events  # the supervisor is off: nothing stops the walk
     assert np.linalg.norm(walked.cuff_force, axis=2).max() > point["bound_N"] * 1.2
+
+
+def test_the_look_ahead_stops_the_sagging_stance_leg_before_the_swing_foot_lands(
+    tmp_path, monkeypatch
+) -> None:
+    """Point 118 with 2-axis cuff sensors (active, pelvis supported, the knee 1.9 cm off):
+    stopped on the departure the legs reach within the harness's arrest, within its bound;
+    on the present departure alone the stop came as the swing foot landed, the pelvis
+    falling, and the exoskeleton's knee ran into the limb (more than 20 % past the bound).
+    """
+    point = tool.draw_points(119, SEED)[118]
+    assert point["pelvis"] == "supported" and point["patient_torque"] == "active"
+    config = tool.point_config(point, tmp_path, "full")
+    bound = point["bound_N"] * (1.0 + TOLERANCE)
+    ahead = simulate(config, keep_history=True)
+    cause = ahead.events[0]
+    assert cause["quantity"].startswith("departure_") and cause["value"] > cause["limit"]
+    k = round(cause["t"] / config.dt)
+    assert np.abs(ahead.q[k] - ahead.q_des[k]).max() < cause["limit"]  # the look-ahead's stop
+    assert np.linalg.norm(ahead.cuff_force, axis=2).max() <= bound
+    present_only = tick.departure_for
+
+    def without_look_ahead(*args):
+        monitor = present_only(*args)
+        monitor.lookahead_s = 0.0
+        return monitor
+
+    monkeypatch.setattr(tick, "departure_for", without_look_ahead)
+    late = simulate(config)
+    assert late.events[0]["t"] > cause["t"] + 0.5  # a cycle later
+    assert np.linalg.norm(late.cuff_force, axis=2).max() > point["bound_N"] * 1.2

@@ -31,6 +31,7 @@ from exo_ctrl.plant import CuffParams, PelvisParams
 from exo_ctrl.plant.cuff_scatter import CuffScatter
 from exo_ctrl.sim import Runner, SimConfig, build
 from exo_ctrl.sim.belief import Belief
+from exo_ctrl.sim.supervision import departure_for
 
 
 def _margin(exo, patient, motor, plan, cuffs=None, **knowledge) -> BoundMargin:
@@ -177,16 +178,21 @@ def test_feet_over_the_belt_are_warned_before_the_run_and_free_air_not(
     )
     assert f"{limit:.3f}" == "0.096"  # 0.10 m of lift over the default legs' 1.04 m
     assert contact_warning(300.0, limit) == text
-    assert text in setup.warnings
     fixed = dataclasses.replace(supported, pelvis=PelvisParams())
-    assert text in build(fixed).warnings
+    assert text in build(fixed).warnings  # the pelvis fixed: nothing falls, no look-ahead
+    ahead = departure_for(supported, setup.device_exo).lookahead_s
+    supported_text = text.replace(
+        " rad:", f" rad, or is heading there within the harness's arrest ({1e3 * ahead:.0f} ms):"
+    )
+    assert contact_warning(300.0, limit, lookahead_s=ahead) == supported_text
+    assert supported_text in setup.warnings
     free_air = dataclasses.replace(fixed, contact=dataclasses.replace(fixed.contact, enabled=False))
     assert not any("over the belt" in w for w in build(free_air).warnings)
     ct = dataclasses.replace(supported, controller="ct")
     assert not any("over the belt" in w for w in build(ct).warnings)
     loose = dataclasses.replace(supported, qp_tighten_bound=False)
     for sync in (True, False):  # the stop on either plan
-        assert text in build(dataclasses.replace(supported, sync=sync)).warnings
+        assert supported_text in build(dataclasses.replace(supported, sync=sync)).warnings
     loose_text = (
         "cuff_force_limit 300 N is not promised with the feet over the belt: the QP's horizon "
         "holds no ground contact, and where it leaves the plan a foot can strike the belt; on "
