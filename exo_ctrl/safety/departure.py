@@ -78,6 +78,7 @@ from typing import Any
 import numpy as np
 
 from .. import _validate as v
+from .._jit import kernel, preload
 from ..model import JOINT_NAMES
 
 __all__ = ["DepartureMonitor", "departure_limit_rad", "harness_arrest_s"]
@@ -136,8 +137,11 @@ class DepartureMonitor:
     def __init__(self, limit_rad: float, lookahead_s: float = 0.0) -> None:
         self.limit_rad = v.positive("departure limit", limit_rad, "rad")
         self.lookahead_s = v.non_negative("departure look-ahead", lookahead_s, "s")
-        self._e = np.zeros(4)
-        self._d = np.zeros(4)
+        self._out = np.zeros(2)  # d and |e| of the joint furthest off
+
+    def preload(self, q: np.ndarray) -> None:
+        """Load :func:`departure` for readings of ``q``'s type (before a timed run)."""
+        preload(departure, q, q, q, q, self.lookahead_s, self._out)
 
     def check(
         self, t: float, q: np.ndarray, dq: np.ndarray, q_plan: np.ndarray, dq_plan: np.ndarray
@@ -158,31 +162,50 @@ class DepartureMonitor:
             alone; a non-finite angle is the supervisor's own violation.
 
         """
-        e, d = self._e, self._d
-        np.subtract(q, q_plan, out=e)
-        np.subtract(dq, dq_plan, out=d)
-        d *= self.lookahead_s
-        d += e
-        np.abs(d, out=d)
-        np.abs(e, out=e)
-        np.fmax(d, e, out=d)  # a NaN speed: the angle's departure alone
-        j = int(np.argmax(np.where(np.isfinite(e), d, 0.0)))
-        if not d[j] > self.limit_rad:
+        out = self._out
+        j = departure(q, dq, q_plan, dq_plan, self.lookahead_s, out)
+        if j < 0 or not out[0] > self.limit_rad:
             return None
+        d, e = float(out[0]), float(out[1])
         name = JOINT_NAMES[j]
         ahead = (
-            f", {d[j]:.3f} rad within the harness's arrest ({1e3 * self.lookahead_s:.0f} ms)"
-            if d[j] > e[j]
+            f", {d:.3f} rad within the harness's arrest ({1e3 * self.lookahead_s:.0f} ms)"
+            if d > e
             else ""
         )
         return {
             "quantity": f"departure_{name}",
-            "value": float(d[j]),
+            "value": d,
             "limit": self.limit_rad,
             "message": (
-                f"the {name} left the plan by {e[j]:.3f} rad at t = {t:.4f} s{ahead} (limit "
+                f"the {name} left the plan by {e:.3f} rad at t = {t:.4f} s{ahead} (limit "
                 f"{self.limit_rad:.3f} rad, the swing foot's lift over the leg's length): the QP "
                 "holds its cuff bound by leaving the plan, and on the belt a leg off its plan "
                 "can strike it"
             ),
         }
+
+
+@kernel
+def departure(q, dq, q_plan, dq_plan, lookahead_s, out):  # pragma: no cover - compiled
+    """The joint furthest off its plan, d_j = max(|e_j|, |e_j + T ė_j|) (module docstring).
+
+    Writes d and |e| of that joint into ``out`` (2,) and returns its index; −1
+    when no angle reading is finite.  A joint whose angle is not finite is
+    skipped; one whose speed is not finite counts |e_j| alone.
+    """
+    best = -1
+    out[0] = -1.0
+    out[1] = 0.0
+    for j in range(4):
+        e = q[j] - q_plan[j]
+        if not math.isfinite(e):
+            continue
+        a = abs(e)
+        ahead = abs(e + lookahead_s * (dq[j] - dq_plan[j]))
+        d = ahead if ahead > a else a  # a NaN speed: the comparison is False
+        if d > out[0]:
+            best = j
+            out[0] = d
+            out[1] = a
+    return best

@@ -181,6 +181,8 @@ class Runner:
             )
             if start:  # (the helper leaves these kernels to the run's own process)
                 self.cuff_load.preload(self.sensors.q, self.sensors.dq)
+        if self._departure is not None and start:
+            self._departure.preload(self.sensors.q)
         #: On a stop the harness locks the pelvis (plant/pelvis.py) and the treadmill
         #: runs down to rest (BeltParams.stop_decel_mps2): :meth:`_device_stop`.
         self._stop_pending = sup is not None and config.contact.enabled
