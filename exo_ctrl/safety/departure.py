@@ -16,13 +16,15 @@ reaction) every one of nine such points stayed within its bound
 (docs/performance.md).
 
 So with the feet over the belt and the QP's bound tightened, every control
-tick compares the encoders' joint angles with the plan's row, and the
-departure a leg will have reached by the time a stop takes hold,
+tick compares the encoders' joint angles with the plan's row, and a knee's
+folding beyond its plan by the time a stop takes hold,
 
 .. math::
 
-    d = \max_j \max\big(|e_j|,\ |e_j + T\,\dot e_j|\big),\qquad
-    e = q - q^*,\ \dot e = \dot q - \dot q^*,
+    d = \max\big(\max_j |e_j|,\ \max_{j\,\in\,\text{knees}} (e_j + T\,\dot e_j)\big),\qquad
+    e = q - q^*,\ \dot e = \dot q - \dot q^*
+
+(knee flexion positive),
 
 against
 
@@ -43,7 +45,7 @@ with the safety supervisor off too (the supervisor then serves stops only,
 as for an e-stop), and not when the bound is not tightened.
 
 **The look-ahead T** (:func:`harness_arrest_s`).  A stance knee the QP lets
-sag under its bound drops the pelvis, and the swing foot with it: the stop
+fold under its bound drops the pelvis, and the swing foot with it: the stop
 locks the harness, but the brake (a spring–damper K, C at the height of the
 lock, :mod:`exo_ctrl.plant.pelvis`) arrests the falling pelvis only after
 
@@ -65,9 +67,14 @@ foot, 6 mm below the exoskeleton's sole (the knee 1.9 cm off), landed 6 ms
 after the stop, the belt stopped the patient's shank and the exoskeleton's
 knee, still extending at 2.2 rad/s, ran into it through the cuff (137.9 N,
 +31.3 %).  With T the same point stops in its first cycle (1.02 s) within
-its bound (−0.9 %); the campaign's other stops come 28–74 ms earlier
-(docs/performance.md, the QP's cuff-force bound).  With the pelvis fixed
-nothing falls: T = 0.
+its bound (−0.8 %; docs/performance.md, the QP's cuff-force bound).  Only a
+knee folding beyond its plan drops the hip: looking ahead on every joint in
+either direction also stopped the ``clinic-spastic`` preset's own QP walk
+(`--controller qp`, 30 % support) at 2.83 s, its swing knee held 0.08 rad
+short of its plan by the reflex and the pelvis rising, a departure that
+peaks at 0.083 rad, and 8 more of the 64 spastic walks of
+``tools/touchdowns.py --controller qp`` (0.078–0.094 rad).  With the pelvis
+fixed nothing falls: T = 0.
 """
 
 from __future__ import annotations
@@ -123,7 +130,9 @@ def harness_arrest_s(stiffness_N_per_m: float, damping_N_s_per_m: float, mass_kg
 
 
 class DepartureMonitor:
-    """The largest joint departure from the plan, now and T ahead, against δ (module docstring).
+    """The largest joint departure from the plan, and the knees' folding T ahead, against δ.
+
+    (Module docstring.)
 
     Args:
         limit_rad: δ [rad].
@@ -138,10 +147,11 @@ class DepartureMonitor:
         self.limit_rad = v.positive("departure limit", limit_rad, "rad")
         self.lookahead_s = v.non_negative("departure look-ahead", lookahead_s, "s")
         self._out = np.zeros(2)  # d and |e| of the joint furthest off
+        self._knee = np.array([name.endswith("_knee") for name in JOINT_NAMES])
 
     def preload(self, q: np.ndarray) -> None:
         """Load :func:`departure` for readings of ``q``'s type (before a timed run)."""
-        preload(departure, q, q, q, q, self.lookahead_s, self._out)
+        preload(departure, q, q, q, q, self.lookahead_s, self._knee, self._out)
 
     def check(
         self, t: float, q: np.ndarray, dq: np.ndarray, q_plan: np.ndarray, dq_plan: np.ndarray
@@ -163,7 +173,7 @@ class DepartureMonitor:
 
         """
         out = self._out
-        j = departure(q, dq, q_plan, dq_plan, self.lookahead_s, out)
+        j = departure(q, dq, q_plan, dq_plan, self.lookahead_s, self._knee, out)
         if j < 0 or not out[0] > self.limit_rad:
             return None
         d, e = float(out[0]), float(out[1])
@@ -187,9 +197,10 @@ class DepartureMonitor:
 
 
 @kernel
-def departure(q, dq, q_plan, dq_plan, lookahead_s, out):  # pragma: no cover - compiled
-    """The joint furthest off its plan, d_j = max(|e_j|, |e_j + T ė_j|) (module docstring).
+def departure(q, dq, q_plan, dq_plan, lookahead_s, knee, out):  # pragma: no cover - compiled
+    """The joint furthest off its plan (module docstring), its d and |e| into ``out``.
 
+    d_j = |e_j|, for a knee (``knee[j]``) max(|e_j|, e_j + T ė_j), its folding T ahead.
     Writes d and |e| of that joint into ``out`` (2,) and returns its index; −1
     when no angle reading is finite.  A joint whose angle is not finite is
     skipped; one whose speed is not finite counts |e_j| alone.
@@ -202,8 +213,11 @@ def departure(q, dq, q_plan, dq_plan, lookahead_s, out):  # pragma: no cover - c
         if not math.isfinite(e):
             continue
         a = abs(e)
-        ahead = abs(e + lookahead_s * (dq[j] - dq_plan[j]))
-        d = ahead if ahead > a else a  # a NaN speed: the comparison is False
+        d = a
+        if knee[j]:
+            ahead = e + lookahead_s * (dq[j] - dq_plan[j])
+            if ahead > a:  # (a NaN speed: False)
+                d = ahead
         if d > out[0]:
             best = j
             out[0] = d

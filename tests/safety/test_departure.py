@@ -59,8 +59,8 @@ def test_the_monitor_names_the_joint_furthest_from_its_plan() -> None:
 
 
 def test_the_look_ahead_stops_a_departure_before_it_reaches_the_limit() -> None:
-    """d = max(|e|, |e + T ė|): a knee 0.06 rad off sinking 2 rad/s faster than its plan is
-    0.12 rad off 30 ms on; a joint coming back is judged by where it is."""
+    """d = max(|e|, knees' e + T ė): a knee 0.06 rad beyond its plan folding 2 rad/s faster
+    is 0.12 rad off 30 ms on; a joint coming back is judged by where it is."""
     monitor = DepartureMonitor(0.1, 0.03)
     plan, speed = np.array([0.3, 0.6, 0.2, 0.5]), np.array([1.0, -2.0, 0.5, 0.0])
     q = plan + np.array([0.0, 0.06, 0.0, 0.0])
@@ -80,6 +80,15 @@ def test_the_look_ahead_stops_a_departure_before_it_reaches_the_limit() -> None:
     assert monitor.check(1.0, back, returning, plan, speed)["value"] == pytest.approx(0.11)
     dq[1] = math.nan  # no speed reading: the present departure alone
     assert monitor.check(1.0, q, dq, plan, speed) is None
+    # Only a knee folding beyond its plan drops the hip: a knee held short of its plan
+    # (a reflex against flexion) or a hip, however fast they go, is judged where it is.
+    short = plan + np.array([0.0, 0.0, 0.0, -0.06])
+    assert monitor.check(1.0, short, speed + np.array([0, 0, 0, -2.0]), plan, speed) is None
+    hip = plan + np.array([0.06, 0.0, 0.0, 0.0])
+    assert monitor.check(1.0, hip, speed + np.array([2.0, 0, 0, 0]), plan, speed) is None
+    folding = plan + np.array([0.0, 0.0, 0.0, 0.06])
+    cause = monitor.check(1.0, folding, speed + np.array([0, 0, 0, 2.0]), plan, speed)
+    assert cause["quantity"] == "departure_right_knee"
 
 
 @pytest.mark.parametrize(

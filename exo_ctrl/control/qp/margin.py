@@ -485,7 +485,7 @@ def contact_warning(
             f"strike the belt{reach} (docs/performance.md, the QP's cuff-force bound)"
         )
     ahead = (
-        f", or is heading there within the harness's arrest ({1e3 * lookahead_s:.0f} ms)"
+        f", or a knee folds there within the harness's arrest ({1e3 * lookahead_s:.0f} ms)"
         if lookahead_s > 0.0
         else ""
     )

@@ -182,7 +182,7 @@ def test_feet_over_the_belt_are_warned_before_the_run_and_free_air_not(
     assert text in build(fixed).warnings  # the pelvis fixed: nothing falls, no look-ahead
     ahead = departure_for(supported, setup.device_exo).lookahead_s
     supported_text = text.replace(
-        " rad:", f" rad, or is heading there within the harness's arrest ({1e3 * ahead:.0f} ms):"
+        " rad:", f" rad, or a knee folds there within the harness's arrest ({1e3 * ahead:.0f} ms):"
     )
     assert contact_warning(300.0, limit, lookahead_s=ahead) == supported_text
     assert supported_text in setup.warnings
