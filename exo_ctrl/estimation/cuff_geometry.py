@@ -195,6 +195,36 @@ class CuffGeometry:
         out[..., 1, 1] = self.sign_knee * self.shank_arm
         return out
 
+    def joint_arms(self) -> np.ndarray:
+        """Per joint the lever of the cuff its torque loads [m], (4,) JOINT_NAMES order.
+
+        Hip: a (hip → thigh cuff); knee: c (knee → shank cuff).
+        """
+        return np.stack((self.thigh_arm, self.shank_arm), axis=1).ravel()
+
+    def joint_torques(self, q_exo: np.ndarray, cuff_force: np.ndarray) -> np.ndarray:
+        """τ = Σ_c J_cᵀ f_c, the torques cuff forces put on the exoskeleton's joints [N·m], (4,).
+
+        Per leg, with u × f = cos ψ f_z − sin ψ f_x (the moment of f about the
+        joint per metre of arm along u): τ_knee = s_k c (u_s × f_s) and τ_hip =
+        s_h (a (u_t × f_t) + l₁ (u_k × f_s) + c (u_s × f_s)).  ``q_exo`` (4,) [rad],
+        ``cuff_force`` (4, 2) on the exoskeleton (x, z) [N], CUFF_NAMES order.
+        """
+        psi_t, psi_k, psi_s = self.directions(q_exo)
+        f = np.asarray(cuff_force, dtype=float).reshape(2, 2, 2)  # leg, (thigh, shank), (x, z)
+        ft, fs = f[:, 0], f[:, 1]
+
+        def cross(psi: np.ndarray, force: np.ndarray) -> np.ndarray:
+            return np.cos(psi) * force[:, 1] - np.sin(psi) * force[:, 0]
+
+        shank = self.shank_arm * cross(psi_s, fs)
+        out = np.empty(4)
+        out[0::2] = self.sign_hip * (
+            self.thigh_arm * cross(psi_t, ft) + self.knee_arm * cross(psi_k, fs) + shank
+        )
+        out[1::2] = self.sign_knee * shank
+        return out
+
 
 #: The geometry as record fields (:func:`exo_ctrl._jit.record` syntax): each
 #: :class:`CuffGeometry` attribute by name, float64 per leg (2,), units as there.

@@ -29,7 +29,8 @@ stops is its *stop reaction*:
   208 N·m·s/rad (default drive), 30-40 times :data:`d_y` below; the power
   cut (0 V) is exactly that brake.  So the patient moves the legs against
   the exoskeleton's inertia (links and the reflected rotor inertia,
-  uncompensated: no force feedback, the torque sensors may be the fault),
+  uncompensated: no force feedback, the torque sensors may be the fault; after
+  the QP's departure stop, which no sensor caused, fed back: :mod:`.yield_command`),
   its URDF friction and damping, and d_y; the device no longer drives.
 
 **The damping d_y** (:func:`yield_damping`).  Chosen from the cuff-force
@@ -163,19 +164,21 @@ session the segment running at the stop decides.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from ..estimation.cuff_geometry import CuffGeometry
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel
-from ..plant import MotorParams
-from ..plant.motor import drive_model, steady_voltage
 from .limits import ResolvedLimits
+from .yield_command import (
+    PATIENT_ACCELERATION_RAD_S2,
+    SPEED_FILTER_HZ,
+    YIELD_FORCE_SHARE,
+    YieldCommand,
+)
 
 __all__ = [
     "PATIENT_ACCELERATION_RAD_S2",
@@ -197,17 +200,6 @@ __all__ = [
 #: The stop reactions (``--stop-reaction``, ``SimConfig.stop_reaction``).
 STOP_REACTIONS = ("hold", "yield")
 
-#: Share σ of a cuff's force limit the yield's damping may take at the
-#: joint's speed limit (module docstring).
-YIELD_FORCE_SHARE = 0.5
-
-#: Cut-off of the yield's speed filter on the encoder difference [Hz].
-SPEED_FILTER_HZ = 150.0
-
-#: q̈_p, the largest joint acceleration of a patient in charge [rad/s²]: the
-#: healthy active patient in ``transparent`` reached 32 rad/s² at the hips and
-#: 46 rad/s² at the knees (true, 5 ms means; rounded up); sets the yield's ramp.
-PATIENT_ACCELERATION_RAD_S2 = 50.0
 
 #: The legs are at rest when every joint's speed reading stays below this
 #: [rad/s] (ten times the default speed reading's noise, 0.005 rad/s) ...
@@ -329,171 +321,5 @@ def yield_breach(
 
 def yield_damping(limits: ResolvedLimits, exo: BodyModel) -> np.ndarray:
     """d_y per joint, σ F_lim r / ω_max [N·m·s/rad], (4,) JOINT_NAMES order (module docstring)."""
-    geo = CuffGeometry.from_body(exo)  # the lever arms of the device's model
-    arms = np.array([geo.thigh_arm[0], geo.shank_arm[0], geo.thigh_arm[1], geo.shank_arm[1]])
+    arms = CuffGeometry.from_body(exo).joint_arms()  # the lever arms of the device's model
     return YIELD_FORCE_SHARE * limits.cuff_limit * arms / limits.speed_limit
-
-
-class YieldCommand:
-    """The yield's command U_y (module docstring), on the device's models.
-
-    Args:
-        exo: the exoskeleton model the device holds.
-        patient: the nominal patient model (None: the exoskeleton alone).
-        motor: the drive's datasheet.
-        damping: d_y per joint [N·m·s/rad], (4,).
-        speed_limit: ω_max per joint [rad/s], (4,) (the speed estimate's clip).
-        dt: control period Δt [s].
-
-    Attributes:
-        speed: the filtered speed ω̂ [rad/s], (4,).
-        torque: the last τ_y [N·m], (4,).
-
-    """
-
-    def __init__(
-        self,
-        exo: BodyModel,
-        patient: BodyModel | None,
-        motor: MotorParams,
-        damping: np.ndarray,
-        speed_limit: np.ndarray,
-        dt: float,
-    ) -> None:
-        self.damping = np.array(damping, dtype=float)
-        if self.damping.shape != (4,) or not np.all(np.isfinite(self.damping)):
-            raise InvalidParameter("yield_damping", damping, "4 finite numbers >= 0 [N·m·s/rad]")
-        if np.any(self.damping < 0.0):
-            raise InvalidParameter("yield_damping", damping, "4 finite numbers >= 0 [N·m·s/rad]")
-        self._bodies = []
-        for body in (exo, patient):
-            if body is not None:
-                model = pin.Model(body.model)
-                self._bodies.append((model, model.createData(), body, np.zeros(model.nq)))
-        # The patient model's inertias, and per joint its subtree (the segments it carries).
-        ids = () if patient is None else patient.joint_ids
-        self._patient = self._bodies[1] if patient is not None else None
-        self._inertias = [] if patient is None else [i.copy() for i in patient.model.inertias]
-        self._carried = [[] if patient is None else _subtree(patient.model, i) for i in ids]
-        self._drive = drive_model(motor)
-        #: D_b, the short-circuit brake's damping i_G k_m (i_G/k_E)/R [N·m·s/rad]
-        #: (:meth:`brake_outside`).
-        self.brake_damping = (
-            motor.torque_per_amp_Nm_per_A * motor.back_emf_V_per_rad_s / motor.resistance_ohm
-        )
-        self._limit = np.array(speed_limit, dtype=float)
-        #: T_y, the ramp to the yield [s]: min over the joints of
-        #: 4 d_y ω_max / (D q̈_p) (module docstring, "The ramp").
-        self.ramp_s = float(
-            np.min(4.0 * self.damping * self._limit)
-            / (self.brake_damping * PATIENT_ACCELERATION_RAD_S2)
-        )
-        self._dt = dt
-        self._alpha = 1.0 - math.exp(-2.0 * math.pi * SPEED_FILTER_HZ * dt)
-        self.speed = np.zeros(4)
-        self.torque = np.zeros(4)
-        self._q_prev = np.zeros(4)
-        #: The joints that left their range of motion in this yield (:meth:`brake_outside`).
-        self.braked = np.zeros(4, dtype=bool)
-
-    def stand(self) -> None:
-        """The patient stands on the belt at a stop: U_y carries the exoskeleton alone.
-
-        Module docstring, "The patient's feet on the belt".
-        """
-        del self._bodies[1:]
-
-    def start(self, q: np.ndarray, dq: np.ndarray) -> None:
-        """Start the speed filter at the stop: ω̂ from the speed reading, q_{k−1} = q."""
-        self.speed[:] = np.where(np.isfinite(dq), dq, 0.0)
-        np.clip(self.speed, -self._limit, self._limit, out=self.speed)
-        self._q_prev[:] = q
-        self.braked[:] = False
-        if self._patient is not None:  # the patient's segments all carried again
-            for i, inertia in enumerate(self._inertias):
-                self._patient[0].inertias[i] = inertia
-
-    @property
-    def posture(self) -> np.ndarray:
-        """The last finite angle reading per joint [rad], (4,) (a view, do not modify)."""
-        return self._q_prev
-
-    def gravity(self, q: np.ndarray) -> np.ndarray:
-        """g_exo(q) + g_patient(q), the device's models [N·m], (4,) JOINT_NAMES order."""
-        tau = np.zeros(4)
-        for model, data, body, qm in self._bodies:
-            qm[body.q_index] = q
-            tau += pin.computeGeneralizedGravity(model, data, qm)[body.q_index]
-        return tau
-
-    def command(self, q: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Advance ω̂ by this tick's reading q [rad] and write U_y into ``out`` [V].
-
-        A joint whose reading is not finite keeps its last speed and posture.
-        """
-        ok = np.isfinite(q)
-        diff = np.where(ok, (q - self._q_prev) / self._dt, self.speed)
-        self.speed += self._alpha * (diff - self.speed)
-        np.clip(self.speed, -self._limit, self._limit, out=self.speed)
-        self._q_prev[ok] = q[ok]
-        tau = self.gravity(self._q_prev)
-        tau -= self.damping * self.speed
-        self.torque[:] = tau
-        for j in range(4):
-            out[j] = steady_voltage(tau[j], self.speed[j], self._drive)
-        return out
-
-    def brake_outside(
-        self, q: np.ndarray, q_lower: np.ndarray, q_upper: np.ndarray, out: np.ndarray
-    ) -> list[tuple[str, float, float, str]]:
-        """Brake the joints outside [q_lower, q_upper] [rad] against moving further out.
-
-        On such a joint τ_y gains −D_b ω̂_out, ω̂_out the outward part of its
-        speed (max(ω̂, 0) above the range, min(ω̂, 0) below), D_b = i_G k_m
-        (i_G/k_E)/R the short-circuit brake's damping (the power cut's, on
-        that joint and in that direction alone), and its voltage in ``out``
-        is rewritten: it is driven further out no faster than τ/D_b, comes
-        back freely, and the other joints keep yielding (module docstring).
-
-        Returns:
-            The breaches of the joints out of their range for the first time
-            in this yield: (quantity, value [rad], limit [rad], message) each.
-
-        """
-        new = []
-        for j in range(4):
-            lim = q_upper[j] if q[j] > q_upper[j] else (q_lower[j] if q[j] < q_lower[j] else None)
-            if lim is None:
-                continue
-            w = self.speed[j]
-            outward = max(w, 0.0) if q[j] > q_upper[j] else min(w, 0.0)
-            out[j] = steady_voltage(self.torque[j] - self.brake_damping * outward, w, self._drive)
-            if not self.braked[j]:
-                self.braked[j] = True
-                self._drop(j)
-                v, name = float(q[j]), JOINT_NAMES[j]
-                message = (
-                    f"yield: {name} at {v:.4g} rad, outside [{q_lower[j]:.4g}, "
-                    f"{q_upper[j]:.4g}]: braked outward, its patient segments no longer "
-                    "carried, the other joints still yield"
-                )
-                new.append((f"yield angle {name}", v, float(lim), message))
-        return new
-
-    def _drop(self, j: int) -> None:
-        """Stop carrying the patient segments joint j carries (their mass to zero in the model)."""
-        if self._patient is not None:
-            for i in self._carried[j]:
-                self._patient[0].inertias[i] = pin.Inertia.Zero()
-
-
-def _subtree(model: pin.Model, joint_id: int) -> list[int]:
-    """The joints of ``model`` at or below ``joint_id``: the bodies that joint carries."""
-    out = []
-    for i in range(1, model.njoints):
-        k = i
-        while k not in (0, joint_id):
-            k = model.parents[k]
-        if k == joint_id:
-            out.append(i)
-    return out

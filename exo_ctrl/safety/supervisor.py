@@ -42,15 +42,15 @@ the emergency-stop time, it stops the gait:
    about 0.1 s) instead of falling.  (A driver that opens its bridge would
    give no braking; not modelled.)
 
-**Stop reaction** (``stop_reaction``; :mod:`.stop_reaction`).  The above is
-``hold``.  ``yield`` ramps, over its own shorter ramp, to gravity compensation
-at the present posture with damping injection instead (``"yielding"`` after
-the ramp, no posture held): an active patient moves the legs with a bounded
-interaction force; a joint beyond its speed limit cuts the power, one out of
-its range is braked alone, legs at rest end in the hold.  A hold or its ramp
-the patient pushes against (a release would take a cuff past its limit, or
-in the ramp past what the stop found, :mod:`.release`; on readings no
-plausibility monitor has doubted since the stop) yields at once.
+**Stop reaction** (``stop_reaction``; :mod:`.stop_reaction`).  The above is ``hold``.  ``yield``
+ramps, over its own shorter ramp, to gravity compensation at the present posture with damping
+injection instead (``"yielding"`` after the ramp, no posture held): an active patient moves the
+legs with a bounded interaction force; a joint beyond its speed limit cuts the power, one out of
+its range is braked alone, legs at rest end in the hold.  A hold or its ramp the patient pushes
+against (a release would take a cuff past its limit, or in the ramp past what the stop found,
+:mod:`.release`; on readings no plausibility monitor has doubted since the stop) yields at once.
+The QP's departure stop (:meth:`~SafetySupervisor.request_stop`) yields with the cuff forces fed
+back (:mod:`.yield_command`) until a plausibility monitor doubts a reading.
 
 Every violation and every state change is an event dict
 ``{"t", "kind", "quantity", "value", "limit", "message"}`` in
@@ -74,7 +74,6 @@ from typing import Any
 import numpy as np
 
 from .. import _validate as v
-from .._jit import Status, check
 from ..model import JOINT_NAMES, BodyModel
 from ..plant import MotorParams
 from ..sensing import CurrentSensorParams, SensorParams, SensorReadings
@@ -93,7 +92,7 @@ from .stop_reaction import (
     yield_breach,
 )
 from .stop_reaction import yield_damping as _yield_damping
-from .tick_check import check_readings
+from .tick_check import check_readings, refuse_readings
 
 __all__ = ["SafetySupervisor"]
 
@@ -202,7 +201,7 @@ class SafetySupervisor:
             damping = _yield_damping(resolved, exo)
         else:
             damping = v.per_item("yield_damping", yield_damping, "N·m·s/rad", JOINT_NAMES)
-        #: The yield's command (:class:`~exo_ctrl.safety.stop_reaction.YieldCommand`).
+        #: The yield's command (:class:`~exo_ctrl.safety.yield_command.YieldCommand`).
         self.yield_command = YieldCommand(exo, patient, motor, damping, self.speed_limit, self.dt)
         #: The cuff forces a release of the hold reaches (:mod:`.release`).
         self.release = ReleaseBound(exo, patient, motor, self.dt, cuff_stiffness)
@@ -212,7 +211,8 @@ class SafetySupervisor:
         self._rest_ticks, self._doubt = 0, False
         self._rest_needed = max(round(REST_TIME_S / self.dt), 1)
         self._estop = math.inf if self.estop_at_s is None else self.estop_at_s
-        self._request: tuple[dict[str, Any], str] | None = None
+        self._request: tuple[dict[str, Any], str, np.ndarray | None] | None = None
+        self._feedback: np.ndarray | None = None  # the stop's cuff bounds: force feedback
         self.record = monitor_record(resolved, self._estop)
         sensors = sensors if sensors is not None else SensorParams()
         #: The plausibility monitors' limits (4 groups, 4 joints) and state.
@@ -320,21 +320,17 @@ class SafetySupervisor:
         np.copyto(self._u_sent, out)  # what the drives get, for the drive model
         return out
 
-    def request_stop(self, t: float, cause: dict[str, Any], reaction: str) -> None:
-        """Stop at this tick's check for ``cause`` (event fields), once (:mod:`.departure`)."""
+    def request_stop(
+        self, t: float, cause: dict[str, Any], reaction: str, limit_N: Any = None
+    ) -> None:
+        """Stop at this tick's check for ``cause``, once; yield feedback from ``limit_N`` [N]."""
         if self.state_code == 0 and self._request is None:
-            self._request = (cause, check_stop_reaction(reaction))
+            limit = None if limit_N is None else np.asarray(limit_N, dtype=float)
+            self._request = (cause, check_stop_reaction(reaction), limit)
             self._estop = min(self._estop, float(t))
             self.record["estop_s"] = self._estop
 
-    @staticmethod
-    def refuse(status: int, f: object, *vectors: object) -> None:
-        """Raise for the monitor's ``status``, naming the input at fault."""
-        names = ("sensors_q", "sensors_dq", "sensors_tau", "current_A", "u_cmd")
-        inputs = dict(zip(names, vectors, strict=True))
-        if status == Status.WRONG_LENGTH and all(np.shape(x) == (4,) for x in vectors):
-            v.refuse_shapes((4, 2), cuff_force=f)
-        check(status, "SafetySupervisor.step", **inputs)
+    refuse = staticmethod(refuse_readings)  # raise for the check's status, naming the input
 
     # ------------------------------------------------------------------ stop
 
@@ -353,6 +349,7 @@ class SafetySupervisor:
         self.release.begin()
         asked = self._request
         self.reaction = reaction_at(self.stop_reactions, t) if asked is None else asked[1]
+        self._feedback = None if asked is None else asked[2]
         q = np.asarray(sensors.q, dtype=float)
         finite = np.isfinite(q)
         self.hold_posture_rad = np.where(finite, q, self.record["q_last"][0])
@@ -363,7 +360,8 @@ class SafetySupervisor:
             return
         self.hold_voltage_gravity_V = self._gravity_voltage(self.hold_posture_rad)
         if self.reaction == "yield":
-            self.yield_command.start(self.hold_posture_rad, np.asarray(sensors.dq, dtype=float))
+            dq = np.asarray(sensors.dq, dtype=float)
+            self.yield_command.start(self.hold_posture_rad, dq, self._feedback)
         why = f"controlled stop ({self.reaction}): {cause['message']}"
         self._set_state(t, "stopping", why)
 
@@ -381,7 +379,7 @@ class SafetySupervisor:
             u.fill(0.0)
             return u
         if self.reaction == "yield":
-            return self._yield(t, sensors)
+            return self._yield(t, sensors, f)
         np.subtract(self.hold_posture_rad, sensors.q, out=e)
         np.copyto(w, sensors.dq)
         if not clean:  # no PD on a joint whose reading is not finite
@@ -400,10 +398,10 @@ class SafetySupervisor:
         np.add(u, self.hold_voltage_gravity_V, out=u)
         if pushed and not self._doubt:  # yield at once (a ramp keeps part of the lock)
             self.reaction, self._rest_ticks = "yield", 0
-            self.yield_command.start(np.asarray(sensors.q, dtype=float), sensors.dq)
+            self.yield_command.start(np.asarray(sensors.q, dtype=float), sensors.dq, self._feedback)
             why = f"the patient pushes against the {'ramp to the ' * ramp}hold: yield at once"
             self._set_state(t, "yielding", why)
-            return self._yield(t, sensors)
+            return self._yield(t, sensors, f)
         if ramp:
             self._ramp(t, u, "holding")
         return u
@@ -420,9 +418,11 @@ class SafetySupervisor:
             np.multiply(u, alpha, out=u)
             np.add(u, self._u_start, out=u)
 
-    def _yield(self, t: float, sensors: SensorReadings) -> np.ndarray:
-        """The yield's command [V] (:mod:`.stop_reaction`): ramp, limits, rest → hold."""
-        u = self.yield_command.command(np.asarray(sensors.q, dtype=float), self._u)
+    def _yield(self, t: float, sensors: SensorReadings, f: np.ndarray | None) -> np.ndarray:
+        """The yield's command [V] (:mod:`.stop_reaction`); cuff forces f [N] fed back, trusted."""
+        self._doubt = self._doubt or bool(np.any(self.record["excess"][0][LIMIT_GROUPS:] > 0.0))
+        f = None if self._doubt else f
+        u = self.yield_command.command(np.asarray(sensors.q, dtype=float), self._u, f)
         if self.state_code == 1:
             self._ramp(t, u, "yielding")
             return u

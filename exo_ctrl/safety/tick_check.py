@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import kernel
+from .. import _validate as v
+from .._jit import Status, check, kernel
 from .consistency import consistency
 from .monitor import monitor
 from .plausibility import plausibility
@@ -74,3 +75,16 @@ def check_readings(
         if fours:
             consistency(q, dq, tau, current_A, plausible, state)
     return monitor(cuff_force, q, dq, tau, current_A, u_cmd, t, state)
+
+
+def refuse_readings(status: int, f: object, *vectors: object) -> None:
+    """Raise for :func:`check_readings`' ``status``, naming the input at fault.
+
+    ``f`` the cuff forces, ``vectors`` the joint angles, speeds, torques, currents
+    and the command, as :meth:`~exo_ctrl.safety.SafetySupervisor.step` was given them.
+    """
+    names = ("sensors_q", "sensors_dq", "sensors_tau", "current_A", "u_cmd")
+    inputs = dict(zip(names, vectors, strict=True))
+    if status == Status.WRONG_LENGTH and all(np.shape(x) == (4,) for x in vectors):
+        v.refuse_shapes((4, 2), cuff_force=f)
+    check(status, "SafetySupervisor.step", **inputs)

@@ -32,6 +32,7 @@ import numpy as np
 
 from .._jit import record
 from ..control.modes.path import PathController
+from ..control.qp.bounds import cuff_limits
 from ..estimation import CuffForceEstimator, CuffForceKalman, EstimatorDevice, PluginEstimator
 from ..plan.online import online_step, write_plan
 from ..plant import PatientTorque
@@ -166,6 +167,9 @@ class Runner:
         #: The QP's departure stop (safety/departure.py; None: none), checked before
         #: the supervisor on the plan row the controller tracked.
         self._departure = departure_for(config, setup.device_exo)
+        #: The QP's bound per cuff [N]: its departure stop yields with the cuff forces fed
+        #: back, the gains set from it (safety/yield_command.py).
+        self._bounds = cuff_limits(config.cuff_force_limit_N)
         self.supervisor: SafetySupervisor | None = build_supervisor(
             self, setup, bind is not None, self._departure is not None
         )
@@ -295,7 +299,7 @@ class Runner:
                 k * self._dt, readings.q, readings.dq, plan.q[r], plan.dq[r]
             )
             if cause is not None:
-                self.supervisor.request_stop(k * self._dt, cause, "yield")
+                self.supervisor.request_stop(k * self._dt, cause, "yield", self._bounds)
         if supervise is not None:
             u = supervise(k, k * self._dt, readings, self._sup_force, self._current, u, age)
             self.after_check(k, readings)

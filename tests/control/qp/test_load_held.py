@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import exo_ctrl.safety.yield_command as yield_command
 import exo_ctrl.sim.tick as tick
 from exo_ctrl.sim import simulate
 
@@ -148,3 +149,25 @@ def test_the_look_ahead_stops_the_sagging_stance_leg_before_the_swing_foot_lands
     late = simulate(config)
     assert late.events[0]["t"] > cause["t"] + 0.5  # a cycle later
     assert np.linalg.norm(late.cuff_force, axis=2).max() > point["bound_N"] * 1.2
+
+
+def test_the_departure_stops_yield_carries_the_exoskeleton_after_an_active_swing(
+    tmp_path, monkeypatch
+) -> None:
+    """Point 65 with 2-axis cuff sensors on the precomputed plan (active, 60 kg, pelvis
+    supported): after the departure stop the patient swings the right leg on, and the yield,
+    feeding the estimated cuff forces back (exo_ctrl/safety/yield_command.py), keeps the
+    thigh cuff within the bound; without the feedback the patient drags the exoskeleton's
+    inertia by the cuff more than 20 % past it.
+    """
+    point = tool.draw_points(66, SEED)[65]
+    assert point["pelvis"] == "supported" and point["patient_torque"] == "active"
+    config = tool.point_config(point, tmp_path, "full", sync=False)
+    fed = simulate(config)
+    cause = fed.events[0]
+    assert cause["quantity"].startswith("departure_")
+    assert np.linalg.norm(fed.cuff_force, axis=2).max() <= point["bound_N"] * (1.0 + TOLERANCE)
+    monkeypatch.setattr(yield_command, "MAX_FORCE_GAIN", 0.0)
+    plain = simulate(config)
+    assert plain.events[0]["t"] == cause["t"]  # the same stop
+    assert np.linalg.norm(plain.cuff_force, axis=2).max() > point["bound_N"] * 1.2
