@@ -51,6 +51,7 @@ from .config import SimConfig
 from .session import session_controller
 from .supervision import departure_for
 from .sync import online_gait, profile_runs, set_speeds
+from .tone_load import tone_applies, tone_warnings
 from .tracking import stance_load_for, tracking_controller
 
 __all__ = [
@@ -204,7 +205,11 @@ def build(config: SimConfig, start: bool = True) -> Setup:
         model_motor,
         belt_speed,
         online,
-        tuple(run_warnings(config, exo, fitted, tracking, model_exo, model_motor, references)),
+        tuple(
+            run_warnings(
+                config, exo, fitted, tracking, model_exo, model_motor, references, model_patient
+            )
+        ),
         user_estimator,
     )
 
@@ -239,6 +244,7 @@ def run_warnings(
     model_exo: BodyModel | None = None,
     model_motor: MotorParams | None = None,
     references: tuple[JointTrajectory, ...] = (),
+    model_patient: BodyModel | None = None,
 ) -> list[str]:
     """The run's warnings (:attr:`Setup.warnings`).
 
@@ -246,10 +252,12 @@ def run_warnings(
     precomputed plan (:mod:`exo_ctrl.plan.surface` needs the synchronised one),
     then, for computed torque and the QP, a plan whose feedforward exceeds the
     drives' peak torque (:func:`~exo_ctrl.control.drive_reach.torque_reach_warning`;
-    ``model_motor``: the device's drive, None: not checked; along
-    ``references``, a synchronised run's steady gaits precomputed), then, for the QP, a bound its
-    margin leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`)
-    and, with the pelvis supported, the departure stop that keeps its bound
+    ``model_motor``: the device's drive, None: not checked; along ``references``, a
+    synchronised run's steady gaits precomputed), then a spastic patient's tone near the
+    cuff limits (:mod:`.tone_load`; ``model_patient``: the device's patient), then, for the
+    QP, a bound its margin leaves below the plan's load
+    (:func:`~exo_ctrl.control.qp.departure_warning`) and, with the pelvis supported, the
+    departure stop that keeps its bound
     (:func:`~exo_ctrl.control.qp.contact_warning`; ``model_exo``: the device's
     exoskeleton, whose legs set the stop's limit; default ``exo``).
     """
@@ -270,6 +278,8 @@ def run_warnings(
         reach = torque_reach_warning(table, model_motor.peak_torque_Nm)
         if reach is not None:
             out.append(reach)
+    if model_patient is not None and model_motor is not None and tone_applies(config):
+        out += tone_warnings(config, precomputed_plan, model_exo or exo, model_patient, model_motor)
     if isinstance(controller, QPController):
         departure = departure_warning(
             controller.margin, controller.cuff_force_limit_N, config.cuff_sensors.mode

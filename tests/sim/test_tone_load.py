@@ -1,0 +1,87 @@
+"""Before a run: the spastic patient's tone against the cuff limits (exo_ctrl/sim/tone_load.py).
+
+The prediction against a closed-loop run's true peaks; the warning where the run
+then stops, none where it walks; the period it suggests walked, every true cuff
+force within the supervisor's limits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import numpy as np
+import pytest
+
+from exo_ctrl import simulate
+from exo_ctrl.control.qp.prediction import CuffHorizonModel
+from exo_ctrl.safety import ISO_TS_15066_CUFF_FORCE_N
+from exo_ctrl.scenario import preset
+from exo_ctrl.sim import build
+from exo_ctrl.sim.setup import precomputed_plan
+from exo_ctrl.sim.tone_load import PREDICTION_SHARE, swing_cuff_loads
+
+THIGH, SHANK = ISO_TS_15066_CUFF_FORCE_N[0], ISO_TS_15066_CUFF_FORCE_N[1]
+
+
+def _spastic(name: str, **gait: float):
+    base = preset(name).config
+    return dataclasses.replace(
+        base,
+        controller="ct",
+        patient_torque="spastic",
+        gait=dataclasses.replace(base.gait, **gait),
+        duration_s=3 * gait.get("period", base.gait.period),
+    )
+
+
+def _tone(warnings) -> list[str]:
+    return [w for w in warnings if w.startswith("the spastic patient's tone")]
+
+
+def test_the_prediction_meets_the_shanks_true_peak() -> None:
+    """clinic-spastic (T = 2.0 s), CT: the predicted shank load within 10 % of the true peak."""
+    config = _spastic("clinic-spastic")
+    setup = build(config)
+    cuffs = CuffHorizonModel(
+        setup.device_exo,
+        setup.device_patient,
+        setup.device_motor,
+        config.belief.cuff_model_of(config.cuffs),
+        config.dt,
+        (1,),
+    )
+    plan = precomputed_plan(dataclasses.replace(config, sync=False), setup.device_exo)
+    predicted = swing_cuff_loads(plan, setup.device_patient, cuffs)
+    result = simulate(config)
+    assert result.safety_state == "normal"
+    true = np.linalg.norm(result.cuff_force, axis=2).max(axis=0)
+    print(f"\nshanks: predicted {predicted[1::2].round(1)}, true {true[1::2].round(1)} N")
+    np.testing.assert_allclose(predicted[1::2], true[1::2], rtol=0.1)
+    assert _tone(setup.warnings) == []  # 111 N: below 90 % of 130 N
+
+
+def test_a_gait_too_fast_for_the_tone_is_said_and_the_slower_one_walks() -> None:
+    """clinic-bws (T = 1.6 s): said before the run, which stops in a swing on a shank cuff;
+    at the period the sentence names, the walk goes on with every true force within ISO's."""
+    config = _spastic("clinic-bws")
+    (said,) = _tone(build(config).warnings)
+    found = re.search(r"the (\w+) cuff to about (\d+) N.*at least ([\d.]+) s", said)
+    assert found is not None, said
+    assert found[1].endswith("shank") and int(found[2]) > PREDICTION_SHARE * SHANK
+    stopped = simulate(config)
+    cause = next(e for e in stopped.events if e["kind"] == "violation")
+    assert cause["quantity"].startswith("estimated cuff force") and "shank" in cause["quantity"]
+    period = float(found[3])
+    slower = _spastic("clinic-bws", period=period)
+    assert _tone(build(slower).warnings) == []
+    walked = simulate(slower)
+    assert walked.safety_state == "normal"
+    peak = np.linalg.norm(walked.cuff_force, axis=2).max(axis=0)
+    assert np.all(peak[0::2] < THIGH) and np.all(peak[1::2] < SHANK)
+
+
+@pytest.mark.parametrize("change", [{"controller": "qp"}, {"patient_torque": "none"}])
+def test_only_a_tracking_controllers_spastic_run_is_checked(change) -> None:
+    config = dataclasses.replace(_spastic("clinic-bws"), **change)
+    assert _tone(build(config).warnings) == []
