@@ -354,6 +354,8 @@ class _WarnAtStart:
     def start(self, result: SimResult) -> None:
         for text in self.notes:
             print(f"exo-ctrl simulate: note: {text}", file=sys.stderr)
+        for text in result.notes:
+            print(f"exo-ctrl simulate: note: {text}", file=sys.stderr)
         for text in result.warnings:
             print(f"exo-ctrl simulate: warning: {text}", file=sys.stderr)
 

@@ -32,6 +32,7 @@ OUTCOME_TYPES = {
     "timed_ticks": "count",
     "qp_failures": "count",
     "warnings": "texts",
+    "notes": "texts",
     "events": "events",
     "energy": "table",
 }

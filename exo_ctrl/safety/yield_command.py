@@ -80,8 +80,10 @@ SPEED_FILTER_HZ = 150.0
 
 #: q̈_p, the largest joint acceleration of a patient in charge [rad/s²]: the
 #: healthy active patient in ``transparent`` reached 32 rad/s² at the hips and
-#: 46 rad/s² at the knees (true, 5 ms means; rounded up); sets the yield's ramp.
+#: 46 rad/s² at the knees (true, 5 ms means; rounded up); sets the yield's ramp
+#: and its force feedback's gain.
 PATIENT_ACCELERATION_RAD_S2 = 50.0
+
 #: K_max, the force feedback's largest gain [-]: the force-feedback gain the
 #: interaction modes run on the live estimate (``guidance`` with either
 #: estimator, ``transparent`` with the momentum observer;

@@ -201,6 +201,7 @@ def new_result(setup: Setup, hist_n: int) -> SimResult:
         exo_source=setup.exo.source,
         patient_source=setup.patient.source,
         warnings=list(setup.warnings),
+        notes=list(setup.notes),
         stats=RunStats(
             EstimateErrorStats(setup.exo, config.dt, components_from_s=components_from_s(config)),
             contact_stats(config),

@@ -55,6 +55,8 @@ class SimResult:
             ``energy_J`` per joint and ``energy_balance_residual_rel``.
         warnings: what to know before trusting the figures, one sentence each
             (a device that does not fit its patient; :attr:`~exo_ctrl.sim.Setup.warnings`).
+        notes: what the run does that its user should know, one sentence each
+            (the QP's departure stop over the belt; :attr:`~exo_ctrl.sim.Setup.notes`).
 
     """
 
@@ -74,6 +76,7 @@ class SimResult:
     cuff_bound_margin_N: np.ndarray | None = None
     energy: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
     stats: RunStats = field(default_factory=RunStats, repr=False)
 
     def __getattr__(self, name: str) -> np.ndarray:
@@ -95,13 +98,14 @@ class SimResult:
     def summary(self) -> dict[str, Any]:
         """The run's figures (JSON-able); keys in :meth:`RunStats.summary`.
 
-        Also ``warnings`` (:attr:`warnings`), ``version`` (exo_ctrl's) and
-        ``scenario``: the complete scenario file of the run, values only
+        Also ``warnings`` (:attr:`warnings`), ``notes`` (:attr:`notes`), ``version``
+        (exo_ctrl's) and ``scenario``: the complete scenario file of the run, values only
         (:func:`~exo_ctrl.sim.scenario_file.scenario_toml`), which
         ``exo-ctrl simulate`` runs again to the same figures.
         """
         out = self.stats.summary(self)
         out["warnings"] = list(self.warnings)
+        out["notes"] = list(self.notes)
         out["version"] = __version__
         out["scenario"] = scenario_toml(self.config, comments=False)
         return out

@@ -15,18 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control import (
-    ComputedTorqueController,
     PDController,
     feedforward_torque,
 )
-from ..control.drive_reach import torque_reach_warning
 from ..control.modes import InteractionController, PathController
-from ..control.qp import QPController, contact_warning, departure_warning
 from ..estimation import ESTIMATORS, Estimator
 from ..estimation.plugin import users_estimator
 from ..exceptions import InvalidParameter
 from ..model import JOINT_NAMES, BodyModel, load_exo, load_patient
-from ..model.fit import fit_warnings
 from ..plan import (
     NO_TAIL,
     GaitPlan,
@@ -46,12 +42,11 @@ from ..plant import (
 )
 from ..plant.equilibrium import holding_torque, settle_patient
 from ..plant.patient_active import ActivePatient
-from .belief import device_exo, device_patient, nominal_stature
+from .advice import run_notes, run_warnings
+from .belief import device_exo, device_patient
 from .config import SimConfig
 from .session import session_controller
-from .supervision import departure_for
 from .sync import online_gait, profile_runs, set_speeds
-from .tone_load import tone_applies, tone_warnings
 from .tracking import stance_load_for, tracking_controller
 
 __all__ = [
@@ -101,6 +96,9 @@ class Setup:
     #: A user's estimator (``config.estimator`` not a built-in name), built once: the
     #: tick's (:class:`~exo_ctrl.estimation.plugin.PluginEstimator`); None: a built-in.
     estimator: Estimator | None = None
+    #: What the run does that the user should know, one sentence each (not a warning:
+    #: the QP's departure stop with the feet over the belt; :func:`~.advice.run_notes`).
+    notes: tuple[str, ...] = ()
 
 
 def build(config: SimConfig, start: bool = True) -> Setup:
@@ -207,10 +205,19 @@ def build(config: SimConfig, start: bool = True) -> Setup:
         online,
         tuple(
             run_warnings(
-                config, exo, fitted, tracking, model_exo, model_motor, references, model_patient
+                config,
+                exo,
+                fitted,
+                tracking,
+                model_exo,
+                model_motor,
+                references,
+                model_patient,
+                precomputed_plan,
             )
         ),
         user_estimator,
+        tuple(run_notes(config, tracking, model_exo)),
     )
 
 
@@ -234,63 +241,6 @@ def precomputed_plan(
             plan, period_ticks=rows.period, lead_ticks=rows.lead, tail_tick=tail
         )
     return plan
-
-
-def run_warnings(
-    config: SimConfig,
-    exo: BodyModel,
-    fitted: BodyModel,
-    controller: object = None,
-    model_exo: BodyModel | None = None,
-    model_motor: MotorParams | None = None,
-    references: tuple[JointTrajectory, ...] = (),
-    model_patient: BodyModel | None = None,
-) -> list[str]:
-    """The run's warnings (:attr:`Setup.warnings`).
-
-    The fit, then the nominal patient's notes, then a landing approach on a
-    precomputed plan (:mod:`exo_ctrl.plan.surface` needs the synchronised one),
-    then, for computed torque and the QP, a plan whose feedforward exceeds the
-    drives' peak torque (:func:`~exo_ctrl.control.drive_reach.torque_reach_warning`;
-    ``model_motor``: the device's drive, None: not checked; along ``references``, a
-    synchronised run's steady gaits precomputed), then a spastic patient's tone near the
-    cuff limits (:mod:`.tone_load`; ``model_patient``: the device's patient), then, for the
-    QP, a bound its margin leaves below the plan's load
-    (:func:`~exo_ctrl.control.qp.departure_warning`) and, with the pelvis supported, the
-    departure stop that keeps its bound
-    (:func:`~exo_ctrl.control.qp.contact_warning`; ``model_exo``: the device's
-    exoskeleton, whose legs set the stop's limit; default ``exo``).
-    """
-    out = fit_warnings(exo, fitted)
-    if config.belief.patient == "nominal":
-        out += nominal_stature(config.belief, config.patient, fitted)[2]
-    if config.gait.landing_speed_mps > 0.0 and not config.synced:
-        out.append(
-            f"the landing approach (landing_speed_mps {config.gait.landing_speed_mps:g}) runs on "
-            "a precomputed plan here, which cannot place it on the stance foot's measured "
-            "height: touchdowns under body-weight support can be harder than on the paper's "
-            "path (docs/performance.md, touchdowns under load)"
-        )
-    if isinstance(controller, ComputedTorqueController) and model_motor is not None:
-        table = controller.torque_ff_table
-        if references:  # the one-row plan: the profile's steady gaits precomputed
-            table = np.concatenate([controller.feedforward_along(p) for p in references])
-        reach = torque_reach_warning(table, model_motor.peak_torque_Nm)
-        if reach is not None:
-            out.append(reach)
-    if model_patient is not None and model_motor is not None and tone_applies(config):
-        out += tone_warnings(config, precomputed_plan, model_exo or exo, model_patient, model_motor)
-    if isinstance(controller, QPController):
-        departure = departure_warning(
-            controller.margin, controller.cuff_force_limit_N, config.cuff_sensors.mode
-        )
-        if departure is not None:
-            out.append(departure)
-        if config.contact.enabled:
-            stop = departure_for(config, model_exo or exo)
-            limit, ahead = (None, 0.0) if stop is None else (stop.limit_rad, stop.lookahead_s)
-            out.append(contact_warning(controller.cuff_force_limit_N, limit, config.synced, ahead))
-    return out
 
 
 def drive_for(motor: MotorParams, exo: BodyModel) -> MotorParams:

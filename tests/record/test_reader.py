@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import struct
 
 import numpy as np
@@ -14,6 +15,7 @@ from exo_ctrl.plan import GaitParams
 from exo_ctrl.plant.cuffs import CuffParams
 from exo_ctrl.record import RerunRecorder, read_recording
 from exo_ctrl.record.reader import read_recording_integrity
+from exo_ctrl.scenario import preset
 from exo_ctrl.sim import SimConfig, simulate
 
 
@@ -124,3 +126,16 @@ def test_a_file_cut_in_its_footer_keeps_every_message(short_run, assert_same_run
     assert integrity.cut_at_byte == marker - 16  # the end marker's header
     assert integrity.has_end_record and back.status == result.status == "completed"
     assert_same_run(back, result)
+
+
+def test_a_runs_notes_are_read_back(tmp_path):
+    """The QP over the belt tells how it keeps its bound (a note, not a warning); read back."""
+    config = dataclasses.replace(preset("paper").config, controller="qp", duration_s=0.02)
+    path = tmp_path / "qp.rrd"
+    result = simulate(config, observers=[RerunRecorder(path)])
+    (note,) = result.notes
+    assert note.startswith("with the feet over the belt the walk stops (yield)")
+    assert not any("over the belt" in w for w in result.warnings)
+    back = read_recording(path)
+    assert back.notes == result.notes and back.warnings == result.warnings
+    assert back.summary()["notes"] == [note]
