@@ -61,13 +61,14 @@ mass, which the trainer's unloading is set from, and the exoskeleton's
 links).  With the defaults T = 33–48 ms over 50–110 kg (the default
 exoskeleton, 17 kg).  On the campaign (``tools/load_held.py --cuff-sensors
 full``, seed 0) the present departure alone (T = 0) stopped point 118
-(active, pelvis supported, bound 105 N) at 1.659 s with the stance knee
+(active, pelvis supported, bound 105 N) at 1.656 s with the stance knee
 sinking at 0.9 rad/s and the pelvis falling at 0.25 m/s: the patient's swing
 foot, 6 mm below the exoskeleton's sole (the knee 1.9 cm off), landed 6 ms
 after the stop, the belt stopped the patient's shank and the exoskeleton's
-knee, still extending at 2.2 rad/s, ran into it through the cuff (137.9 N,
-+31.3 %).  With T the same point stops in its first cycle (1.02 s) within
-its bound (−0.8 %; docs/performance.md, the QP's cuff-force bound).  Only a
+knee, still extending at 2.2 rad/s, ran into it through the cuff (115.9 N,
++10.3 %, with the yield's force feedback, :mod:`.yield_command`; 137.0 N
+without).  With T the same point stops in its first cycle (1.02 s) within
+its bound (−0.7 %; docs/performance.md, the QP's cuff-force bound).  Only a
 knee folding beyond its plan drops the hip: looking ahead on every joint in
 either direction also stopped the ``clinic-spastic`` preset's own QP walk
 (`--controller qp`, 30 % support) at 2.83 s, its swing knee held 0.08 rad

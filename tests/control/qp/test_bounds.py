@@ -112,4 +112,4 @@ def test_a_region_whose_bound_leaves_less_than_the_plans_load_is_refused_by_name
     )
     setup = build(dataclasses.replace(config, cuff_force_limit_N=(200.0, 120.0)), start=False)
     np.testing.assert_array_equal(setup.controller.record["limit"][0], cuff_limits((200, 120)))
-    assert any("200 N on the thighs, 120 N on the shanks" in w for w in setup.warnings)
+    assert any("200 N on the thighs, 120 N on the shanks" in w for w in setup.notes)

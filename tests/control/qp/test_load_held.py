@@ -126,7 +126,8 @@ def test_the_look_ahead_stops_the_sagging_stance_leg_before_the_swing_foot_lands
     """Point 118 with 2-axis cuff sensors (active, pelvis supported, the knee 1.9 cm off):
     stopped on the departure the legs reach within the harness's arrest, within its bound;
     on the present departure alone the stop came as the swing foot landed, the pelvis
-    falling, and the exoskeleton's knee ran into the limb (more than 20 % past the bound).
+    falling, and the exoskeleton's knee ran into the limb: past the bound and its 5 %, the
+    yield's force feedback notwithstanding (without it, 30 % past).
     """
     point = tool.draw_points(119, SEED)[118]
     assert point["pelvis"] == "supported" and point["patient_torque"] == "active"
@@ -148,7 +149,7 @@ def test_the_look_ahead_stops_the_sagging_stance_leg_before_the_swing_foot_lands
     monkeypatch.setattr(tick, "departure_for", without_look_ahead)
     late = simulate(config)
     assert late.events[0]["t"] > cause["t"] + 0.5  # a cycle later
-    assert np.linalg.norm(late.cuff_force, axis=2).max() > point["bound_N"] * 1.2
+    assert np.linalg.norm(late.cuff_force, axis=2).max() > bound
 
 
 def test_the_departure_stops_yield_carries_the_exoskeleton_after_an_active_swing(
