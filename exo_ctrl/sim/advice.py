@@ -70,7 +70,7 @@ def run_warnings(
         reach = torque_reach_warning(table, model_motor.peak_torque_Nm)
         if reach is not None:
             out.append(reach)
-    if model_patient and model_motor and plan_for and tone_applies(config):
+    if tone_applies(config) and None not in (model_patient, model_motor, plan_for):
         out += tone_warnings(config, plan_for, model_exo or exo, model_patient, model_motor)
     if isinstance(controller, QPController):
         departure = departure_warning(
@@ -88,12 +88,12 @@ def run_notes(config: SimConfig, controller: object, model_exo: BodyModel) -> li
 
     The QP's departure stop with the feet over the belt
     (:func:`~exo_ctrl.control.qp.contact_warning`; ``model_exo``: the device's
-    exoskeleton, whose legs set the stop's limit): how the
-    walk ends where the QP leaves its plan to hold its bound.  Not a warning: it says how
-    the bound is kept, not that a figure may be wrong.
+    exoskeleton, whose legs set the stop's limit): how the walk ends where the QP leaves
+    its plan to hold its bound.  Not a warning: it says how the bound is kept, not that a
+    figure may be wrong.
     """
     stop = departure_for(config, model_exo) if isinstance(controller, QPController) else None
-    if stop is None or not config.contact.enabled:
+    if stop is None:  # no QP, or not over the belt, or the bound not tightened
         return []
     limit = controller.cuff_force_limit_N
     return [contact_warning(limit, stop.limit_rad, config.synced, stop.lookahead_s)]
