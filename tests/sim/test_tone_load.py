@@ -17,6 +17,7 @@ from exo_ctrl import simulate
 from exo_ctrl.control.qp.prediction import CuffHorizonModel
 from exo_ctrl.safety import ISO_TS_15066_CUFF_FORCE_N
 from exo_ctrl.scenario import preset
+from exo_ctrl.sensing.cuff_load import CuffSensorParams
 from exo_ctrl.sim import build
 from exo_ctrl.sim.setup import precomputed_plan
 from exo_ctrl.sim.tone_load import PREDICTION_SHARE, swing_cuff_loads
@@ -69,6 +70,10 @@ def test_a_gait_too_fast_for_the_tone_is_said_and_the_slower_one_walks() -> None
     found = re.search(r"the (\w+) cuff to about (\d+) N.*at least ([\d.]+) s", said)
     assert found is not None, said
     assert found[1].endswith("shank") and int(found[2]) > PREDICTION_SHARE * SHANK
+    assert "can miss the excess (--cuff-sensors full measures it)" in said
+    sensed = dataclasses.replace(config, cuff_sensors=CuffSensorParams(mode="full"))
+    (measured,) = _tone(build(sensed).warnings)
+    assert "cuff sensors" not in measured
     stopped = simulate(config)
     cause = next(e for e in stopped.events if e["kind"] == "violation")
     assert cause["quantity"].startswith("estimated cuff force") and "shank" in cause["quantity"]
