@@ -16,6 +16,7 @@ import numpy as np
 from ..control import ComputedTorqueController
 from ..control.drive_reach import torque_reach_warning
 from ..control.qp import QPController, contact_warning, departure_warning
+from ..control.qp.bounds import cuff_limits
 from ..model import BodyModel
 from ..model.fit import fit_warnings
 from ..plan import JointTrajectory
@@ -47,7 +48,8 @@ def run_warnings(
     drives' peak torque (:func:`~exo_ctrl.control.drive_reach.torque_reach_warning`;
     ``model_motor``: the device's drive, None: not checked; along ``references``, a
     synchronised run's steady gaits precomputed), then a spastic patient's tone near the
-    cuff limits (:mod:`.tone_load`; ``model_patient``: the device's patient, ``plan_for``:
+    cuff limits, or for the QP over the belt near what its margin leaves under its bound
+    (:mod:`.tone_load`; ``model_patient``: the device's patient, ``plan_for``:
     :func:`~exo_ctrl.sim.setup.precomputed_plan`), then, for the QP, a bound its margin
     leaves below the plan's load (:func:`~exo_ctrl.control.qp.departure_warning`) and, with
     the feet over the belt and the bound not tightened, that it is not promised there
@@ -71,7 +73,12 @@ def run_warnings(
         if reach is not None:
             out.append(reach)
     if tone_applies(config) and None not in (model_patient, model_motor, plan_for):
-        out += tone_warnings(config, plan_for, model_exo or exo, model_patient, model_motor)
+        device = (plan_for, model_exo or exo, model_patient, model_motor)
+        if not isinstance(controller, QPController):
+            out += tone_warnings(config, *device)
+        elif departure_for(config, model_exo or exo) is not None:  # over the belt
+            room = cuff_limits(controller.cuff_force_limit_N) - controller.margin.static_N
+            out += tone_warnings(config, *device, qp_room_N=room)
     if isinstance(controller, QPController):
         departure = departure_warning(
             controller.margin, controller.cuff_force_limit_N, config.cuff_sensors.mode

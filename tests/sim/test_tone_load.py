@@ -20,7 +20,7 @@ from exo_ctrl.scenario import preset
 from exo_ctrl.sensing.cuff_load import CuffSensorParams
 from exo_ctrl.sim import build
 from exo_ctrl.sim.setup import precomputed_plan
-from exo_ctrl.sim.tone_load import PREDICTION_SHARE, swing_cuff_loads
+from exo_ctrl.sim.tone_load import PREDICTION_SHARE, QP_RATIO, swing_cuff_loads
 
 THIGH, SHANK = ISO_TS_15066_CUFF_FORCE_N[0], ISO_TS_15066_CUFF_FORCE_N[1]
 
@@ -86,7 +86,22 @@ def test_a_gait_too_fast_for_the_tone_is_said_and_the_slower_one_walks() -> None
     assert np.all(peak[0::2] < THIGH) and np.all(peak[1::2] < SHANK)
 
 
-@pytest.mark.parametrize("change", [{"controller": "qp"}, {"patient_torque": "none"}])
-def test_only_a_tracking_controllers_spastic_run_is_checked(change) -> None:
-    config = dataclasses.replace(_spastic("clinic-bws"), **change)
+def test_a_passive_patient_is_not_checked() -> None:
+    config = dataclasses.replace(_spastic("clinic-bws"), patient_torque="none")
     assert _tone(build(config).warnings) == []
+
+
+@pytest.mark.parametrize(("name", "told"), [("clinic-bws", True), ("clinic-spastic", False)])
+def test_the_qp_over_the_belt_is_told_where_its_walk_stops(name: str, told: bool) -> None:
+    """The QP holds its bound by leaving the plan, and over the belt that stops the walk:
+    told (1.8 times the room on clinic-bws), it stops on a departure; untold (1.26 times on
+    clinic-spastic's slower gait), it walks."""
+    config = dataclasses.replace(_spastic(name), controller="qp")
+    said = _tone(build(config).warnings)
+    assert bool(said) is told
+    if told:
+        ratio = float(re.search(r"N along the plan .*?, ([\d.]+) times the", said[0])[1])
+        assert ratio >= QP_RATIO and "likely to stop on a departure" in said[0]
+    result = simulate(config)
+    stops = [e for e in result.events if e["quantity"].startswith("departure_")]
+    assert bool(stops) is told
