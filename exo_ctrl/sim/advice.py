@@ -16,7 +16,6 @@ import numpy as np
 from ..control import ComputedTorqueController
 from ..control.drive_reach import torque_reach_warning
 from ..control.qp import QPController, contact_warning, departure_warning
-from ..control.qp.bounds import cuff_limits
 from ..model import BodyModel
 from ..model.fit import fit_warnings
 from ..plan import JointTrajectory
@@ -72,20 +71,22 @@ def run_warnings(
         reach = torque_reach_warning(table, model_motor.peak_torque_Nm)
         if reach is not None:
             out.append(reach)
+    qp = isinstance(controller, QPController)
+    stop = departure_for(config, model_exo or exo) if qp else None  # the QP over the belt
     if tone_applies(config) and None not in (model_patient, model_motor, plan_for):
         device = (plan_for, model_exo or exo, model_patient, model_motor)
-        if not isinstance(controller, QPController):
+        if not qp:
             out += tone_warnings(config, *device)
-        elif departure_for(config, model_exo or exo) is not None:  # over the belt
-            room = cuff_limits(controller.cuff_force_limit_N) - controller.margin.static_N
+        elif stop is not None:
+            room = controller.cuff_limits_N - controller.margin.static_N
             out += tone_warnings(config, *device, qp_room_N=room)
-    if isinstance(controller, QPController):
+    if qp:
         departure = departure_warning(
             controller.margin, controller.cuff_force_limit_N, config.cuff_sensors.mode
         )
         if departure is not None:
             out.append(departure)
-        if config.contact.enabled and departure_for(config, model_exo or exo) is None:
+        if config.contact.enabled and stop is None:
             out.append(contact_warning(controller.cuff_force_limit_N, None, config.synced))
     return out
 

@@ -32,7 +32,6 @@ import numpy as np
 
 from .._jit import record
 from ..control.modes.path import PathController
-from ..control.qp.bounds import cuff_limits
 from ..estimation import CuffForceEstimator, CuffForceKalman, EstimatorDevice, PluginEstimator
 from ..plan.online import online_step, write_plan
 from ..plant import PatientTorque
@@ -167,9 +166,6 @@ class Runner:
         #: The QP's departure stop (safety/departure.py; None: none), checked before
         #: the supervisor on the plan row the controller tracked.
         self._departure = departure_for(config, setup.device_exo)
-        #: The QP's bound per cuff [N]: its departure stop yields with the cuff forces fed
-        #: back, the gains set from it (safety/yield_command.py).
-        self._bounds = cuff_limits(config.cuff_force_limit_N)
         self.supervisor: SafetySupervisor | None = build_supervisor(
             self, setup, bind is not None, self._departure is not None
         )
@@ -293,13 +289,14 @@ class Runner:
         if faults is not None:
             u, age = faults.command_at(k, u)
         if self._departure is not None and self.supervisor is not None:
-            ctrl = self.setup.controller  # the QP: the plan row it tracked
+            ctrl = self.setup.controller  # the QP: the plan row it tracked, its bounds
             plan, r = ctrl.plan, ctrl.last_row
             cause = self._departure.check(
                 k * self._dt, readings.q, readings.dq, plan.q[r], plan.dq[r]
             )
             if cause is not None:
-                self.supervisor.request_stop(k * self._dt, cause, "yield", self._bounds)
+                # the yield feeds the cuff forces back, its gains set from the bounds
+                self.supervisor.request_stop(k * self._dt, cause, "yield", ctrl.cuff_limits_N)
         if supervise is not None:
             u = supervise(k, k * self._dt, readings, self._sup_force, self._current, u, age)
             self.after_check(k, readings)

@@ -37,13 +37,6 @@ DT = 1e-3
 THIGH, SHANK = ISO_TS_15066_CUFF_FORCE_N[0], ISO_TS_15066_CUFF_FORCE_N[1]
 
 
-@pytest.fixture(scope="module")
-def device():
-    """The device's models of the default run (exoskeleton, nominal patient, datasheet)."""
-    setup = build(SimConfig(duration_s=0.1))
-    return setup.device_exo, setup.device_patient, setup.device_motor
-
-
 def _rnea_gravity(body, q: np.ndarray) -> np.ndarray:
     model = body.model
     data = model.createData()

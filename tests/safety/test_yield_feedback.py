@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from exo_ctrl import SimConfig, simulate
+from exo_ctrl import simulate
 from exo_ctrl.estimation.cuff_geometry import CuffGeometry
 from exo_ctrl.model import JOINT_NAMES
 from exo_ctrl.safety import SafetyLimits, SafetySupervisor
@@ -29,17 +29,9 @@ from exo_ctrl.safety.yield_command import (
 )
 from exo_ctrl.scenario import preset
 from exo_ctrl.sensing import SensorParams, SensorReadings
-from exo_ctrl.sim import build
 
 DT = 1e-3
 Q = np.array([0.35, 0.8, -0.2, 0.3])
-
-
-@pytest.fixture(scope="module")
-def device():
-    """The device's models of the default run (exoskeleton, nominal patient, datasheet)."""
-    setup = build(SimConfig(duration_s=0.1))
-    return setup.device_exo, setup.device_patient, setup.device_motor
 
 
 def _jacobian_torque(exo, q: np.ndarray, force: np.ndarray) -> np.ndarray:
