@@ -68,8 +68,10 @@ from ..model import (
     write_urdf,
 )
 from ..model.anthropometry import body_mass_from_legs, stature_from_legs
+from ..model.cohort import BENCHMARK_KNEE_MISALIGNMENT_M
 from ..plant import BeltParams, ContactParams, CuffParams, MotorParams
 from ..plant.cuff_scatter import DEFAULT_SPREAD, checked_spread
+from ..plant.misalignment import MAX_MISALIGNMENT_M
 
 __all__ = [
     "PAPER_PATIENT",
@@ -113,11 +115,19 @@ class Belief:
             :data:`~exo_ctrl.plant.cuff_scatter.MAX_SPREAD`] (None: the
             literature's, :data:`~exo_ctrl.plant.cuff_scatter.DEFAULT_SPREAD`,
             cited there; 0: the device knows its patient's cuffs exactly).
+        knee_fit_tolerance_m: how far the patient's knee axis may lie from the
+            exoskeleton's after the fit [m], in [0,
+            :data:`~exo_ctrl.plant.misalignment.MAX_MISALIGNMENT_M`] (None: the
+            benchmark cohort's largest,
+            :data:`~exo_ctrl.model.cohort.BENCHMARK_KNEE_MISALIGNMENT_M`, 3 cm, cited
+            there); the along-shank force such an offset makes is what the supervisor
+            cannot see without 2-axis cuff sensors (:mod:`exo_ctrl.sim.tone_load`).
 
     Raises:
         InvalidParameter: an unknown sex, a height or mass not > 0, a motor,
             cuffs or belt that are not parameter sets, soles that are not a
-            pair (k > 0, n ≥ 1), a cuff spread outside [0, MAX_SPREAD].
+            pair (k > 0, n ≥ 1), a cuff spread outside [0, MAX_SPREAD], a knee
+            fit tolerance outside [0, MAX_MISALIGNMENT_M].
 
     """
 
@@ -131,6 +141,7 @@ class Belief:
     belt: BeltParams | None = None
     soles: tuple[float, float] | None = None
     cuff_spread_rel: float | None = None
+    knee_fit_tolerance_m: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.patient, str) or not self.patient:
@@ -168,10 +179,22 @@ class Belief:
         if self.cuff_spread_rel is not None:
             spread = checked_spread("belief cuff_spread_rel", self.cuff_spread_rel)
             object.__setattr__(self, "cuff_spread_rel", spread)
+        if self.knee_fit_tolerance_m is not None:
+            tol = v.finite("belief knee_fit_tolerance_m", self.knee_fit_tolerance_m, "m")
+            if not 0.0 <= tol <= MAX_MISALIGNMENT_M:
+                raise InvalidParameter(
+                    "belief knee_fit_tolerance_m", tol, f"in [0, {MAX_MISALIGNMENT_M:g}] m"
+                )
+            object.__setattr__(self, "knee_fit_tolerance_m", tol)
 
     def cuff_spread(self) -> float:
         """s, the spread the device assumes for its patient's true cuffs [-]."""
         return DEFAULT_SPREAD if self.cuff_spread_rel is None else self.cuff_spread_rel
+
+    def knee_fit_tolerance(self) -> float:
+        """d_max, how far the patient's knee axis may lie from the exoskeleton's [m]."""
+        tol = self.knee_fit_tolerance_m
+        return BENCHMARK_KNEE_MISALIGNMENT_M if tol is None else tol
 
     def cuff_model_of(self, published: CuffParams) -> CuffParams:
         """The cuffs the device believes in: ``cuffs``, or the published cuffs.

@@ -29,10 +29,32 @@ gait in proportion) the prediction less the true peak is +4.1 N on the shanks
 (13.9 N standard deviation) and +34.7 N on the thighs (17.7 N): the thighs are not
 judged.  With the share at 0.9, 43 of the 64 are told, 23 of them with a true shank
 peak of 117 N or more and 12 past 130 N; 3 untold pass 130 N.  On 15 of the 64 the
-true shank force passes 130 N while the supervisor's estimate stays below it: the
-along-shank force a misaligned knee adds is the cuff model's without 2-axis cuff
-sensors; with them (``--cuff-sensors full``) the supervisor stops points 33, 176 and
-179 at 130 N on the estimate, the true force at 129–130 N.
+true shank force passes 130 N while the supervisor's estimate stays below it (below).
+
+**What the supervisor cannot see.**  Without 2-axis cuff sensors the along-shank force
+is the cuff model's (:mod:`exo_ctrl.estimation.kalman`, "What is observed"), and a knee
+axis d off the exoskeleton's adds one the model does not hold: with the straps fitted
+at the start, the shank cuff parts from the limb by Δp = A d,
+A = (R(θ_s) − R(θ_t)) − (R(θ_s⁰) − R(θ_t⁰)) (:mod:`exo_ctrl.plant.misalignment`, at the
+start's link angles θ⁰), whose along-shank part is at most ‖Aᵀu‖ |d| over every
+direction of d (:func:`along_reach`; 0.41 at the swing's deepest flexion on the
+``clinic-*`` presets' gait).  The device knows neither d nor its patient's shear
+stiffness, only a fit tolerance d_max (``belief.knee_fit_tolerance_m``, default the
+benchmark cohort's 3 cm) and the true stiffness's spread (within k_u (1 ± 2s)), so the
+along force it cannot see is up to k_u (1 + 2s) d_max ‖Aᵀu‖: 64 N on ``clinic-spastic``.
+Widening the predicted shank force's along component by that much, where the widened
+force reaches the supervisor's limit a PD or CT run with its supervisor on is told so
+before it starts, with the shortest period that keeps it below.  Checked against the
+plant (tests/sim/test_tone_load.py): on the default scenario with the knee 2 cm up or
+back and the exact published cuffs the estimate's along-shank error stays within
+k_u |d| ‖Aᵀu‖ plus 3 N at every tick, and with the knee up reaches 65 % of it.  Over
+the touchdown campaign's 64 spastic patients the 15 whose true shank force passes
+130 N unseen are all told (every one of the 64 is, at 3 cm; at 2 cm 53, 14 of the 15).
+It is a prediction on the nominal patient, not a bound: with each point's own offset as
+the tolerance the widened load fell short of the true peak on 3 of the 15 (point 33:
+136 N against 161 N), the patient's own segments and tone differing from the model's.
+With 2-axis sensors (``--cuff-sensors full``) the supervisor sees the force: it stopped
+points 33, 176 and 179 at 130 N on the estimate, the true force at 129–130 N.
 
 **The QP** holds its own bound by leaving the plan where the load passes what its
 margin leaves under the bound, F_max − m_c (:mod:`exo_ctrl.control.qp.margin`), and
@@ -58,6 +80,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..control.qp.cuff_knowledge import link_normals
 from ..control.qp.margin import share_matrices
 from ..control.qp.prediction import CuffHorizonModel
 from ..exceptions import ExoCtrlError
@@ -67,7 +90,14 @@ from ..plant import MotorParams
 from ..plant.patient import make_patient_torque
 from ..safety.limits import resolve_limits
 
-__all__ = ["PREDICTION_SHARE", "swing_cuff_loads", "tone_applies", "tone_warnings"]
+__all__ = [
+    "PREDICTION_SHARE",
+    "along_reach",
+    "swing_cuff_loads",
+    "tone_applies",
+    "tone_warnings",
+    "unseen_along_N",
+]
 
 #: The share of the supervisor's cuff limit the predicted load may reach [-] (module
 #: docstring: the prediction's measured error, and the estimate the supervisor reads).
@@ -88,17 +118,48 @@ STRIDE = 5
 LONGEST = 2.0
 
 
-def swing_cuff_loads(
-    plan: JointTrajectory, patient: BodyModel, cuffs: CuffHorizonModel
-) -> np.ndarray:
-    """The largest |f_c| per cuff over its leg's swing rows [N], (4,) CUFF_NAMES order.
+def along_reach(model: CuffHorizonModel, q: np.ndarray, q_fit: np.ndarray) -> np.ndarray:
+    """‖Aᵀ u_c‖ per shank cuff, (2,) left, right [-]: its along stretch per metre of knee offset.
 
-    Module docstring.
+    A knee axis d off the device's parts a shank cuff from the limb by
+    Δp = A d, A = (R(θ_s) − R(θ_t)) − (R(θ_s⁰) − R(θ_t⁰)), θ_t, θ_s the thigh and shank
+    links' angles (the cuffs' S_c q) at ``q`` and at the fit ``q_fit`` (the start, where
+    the straps hold the limb: :mod:`exo_ctrl.plant.misalignment`).  Its along-shank part
+    u_cᵀ A d is largest, over every direction of d, at ‖Aᵀ u_c‖ |d| (module docstring,
+    "What the supervisor cannot see").
+    """
+    m = model.record[0]
+    select, u0 = m["select"][:4, :4], m["along0"]
+    theta, theta0 = select @ q, select @ q_fit
+    out = np.empty(2)
+    for leg in range(2):
+        t, s = 2 * leg, 2 * leg + 1
+        a = _rot(theta[s]) - _rot(theta[t]) - _rot(theta0[s]) + _rot(theta0[t])
+        out[leg] = float(np.linalg.norm(a.T @ (_rot(theta[s]) @ u0[s])))
+    return out
+
+
+def _rot(angle: float) -> np.ndarray:
+    """R(θ) in the (x, z) plane, as :func:`~exo_ctrl.control.qp.cuff_knowledge.link_normals`."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+def swing_cuff_loads(
+    plan: JointTrajectory, patient: BodyModel, cuffs: CuffHorizonModel, unseen_N: float = 0.0
+) -> np.ndarray:
+    """The largest |f_c| per cuff over its leg's swing rows [N], (3, 4) CUFF_NAMES order.
+
+    Module docstring.  Row 0 the predicted load; row 1 the same with each shank's
+    along-shank component widened by what the supervisor cannot see,
+    |f| ≤ √(n² + (|a| + unseen_N ‖Aᵀu‖)²) (:func:`along_reach`, the fit at the plan's
+    first row; the thighs as row 0); row 2 the largest unseen_N ‖Aᵀu‖ (the thighs 0).
 
     ``patient``: the device's patient model; ``cuffs``: the device's cuff model (linearised
-    here at each row).  A plan without lift-offs (an exercise) gives zeros.
+    here at each row); ``unseen_N``: k_u (1 + 2s) d_max [N] (module docstring).  A plan
+    without lift-offs (an exercise) gives zeros.
     """
-    out = np.zeros(4)
+    out = np.zeros((3, 4))
     if plan.lift_off_s is None:
         return out
     tone = make_patient_torque("spastic")
@@ -112,11 +173,18 @@ def swing_cuff_loads(
         need = pin.rnea(model, data, q, dq, ddq) - tone(0.0, q, dq, tau_tone)
         cuffs.linearise(q, dq)
         share = share_matrices(cuffs, cuffs.split)
+        normals = link_normals(cuffs, q)
+        reach = unseen_N * along_reach(cuffs, q, plan.q[0])
         for leg in np.flatnonzero(swing):
             force = share[leg] @ need[2 * leg : 2 * leg + 2]  # thigh x, z, shank x, z
-            for k in range(2):
-                c = 2 * leg + k
-                out[c] = max(out[c], float(np.hypot(*force[2 * k : 2 * k + 2])))
+            thigh, shank = 2 * leg, 2 * leg + 1
+            out[:, thigh] = np.maximum(out[:, thigh], np.hypot(*force[:2]))
+            n_x, n_z = normals[shank]
+            normal = n_x * force[2] + n_z * force[3]
+            along = abs(n_x * force[3] - n_z * force[2])  # u = n turned by −90°
+            out[0, shank] = max(out[0, shank], float(np.hypot(normal, along)))
+            out[1, shank] = max(out[1, shank], float(np.hypot(normal, along + reach[leg])))
+            out[2, shank] = max(out[2, shank], reach[leg])
     return out
 
 
@@ -134,6 +202,17 @@ def tone_applies(config: Any) -> bool:
     )
 
 
+def unseen_along_N(config: Any) -> float:
+    """k_u (1 + 2s) d_max [N]: the along-shank force a knee axis d_max off makes per unit ‖Aᵀu‖.
+
+    k_u the device's cuff model's shear stiffness, s the spread it assumes for the true
+    cuffs (a factor within 1 ± 2s), d_max its fit tolerance (:class:`~exo_ctrl.sim.Belief`).
+    """
+    belief = config.belief
+    shear = belief.cuff_model_of(config.cuffs).shear_stiffness_N_per_m
+    return shear * (1.0 + 2.0 * belief.cuff_spread()) * belief.knee_fit_tolerance()
+
+
 def tone_warnings(
     config: Any,
     plan_for: Callable[[Any, BodyModel], JointTrajectory],
@@ -142,7 +221,7 @@ def tone_warnings(
     motor: MotorParams,
     qp_room_N: np.ndarray | None = None,
 ) -> list[str]:
-    """The sentence for a tracking run whose spastic patient's tone nears a shank cuff's limit.
+    """The sentences for a tracking run whose spastic patient's tone nears a shank cuff's limit.
 
     Args:
         config: the run (:class:`~exo_ctrl.sim.SimConfig`).
@@ -157,20 +236,29 @@ def tone_warnings(
             it (module docstring, "The QP"); None: PD or CT, against the supervisor's limit.
 
     Returns:
-        The sentence, one or none (both shank cuffs below their ceiling).
+        The sentences, none to two: the load near the limit; for PD and CT without
+        2-axis cuff sensors, the true force able to pass the limit unseen by the
+        supervisor (module docstring, "What the supervisor cannot see").
 
     """
-    if qp_room_N is None:
+    qp = qp_room_N is not None
+    if not qp:
         limit = resolve_limits(config.safety_limits, exo, patient, motor).cuff_limit[SHANKS]
         ceiling = PREDICTION_SHARE * limit
     else:
         limit = np.asarray(qp_room_N, dtype=float)[SHANKS]
         ceiling = QP_RATIO * limit
+    sees_along = qp or not config.safety or config.cuff_sensors.mode == "full"
+    unseen = 0.0 if sees_along else unseen_along_N(config)
     cuffs = CuffHorizonModel(
         exo, patient, motor, config.belief.cuff_model_of(config.cuffs), config.dt, (1,)
     )
 
+    seen: dict[float, np.ndarray | None] = {}
+
     def loads(period: float) -> np.ndarray | None:
+        if period in seen:
+            return seen[period]
         gait = dataclasses.replace(config.gait, period=period)
         ramp = period if config.ramp_in_s is None else config.ramp_in_s
         run = dataclasses.replace(  # the ramp-in and one period and a half, whatever the run's
@@ -178,52 +266,80 @@ def tone_warnings(
         )
         try:
             plan = plan_for(run, exo)
-            return swing_cuff_loads(plan, patient, cuffs)[SHANKS]
+            seen[period] = swing_cuff_loads(plan, patient, cuffs, unseen)[:, SHANKS]
         except ExoCtrlError:
-            return None
+            seen[period] = None
+        return seen[period]
 
     period = config.gait.period
-    load = loads(period)
-    if load is None or np.all(load < ceiling):
+    now = loads(period)
+    if now is None:
         return []
-    c = int(np.argmax(load / limit))  # left, right
+    out = []
+    load, worst, reach = now
+    if np.any(load >= ceiling):
+        c = int(np.argmax(load / limit))  # left, right
+        below = f"{ceiling.min():.0f} N"
+        if qp:
+            below = f"{QP_RATIO:g} times that room, {below}"
+        hint = _shortest(loads, period, 0, ceiling, f"keeps the shank cuffs' load below {below}")
+        what = (
+            f"the spastic patient's tone loads the {CUFF_NAMES[1 + 2 * c]} cuff to about "
+            f"{load[c]:.0f} N along the plan (the device's patient model moved through its "
+            "stretch reflex at the planned speeds)"
+        )
+        if qp:
+            out.append(
+                f"{what}, {load[c] / limit[c]:.2f} times the {limit[c]:.0f} N the QP's margin "
+                "leaves under its bound: the QP will leave its plan there and the walk is "
+                f"likely to stop on a departure (over the touchdown campaign's spastic "
+                f"patients: {QP_RATIO_MEASURED}); {hint} (docs/performance.md, touchdowns "
+                "under load)"
+            )
+        else:
+            stop = ", and the supervisor may stop the run" if config.safety else ""
+            out.append(
+                f"{what}, past {100 * PREDICTION_SHARE:.0f} % of its limit {limit[c]:.0f} N: "
+                f"the true force can pass the limit in a swing{stop} (the prediction's error "
+                f"over the cohort: {PREDICTION_ERROR_N[0]:+.0f} N, {PREDICTION_ERROR_N[1]:.0f} N "
+                f"standard deviation); {hint} (docs/performance.md, touchdowns under load)"
+            )
+    if unseen > 0.0 and np.any(worst >= limit):
+        c = int(np.argmax(worst / limit))
+        tol = config.belief.knee_fit_tolerance()
+        hint = _shortest(loads, period, 1, limit, "keeps it below the limit")
+        out.append(
+            f"the supervisor reads the shank cuffs' along force from its cuff model (no 2-axis "
+            f"cuff sensors): a knee axis up to {100 * tol:.1f} cm off the device's "
+            f"(belief.knee_fit_tolerance_m) puts up to {reach[c]:.0f} N along the "
+            f"{CUFF_NAMES[1 + 2 * c]} cuff that it cannot see, so with the tone's load of "
+            f"about {load[c]:.0f} N the true force can reach about {worst[c]:.0f} N, past its "
+            f"limit {limit[c]:.0f} N, without a stop; --cuff-sensors full measures it, and "
+            f"{hint} (docs/safety.md, what the supervisor cannot see)"
+        )
+    return out
+
+
+def _shortest(
+    loads: Callable[[float], np.ndarray | None],
+    period: float,
+    row: int,
+    below: np.ndarray,
+    what: str,
+) -> str:
+    """The shortest gait period whose ``loads(T)[row]`` stays below ``below`` (bisection).
+
+    Between ``period`` and :data:`LONGEST` times it, to 0.05 s; in words, ending "… ``what``".
+    """
     low, high = period, LONGEST * period
     fits = loads(high)
-    if fits is None or np.any(fits >= ceiling):
-        hint = f"no gait period up to {high:.2g} s keeps the shank cuffs below that"
-    else:
-        while high - low > 0.05:
-            mid = 0.5 * (low + high)
-            trial = loads(mid)
-            if trial is not None and np.all(trial < ceiling):
-                high = mid
-            else:
-                low = mid
-        below = f"{ceiling.min():.0f} N"
-        if qp_room_N is not None:
-            below = f"{QP_RATIO:g} times that room, {below}"
-        hint = f"a gait period of at least {high:.2f} s keeps the shank cuffs' load below {below}"
-    what = (
-        f"the spastic patient's tone loads the {CUFF_NAMES[1 + 2 * c]} cuff to about "
-        f"{load[c]:.0f} N along the plan (the device's patient model moved through its stretch "
-        "reflex at the planned speeds)"
-    )
-    if qp_room_N is not None:
-        return [
-            f"{what}, {load[c] / limit[c]:.2f} times the {limit[c]:.0f} N the QP's margin "
-            "leaves under its bound: the QP will leave its plan there and the walk is likely "
-            f"to stop on a departure (over the touchdown campaign's spastic patients: "
-            f"{QP_RATIO_MEASURED}); {hint} (docs/performance.md, touchdowns under load)"
-        ]
-    stop = ", and the supervisor may stop the run" if config.safety else ""
-    if config.cuff_sensors.mode != "full":  # the along-shank force is the cuff model's
-        hint += (
-            "; without 2-axis cuff sensors the supervisor reads the shank's along force from "
-            "its cuff model and can miss the excess (--cuff-sensors full measures it)"
-        )
-    return [
-        f"{what}, past {100 * PREDICTION_SHARE:.0f} % of its limit {limit[c]:.0f} N: the true "
-        f"force can pass the limit in a swing{stop} (the prediction's error over the cohort: "
-        f"{PREDICTION_ERROR_N[0]:+.0f} N, {PREDICTION_ERROR_N[1]:.0f} N standard deviation); "
-        f"{hint} (docs/performance.md, touchdowns under load)"
-    ]
+    if fits is None or np.any(fits[row] >= below):
+        return f"no gait period up to {high:.2g} s {what}"
+    while high - low > 0.05:
+        mid = 0.5 * (low + high)
+        trial = loads(mid)
+        if trial is not None and np.all(trial[row] < below):
+            high = mid
+        else:
+            low = mid
+    return f"a gait period of at least {high:.2f} s {what}"
