@@ -248,8 +248,8 @@ def tone_warnings(
     else:
         limit = np.asarray(qp_room_N, dtype=float)[SHANKS]
         ceiling = QP_RATIO * limit
-    sees_along = qp or not config.safety or config.cuff_sensors.mode == "full"
-    unseen = 0.0 if sees_along else unseen_along_N(config)
+    blind = not qp and config.safety and config.cuff_sensors.mode != "full"  # the along force
+    unseen = unseen_along_N(config) if blind else 0.0
     cuffs = CuffHorizonModel(
         exo, patient, motor, config.belief.cuff_model_of(config.cuffs), config.dt, (1,)
     )

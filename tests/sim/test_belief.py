@@ -181,6 +181,14 @@ def test_a_nominal_model_of_another_patient_reads_what_is_not_given(tmp_path: Pa
         ({"patient_sex": "x"}, "patient_sex must be one of female, male; got 'x'"),
         ({"patient_mass_kg": -3.0}, "patient_mass must be > 0 kg; got -3.0"),
         ({"patient": ""}, "controller_patient must be truth, nominal or a URDF path; got ''"),
+        (
+            {"knee_fit_tolerance_m": 0.2},
+            "belief knee_fit_tolerance_m must be in [0, 0.1] m; got 0.2",
+        ),
+        (
+            {"knee_fit_tolerance_m": -0.01},
+            "belief knee_fit_tolerance_m must be in [0, 0.1] m; got -0.01",
+        ),
     ],
 )
 def test_bad_beliefs_are_refused(kwargs: dict, message: str) -> None:
