@@ -306,7 +306,10 @@ def describe_belief(belief: dict[str, Any]) -> str:
     elif patient == "truth":
         patient = "the true patient (perfect knowledge: the ideal comparison)"
     force = belief["safety_cuff_force"]
-    watched = "estimated" if force == "estimate" else "true (a force sensor per cuff: ideal)"
+    watched = {
+        "estimate": "estimated",
+        "widened estimate": "estimated (the shanks' along force widened by what it cannot see)",
+    }.get(force, "true (a force sensor per cuff: ideal)")
     return (
         f"device model: patient {patient}, cuffs {belief['cuffs']}, drive {belief['drive']}, "
         f"estimator {belief['estimator']}, plan {belief.get('plan', 'precomputed')}; "

@@ -209,6 +209,7 @@ LONG_OPTIONS: tuple[LongOption, ...] = (
         form="switch",
         words=("estimate", "truth"),
     ),
+    _o("--safety-widen", "safety.safety_widen", _SAFETY, form="flag"),
     _o("--stop-reaction", "safety.stop_reaction", _SAFETY, choices=STOP_REACTIONS),
     _o("--estop-at", "safety.estop_at_s", _SAFETY),
 )

@@ -245,7 +245,7 @@ class Channel:
 
 def channels(
     limits: ResolvedLimits,
-    use_estimate: bool,
+    use_estimate: bool | str,
     plausible: np.ndarray | None = None,
     belt_limit: float | None = None,
 ) -> tuple[Channel, ...]:
@@ -253,7 +253,8 @@ def channels(
 
     Args:
         limits: the resolved limits (reported in the events).
-        use_estimate: the cuff forces are estimates (``"estimated cuff force ..."``).
+        use_estimate: the cuff forces are estimates (``"estimated cuff force ..."``); a
+            string: the cuff forces' name.
         plausible: the plausibility groups' limits, (6, 4)
             (:func:`~exo_ctrl.safety.plausibility.plausibility_limits`; None: DBL_MAX).
             The consistency group's value is |r| less its model bound
@@ -266,6 +267,8 @@ def channels(
 
     """
     force = "estimated cuff force" if use_estimate else "cuff force"
+    if isinstance(use_estimate, str):
+        force = use_estimate
     zero = np.zeros(4)
     table = (
         (force, "N", limits.cuff_limit, CUFF_NAMES),

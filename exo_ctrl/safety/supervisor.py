@@ -108,7 +108,7 @@ class SafetySupervisor:
             limit and the motor model for the hold voltage).
         dt: control period [s].
         estop_at_s: emergency-stop time [s] (None: no e-stop).
-        use_estimate: the cuff forces given to :meth:`step` are estimates (event wording).
+        use_estimate: the cuff forces given to :meth:`step` are estimates (a string: their name).
         ramp_s: duration of the ramp [s] (0: switch at once; to a yield at most its ramp_s).
         hold_tolerance_rad: largest posture error during the hold [rad].
         hold_kp: hold PD proportional gain [V/rad] (default 100; tracking PD: 300).
@@ -161,7 +161,7 @@ class SafetySupervisor:
         motor: MotorParams,
         dt: float,
         estop_at_s: float | None = None,
-        use_estimate: bool = False,
+        use_estimate: bool | str = False,
         ramp_s: float = 0.2,
         hold_tolerance_rad: float = 0.1,
         hold_kp: float = 100.0,
@@ -237,7 +237,7 @@ class SafetySupervisor:
         if belt_limit is not None:
             self.record["limit"][0][BELT, 0] = belt_limit
         self._channels = channels(
-            resolved, self.use_estimate, self.record["limit"][0][LIMIT_GROUPS:BELT], belt_limit
+            resolved, use_estimate, self.record["limit"][0][LIMIT_GROUPS:BELT], belt_limit
         )
         self._passed = self.record["passed"]  # read once per tick
         self._u_start = np.zeros(4)

@@ -27,6 +27,7 @@ from ..exceptions import InvalidParameter
 from ..plan import PLAN_BYTES_PER_SAMPLE, SpeedProfile
 from ..plan.ramp import ramp_time
 from ..plant import PelvisParams
+from .faults import BELT_STOP_NEEDS
 
 __all__ = [
     "MAX_DURATION_S",
@@ -150,6 +151,30 @@ def check_estop(config: Any) -> None:
         f"in [0, {last:g}] s, within the run",
         f"the run lasts {config.duration_s:g} s; its last control tick is at t = {last:g} s",
     )
+
+
+def check_widen(config: Any) -> None:
+    """Refuse ``safety_widen`` where no supervisor reads the estimate, or with the QP."""
+    if not config.safety_widen or (
+        config.safety and config.safety_use_estimate and config.controller != "qp"
+    ):
+        return
+    raise InvalidParameter(
+        "safety_widen",
+        True,
+        "with the safety supervisor on, watching the estimated cuff forces, and a controller "
+        "other than the QP (which tightens its own bound)",
+    )
+
+
+def check_faults(config: Any) -> None:
+    """Refuse a fault no control tick reaches, or a belt stop without the belt."""
+    last = (config.n_ticks - 1) * config.dt
+    for fault in config.faults:
+        if fault.at_s > last:
+            raise InvalidParameter("fault at_s", fault.at_s, f"in [0, {last:g}] s")
+        if fault.kind == "belt_stop" and not config.contact.enabled:
+            raise InvalidParameter("fault kind", fault.kind, BELT_STOP_NEEDS)
 
 
 def check_ramp_in(config: Any) -> None:

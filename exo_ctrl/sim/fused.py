@@ -145,7 +145,8 @@ class FusedTick:
         """The fused tick of ``runner``, or None where its configuration is not covered.
 
         Covered: the PD or CT controller, the Kalman filter or the momentum observer, the
-        supervisor or none, no faults, one plant step a tick without a patient-torque model;
+        supervisor or none (reading the estimate unwidened), no faults, one plant step a tick
+        without a patient-torque model;
         the belt on or off, the plan synchronised or not (CT's row on the synchronised plan
         takes two RNEA calls between :func:`front` and :func:`rest`), the pelvis fixed or
         supported, the patient's feet on the belt or not.
@@ -157,6 +158,7 @@ class FusedTick:
             and type(setup.controller) in (PDController, ComputedTorqueController)
             and (runner.supervisor is None or type(runner.supervisor) is SafetySupervisor)
             and runner._stages[5] is not None  # one plant step, no patient-torque model
+            and runner._widen is None  # the supervisor reads the estimate as it is
         )
         return cls(runner) if covered else None
 

@@ -38,7 +38,8 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
     soles' contact law: ``"datasheet"`` or ``"given"``), ``estimator``,
     ``plan`` (``"synchronised"`` with the measured belt, or
     ``"precomputed"``) and ``safety_cuff_force`` (``"estimate"``, or
-    ``"truth"``: the plant's forces, a sensor per cuff).
+    ``"widened estimate"``: with ``safety_widen``; ``"truth"``: the plant's forces, a sensor
+    per cuff).
     """
     b = config.belief
     nominal = b.patient == "nominal"
@@ -54,7 +55,11 @@ def device_belief(config: SimConfig) -> dict[str, Any]:
         "soles": "datasheet" if b.soles is None else "given",
         "estimator": estimator_name(config.estimator),
         "plan": "synchronised" if config.synced else "precomputed",
-        "safety_cuff_force": "estimate" if config.safety_use_estimate else "truth",
+        "safety_cuff_force": (
+            ("widened estimate" if config.safety_widen else "estimate")
+            if config.safety_use_estimate
+            else "truth"
+        ),
     }
 
 

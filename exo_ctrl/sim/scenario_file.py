@@ -85,7 +85,7 @@ GROUPS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     (
         "safety",
         "the safety supervisor",
-        ("safety", "safety_use_estimate", "stop_reaction", "estop_at_s"),
+        ("safety", "safety_use_estimate", "safety_widen", "stop_reaction", "estop_at_s"),
     ),
 )
 

@@ -120,7 +120,9 @@ def build_supervisor(
         setup.device_motor,
         config.dt,
         estop_at_s=config.estop_at_s,
-        use_estimate=config.safety_use_estimate,
+        use_estimate="widened cuff force estimate"
+        if config.safety_widen
+        else config.safety_use_estimate,
         sensors=config.sensors,
         compliant_drives=config.joint_compliance.enabled,
         belt=BeltMonitor(

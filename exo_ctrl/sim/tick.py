@@ -34,9 +34,10 @@ from .._jit import record
 from ..control.modes.path import PathController
 from ..estimation import CuffForceEstimator, CuffForceKalman, EstimatorDevice, PluginEstimator
 from ..plan.online import online_step, write_plan
-from ..plant import PatientTorque
+from ..plant import CuffParams, CuffSet, PatientTorque
 from ..safety import SafetySupervisor
 from ..safety.cuff_load import CuffLoadMonitor, cuff_load_schedule
+from ..safety.unseen import AlongWidening
 from ..sensing import (
     BeltEncoder,
     CuffSensors,
@@ -53,6 +54,7 @@ from .log_rows import write_applied, write_measured
 from .schema import log_dtype
 from .setup import Setup, patient_torque_for, start_on_plan
 from .supervision import build_supervisor, departure_for
+from .tone_load import unseen_along_N
 
 __all__ = [
     "UNTIMED_TICKS",
@@ -187,10 +189,17 @@ class Runner:
         #: runs down to rest (BeltParams.stop_decel_mps2): :meth:`_device_stop`.
         self._stop_pending = sup is not None and config.contact.enabled
         self._sup_force = None
+        #: The estimate widened by what the device cannot see (safety_widen; None: off).
+        self._widen: AlongWidening | None = None
         if sup is not None:
             # The estimate, as on the device; the plant's true forces only
             # when asked for (the ideal comparison: a force sensor per cuff).
             self._sup_force = self.sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
+            if config.safety_widen:
+                cuffs = CuffSet(setup.device_exo, setup.device_patient, CuffParams())
+                unseen = 0.0 if config.cuff_sensors.mode == "full" else unseen_along_N(config)
+                self._widen = AlongWidening(cuffs.select, cuffs.along0, unseen)
+                self._sup_force = self._widen.out
         #: The run's fault injector (:mod:`exo_ctrl.sim.faults`; None: no faults).
         self.faults: FaultInjector | None = None
         if config.faults:
@@ -298,6 +307,8 @@ class Runner:
                 # the yield feeds the cuff forces back, its gains set from the bounds
                 self.supervisor.request_stop(k * self._dt, cause, "yield", ctrl.cuff_limits_N)
         if supervise is not None:
+            if self._widen is not None:
+                self._widen(self.sensors.cuff_force_est, readings.q)
             u = supervise(k, k * self._dt, readings, self._sup_force, self._current, u, age)
             self.after_check(k, readings)
         if step is not None:

@@ -54,7 +54,9 @@ It is a prediction on the nominal patient, not a bound: with each point's own of
 the tolerance the widened load fell short of the true peak on 3 of the 15 (point 33:
 136 N against 161 N), the patient's own segments and tone differing from the model's.
 With 2-axis sensors (``--cuff-sensors full``) the supervisor sees the force: it stopped
-points 33, 176 and 179 at 130 N on the estimate, the true force at 129–130 N.
+points 33, 176 and 179 at 130 N on the estimate, the true force at 129–130 N.  With
+``safety_widen`` the supervisor itself watches the estimate so widened
+(:mod:`exo_ctrl.safety.unseen`), and the sentence says it will likely stop the run.
 
 **The QP** holds its own bound by leaving the plan where the load passes what its
 margin leaves under the bound, F_max − m_c (:mod:`exo_ctrl.control.qp.margin`), and
@@ -89,6 +91,7 @@ from ..plan.kinematics import JointTrajectory
 from ..plant import MotorParams
 from ..plant.patient import make_patient_torque
 from ..safety.limits import resolve_limits
+from ..safety.unseen import along_reach_into
 
 __all__ = [
     "PREDICTION_SHARE",
@@ -121,28 +124,20 @@ LONGEST = 2.0
 def along_reach(model: CuffHorizonModel, q: np.ndarray, q_fit: np.ndarray) -> np.ndarray:
     """‖Aᵀ u_c‖ per shank cuff, (2,) left, right [-]: its along stretch per metre of knee offset.
 
-    A knee axis d off the device's parts a shank cuff from the limb by
-    Δp = A d, A = (R(θ_s) − R(θ_t)) − (R(θ_s⁰) − R(θ_t⁰)), θ_t, θ_s the thigh and shank
-    links' angles (the cuffs' S_c q) at ``q`` and at the fit ``q_fit`` (the start, where
-    the straps hold the limb: :mod:`exo_ctrl.plant.misalignment`).  Its along-shank part
-    u_cᵀ A d is largest, over every direction of d, at ‖Aᵀ u_c‖ |d| (module docstring,
-    "What the supervisor cannot see").
+    At ``q`` with the straps fitted at ``q_fit`` (the start), on ``model``'s cuffs
+    (:func:`~exo_ctrl.safety.unseen.along_reach_into`; module docstring, "What the
+    supervisor cannot see").
     """
     m = model.record[0]
-    select, u0 = m["select"][:4, :4], m["along0"]
-    theta, theta0 = select @ q, select @ q_fit
     out = np.empty(2)
-    for leg in range(2):
-        t, s = 2 * leg, 2 * leg + 1
-        a = _rot(theta[s]) - _rot(theta[t]) - _rot(theta0[s]) + _rot(theta0[t])
-        out[leg] = float(np.linalg.norm(a.T @ (_rot(theta[s]) @ u0[s])))
+    along_reach_into(
+        np.ascontiguousarray(m["select"][:4, :4]),
+        np.ascontiguousarray(m["along0"]),
+        np.asarray(q, dtype=float),
+        np.asarray(q_fit, dtype=float),
+        out,
+    )
     return out
-
-
-def _rot(angle: float) -> np.ndarray:
-    """R(θ) in the (x, z) plane, as :func:`~exo_ctrl.control.qp.cuff_knowledge.link_normals`."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s], [s, c]])
 
 
 def swing_cuff_loads(
@@ -306,17 +301,29 @@ def tone_warnings(
             )
     if unseen > 0.0 and np.any(worst >= limit):
         c = int(np.argmax(worst / limit))
-        tol = config.belief.knee_fit_tolerance()
+        cuff, tol = CUFF_NAMES[1 + 2 * c], 100 * config.belief.knee_fit_tolerance()
         hint = _shortest(loads, period, 1, limit, "keeps it below the limit")
-        out.append(
-            f"the supervisor reads the shank cuffs' along force from its cuff model (no 2-axis "
-            f"cuff sensors): a knee axis up to {100 * tol:.1f} cm off the device's "
-            f"(belief.knee_fit_tolerance_m) puts up to {reach[c]:.0f} N along the "
-            f"{CUFF_NAMES[1 + 2 * c]} cuff that it cannot see, so with the tone's load of "
-            f"about {load[c]:.0f} N the true force can reach about {worst[c]:.0f} N, past its "
-            f"limit {limit[c]:.0f} N, without a stop; --cuff-sensors full measures it, and "
-            f"{hint} (docs/safety.md, what the supervisor cannot see)"
+        reach_at = (
+            f"a knee axis up to {tol:.1f} cm off the device's (belief.knee_fit_tolerance_m) "
+            f"puts up to {reach[c]:.0f} N along the {cuff} cuff"
         )
+        if config.safety_widen:
+            out.append(
+                f"the supervisor watches the shank cuffs' estimate widened by the along force "
+                f"it cannot see (--safety-widen): {reach_at}, so with the tone's load of about "
+                f"{load[c]:.0f} N it reads up to about {worst[c]:.0f} N, past its limit "
+                f"{limit[c]:.0f} N, and will likely stop the run; --cuff-sensors full measures "
+                f"the along force, and {hint} (docs/safety.md, what the supervisor cannot see)"
+            )
+        else:
+            out.append(
+                f"the supervisor reads the shank cuffs' along force from its cuff model (no "
+                f"2-axis cuff sensors): {reach_at} that it cannot see, so with the tone's load "
+                f"of about {load[c]:.0f} N the true force can reach about {worst[c]:.0f} N, past "
+                f"its limit {limit[c]:.0f} N, without a stop; --cuff-sensors full measures it, "
+                f"--safety-widen stops on it, and {hint} (docs/safety.md, what the supervisor "
+                "cannot see)"
+            )
     return out
 
 
