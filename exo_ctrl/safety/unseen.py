@@ -66,11 +66,8 @@ def along_reach_into(
         # A = R(θ_s) − R(θ_t) − R(θ_s⁰) + R(θ_t⁰), R = [[c, −s], [s, c]]: A = [[a, −b], [b, a]]
         a = math.cos(th_s) - math.cos(th_t) - math.cos(f_s) + math.cos(f_t)
         b = math.sin(th_s) - math.sin(th_t) - math.sin(f_s) + math.sin(f_t)
-        # u_s = R(θ_s) u₀; ‖Aᵀu‖ = ‖u‖ √(a² + b²) for A of this form (a scaled rotation)
-        c, sn = math.cos(th_s), math.sin(th_s)
-        ux = along0[s, 0] * c - along0[s, 1] * sn
-        uz = along0[s, 1] * c + along0[s, 0] * sn
-        out[leg] = math.sqrt(a * a + b * b) * math.sqrt(ux * ux + uz * uz)
+        # A of this form is a scaled rotation: ‖Aᵀu‖ = √(a² + b²) ‖u‖, ‖u‖ = ‖R(θ_s) u₀‖ = ‖u₀‖
+        out[leg] = math.sqrt(a * a + b * b) * math.hypot(along0[s, 0], along0[s, 1])
 
 
 @kernel
