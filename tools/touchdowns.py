@@ -1,7 +1,7 @@
 """Do the loaded touchdowns hold off the default patient?  A seeded campaign (issue 31, item 4).
 
     .venv/bin/python tools/touchdowns.py [--points N] [--seed S] [--controller ct|qp]
-        [--patients none,active,spastic] [--cycles C] [--json PATH]
+        [--patients none,active,spastic] [--cycles C] [--safety-widen] [--json PATH]
 
 The touchdown bounds (under 0.05 m/s vertically and along the belt, slip RMS
 under 0.02 m/s in stance) are asserted on the default patient
@@ -21,16 +21,20 @@ patient's legs (``tools/load_held.py`` scales hip height and lift so: the
 presets' are for a 1.04 m leg; the period kept, so the belt runs slower
 under shorter legs), for the ramp-in and ``C`` cycles (default 3) with
 ``--controller`` (default ct; qp at the ``clinic-spastic`` preset's bound,
-200 N on the thighs and 120 N on the shanks, for every point).
+200 N on the thighs and 120 N on the shanks, for every point); ``--safety-widen``
+(CT only): the supervisor watches the estimate widened by the along-shank force it
+cannot see (:mod:`exo_ctrl.safety.unseen`).
 
 Prints a progress line, per point its patient, support, the walk's worst
-touchdown (vertical and along the belt) and slip RMS, the supervisor's stop
-if any, and for a point outside the bounds whether the run warned before it
+touchdown (vertical and along the belt) and slip RMS, the largest true and
+estimated shank cuff force (after the estimator's 0.05 s start-up), the
+supervisor's stop if any, and for a point outside the bounds whether the run warned before it
 started (the drives' reach, a device that does not fit, ...: ``warned``) or
 not (``unwarned``); then per patient torque the worst of each figure, the
 share of the points within all three bounds and the points outside them
-unwarned, and each warned point's first warning.  A point the planner
-refuses before the run is listed with its reason.  Exit 0 if every point
+unwarned, the largest true shank force and the points whose true shank force
+passed the supervisor's limit with no stop, and each warned point's first warning.
+A point the planner refuses before the run is listed with its reason.  Exit 0 if every point
 walked without a stop within the bounds, 1 if one did not, 2 on bad input.
 """
 
@@ -67,10 +71,14 @@ NOT_OURS = ("step_length_m", "period_s", "bound_N", "pelvis")
 #: Issue 31's bounds: touchdown vertical and along the belt, slip RMS in stance [m/s].
 BOUND_MPS = 0.05
 SLIP_RMS_MPS = 0.02
+#: The shank forces are compared after the estimator's start-up [s] (as the summary's errors).
+ESTIMATE_START_S = 0.05
 
 
-def point_config(point: dict[str, Any], folder: Path, controller: str, cycles: int) -> SimConfig:
-    """The point's run on its preset, its URDFs written into ``folder``."""
+def point_config(
+    point: dict[str, Any], folder: Path, controller: str, cycles: int, widen: bool = False
+) -> SimConfig:
+    """The point's run on its preset, its URDFs in ``folder`` (``widen``: safety_widen)."""
     base = load_scenario(preset=PRESET[point["patient_torque"]]).config
     exo, patient, k = point_bodies(point, folder)
     gait = dataclasses.replace(  # the preset's gait for these legs: lengths in proportion
@@ -95,14 +103,18 @@ def point_config(point: dict[str, Any], folder: Path, controller: str, cycles: i
         cuff_scatter=CuffScatter(seed=point["cuff_seed"]),
         cuff_force_limit_N=load_scenario(preset="clinic-spastic").config.cuff_force_limit_N,
         belief=device_belief(point),
+        safety_widen=widen,
     )
 
 
-def run_point(point: dict[str, Any], folder: Path, controller: str, cycles: int) -> dict:
-    """Walk one point: its touchdowns and slip, the supervisor's stop, or why it was refused."""
+def run_point(
+    point: dict[str, Any], folder: Path, controller: str, cycles: int, widen: bool = False
+) -> dict:
+    """Walk one point: its touchdowns and slip, its shank forces, the supervisor's stop, or
+    why it was refused."""
     out = {k: v for k, v in point.items() if k not in NOT_OURS}
     try:
-        config = point_config(point, folder, controller, cycles)
+        config = point_config(point, folder, controller, cycles, widen)
         g = config.gait
         out.update(step_length_m=g.step_length, period_s=g.period, hip_height_m=g.hip_height)
         result = simulate(config)
@@ -111,6 +123,14 @@ def run_point(point: dict[str, Any], folder: Path, controller: str, cycles: int)
         return out
     s = result.summary()
     stops = [e for e in result.events if e["kind"] == "violation"]
+    after = result.t > ESTIMATE_START_S
+    shank = np.linalg.norm(result.cuff_force[after][:, 1::2], axis=2)
+    shank_est = np.linalg.norm(result.signals["cuff_force_est"][after][:, 1::2], axis=2)
+    out.update(
+        shank_N=float(shank.max()),
+        shank_est_N=float(shank_est.max()),
+        shank_limit_N=float(config.safety_limits.cuff_limit_N[1]),
+    )
     out.update(
         outcome=result.status,
         touchdowns=s["touchdown_count"],
@@ -132,7 +152,10 @@ def run_point(point: dict[str, Any], folder: Path, controller: str, cycles: int)
 
 def report(results: list[dict[str, Any]]) -> tuple[str, bool]:
     """The table and the closing lines; and whether every point held."""
-    lines = ["  #  patient  height   mass  knee_cm   bws  down_mps along_mps slip_rms  stop"]
+    lines = [
+        "  #  patient  height   mass  knee_cm   bws  down_mps along_mps slip_rms "
+        "shank_N est_N  stop"
+    ]
     for r in results:
         knee = 100 * float(np.hypot(*r["knee_xz"]))
         head = (
@@ -144,8 +167,8 @@ def report(results: list[dict[str, Any]]) -> tuple[str, bool]:
             continue
         mark = "" if r["held"] else ("  <- warned" if r["warnings"] else "  <- unwarned")
         lines.append(
-            f"{head} {r['down_mps']:9.3f} {r['along_mps']:9.3f} {r['slip_rms_mps']:8.4f}  "
-            f"{r['stop'] or '-'}{mark}"
+            f"{head} {r['down_mps']:9.3f} {r['along_mps']:9.3f} {r['slip_rms_mps']:8.4f} "
+            f"{r['shank_N']:7.1f} {r['shank_est_N']:5.1f}  {r['stop'] or '-'}{mark}"
         )
     ran = [r for r in results if r["outcome"] != "refused"]
     lines.append(f"{len(results)} points: {len(ran)} walked, {len(results) - len(ran)} refused")
@@ -159,13 +182,20 @@ def report(results: list[dict[str, Any]]) -> tuple[str, bool]:
                 f"{max(r['along_mps'] for r in group):.3f} / "
                 f"{max(r['slip_rms_mps'] for r in group):.4f} m/s, "
                 f"{sum(r['stop'] is not None for r in group)} stopped, "
-                f"{sum(not r['held'] and not r['warnings'] for r in group)} outside unwarned"
+                f"{sum(not r['held'] and not r['warnings'] for r in group)} outside unwarned; "
+                f"true shank force up to {max(r['shank_N'] for r in group):.1f} N, past the "
+                f"supervisor's limit with no stop on {sum(_unseen(r) for r in group)}"
             )
     held = bool(ran) and all(r["held"] for r in ran) and len(ran) == len(results)
     for r in ran:
         if not r["held"] and r["warnings"]:
             lines.append(f"point {r['index']} was warned before the run: {r['warnings'][0]}")
     return "\n".join(lines), held
+
+
+def _unseen(r: dict[str, Any]) -> bool:
+    """The point's true shank force passed the supervisor's limit and nothing stopped it."""
+    return r["stop"] is None and r["shank_N"] > r["shank_limit_N"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -179,11 +209,22 @@ def main(argv: list[str] | None = None) -> int:
         help="patient torques to draw from, comma-separated (default none,active,spastic)",
     )
     p.add_argument("--cycles", type=int, default=3, help="cycles after the ramp-in (default 3)")
+    p.add_argument(
+        "--safety-widen",
+        action="store_true",
+        help="the supervisor watches the estimate widened by the along-shank force it cannot "
+        "see (CT only)",
+    )
     p.add_argument("--json", type=Path, default=None, help="write the points here")
     args = p.parse_args(argv)
     patients = tuple(args.patients.split(","))
     if not patients or any(x not in PATIENTS for x in patients):
         print(f"touchdowns: --patients must name some of {PATIENTS}", file=sys.stderr)
+        return 2
+    if args.safety_widen and args.controller == "qp":
+        print(
+            "touchdowns: --safety-widen is for CT (the QP tightens its own bound)", file=sys.stderr
+        )
         return 2
     if args.points < 1 or args.seed < 0 or args.cycles < 1:
         print("touchdowns: --points and --cycles must be >= 1, --seed >= 0", file=sys.stderr)
@@ -193,7 +234,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     points = draw_points(args.points, args.seed, patients, ("supported",))
     results = run_points(
-        points, lambda p, folder: run_point(p, folder, args.controller, args.cycles), "touchdowns"
+        points,
+        lambda p, folder: run_point(p, folder, args.controller, args.cycles, args.safety_widen),
+        "touchdowns",
     )
     text, held = report(results)
     print(text)
