@@ -197,8 +197,7 @@ class Runner:
             self._sup_force = self.sensors.cuff_force_est if sup.use_estimate else plant.cuff_force
             if config.safety_widen:
                 cuffs = CuffSet(setup.device_exo, setup.device_patient, CuffParams())
-                unseen = 0.0 if config.cuff_sensors.mode == "full" else unseen_along_N(config)
-                self._widen = AlongWidening(cuffs.select, cuffs.along0, unseen)
+                self._widen = AlongWidening(cuffs.select, cuffs.along0, unseen_along_N(config))
                 self._sup_force = self._widen.out
         #: The run's fault injector (:mod:`exo_ctrl.sim.faults`; None: no faults).
         self.faults: FaultInjector | None = None

@@ -202,7 +202,10 @@ def unseen_along_N(config: Any) -> float:
 
     k_u the device's cuff model's shear stiffness, s the spread it assumes for the true
     cuffs (a factor within 1 ± 2s), d_max its fit tolerance (:class:`~exo_ctrl.sim.Belief`).
+    0 with 2-axis cuff sensors (``--cuff-sensors full``): they measure the along force.
     """
+    if config.cuff_sensors.mode == "full":
+        return 0.0
     belief = config.belief
     shear = belief.cuff_model_of(config.cuffs).shear_stiffness_N_per_m
     return shear * (1.0 + 2.0 * belief.cuff_spread()) * belief.knee_fit_tolerance()
@@ -243,8 +246,7 @@ def tone_warnings(
     else:
         limit = np.asarray(qp_room_N, dtype=float)[SHANKS]
         ceiling = QP_RATIO * limit
-    blind = not qp and config.safety and config.cuff_sensors.mode != "full"  # the along force
-    unseen = unseen_along_N(config) if blind else 0.0
+    unseen = unseen_along_N(config) if not qp and config.safety else 0.0
     cuffs = CuffHorizonModel(
         exo, patient, motor, config.belief.cuff_model_of(config.cuffs), config.dt, (1,)
     )
